@@ -1,0 +1,87 @@
+# vloc's build helpers: one function each for libraries, processes/tools,
+# tests and benchmarks. Sources are always listed explicitly; flags are per
+# target.
+
+function(vloc_target_flags target)
+  target_compile_options(${target} PRIVATE -Wall -Wextra -Wno-unused-parameter)
+  if(VLOC_WARNINGS_AS_ERRORS)
+    target_compile_options(${target} PRIVATE -Werror)
+  endif()
+  if(VLOC_SANITIZE)
+    target_compile_options(${target} PRIVATE -fsanitize=address,undefined -fno-omit-frame-pointer)
+    target_link_options(${target} PRIVATE -fsanitize=address,undefined)
+  endif()
+endfunction()
+
+# vloc_add_library(NAME SOURCES a.cpp ... DEPS target ...)
+# Creates vloc_<NAME> with alias vloc::<NAME>; headers in include/ are public.
+function(vloc_add_library name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS;PRIVATE_DEPS" ${ARGN})
+  set(target vloc_${name})
+  add_library(${target} STATIC ${ARG_SOURCES})
+  add_library(vloc::${name} ALIAS ${target})
+  target_include_directories(${target} PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/include)
+  target_link_libraries(${target} PUBLIC ${ARG_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+  set_target_properties(${target} PROPERTIES POSITION_INDEPENDENT_CODE ON)
+  vloc_target_flags(${target})
+endfunction()
+
+# vloc_add_proc(NAME SOURCES main.cpp ... DEPS target ...)
+# An executable (process or command-line tool) placed in <build>/bin.
+function(vloc_add_proc name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS" ${ARGN})
+  add_executable(${name} ${ARG_SOURCES})
+  target_link_libraries(${name} PRIVATE ${ARG_DEPS})
+  set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/bin)
+  vloc_target_flags(${name})
+endfunction()
+
+# vloc_add_test(NAME SOURCES t.cpp ... DEPS target ... [LABELS l ...] [TIMEOUT s] [GTEST])
+# A test executable registered with CTest. GTEST links gtest_main. The test
+# runs from the source root so paths like config/x.yaml resolve, and gets
+# VLOC_BIN_DIR / VLOC_SOURCE_DIR in its environment.
+function(vloc_add_test name)
+  cmake_parse_arguments(ARG "GTEST" "TIMEOUT" "SOURCES;DEPS;LABELS;ARGS" ${ARGN})
+  add_executable(${name} ${ARG_SOURCES})
+  target_link_libraries(${name} PRIVATE ${ARG_DEPS})
+  if(ARG_GTEST)
+    target_link_libraries(${name} PRIVATE GTest::gtest GTest::gtest_main GTest::gmock)
+  endif()
+  set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/tests)
+  target_compile_definitions(${name} PRIVATE
+    VLOC_SOURCE_DIR="${CMAKE_SOURCE_DIR}" VLOC_BIN_DIR="${CMAKE_BINARY_DIR}/bin")
+  vloc_target_flags(${name})
+  add_test(NAME ${name} COMMAND ${name} ${ARG_ARGS} WORKING_DIRECTORY ${CMAKE_SOURCE_DIR})
+  if(NOT ARG_TIMEOUT)
+    set(ARG_TIMEOUT 300)
+  endif()
+  set_tests_properties(${name} PROPERTIES TIMEOUT ${ARG_TIMEOUT}
+    ENVIRONMENT "VLOC_BIN_DIR=${CMAKE_BINARY_DIR}/bin;VLOC_SOURCE_DIR=${CMAKE_SOURCE_DIR};VLOC_BUILD_DIR=${CMAKE_BINARY_DIR}")
+  if(ARG_LABELS)
+    set_tests_properties(${name} PROPERTIES LABELS "${ARG_LABELS}")
+  endif()
+endfunction()
+
+# vloc_add_benchmark(NAME SOURCES b.cpp ... DEPS target ...)
+# A Google Benchmark program in <build>/bench (not run by ctest).
+function(vloc_add_benchmark name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS" ${ARGN})
+  if(NOT VLOC_BUILD_BENCHMARKS)
+    return()
+  endif()
+  add_executable(${name} ${ARG_SOURCES})
+  target_link_libraries(${name} PRIVATE ${ARG_DEPS} benchmark::benchmark)
+  set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/bench)
+  target_compile_definitions(${name} PRIVATE VLOC_SOURCE_DIR="${CMAKE_SOURCE_DIR}")
+  vloc_target_flags(${name})
+endfunction()
+
+# Adds each listed subdirectory that exists (parts of the tree land at
+# different times; a missing folder is skipped, not an error).
+function(vloc_add_subdirectories)
+  foreach(dir ${ARGN})
+    if(EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/${dir}/CMakeLists.txt)
+      add_subdirectory(${dir})
+    endif()
+  endforeach()
+endfunction()

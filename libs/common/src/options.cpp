@@ -1,0 +1,176 @@
+#include "vloc/common/options.h"
+
+#include <algorithm>
+#include <cstdint>
+#include <filesystem>
+#include <sstream>
+
+namespace vloc {
+
+bool Fail(std::string* error, const std::string& message) {
+  if (error) *error = message;
+  return false;
+}
+
+namespace {
+
+YAML::Node ResolveIncludes(const YAML::Node& node, const std::filesystem::path& dir, int depth) {
+  if (depth > 16) throw ConfigError("config include nesting deeper than 16 (include loop?)");
+  if (node.IsMap()) {
+    if (node.size() == 1 && node["include"] && node["include"].IsScalar()) {
+      const auto path = dir / node["include"].as<std::string>();
+      YAML::Node included;
+      try {
+        included = YAML::LoadFile(path.string());
+      } catch (const YAML::Exception& e) {
+        throw ConfigError("cannot read included config " + path.string() + ": " + e.what());
+      }
+      return ResolveIncludes(included, path.parent_path(), depth + 1);
+    }
+    YAML::Node out(YAML::NodeType::Map);
+    for (const auto& kv : node) out[kv.first] = ResolveIncludes(kv.second, dir, depth);
+    return out;
+  }
+  if (node.IsSequence()) {
+    YAML::Node out(YAML::NodeType::Sequence);
+    for (const auto& v : node) out.push_back(ResolveIncludes(v, dir, depth));
+    return out;
+  }
+  return node;
+}
+
+size_t EditDistance(const std::string& a, const std::string& b) {
+  std::vector<size_t> prev(b.size() + 1), cur(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) prev[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    cur[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j)
+      cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
+    std::swap(prev, cur);
+  }
+  return prev[b.size()];
+}
+
+template <class T>
+const char* TypeName() {
+  if constexpr (std::is_same_v<T, bool>) return "true or false";
+  else if constexpr (std::is_integral_v<T>) return "an integer";
+  else if constexpr (std::is_floating_point_v<T>) return "a number";
+  else if constexpr (std::is_same_v<T, std::string>) return "a string";
+  else return "a list";
+}
+
+template <class T>
+T Decode(const YAML::Node& n) {
+  if constexpr (std::is_same_v<T, Eigen::Vector2d> || std::is_same_v<T, Eigen::Vector3d>) {
+    T v;
+    if (!n.IsSequence() || n.size() != static_cast<size_t>(v.size())) throw YAML::BadConversion(n.Mark());
+    for (int i = 0; i < v.size(); ++i) v[i] = n[i].as<double>();
+    return v;
+  } else {
+    return n.as<T>();
+  }
+}
+
+template <class T>
+YAML::Node Encode(const T& v) {
+  if constexpr (std::is_same_v<T, Eigen::Vector2d> || std::is_same_v<T, Eigen::Vector3d>) {
+    YAML::Node n(YAML::NodeType::Sequence);
+    for (int i = 0; i < v.size(); ++i) n.push_back(v[i]);
+    n.SetStyle(YAML::EmitterStyle::Flow);
+    return n;
+  } else {
+    YAML::Node n;
+    n = v;
+    if constexpr (!std::is_arithmetic_v<T> && !std::is_same_v<T, std::string>) n.SetStyle(YAML::EmitterStyle::Flow);
+    return n;
+  }
+}
+
+}  // namespace
+
+YAML::Node LoadYamlFile(const std::string& path) {
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    throw ConfigError("cannot read config file " + path + ": no such file or not readable");
+  } catch (const YAML::Exception& e) {
+    throw ConfigError("config file " + path + " is not valid YAML: " + e.what());
+  }
+  return ResolveIncludes(root, std::filesystem::path(path).parent_path(), 0);
+}
+
+OptionsReader::OptionsReader(YAML::Node node, std::string context)
+    : node_(std::move(node)), context_(std::move(context)), echo_(YAML::NodeType::Map) {
+  if (node_ && !node_.IsNull() && !node_.IsMap())
+    throw ConfigError(context_ + ": expected a map of options");
+}
+
+void OptionsReader::Throw(const std::string& key, const std::string& what) const {
+  throw ConfigError(context_ + "." + key + ": " + what);
+}
+
+template <class T>
+void OptionsReader::Read(const std::string& key, T* value, bool required, const char* /*comment*/) {
+  visited_.insert(key);
+  const YAML::Node n = (node_ && node_.IsMap()) ? node_[key] : YAML::Node();
+  if (!n || n.IsNull()) {
+    if (required) Throw(key, "required key missing; add it to the config file");
+  } else {
+    try {
+      *value = Decode<T>(n);
+    } catch (const YAML::Exception&) {
+      Throw(key, std::string("expected ") + TypeName<T>() + ", got '" + YAML::Dump(n) + "'");
+    }
+  }
+  echo_[key] = Encode(*value);
+}
+
+#define VLOC_INSTANTIATE(T) \
+  template void OptionsReader::Read<T>(const std::string&, T*, bool, const char*);
+VLOC_INSTANTIATE(bool)
+VLOC_INSTANTIATE(int)
+VLOC_INSTANTIATE(int64_t)
+VLOC_INSTANTIATE(uint64_t)
+VLOC_INSTANTIATE(double)
+VLOC_INSTANTIATE(float)
+VLOC_INSTANTIATE(std::string)
+VLOC_INSTANTIATE(std::vector<double>)
+VLOC_INSTANTIATE(std::vector<int>)
+VLOC_INSTANTIATE(std::vector<std::string>)
+VLOC_INSTANTIATE(Eigen::Vector2d)
+VLOC_INSTANTIATE(Eigen::Vector3d)
+#undef VLOC_INSTANTIATE
+
+void OptionsReader::Child(const std::string& key, const std::function<void(OptionsReader&)>& visit) {
+  visited_.insert(key);
+  const YAML::Node n = (node_ && node_.IsMap()) ? node_[key] : YAML::Node();
+  OptionsReader child(n ? n : YAML::Node(YAML::NodeType::Map), context_ + "." + key);
+  visit(child);
+  child.Finish();
+  echo_[key] = child.echo_;
+}
+
+void OptionsReader::Finish() const {
+  if (!node_ || !node_.IsMap()) return;
+  for (const auto& kv : node_) {
+    const std::string key = kv.first.as<std::string>();
+    if (visited_.count(key)) continue;
+    std::string best;
+    size_t best_d = 3;
+    for (const auto& k : visited_) {
+      const size_t d = EditDistance(key, k);
+      if (d < best_d) best_d = d, best = k;
+    }
+    Throw(key, "unknown key" + (best.empty() ? std::string("; remove it") : "; did you mean '" + best + "'?"));
+  }
+}
+
+std::string OptionsReader::Echo() const {
+  YAML::Emitter out;
+  out << echo_;
+  return out.c_str();
+}
+
+}  // namespace vloc

@@ -1,0 +1,55 @@
+#pragma once
+// The common start-up and main loop of every vloc process:
+//   auto setup = vloc::SetupProcess(argc, argv, {...});
+//   if (!setup) return 1;
+//   ... build library objects and subscribe on *setup->transport ...
+//   return vloc::RunUntilSignal(*setup->transport, 100, on_idle);
+
+#include <yaml-cpp/yaml.h>
+
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "vloc/common/command_line.h"
+#include "vloc/lcm_io/transport.h"
+
+namespace vloc {
+
+struct ProcessSetupOptions {
+  std::string name;                       // process name, for messages
+  std::vector<std::string> extra_flags;   // --flags beyond config, lcm-url, help
+  bool config_required = true;            // --config must be given
+  std::string usage;                      // one line of usage text
+};
+
+struct ProcessSetup {
+  CommandLine args;
+  std::string config_path;                // empty when no --config
+  YAML::Node config;                      // the config file without its lcm_url key
+  std::string lcm_url;                    // the URL in use
+  std::unique_ptr<Transport> transport;
+};
+
+// Parses --config FILE, --lcm-url URL and the extra flags, loads the
+// config (its optional top-level `lcm_url` key is taken out) and starts LCM
+// (URL: --lcm-url, else the config's lcm_url, else $LCM_DEFAULT_URL, else
+// the default). On any error prints one line naming the problem and returns
+// nullopt; the caller exits with status 1. Blocks SIGINT and SIGTERM so
+// RunUntilSignal can wait for them.
+std::optional<ProcessSetup> SetupProcess(int argc, char** argv, const ProcessSetupOptions& options);
+
+// Dispatches messages until SIGINT or SIGTERM arrives (or `should_stop`
+// returns true), calling on_idle after every wait of up to timeout_ms.
+// Returns the exit code (0 after a signal).
+int RunUntilSignal(Transport& transport, int timeout_ms, const std::function<void()>& on_idle = {},
+                   const std::function<bool()>& should_stop = {});
+
+// Blocks SIGINT/SIGTERM for this thread (and threads it starts later) and
+// returns true once one is pending (non-blocking check).
+void BlockStopSignals();
+bool StopSignalPending();
+
+}  // namespace vloc

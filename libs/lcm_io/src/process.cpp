@@ -1,0 +1,90 @@
+#include "vloc/lcm_io/process.h"
+
+#include <glog/logging.h>
+#include <signal.h>
+
+#include <ctime>
+#include <iostream>
+
+#include "vloc/common/options.h"
+
+namespace vloc {
+
+void BlockStopSignals() {
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &set, nullptr);
+}
+
+bool StopSignalPending() {
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  timespec zero{0, 0};
+  return sigtimedwait(&set, nullptr, &zero) > 0;
+}
+
+std::optional<ProcessSetup> SetupProcess(int argc, char** argv, const ProcessSetupOptions& options) {
+  ProcessSetup setup;
+  std::vector<std::string> known = {"config", "lcm-url", "help"};
+  known.insert(known.end(), options.extra_flags.begin(), options.extra_flags.end());
+  std::string error;
+  if (!setup.args.Parse(argc, argv, known, &error)) {
+    std::cerr << options.name << ": " << error << "\n";
+    return std::nullopt;
+  }
+  if (setup.args.Has("help")) {
+    std::cerr << "usage: " << options.name << " " << options.usage << "\n";
+    return std::nullopt;
+  }
+  setup.config_path = setup.args.Get("config");
+  if (setup.config_path.empty() && options.config_required) {
+    std::cerr << options.name << ": --config FILE is required (see config/procs/)\n";
+    return std::nullopt;
+  }
+  std::string configured_url;
+  if (!setup.config_path.empty()) {
+    try {
+      setup.config = LoadYamlFile(setup.config_path);
+    } catch (const ConfigError& e) {
+      std::cerr << options.name << ": " << e.what() << "\n";
+      return std::nullopt;
+    }
+    if (setup.config.IsMap() && setup.config["lcm_url"]) {
+      configured_url = setup.config["lcm_url"].as<std::string>("");
+      setup.config.remove("lcm_url");
+    }
+  }
+  if (setup.args.Has("lcm-url")) configured_url = setup.args.Get("lcm-url");
+  setup.lcm_url = ResolveLcmUrl(configured_url);
+  BlockStopSignals();
+  setup.transport = MakeLcmTransport(setup.lcm_url, &error);
+  if (!setup.transport) {
+    std::cerr << options.name << ": " << error << "\n";
+    return std::nullopt;
+  }
+  LOG(INFO) << options.name << " started, LCM URL " << setup.lcm_url
+            << (setup.config_path.empty() ? "" : ", config " + setup.config_path);
+  return setup;
+}
+
+int RunUntilSignal(Transport& transport, int timeout_ms, const std::function<void()>& on_idle,
+                   const std::function<bool()>& should_stop) {
+  while (true) {
+    if (StopSignalPending()) {
+      LOG(INFO) << "stop signal received, shutting down";
+      return 0;
+    }
+    if (should_stop && should_stop()) return 0;
+    if (transport.Handle(timeout_ms) < 0) {
+      LOG(ERROR) << "LCM transport error; exiting";
+      return 2;
+    }
+    if (on_idle) on_idle();
+  }
+}
+
+}  // namespace vloc

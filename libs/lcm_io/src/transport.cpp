@@ -1,0 +1,121 @@
+#include "vloc/lcm_io/transport.h"
+
+#include <lcm/lcm-cpp.hpp>
+
+#include <cstdlib>
+#include <regex>
+
+namespace vloc {
+
+const char* const kDefaultLcmUrl = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=33554432";
+
+std::string ResolveLcmUrl(const std::string& configured) {
+  if (!configured.empty()) return configured;
+  if (const char* env = std::getenv("LCM_DEFAULT_URL"); env && *env) return env;
+  return kDefaultLcmUrl;
+}
+
+namespace {
+
+class LcmTransport : public Transport {
+ public:
+  explicit LcmTransport(const std::string& url) : lcm_(url) {}
+  bool good() { return lcm_.good(); }
+
+  bool Publish(const std::string& channel, const void* data, size_t size) override {
+    return lcm_.publish(channel, data, static_cast<unsigned int>(size)) == 0;
+  }
+
+  int Subscribe(const std::string& channel, RawHandler handler, int queue_capacity) override {
+    auto holder = std::make_unique<Holder>();
+    holder->handler = std::move(handler);
+    holder->subscription = lcm_.subscribeFunction(channel, &LcmTransport::Dispatch, holder.get());
+    holder->subscription->setQueueCapacity(queue_capacity);
+    const int id = next_id_++;
+    holders_[id] = std::move(holder);
+    return id;
+  }
+
+  void Unsubscribe(int id) override {
+    auto it = holders_.find(id);
+    if (it == holders_.end()) return;
+    lcm_.unsubscribe(it->second->subscription);
+    holders_.erase(it);
+  }
+
+  int Handle(int timeout_ms) override { return lcm_.handleTimeout(timeout_ms); }
+
+ private:
+  struct Holder {
+    RawHandler handler;
+    lcm::Subscription* subscription = nullptr;
+  };
+  static void Dispatch(const lcm::ReceiveBuffer* rbuf, const std::string& channel, Holder* holder) {
+    holder->handler(channel, static_cast<const uint8_t*>(rbuf->data), rbuf->data_size);
+  }
+
+  lcm::LCM lcm_;
+  std::map<int, std::unique_ptr<Holder>> holders_;
+  int next_id_ = 1;
+};
+
+}  // namespace
+
+std::unique_ptr<Transport> MakeLcmTransport(const std::string& url, std::string* error) {
+  auto transport = std::make_unique<LcmTransport>(url);
+  if (!transport->good()) {
+    if (error) {
+      *error = "LCM could not start on '" + url +
+               "': no multicast route? Fix: sudo ip route add 224.0.0.0/4 dev lo "
+               "(or set LCM_DEFAULT_URL / lcm_url to a reachable URL)";
+    }
+    return nullptr;
+  }
+  return transport;
+}
+
+bool MockTransport::Publish(const std::string& channel, const void* data, size_t size) {
+  const auto* bytes = static_cast<const uint8_t*>(data);
+  queue_.emplace_back(channel, std::vector<uint8_t>(bytes, bytes + size));
+  last_[channel] = queue_.back().second;
+  ++counts_[channel];
+  return true;
+}
+
+int MockTransport::Subscribe(const std::string& channel, RawHandler handler, int /*queue_capacity*/) {
+  const int id = next_id_++;
+  subscriptions_[id] = {channel, std::move(handler)};
+  return id;
+}
+
+void MockTransport::Unsubscribe(int id) { subscriptions_.erase(id); }
+
+int MockTransport::Handle(int /*timeout_ms*/) {
+  if (queue_.empty()) return 0;
+  auto [channel, bytes] = std::move(queue_.front());
+  queue_.pop_front();
+  // Copy: a handler may subscribe or unsubscribe while we iterate.
+  auto subscriptions = subscriptions_;
+  for (auto& [id, sub] : subscriptions) {
+    if (std::regex_match(channel, std::regex(sub.pattern))) sub.handler(channel, bytes.data(), bytes.size());
+  }
+  return 1;
+}
+
+int MockTransport::HandleAll() {
+  int n = 0;
+  while (Handle(0) > 0) ++n;
+  return n;
+}
+
+int MockTransport::Count(const std::string& channel) const {
+  auto it = counts_.find(channel);
+  return it == counts_.end() ? 0 : it->second;
+}
+
+const std::vector<uint8_t>* MockTransport::Last(const std::string& channel) const {
+  auto it = last_.find(channel);
+  return it == last_.end() ? nullptr : &it->second;
+}
+
+}  // namespace vloc
