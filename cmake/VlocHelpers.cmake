@@ -78,8 +78,13 @@ endfunction()
 
 # Adds each listed subdirectory that exists (parts of the tree land at
 # different times; a missing folder is skipped, not an error).
+# VLOC_ONLY_DIRS (cache, optional): when set, only these folder names are
+# added - for building one part of the tree while others are mid-change.
 function(vloc_add_subdirectories)
   foreach(dir ${ARGN})
+    if(VLOC_ONLY_DIRS AND NOT dir IN_LIST VLOC_ONLY_DIRS)
+      continue()
+    endif()
     if(EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/${dir}/CMakeLists.txt)
       add_subdirectory(${dir})
     endif()

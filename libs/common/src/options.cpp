@@ -1,6 +1,7 @@
 #include "vloc/common/options.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <cstdint>
 #include <filesystem>
 #include <sstream>
@@ -79,6 +80,10 @@ YAML::Node Encode(const T& v) {
     for (int i = 0; i < v.size(); ++i) n.push_back(v[i]);
     n.SetStyle(YAML::EmitterStyle::Flow);
     return n;
+  } else if constexpr (std::is_floating_point_v<T>) {
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%.12g", static_cast<double>(v));
+    return YAML::Node(std::string(buf));
   } else {
     YAML::Node n;
     n = v;

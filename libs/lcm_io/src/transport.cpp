@@ -2,6 +2,9 @@
 
 #include <lcm/lcm-cpp.hpp>
 
+#include <unistd.h>
+
+#include <cstdio>
 #include <cstdlib>
 #include <regex>
 
@@ -62,8 +65,28 @@ class LcmTransport : public Transport {
 }  // namespace
 
 std::unique_ptr<Transport> MakeLcmTransport(const std::string& url, std::string* error) {
+  // LCM prints a multi-line explanation to stderr when it cannot start; hold
+  // stderr while it starts so a failure is reported in our one line, and
+  // pass LCM's text through when it starts fine.
+  std::fflush(stderr);
+  const int saved_stderr = dup(2);
+  FILE* held = std::tmpfile();
+  if (held && saved_stderr >= 0) dup2(fileno(held), 2);
   auto transport = std::make_unique<LcmTransport>(url);
-  if (!transport->good()) {
+  const bool good = transport->good();
+  if (held && saved_stderr >= 0) {
+    std::fflush(stderr);
+    dup2(saved_stderr, 2);
+    if (good) {
+      std::rewind(held);
+      char buf[512];
+      size_t n;
+      while ((n = std::fread(buf, 1, sizeof(buf), held)) > 0) std::fwrite(buf, 1, n, stderr);
+    }
+  }
+  if (held) std::fclose(held);
+  if (saved_stderr >= 0) close(saved_stderr);
+  if (!good) {
     if (error) {
       *error = "LCM could not start on '" + url +
                "': no multicast route? Fix: sudo ip route add 224.0.0.0/4 dev lo "

@@ -66,7 +66,7 @@ std::shared_ptr<SubscriptionStats> Subscribe(Transport& transport, const std::st
         }
         if (!decoded) {
           ++stats->decode_failures;
-          LOG(ERROR) << "channel " << ch << ": a message of " << size << " bytes is not a "
+          LOG(ERROR) << "channel " << ch << ": a message of " << size << " bytes is not of type vloc::"
                      << Msg::getTypeName() << " (wrong type or corrupt); skipped";
           return;
         }

@@ -1,0 +1,225 @@
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <random>
+
+#include "vloc/common/camera.h"
+#include "vloc/common/command_line.h"
+#include "vloc/common/options.h"
+#include "vloc/common/pose.h"
+
+namespace vloc {
+namespace {
+
+TEST(Pose, RollPitchYawRoundTrip) {
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> u(-1.2, 1.2);
+  for (int i = 0; i < 100; ++i) {
+    const Eigen::Vector3d rpy(u(rng), u(rng), 2.5 * u(rng));
+    const Eigen::Vector3d back = RollPitchYawFromRotation(RotationFromRollPitchYaw(rpy.x(), rpy.y(), rpy.z()));
+    EXPECT_LT((back - rpy).norm(), 1e-9);
+  }
+}
+
+TEST(Pose, ExpLogSO3) {
+  const Eigen::Vector3d w(0.3, -0.2, 0.9);
+  EXPECT_LT((LogSO3(ExpSO3(w)) - w).norm(), 1e-12);
+  EXPECT_LT((ExpSO3(w) * ExpSO3(w).transpose() - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+}
+
+TEST(Pose, WrapAngle) {
+  EXPECT_NEAR(WrapAngle(3 * M_PI), M_PI, 1e-12);
+  EXPECT_NEAR(WrapAngle(-M_PI / 2 - 4 * M_PI), -M_PI / 2, 1e-12);
+}
+
+// Monte Carlo check of the first-order covariance propagation rules.
+Eigen::Matrix<double, 6, 1> Error(const Pose3& est, const Pose3& truth) {
+  Eigen::Matrix<double, 6, 1> e;
+  e.head<3>() = truth.translation() - est.translation();
+  e.tail<3>() = LogSO3(truth.linear() * est.linear().transpose());
+  return e;
+}
+
+Pose3 Perturb(const Pose3& p, const Eigen::Matrix<double, 6, 1>& d) {
+  return MakePose(ExpSO3(d.tail<3>()) * p.linear(), p.translation() + d.head<3>());
+}
+
+TEST(Pose, CovariancePropagationMatchesMonteCarlo) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n(0.0, 1.0);
+  const Pose3 a_from_b = MakePose(2, -1, 0.5, 0.1, -0.2, 0.8);
+  const Pose3 b_from_c = MakePose(4, 3, -0.2, -0.05, 0.1, -0.4);
+  Vector6d s1, s2;
+  s1 << 0.02, 0.03, 0.01, 0.01, 0.02, 0.015;
+  s2 << 0.05, 0.01, 0.02, 0.02, 0.01, 0.03;
+  const Matrix6d c1 = s1.cwiseAbs2().asDiagonal(), c2 = s2.cwiseAbs2().asDiagonal();
+  const Matrix6d predicted_compose = ComposeCovariance(a_from_b, c1, b_from_c, c2);
+  const Matrix6d predicted_inverse = InverseCovariance(a_from_b, c1);
+  Matrix6d mc_compose = Matrix6d::Zero(), mc_inverse = Matrix6d::Zero();
+  const int N = 20000;
+  for (int i = 0; i < N; ++i) {
+    Vector6d d1, d2;
+    for (int k = 0; k < 6; ++k) d1[k] = s1[k] * n(rng), d2[k] = s2[k] * n(rng);
+    const Pose3 p1 = Perturb(a_from_b, d1), p2 = Perturb(b_from_c, d2);
+    const Vector6d ec = Error(a_from_b * b_from_c, p1 * p2);
+    const Vector6d ei = Error(a_from_b.inverse(), p1.inverse());
+    mc_compose += ec * ec.transpose() / N;
+    mc_inverse += ei * ei.transpose() / N;
+  }
+  // Sampling error of a variance with N samples is ~sqrt(2/N) = 1 %; allow
+  // 6 % plus second-order terms.
+  for (int k = 0; k < 6; ++k) {
+    EXPECT_NEAR(mc_compose(k, k), predicted_compose(k, k), 0.06 * predicted_compose(k, k)) << k;
+    EXPECT_NEAR(mc_inverse(k, k), predicted_inverse(k, k), 0.06 * predicted_inverse(k, k)) << k;
+  }
+}
+
+TEST(Camera, ProjectAndRayAreInverse) {
+  PinholeCamera cam;
+  const Eigen::Vector3d p(0.4, -0.3, 5.0);
+  const auto px = cam.ProjectIdeal(p);
+  ASSERT_TRUE(px);
+  EXPECT_LT((cam.Ray(*px) * p.z() - p).norm(), 1e-12);
+  EXPECT_FALSE(cam.ProjectIdeal(Eigen::Vector3d(0, 0, -1)));
+}
+
+TEST(Camera, DistortUndistortRoundTrip) {
+  PinholeCamera cam;
+  cam.k1 = -0.12;
+  cam.k2 = 0.03;
+  cam.p1 = 0.001;
+  cam.p2 = -0.0005;
+  for (double u = 20; u < 1000; u += 97)
+    for (double v = 20; v < 1000; v += 89) {
+      const Eigen::Vector2d ideal(u, v);
+      EXPECT_LT((cam.Undistort(cam.Distort(ideal)) - ideal).norm(), 1e-3) << u << "," << v;
+    }
+}
+
+TEST(Camera, MastPointsCamerasWhereAsked) {
+  const StereoRig rig;
+  const MastKinematics mast;
+  // Forward, level: optical axis along body x, left camera on the left (+y).
+  Pose3 left = mast.BodyFromLeft(0, 0, rig);
+  EXPECT_LT((left.linear().col(2) - Eigen::Vector3d::UnitX()).norm(), 1e-12);
+  EXPECT_NEAR(left.translation().y(), 0.135, 1e-12);
+  EXPECT_NEAR(mast.BodyFromRight(0, 0, rig).translation().y(), -0.135, 1e-12);
+  // Pan 90 deg left: optical axis along body +y. Tilt 30 deg down.
+  left = mast.BodyFromLeft(M_PI / 2, 0, rig);
+  EXPECT_LT((left.linear().col(2) - Eigen::Vector3d::UnitY()).norm(), 1e-12);
+  left = mast.BodyFromLeft(0, M_PI / 6, rig);
+  EXPECT_NEAR(left.linear().col(2).z(), -0.5, 1e-12);
+  // A ground point straight ahead and below projects below the image centre.
+  const PinholeCamera& cam = rig.left;
+  const Eigen::Vector3d p_body(2, 0.135, 0);  // 37 deg below the mast head
+  const auto px = cam.ProjectIdeal(left.inverse() * p_body);
+  ASSERT_TRUE(px);
+  EXPECT_GT(px->y(), cam.cy);
+}
+
+struct Demo {
+  int num_threads = 2;      // threads
+  double ratio = 0.8;       // Lowe ratio
+  std::string name = "x";   // a name
+  Eigen::Vector3d v = Eigen::Vector3d(1, 2, 3);
+  int must = 0;             // required
+  void Visit(OptionsReader& r) {
+    r.Optional("num_threads", &num_threads);
+    r.Optional("ratio", &ratio);
+    r.Optional("name", &name);
+    r.Optional("v", &v);
+    r.Required("must", &must);
+  }
+  bool Check(std::string* error) const {
+    if (num_threads < 1) return Fail(error, "num_threads must be >= 1 (got " + std::to_string(num_threads) + ")");
+    return true;
+  }
+};
+
+std::string ErrorOf(const std::string& yaml) {
+  try {
+    LoadOptions<Demo>(YAML::Load(yaml), "test.yaml");
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Options, LoadsValuesAndEchoesEffectiveOnes) {
+  std::string echo;
+  const Demo d = LoadOptions<Demo>(YAML::Load("{must: 3, ratio: 0.6, v: [4, 5, 6]}"), "t", &echo);
+  EXPECT_EQ(d.must, 3);
+  EXPECT_DOUBLE_EQ(d.ratio, 0.6);
+  EXPECT_EQ(d.num_threads, 2);
+  EXPECT_EQ(d.v, Eigen::Vector3d(4, 5, 6));
+  EXPECT_NE(echo.find("num_threads: 2"), std::string::npos) << echo;
+  EXPECT_NE(echo.find("ratio: 0.6"), std::string::npos) << echo;
+}
+
+TEST(Options, UnknownKeyIsOneLineNamingItAndSuggestingTheFix) {
+  const std::string e = ErrorOf("{must: 1, num_thread: 3}");
+  EXPECT_EQ(e, "test.yaml.num_thread: unknown key; did you mean 'num_threads'?");
+  EXPECT_EQ(e.find('\n'), std::string::npos);
+}
+
+TEST(Options, MissingRequiredKey) {
+  EXPECT_EQ(ErrorOf("{ratio: 0.5}"), "test.yaml.must: required key missing; add it to the config file");
+}
+
+TEST(Options, OutOfRangeValue) {
+  EXPECT_EQ(ErrorOf("{must: 1, num_threads: 0}"), "test.yaml: num_threads must be >= 1 (got 0)");
+}
+
+TEST(Options, WrongType) {
+  const std::string e = ErrorOf("{must: 1, ratio: fast}");
+  EXPECT_NE(e.find("test.yaml.ratio: expected a number"), std::string::npos) << e;
+}
+
+TEST(Options, IncludesAndNestedCalibration) {
+  const std::string dir = ::testing::TempDir();
+  std::ofstream(dir + "/cam.yaml") << "left: {fx: 1000}\nright: {fx: 1000}\nright_in_left_translation: [0.3, 0, 0]\n";
+  std::ofstream(dir + "/main.yaml") << "rig: {include: cam.yaml}\nmast: {mast_head: [0.1, 0, 1.4]}\n";
+  const auto model = LoadOptionsFile<NavcamModel>(dir + "/main.yaml");
+  EXPECT_DOUBLE_EQ(model.rig.left.fx, 1000);
+  EXPECT_NEAR(model.rig.Baseline(), 0.3, 1e-12);
+  EXPECT_DOUBLE_EQ(model.mast.mast_head.z(), 1.4);
+  std::ofstream(dir + "/bad.yaml") << "rig: {left: {fx: -5}}\n";
+  try {
+    LoadOptionsFile<NavcamModel>(dir + "/bad.yaml");
+    FAIL() << "negative focal length accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("fx and fy must be positive"), std::string::npos);
+  }
+}
+
+TEST(Options, RepoNavcamCalibrationLoads) {
+  const auto model = LoadOptionsFile<NavcamModel>("config/navcam.yaml");
+  EXPECT_DOUBLE_EQ(model.rig.left.fx, 1189.0);
+  EXPECT_NEAR(model.rig.Baseline(), 0.27, 1e-12);
+}
+
+TEST(Options, MissingFileIsOneClearLine) {
+  try {
+    LoadYamlFile("/nonexistent/x.yaml");
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()), "cannot read config file /nonexistent/x.yaml: no such file or not readable");
+  }
+}
+
+TEST(CommandLine, ParsesFlagsAndRejectsUnknown) {
+  const char* argv[] = {"prog", "--config", "a.yaml", "--lcm-url=udpm://x", "pos", "--verbose"};
+  CommandLine cl;
+  std::string error;
+  ASSERT_TRUE(cl.Parse(6, const_cast<char**>(argv), {"config", "lcm-url", "verbose"}, &error)) << error;
+  EXPECT_EQ(cl.Get("config"), "a.yaml");
+  EXPECT_EQ(cl.Get("lcm-url"), "udpm://x");
+  EXPECT_TRUE(cl.Has("verbose"));
+  ASSERT_EQ(cl.positional().size(), 1u);
+  const char* bad[] = {"prog", "--confg", "a.yaml"};
+  EXPECT_FALSE(cl.Parse(3, const_cast<char**>(bad), {"config"}, &error));
+  EXPECT_NE(error.find("unknown option --confg"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace vloc
