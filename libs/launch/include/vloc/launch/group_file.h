@@ -1,0 +1,102 @@
+#pragma once
+// Process-group files for vloc_launch (after libbot2's procman): a YAML file
+// listing the processes of one or more groups, how to run them, when to
+// start them and what to do when they end. Format (every key but name and
+// command is optional; `defaults` sets any process key for all processes):
+//
+//   group: rover_sim                # group of processes that name none
+//   env: {GLOG_v: "0"}              # environment added for every process
+//   defaults: {restart: on-failure, max_restarts: 3, stop_timeout: 5}
+//   processes:
+//     - name: sim_rover             # unique; names the log file <log dir>/<name>.log
+//       command: ${VLOC_BIN}/sim_rover    # path, or a program found on PATH
+//       args: [--config, config/procs/sim_rover.yaml, --lcm-url, "${VLOC_LCM_URL}"]
+//       env: {KEY: value}
+//       group: rover_sim
+//       depends_on: [logger]        # start once these are running
+//       start_delay: 1.0            # s, after the dependencies run
+//       restart: never              # never | on-failure | always
+//       max_restarts: 3             # automatic restarts before GAVE_UP; -1 = no limit
+//       backoff_initial: 0.5        # s, first restart delay, doubled each time
+//       backoff_max: 10             # s, longest delay; a run this long resets it
+//       stop_signal: SIGINT         # SIGINT | SIGTERM | SIGHUP | SIGQUIT | SIGUSR1 | SIGUSR2
+//       stop_timeout: 5             # s, then SIGKILL
+//       working_dir: ${VLOC_ROOT}
+//       autostart: true             # start with its group
+//       exit_when_done: true        # with --exit-when-done: its end ends the launcher
+//
+// ${VAR} and ${VAR:-fallback} in command, args, env values and working_dir
+// are expanded from the launcher's environment when the file is read; $$
+// is a literal $. Errors are ConfigError with one line naming the file, the
+// process, the key and the fix.
+
+#include <yaml-cpp/yaml.h>
+
+#include <functional>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace vloc {
+
+enum class RestartPolicy { kNever, kOnFailure, kAlways };
+
+const char* RestartPolicyName(RestartPolicy policy);
+
+// How to run and supervise one process.
+struct ProcessSpec {
+  std::string name;                          // unique in the file
+  std::string command;                       // program: a path, or a name searched on PATH
+  std::vector<std::string> args;             // arguments after the program name
+  std::map<std::string, std::string> env;    // added to (overriding) the launcher's environment
+  std::string group;                         // group name, for --group and group orders
+  std::vector<std::string> depends_on;       // names that must be RUNNING before this starts
+  double start_delay = 0.0;                  // s, wait after the dependencies run
+  RestartPolicy restart = RestartPolicy::kOnFailure;  // when to restart after an exit
+  int max_restarts = 5;                      // automatic restarts before giving up; -1 = no limit
+  double backoff_initial = 0.5;              // s, delay before the first restart
+  double backoff_max = 30.0;                 // s, longest restart delay (doubling); a run this long resets it
+  int stop_signal = 15;                      // signal number sent to stop it (SIGTERM)
+  double stop_timeout = 5.0;                 // s, time allowed to stop before SIGKILL
+  std::string working_dir;                   // empty = the launcher's working directory
+  bool autostart = true;                     // started when its group is started at launch
+  bool exit_when_done = false;               // with --exit-when-done, the launcher ends when it ends
+};
+
+// A parsed group file: processes in file order (the start order when no
+// depends_on says otherwise).
+struct GroupFile {
+  std::string path;
+  std::vector<ProcessSpec> processes;
+
+  // Distinct group names in file order.
+  std::vector<std::string> Groups() const;
+  const ProcessSpec* Find(const std::string& name) const;
+};
+
+// Returns the value of an environment-like variable, or nullopt when unset.
+using VariableLookup = std::function<std::optional<std::string>(const std::string&)>;
+
+// The launcher's own environment (getenv).
+VariableLookup EnvironmentLookup();
+
+// Expands ${VAR}, ${VAR:-fallback} and $$ in `text`. Returns false with one
+// line in *error for an unset variable without fallback or a bad ${.
+bool ExpandVariables(const std::string& text, const VariableLookup& lookup, std::string* out,
+                     std::string* error);
+
+// "SIGINT", "INT", "SIGTERM", ... or a number -> signal number; -1 when unknown.
+int ParseSignalName(const std::string& name);
+std::string SignalName(int signal_number);
+
+// Reads and checks a group file. Throws ConfigError (one line) for a file
+// that cannot be read, an unknown key, a missing name or command, a
+// duplicate name, an unknown or circular dependency, a bad value, or an
+// unset variable.
+GroupFile ParseGroupFile(const std::string& path, const VariableLookup& lookup = EnvironmentLookup());
+// The same from a YAML node; `context` names it in errors.
+GroupFile ParseGroupYaml(const YAML::Node& root, const std::string& context,
+                         const VariableLookup& lookup = EnvironmentLookup());
+
+}  // namespace vloc

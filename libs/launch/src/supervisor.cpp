@@ -1,0 +1,637 @@
+#include "vloc/launch/supervisor.h"
+
+#include <fcntl.h>
+#include <glog/logging.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <sstream>
+
+#include "vloc/launch/proc_stats.h"
+
+extern char** environ;
+
+namespace vloc {
+
+const char* ProcStateName(ProcState state) {
+  switch (state) {
+    case ProcState::kStopped: return "STOPPED";
+    case ProcState::kStarting: return "STARTING";
+    case ProcState::kRunning: return "RUNNING";
+    case ProcState::kStopping: return "STOPPING";
+    case ProcState::kBackoff: return "BACKOFF";
+    case ProcState::kExited: return "EXITED";
+    case ProcState::kGaveUp: return "GAVE_UP";
+  }
+  return "?";
+}
+
+struct Supervisor::Proc {
+  ProcessSpec spec;
+  ProcState state = ProcState::kStopped;
+  pid_t pid = 0;                  // also the process-group id
+  int out_fd = -1;                // read end of the child's stdout+stderr pipe
+  std::string partial;            // output after the last newline
+  int log_fd = -1;
+  bool log_opened = false;
+  int restarts = 0;               // automatic restarts, reported
+  int restarts_in_row = 0;        // since the last order or a long run; vs max_restarts
+  int backoff_step = 0;
+  int last_exit_code = 0;
+  bool has_exited = false;
+  bool selected = false;          // asked to run at some point (DoneOutcome)
+  bool signal_sent = false;       // stop signal sent (state kStopping)
+  bool kill_sent = false;
+  bool restart_after_stop = false;
+  bool waiting_noted = false;
+  Clock::time_point started_at, stop_deadline, next_start_at;
+  std::optional<Clock::time_point> deps_ready_since;
+  bool cpu_valid = false;
+  uint64_t last_cpu_ticks = 0;
+  Clock::time_point last_cpu_time;
+};
+
+namespace {
+
+double Seconds(Supervisor::Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+
+std::string Fmt(double seconds) {
+  std::ostringstream out;
+  out.precision(3);
+  out << seconds;
+  return out.str();
+}
+
+std::string JoinCommand(const std::string& program, const std::vector<std::string>& args) {
+  std::string out = program;
+  for (const auto& a : args) out += " " + a;
+  return out;
+}
+
+bool IsExecutableFile(const std::string& path) {
+  struct stat st;
+  return stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode) && access(path.c_str(), X_OK) == 0;
+}
+
+// The program to exec: a path (relative to working_dir when given) or a
+// name searched on PATH. Empty with *error when it cannot be run.
+std::string ResolveProgram(const ProcessSpec& spec, std::string* error) {
+  const std::string& cmd = spec.command;
+  if (cmd.find('/') != std::string::npos) {
+    std::string path = cmd;
+    if (cmd[0] != '/' && !spec.working_dir.empty()) path = spec.working_dir + "/" + cmd;
+    if (!IsExecutableFile(path)) {
+      *error = "cannot run '" + path + "': " +
+               (access(path.c_str(), F_OK) == 0 ? "not an executable file" : "no such file") +
+               "; build it or fix 'command'";
+      return "";
+    }
+    return path;
+  }
+  std::string path_var;
+  auto it = spec.env.find("PATH");
+  if (it != spec.env.end()) path_var = it->second;
+  else if (const char* p = std::getenv("PATH")) path_var = p;
+  std::stringstream dirs(path_var);
+  std::string dir;
+  while (std::getline(dirs, dir, ':')) {
+    if (dir.empty()) dir = ".";
+    const std::string candidate = dir + "/" + cmd;
+    if (IsExecutableFile(candidate)) return candidate;
+  }
+  *error = "cannot run '" + cmd + "': not found on PATH; install it or give its full path in 'command'";
+  return "";
+}
+
+}  // namespace
+
+Supervisor::Supervisor(GroupFile file, SupervisorOptions options)
+    : file_(std::move(file)), options_(std::move(options)) {
+  for (const auto& spec : file_.processes) {
+    auto p = std::make_unique<Proc>();
+    p->spec = spec;
+    procs_.push_back(std::move(p));
+  }
+  if (!options_.log_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(options_.log_dir, ec);
+    if (ec) LOG(ERROR) << "cannot create log directory " << options_.log_dir << ": " << ec.message();
+  }
+  // A child whose reader is gone must not kill the launcher on write.
+  signal(SIGPIPE, SIG_IGN);
+  last_status_time_ = Clock::now();
+}
+
+Supervisor::~Supervisor() {
+  KillAll();
+  for (auto& p : procs_) {
+    if (p->pid > 0) {
+      int status = 0;
+      waitpid(p->pid, &status, 0);
+      kill(-p->pid, SIGKILL);
+    }
+    if (p->out_fd >= 0) close(p->out_fd);
+    if (p->log_fd >= 0) close(p->log_fd);
+  }
+}
+
+Supervisor::Proc* Supervisor::FindProc(const std::string& name) {
+  for (auto& p : procs_)
+    if (p->spec.name == name) return p.get();
+  return nullptr;
+}
+
+bool Supervisor::ForTargets(const std::string& target, bool is_group, std::string* error,
+                            const std::function<void(Proc&)>& action) {
+  bool any = false;
+  for (auto& p : procs_) {
+    if ((is_group && p->spec.group == target) || (!is_group && p->spec.name == target)) {
+      action(*p);
+      any = true;
+    }
+  }
+  if (!any && error) {
+    std::string known;
+    if (is_group) {
+      for (const auto& g : file_.Groups()) known += " " + g;
+    } else {
+      for (const auto& p : procs_) known += " " + p->spec.name;
+    }
+    *error = std::string(is_group ? "unknown group '" : "unknown process '") + target + "'; known:" + known;
+  }
+  return any;
+}
+
+bool Supervisor::StartGroups(const std::vector<std::string>& groups, std::string* error) {
+  const auto known = file_.Groups();
+  for (const auto& g : groups) {
+    if (std::find(known.begin(), known.end(), g) == known.end()) {
+      std::string list;
+      for (const auto& k : known) list += " " + k;
+      if (error) *error = "unknown group '" + g + "' in " + file_.path + "; groups in the file:" + list;
+      return false;
+    }
+  }
+  for (auto& p : procs_) {
+    const bool chosen = groups.empty() || std::find(groups.begin(), groups.end(), p->spec.group) != groups.end();
+    if (chosen && p->spec.autostart) RequestStart(*p);
+  }
+  return true;
+}
+
+bool Supervisor::Start(const std::string& target, bool is_group, std::string* error) {
+  return ForTargets(target, is_group, error, [this](Proc& p) { RequestStart(p); });
+}
+
+bool Supervisor::Stop(const std::string& target, bool is_group, std::string* error) {
+  return ForTargets(target, is_group, error, [this](Proc& p) { RequestStop(p, false); });
+}
+
+bool Supervisor::Restart(const std::string& target, bool is_group, std::string* error) {
+  return ForTargets(target, is_group, error, [this](Proc& p) { RequestStop(p, true); });
+}
+
+void Supervisor::StopAll() {
+  for (auto& p : procs_) RequestStop(*p, false);
+}
+
+void Supervisor::KillAll() {
+  for (auto& p : procs_) {
+    if (p->pid <= 0) {
+      if (p->state == ProcState::kStarting || p->state == ProcState::kBackoff) p->state = ProcState::kStopped;
+      continue;
+    }
+    kill(-p->pid, SIGKILL);
+    kill(p->pid, SIGKILL);
+    p->state = ProcState::kStopping;
+    p->signal_sent = p->kill_sent = true;
+    p->restart_after_stop = false;
+  }
+}
+
+bool Supervisor::AllStopped() const {
+  for (const auto& p : procs_) {
+    if (p->pid > 0 || p->state == ProcState::kStarting || p->state == ProcState::kBackoff) return false;
+  }
+  return true;
+}
+
+void Supervisor::RequestStart(Proc& p) {
+  p.selected = true;
+  if (p.pid > 0) {
+    if (p.state == ProcState::kStopping) p.restart_after_stop = true;
+    return;
+  }
+  if (p.state == ProcState::kStarting) return;
+  p.state = ProcState::kStarting;
+  p.restarts_in_row = 0;
+  p.backoff_step = 0;
+  p.deps_ready_since.reset();
+  p.waiting_noted = false;
+}
+
+void Supervisor::RequestStop(Proc& p, bool restart_after) {
+  if (p.pid > 0) {
+    if (p.state != ProcState::kStopping) {
+      p.state = ProcState::kStopping;
+      p.signal_sent = false;
+      p.kill_sent = false;
+      p.restart_after_stop = restart_after;
+    } else {
+      p.restart_after_stop = p.restart_after_stop || restart_after;
+    }
+    return;
+  }
+  if (restart_after) {
+    p.state = ProcState::kStopped;
+    RequestStart(p);
+  } else if (p.state == ProcState::kStarting || p.state == ProcState::kBackoff) {
+    p.state = ProcState::kStopped;
+  }
+}
+
+void Supervisor::SendStop(Proc& p, Clock::time_point now) {
+  Note(p, "stopping pid " + std::to_string(p.pid) + " with " + SignalName(p.spec.stop_signal) + ", " +
+              Fmt(p.spec.stop_timeout) + " s allowed");
+  kill(-p.pid, p.spec.stop_signal);
+  p.signal_sent = true;
+  p.stop_deadline = now + std::chrono::duration_cast<Clock::duration>(
+                              std::chrono::duration<double>(p.spec.stop_timeout));
+}
+
+bool Supervisor::DependenciesRunning(const Proc& p) const {
+  for (const auto& d : p.spec.depends_on) {
+    for (const auto& q : procs_)
+      if (q->spec.name == d && q->state != ProcState::kRunning) return false;
+  }
+  return true;
+}
+
+bool Supervisor::HasStoppingDependents(const Proc& p) const {
+  for (const auto& q : procs_) {
+    if (q->pid <= 0 || q->state != ProcState::kStopping) continue;
+    if (std::find(q->spec.depends_on.begin(), q->spec.depends_on.end(), p.spec.name) != q->spec.depends_on.end())
+      return true;
+  }
+  return false;
+}
+
+void Supervisor::Step(int timeout_ms) {
+  PumpOutput(timeout_ms);
+  const auto now = Clock::now();
+  for (auto& p : procs_) {
+    if (p->pid <= 0) continue;
+    int status = 0;
+    const pid_t r = waitpid(p->pid, &status, WNOHANG);
+    if (r == p->pid) OnExit(*p, status, now);
+    else if (r < 0 && errno == ECHILD) OnExit(*p, 0, now);  // reaped elsewhere: treat as ended
+  }
+  for (auto& p : procs_) {
+    switch (p->state) {
+      case ProcState::kStopping:
+        if (p->pid <= 0) break;
+        if (!p->signal_sent) {
+          if (!HasStoppingDependents(*p)) SendStop(*p, now);
+        } else if (!p->kill_sent && now >= p->stop_deadline) {
+          Note(*p, "did not stop within " + Fmt(p->spec.stop_timeout) + " s; sending SIGKILL");
+          kill(-p->pid, SIGKILL);
+          kill(p->pid, SIGKILL);
+          p->kill_sent = true;
+        }
+        break;
+      case ProcState::kBackoff:
+        if (now >= p->next_start_at) {
+          ++p->restarts;
+          Spawn(*p, now);
+        }
+        break;
+      case ProcState::kStarting:
+        if (!DependenciesRunning(*p)) {
+          p->deps_ready_since.reset();
+          if (!p->waiting_noted) {
+            std::string deps;
+            for (const auto& d : p->spec.depends_on) deps += " " + d;
+            Note(*p, "waiting for:" + deps);
+            p->waiting_noted = true;
+          }
+          break;
+        }
+        if (!p->deps_ready_since) p->deps_ready_since = now;
+        if (Seconds(now - *p->deps_ready_since) >= p->spec.start_delay) Spawn(*p, now);
+        break;
+      default:
+        break;
+    }
+  }
+}
+
+void Supervisor::Spawn(Proc& p, Clock::time_point now) {
+  const ProcessSpec& spec = p.spec;
+  std::string error;
+  const std::string program = ResolveProgram(spec, &error);
+  if (program.empty() || (!spec.working_dir.empty() && !std::filesystem::is_directory(spec.working_dir))) {
+    if (error.empty()) error = "working_dir '" + spec.working_dir + "' is not a directory; fix 'working_dir'";
+    Note(p, error);
+    LOG(ERROR) << file_.path << ": process '" << spec.name << "': " << error;
+    p.state = ProcState::kGaveUp;
+    p.last_exit_code = 127;
+    p.has_exited = true;
+    return;
+  }
+  if (!p.log_opened && !options_.log_dir.empty()) {
+    const std::string path = options_.log_dir + "/" + spec.name + ".log";
+    p.log_fd = open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
+    if (p.log_fd < 0) LOG(ERROR) << "cannot write log file " << path << ": " << std::strerror(errno);
+    p.log_opened = true;
+  }
+
+  // Everything the child needs is built before fork.
+  std::vector<std::string> arg_strings = {program};
+  arg_strings.insert(arg_strings.end(), spec.args.begin(), spec.args.end());
+  std::vector<char*> argv;
+  for (auto& a : arg_strings) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  std::vector<std::string> env_strings;
+  for (char** e = environ; e && *e; ++e) {
+    const std::string entry = *e;
+    const std::string key = entry.substr(0, entry.find('='));
+    if (!spec.env.count(key)) env_strings.push_back(entry);
+  }
+  for (const auto& [k, v] : spec.env) env_strings.push_back(k + "=" + v);
+  std::vector<char*> envp;
+  for (auto& e : env_strings) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  const char* workdir = spec.working_dir.empty() ? nullptr : spec.working_dir.c_str();
+
+  int fds[2];
+  if (pipe2(fds, O_CLOEXEC) != 0) {
+    Note(p, std::string("pipe failed: ") + std::strerror(errno) + "; will retry");
+    p.state = ProcState::kBackoff;
+    p.next_start_at = now + std::chrono::seconds(1);
+    return;
+  }
+  const pid_t parent = getpid();
+  const pid_t pid = fork();
+  if (pid < 0) {
+    close(fds[0]);
+    close(fds[1]);
+    Note(p, std::string("fork failed: ") + std::strerror(errno) + "; will retry");
+    p.state = ProcState::kBackoff;
+    p.next_start_at = now + std::chrono::seconds(1);
+    return;
+  }
+  if (pid == 0) {
+    // Child: own process group, dies with the launcher, default signals.
+    setpgid(0, 0);
+    prctl(PR_SET_PDEATHSIG, SIGTERM);
+    if (getppid() != parent) _exit(1);
+    sigset_t none;
+    sigemptyset(&none);
+    sigprocmask(SIG_SETMASK, &none, nullptr);
+    for (int s : {SIGPIPE, SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGCHLD}) signal(s, SIG_DFL);
+    const int devnull = open("/dev/null", O_RDONLY);
+    if (devnull >= 0) dup2(devnull, 0);
+    dup2(fds[1], 1);
+    dup2(fds[1], 2);
+    if (workdir && chdir(workdir) != 0) {
+      dprintf(2, "vloc_launch: cannot enter working_dir %s: %s\n", workdir, std::strerror(errno));
+      _exit(126);
+    }
+    execve(argv[0], argv.data(), envp.data());
+    dprintf(2, "vloc_launch: cannot run %s: %s\n", argv[0], std::strerror(errno));
+    _exit(127);
+  }
+  setpgid(pid, pid);  // also here, so signals to -pid work at once
+  close(fds[1]);
+  fcntl(fds[0], F_SETFL, fcntl(fds[0], F_GETFL) | O_NONBLOCK);
+  if (p.out_fd >= 0) close(p.out_fd);
+  p.out_fd = fds[0];
+  p.partial.clear();
+  p.pid = pid;
+  p.state = ProcState::kRunning;
+  p.started_at = now;
+  p.signal_sent = p.kill_sent = false;
+  p.cpu_valid = false;
+  p.waiting_noted = false;
+  Note(p, "started pid " + std::to_string(pid) + ": " + JoinCommand(program, spec.args));
+}
+
+void Supervisor::OnExit(Proc& p, int wait_status, Clock::time_point now) {
+  if (p.out_fd >= 0) {
+    ReadOutput(p);
+    if (p.out_fd >= 0) {
+      if (!p.partial.empty()) WriteLine(p, p.partial);
+      p.partial.clear();
+      close(p.out_fd);
+      p.out_fd = -1;
+    }
+  }
+  const pid_t pid = p.pid;
+  kill(-pid, SIGKILL);  // whatever the process left behind in its group
+  p.pid = 0;
+  p.has_exited = true;
+  int code = 0;
+  std::string how;
+  if (WIFSIGNALED(wait_status)) {
+    code = -WTERMSIG(wait_status);
+    how = "killed by " + SignalName(WTERMSIG(wait_status));
+  } else {
+    code = WEXITSTATUS(wait_status);
+    how = "exited with code " + std::to_string(code);
+  }
+  p.last_exit_code = code;
+  const double ran = Seconds(now - p.started_at);
+  Note(p, "pid " + std::to_string(pid) + " " + how + " after " + Fmt(ran) + " s");
+
+  if (p.state == ProcState::kStopping) {
+    const bool again = p.restart_after_stop;
+    p.restart_after_stop = false;
+    p.state = ProcState::kStopped;
+    if (again) RequestStart(p);
+    return;
+  }
+  const bool restart = p.spec.restart == RestartPolicy::kAlways ||
+                       (p.spec.restart == RestartPolicy::kOnFailure && code != 0);
+  if (!restart) {
+    p.state = ProcState::kExited;
+    return;
+  }
+  if (ran >= p.spec.backoff_max) {  // a long run: count its failures afresh
+    p.backoff_step = 0;
+    p.restarts_in_row = 0;
+  }
+  if (p.spec.max_restarts >= 0 && p.restarts_in_row >= p.spec.max_restarts) {
+    p.state = ProcState::kGaveUp;
+    Note(p, "gave up after " + std::to_string(p.restarts_in_row) + " restarts (max_restarts " +
+                std::to_string(p.spec.max_restarts) + ")");
+    LOG(ERROR) << "process '" << p.spec.name << "' gave up after " << p.restarts_in_row
+               << " restarts; see its log file";
+    return;
+  }
+  const double delay = std::min(p.spec.backoff_initial * std::pow(2.0, p.backoff_step), p.spec.backoff_max);
+  ++p.backoff_step;
+  ++p.restarts_in_row;
+  p.state = ProcState::kBackoff;
+  p.next_start_at = now + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(delay));
+  Note(p, "restarting in " + Fmt(delay) + " s (restart " + std::to_string(p.restarts_in_row) + " of " +
+              (p.spec.max_restarts < 0 ? std::string("unlimited") : std::to_string(p.spec.max_restarts)) + ")");
+}
+
+void Supervisor::PumpOutput(int timeout_ms) {
+  std::vector<pollfd> fds;
+  std::vector<Proc*> owners;
+  for (auto& p : procs_) {
+    if (p->out_fd < 0) continue;
+    fds.push_back({p->out_fd, POLLIN, 0});
+    owners.push_back(p.get());
+  }
+  const int n = poll(fds.empty() ? nullptr : fds.data(), fds.size(), std::max(0, timeout_ms));
+  if (n <= 0) return;
+  for (size_t i = 0; i < fds.size(); ++i)
+    if (fds[i].revents & (POLLIN | POLLHUP | POLLERR)) ReadOutput(*owners[i]);
+}
+
+void Supervisor::ReadOutput(Proc& p) {
+  char buffer[8192];
+  while (p.out_fd >= 0) {
+    const ssize_t n = read(p.out_fd, buffer, sizeof(buffer));
+    if (n > 0) {
+      p.partial.append(buffer, static_cast<size_t>(n));
+      size_t start = 0, nl;
+      while ((nl = p.partial.find('\n', start)) != std::string::npos) {
+        WriteLine(p, p.partial.substr(start, nl - start));
+        start = nl + 1;
+      }
+      p.partial.erase(0, start);
+      if (p.partial.size() > 65536) {  // a very long line: write it in pieces
+        WriteLine(p, p.partial);
+        p.partial.clear();
+      }
+      continue;
+    }
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) return;
+    // End of output (or an error): the child closed its side.
+    if (!p.partial.empty()) WriteLine(p, p.partial);
+    p.partial.clear();
+    close(p.out_fd);
+    p.out_fd = -1;
+  }
+}
+
+void Supervisor::WriteLine(Proc& p, const std::string& line) {
+  std::string text = "[" + p.spec.name + "] " + line;
+  if (!text.empty() && text.back() == '\r') text.pop_back();
+  text += '\n';
+  if (p.log_fd >= 0) {
+    const ssize_t w = write(p.log_fd, text.data(), text.size());
+    (void)w;
+  }
+  if (options_.echo_output) {
+    std::fwrite(text.data(), 1, text.size(), stdout);
+    std::fflush(stdout);
+  }
+}
+
+void Supervisor::Note(Proc& p, const std::string& text) {
+  WriteLine(p, "vloc_launch: " + text);
+  LOG(INFO) << p.spec.name << ": " << text;
+}
+
+std::vector<ProcessStatus> Supervisor::Status() {
+  const auto now = Clock::now();
+  const auto usage = ReadProcessGroupUsage();
+  const double ticks_per_second = ClockTicksPerSecond();
+  std::vector<ProcessStatus> out;
+  for (auto& p : procs_) {
+    ProcessStatus s;
+    s.name = p->spec.name;
+    s.group = p->spec.group;
+    s.pid = p->pid;
+    s.state = p->state;
+    s.restarts = p->restarts;
+    s.last_exit_code = p->last_exit_code;
+    s.has_exited = p->has_exited;
+    if (p->pid > 0) {
+      s.uptime_seconds = Seconds(now - p->started_at);
+      auto it = usage.find(p->pid);
+      if (it != usage.end()) {
+        s.rss_bytes = it->second.rss_bytes;
+        if (p->cpu_valid) {
+          const double dt = Seconds(now - p->last_cpu_time);
+          const double dticks = it->second.cpu_ticks >= p->last_cpu_ticks
+                                    ? static_cast<double>(it->second.cpu_ticks - p->last_cpu_ticks)
+                                    : 0.0;
+          if (dt > 0) s.cpu_percent = 100.0 * dticks / ticks_per_second / dt;
+        }
+        p->cpu_valid = true;
+        p->last_cpu_ticks = it->second.cpu_ticks;
+        p->last_cpu_time = now;
+      }
+    }
+    out.push_back(s);
+  }
+  last_status_time_ = now;
+  return out;
+}
+
+std::vector<std::string> Supervisor::ExitWhenDoneNames() const {
+  std::vector<std::string> names;
+  for (const auto& p : procs_)
+    if (p->spec.exit_when_done) names.push_back(p->spec.name);
+  return names;
+}
+
+std::optional<int> Supervisor::DoneOutcome(const std::vector<std::string>& names) const {
+  std::vector<const Proc*> targets;
+  for (const auto& p : procs_) {
+    const bool named = std::find(names.begin(), names.end(), p->spec.name) != names.end();
+    if (names.empty() ? p->selected : named) targets.push_back(p.get());
+  }
+  // A process waiting to start is blocked for good when a dependency (or
+  // one of its dependencies) has ended and will not run again.
+  std::function<bool(const Proc&, int)> blocked = [&](const Proc& p, int depth) {
+    if (depth > 64) return false;
+    for (const auto& d : p.spec.depends_on) {
+      for (const auto& q : procs_) {
+        if (q->spec.name != d) continue;
+        if (q->state == ProcState::kExited || q->state == ProcState::kGaveUp || q->state == ProcState::kStopped)
+          return true;
+        if (q->state == ProcState::kStarting && blocked(*q, depth + 1)) return true;
+      }
+    }
+    return false;
+  };
+  bool ok = true;
+  for (const Proc* p : targets) {
+    if (p->pid > 0 || p->state == ProcState::kBackoff) return std::nullopt;
+    if (p->state == ProcState::kStarting) {
+      if (!blocked(*p, 0)) return std::nullopt;
+      ok = false;
+      continue;
+    }
+    if (p->state == ProcState::kGaveUp) ok = false;
+    if (p->state == ProcState::kExited && p->last_exit_code != 0) ok = false;
+  }
+  return ok ? 0 : 1;
+}
+
+std::vector<pid_t> Supervisor::LivePids() const {
+  std::vector<pid_t> pids;
+  for (const auto& p : procs_)
+    if (p->pid > 0) pids.push_back(p->pid);
+  return pids;
+}
+
+}  // namespace vloc

@@ -1,0 +1,95 @@
+// vloc_launch: starts a process group from a group file, restarts what
+// crashes, logs each process's output, publishes PROCMAN_STATUS at 1 Hz and
+// obeys PROCMAN_ORDERS. SIGINT/SIGTERM stops every child (its stop signal,
+// then SIGKILL after its stop_timeout). See libs/launch/include/vloc/launch/group_file.h.
+
+#include <unistd.h>
+
+#include <iostream>
+
+#include "launch_adapter.h"
+#include "launch_environment.h"
+#include "vloc/common/logging.h"
+#include "vloc/common/options.h"
+#include "vloc/launch/group_file.h"
+#include "vloc/launch/supervisor.h"
+#include "vloc/lcm_io/process.h"
+
+int main(int argc, char** argv) {
+  vloc::InitLogging(argv[0]);
+  const std::vector<std::string> groups = vloc::CollectFlagValues(argc, argv, "group");
+  std::vector<std::string> arg_strings = vloc::ArgsWithDefaultLcmUrl(argc, argv);
+  std::vector<char*> args;
+  for (auto& a : arg_strings) args.push_back(a.data());
+  auto setup = vloc::SetupProcess(
+      static_cast<int>(args.size()), args.data(),
+      {"vloc_launch",
+       {"group", "log-dir", "bin-dir", "exit-when-done", "echo"},
+       true,
+       "--config config/groups/rover_sim.yaml [--group NAME[,NAME] ...] [--log-dir DIR] [--lcm-url URL] "
+       "[--bin-dir DIR] [--exit-when-done[=NAME,...]] [--echo]"});
+  if (!setup) return 1;
+
+  vloc::LaunchPaths paths;
+  std::string error;
+  if (!vloc::SetupLaunchEnvironment(setup->args, setup->lcm_url, &paths, &error)) {
+    std::cerr << "vloc_launch: " << error << "\n";
+    return 1;
+  }
+  vloc::GroupFile file;
+  try {
+    file = vloc::ParseGroupFile(setup->config_path);
+  } catch (const vloc::ConfigError& e) {
+    std::cerr << "vloc_launch: " << e.what() << "\n";
+    return 1;
+  }
+  const bool exit_when_done = setup->args.Has("exit-when-done");
+  std::vector<std::string> done_names = vloc::CollectFlagValues(argc, argv, "exit-when-done");
+  for (const auto& n : done_names) {
+    if (!file.Find(n)) {
+      std::cerr << "vloc_launch: --exit-when-done names unknown process '" << n << "' (not in "
+                << file.path << ")\n";
+      return 1;
+    }
+  }
+  LOG(INFO) << "group file " << file.path << ": " << file.processes.size() << " processes; VLOC_BIN="
+            << paths.bin_dir << " VLOC_ROOT=" << paths.root << " logs in " << paths.log_dir;
+
+  vloc::Supervisor supervisor(file, {paths.log_dir, setup->args.Has("echo")});
+  if (exit_when_done && done_names.empty()) done_names = supervisor.ExitWhenDoneNames();
+  if (!supervisor.StartGroups(groups, &error)) {
+    std::cerr << "vloc_launch: " << error << "\n";
+    return 1;
+  }
+  char host[256] = {};
+  gethostname(host, sizeof(host) - 1);
+  vloc::LaunchLcmAdapter adapter(supervisor, *setup->transport, host);
+  adapter.Subscribe();
+
+  std::optional<int> outcome;
+  vloc::RunUntilSignal(
+      *setup->transport, 20,
+      [&] {
+        supervisor.Step(30);
+        adapter.Tick();
+      },
+      [&] {
+        if (exit_when_done) outcome = supervisor.DoneOutcome(done_names);
+        return outcome.has_value();
+      });
+
+  if (outcome) LOG(INFO) << "done (--exit-when-done), outcome " << *outcome << "; stopping the rest";
+  adapter.SetShuttingDown();
+  supervisor.StopAll();
+  while (!supervisor.AllStopped()) {
+    if (vloc::StopSignalPending()) {
+      LOG(WARNING) << "second stop signal: killing every process now";
+      supervisor.KillAll();
+    }
+    supervisor.Step(50);
+    adapter.Tick();
+  }
+  adapter.PublishStatus();
+  LOG(INFO) << "every process stopped; exiting";
+  return outcome.value_or(0);
+}
