@@ -1,0 +1,423 @@
+#include "vloc/sim/uav_world.h"
+
+#include <opencv2/aruco.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <stdexcept>
+
+#include "vloc/common/options.h"
+
+namespace vloc {
+
+// ---------------------------------------------------------------- options
+
+void UavMarkerOptions::Visit(OptionsReader& r) {
+  r.Optional("enabled", &enabled, "draw the calibration marker");
+  r.Optional("dictionary", &dictionary, "cv::aruco predefined dictionary, e.g. DICT_4X4_50");
+  r.Optional("id", &id, "marker id");
+  r.Optional("size", &size, "m, side of the marker's black square");
+  r.Optional("position", &position, "m, world x/y of the marker centre");
+  r.Optional("yaw", &yaw, "rad, marker rotation about z (0: marker top to north)");
+}
+
+namespace {
+const std::vector<std::pair<std::string, int>>& ArucoDictionaries() {
+  static const std::vector<std::pair<std::string, int>> names = {
+      {"DICT_4X4_50", cv::aruco::DICT_4X4_50},         {"DICT_4X4_100", cv::aruco::DICT_4X4_100},
+      {"DICT_5X5_50", cv::aruco::DICT_5X5_50},         {"DICT_5X5_100", cv::aruco::DICT_5X5_100},
+      {"DICT_6X6_50", cv::aruco::DICT_6X6_50},         {"DICT_6X6_250", cv::aruco::DICT_6X6_250},
+      {"DICT_ARUCO_ORIGINAL", cv::aruco::DICT_ARUCO_ORIGINAL}};
+  return names;
+}
+int ArucoDictionaryId(const std::string& name) {
+  for (const auto& [n, id] : ArucoDictionaries())
+    if (n == name) return id;
+  return -1;
+}
+}  // namespace
+
+bool UavMarkerOptions::Check(std::string* error) const {
+  if (ArucoDictionaryId(dictionary) < 0)
+    return Fail(error, "marker.dictionary '" + dictionary + "' unknown (use DICT_4X4_50, DICT_5X5_100, DICT_6X6_250, ...)");
+  if (id < 0 || id >= 50) return Fail(error, "marker.id must be in [0, 50)");
+  if (!(size > 0.05 && size < 50)) return Fail(error, "marker.size must be in (0.05, 50) m");
+  return true;
+}
+
+void UavObjectsOptions::Visit(OptionsReader& r) {
+  r.Optional("num_cars", &num_cars, "cars");
+  r.Optional("num_people", &num_people, "people");
+  r.Optional("car_speed", &car_speed, "m/s, mean car speed");
+  r.Optional("person_speed", &person_speed, "m/s, mean walking speed");
+  r.Optional("area_radius", &area_radius, "m, objects stay this close to the take-off point");
+  r.Optional("seed", &seed, "placement seed");
+}
+
+bool UavObjectsOptions::Check(std::string* error) const {
+  if (num_cars < 0 || num_people < 0) return Fail(error, "objects.num_cars and num_people must be >= 0");
+  if (car_speed < 0 || person_speed < 0) return Fail(error, "objects speeds must be >= 0 m/s");
+  if (!(area_radius > 0)) return Fail(error, "objects.area_radius must be > 0 m");
+  return true;
+}
+
+void UavRenderOptions::Visit(OptionsReader& r) {
+  r.Optional("noise_sigma", &noise_sigma, "grey levels, 1-sigma sensor noise");
+  r.Optional("moving_objects", &moving_objects, "draw cars and people");
+  r.Optional("seed", &seed, "sensor noise seed");
+}
+
+bool UavRenderOptions::Check(std::string* error) const {
+  if (noise_sigma < 0 || noise_sigma > 40) return Fail(error, "render.noise_sigma must be in [0, 40] grey levels");
+  return true;
+}
+
+PinholeCamera UavWorldOptions::DefaultUavCamera() {
+  PinholeCamera c;
+  c.width = 1280;
+  c.height = 720;
+  c.fx = c.fy = 1000.0;
+  c.cx = 639.5;
+  c.cy = 359.5;
+  return c;
+}
+
+void UavWorldOptions::Visit(OptionsReader& r) {
+  r.Child("camera", [&](OptionsReader& c) { camera.Visit(c); });
+  r.Optional("fps", &fps, "frames/s");
+  r.Child("orthomap", [&](OptionsReader& c) { orthomap.Visit(c); });
+  r.Child("marker", [&](OptionsReader& c) { marker.Visit(c); });
+  r.Child("objects", [&](OptionsReader& c) { objects.Visit(c); });
+  r.Child("flight", [&](OptionsReader& c) { flight.Visit(c); });
+  r.Child("gps", [&](OptionsReader& c) { gps.Visit(c); });
+  r.Child("render", [&](OptionsReader& c) { render.Visit(c); });
+}
+
+bool UavWorldOptions::Check(std::string* error) const {
+  if (!camera.Check(error)) return false;
+  if (!(fps > 0 && fps <= 240)) return Fail(error, "fps must be in (0, 240]");
+  return orthomap.Check(error) && marker.Check(error) && objects.Check(error) && flight.Check(error) &&
+         gps.Check(error) && render.Check(error);
+}
+
+// ---------------------------------------------------------------- world
+
+namespace {
+
+struct MovingObject {
+  GroundPath path;      // ping-pong along this polyline
+  std::vector<double> cumulative;  // arc length at each vertex
+  double speed = 0;     // m/s
+  double phase = 0;     // m, arc length at t = 0
+  double length = 4.4, width = 1.8;  // m
+  bool car = true;
+  cv::Scalar colour;
+};
+
+cv::Matx33d ToCv(const Eigen::Matrix3d& m) {
+  return cv::Matx33d(m(0, 0), m(0, 1), m(0, 2), m(1, 0), m(1, 1), m(1, 2), m(2, 0), m(2, 1), m(2, 2));
+}
+
+cv::Matx33d Translation(double dx, double dy) { return cv::Matx33d(1, 0, dx, 0, 1, dy, 0, 0, 1); }
+
+}  // namespace
+
+struct UavWorld::Impl {
+  cv::Mat marker_texture;               // CV_8UC3, 8 x 8 cells (1 white cell around the 6-cell marker)
+  cv::Matx33d world_from_marker_px;     // marker texture pixel -> world metres
+  std::vector<MovingObject> objects;
+  cv::Mat noise_bank;                   // CV_8UC3, 128 + N(0, sigma), larger than a frame
+  // Distortion: canvas (ideal image with margins) and raw -> canvas maps.
+  cv::Size canvas;
+  double margin_x = 0, margin_y = 0;
+  cv::Mat map_x, map_y;
+};
+
+UavWorld::UavWorld(const UavWorldOptions& options)
+    : options_(options), flight_(options.flight), impl_(std::make_unique<Impl>()) {
+  std::string error;
+  if (!options_.Check(&error)) throw std::invalid_argument(error);
+  map_ = std::make_unique<Orthomap>(options_.orthomap);
+  gps_ = std::make_unique<UavGps>(options_.gps, flight_);
+  Impl& im = *impl_;
+  const PinholeCamera& cam = options_.camera;
+
+  // Marker texture: 6-cell marker (incl. its black border) in an 8-cell white square.
+  if (options_.marker.enabled) {
+    const int cell = 16;
+    cv::Ptr<cv::aruco::Dictionary> dict =
+        cv::aruco::getPredefinedDictionary(ArucoDictionaryId(options_.marker.dictionary));
+    const int bits = dict->markerSize + 2;
+    cv::Mat marker;
+    cv::aruco::drawMarker(dict, options_.marker.id, bits * cell, marker, 1);
+    cv::Mat texture((bits + 2) * cell, (bits + 2) * cell, CV_8UC1, cv::Scalar(245));
+    marker.copyTo(texture(cv::Rect(cell, cell, bits * cell, bits * cell)));
+    cv::cvtColor(texture, im.marker_texture, cv::COLOR_GRAY2BGR);
+    const double s = options_.marker.size / (bits * cell);  // m per texture px
+    const double half = 0.5 * texture.cols;
+    const double c = std::cos(options_.marker.yaw), sn = std::sin(options_.marker.yaw);
+    const cv::Matx33d local(s, 0, -(half - 0.5) * s, 0, -s, (half - 0.5) * s, 0, 0, 1);
+    const cv::Matx33d rot(c, -sn, options_.marker.position.x(), sn, c, options_.marker.position.y(), 0, 0, 1);
+    im.world_from_marker_px = rot * local;
+  }
+
+  // Moving objects.
+  std::mt19937 rng(static_cast<uint32_t>(options_.objects.seed));
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  const Eigen::Vector2d home = options_.flight.takeoff;
+  const double radius = options_.objects.area_radius;
+  const cv::Scalar car_colours[] = {{240, 240, 240}, {30, 30, 30},  {40, 40, 200}, {180, 120, 40},
+                                    {160, 160, 160}, {30, 160, 220}, {90, 40, 30}};
+  const cv::Scalar shirt_colours[] = {{30, 30, 220}, {220, 140, 30}, {30, 220, 230}, {230, 230, 230}, {150, 40, 150}};
+  auto random_line = [&](double length, double spread) {
+    const Eigen::Vector2d c = home + Eigen::Vector2d(u01(rng) - 0.5, u01(rng) - 0.5) * 2 * spread;
+    const double a = u01(rng) * 2 * M_PI;
+    const Eigen::Vector2d d(std::cos(a), std::sin(a));
+    return GroundPath{c - 0.5 * length * d, c + 0.5 * length * d};
+  };
+  // Road stretches near the take-off area.
+  std::vector<GroundPath> stretches;
+  for (const auto& road : map_->roads()) {
+    GroundPath near;
+    for (const auto& p : road) {
+      if ((p - home).norm() < radius + 60) near.push_back(p);
+      else if (near.size() >= 2) break;
+    }
+    if (near.size() >= 2) stretches.push_back(near);
+  }
+  for (int k = 0; k < options_.objects.num_cars + options_.objects.num_people; ++k) {
+    MovingObject o;
+    o.car = k < options_.objects.num_cars;
+    if (o.car) {
+      if (!stretches.empty()) {
+        const GroundPath& road = stretches[static_cast<size_t>(k) % stretches.size()];
+        // Drive on the right of the centre line (offset by 1.8 m to one side).
+        const double side = (k / static_cast<int>(stretches.size())) % 2 == 0 ? 1.0 : -1.0;
+        for (size_t i = 0; i < road.size(); ++i) {
+          const Eigen::Vector2d d =
+              (road[std::min(i + 1, road.size() - 1)] - road[i == 0 ? 0 : i - 1]).normalized();
+          o.path.push_back(road[i] + side * 1.8 * Eigen::Vector2d(d.y(), -d.x()));
+        }
+      } else {
+        o.path = random_line(150.0, radius);
+      }
+      o.speed = options_.objects.car_speed * (0.6 + 0.8 * u01(rng));
+      o.length = 4.0 + u01(rng);
+      o.width = 1.7 + 0.2 * u01(rng);
+      o.colour = car_colours[static_cast<size_t>(u01(rng) * 7) % 7];
+    } else {
+      // A few people walk around the take-off point (visible in the calibration hover).
+      const int near_count = std::max(1, options_.objects.num_people / 5);
+      const bool near = (k - options_.objects.num_cars) < near_count;
+      o.path = random_line(10.0 + 20.0 * u01(rng), near ? 8.0 : radius);
+      o.speed = options_.objects.person_speed * (0.7 + 0.6 * u01(rng));
+      o.length = 0.45;
+      o.width = 0.6;
+      o.colour = shirt_colours[static_cast<size_t>(u01(rng) * 5) % 5];
+    }
+    o.cumulative.push_back(0);
+    for (size_t i = 1; i < o.path.size(); ++i) o.cumulative.push_back(o.cumulative.back() + (o.path[i] - o.path[i - 1]).norm());
+    o.phase = u01(rng) * 2 * o.cumulative.back();
+    im.objects.push_back(o);
+  }
+
+  // Distortion: render an ideal canvas large enough for every raw pixel.
+  im.canvas = cv::Size(cam.width, cam.height);
+  if (cam.HasDistortion()) {
+    im.map_x.create(cam.height, cam.width, CV_32F);
+    im.map_y.create(cam.height, cam.width, CV_32F);
+    double min_x = 0, min_y = 0, max_x = cam.width - 1, max_y = cam.height - 1;
+    for (int v = 0; v < cam.height; ++v)
+      for (int u = 0; u < cam.width; ++u) {
+        const Eigen::Vector2d ideal = cam.Undistort(Eigen::Vector2d(u, v));
+        im.map_x.at<float>(v, u) = static_cast<float>(ideal.x());
+        im.map_y.at<float>(v, u) = static_cast<float>(ideal.y());
+        min_x = std::min(min_x, ideal.x());
+        min_y = std::min(min_y, ideal.y());
+        max_x = std::max(max_x, ideal.x());
+        max_y = std::max(max_y, ideal.y());
+      }
+    im.margin_x = std::ceil(-min_x) + 2;
+    im.margin_y = std::ceil(-min_y) + 2;
+    im.canvas = cv::Size(static_cast<int>(std::ceil(max_x + im.margin_x)) + 3,
+                         static_cast<int>(std::ceil(max_y + im.margin_y)) + 3);
+    im.map_x += static_cast<float>(im.margin_x);
+    im.map_y += static_cast<float>(im.margin_y);
+  }
+
+  // Sensor noise bank (a frame uses a pseudo-random window of it).
+  if (options_.render.noise_sigma > 0) {
+    cv::RNG noise_rng(static_cast<uint64_t>(options_.render.seed) * 40503u + 1u);
+    im.noise_bank.create(cam.height + 256, cam.width + 256, CV_8UC3);
+    noise_rng.fill(im.noise_bank, cv::RNG::NORMAL, 128.0, options_.render.noise_sigma);
+  }
+}
+
+UavWorld::~UavWorld() = default;
+
+int UavWorld::NumFrames() const { return static_cast<int>(std::floor(flight_.Duration() * options_.fps + 1e-9)) + 1; }
+double UavWorld::FrameTime(int index) const { return index / options_.fps; }
+int64_t UavWorld::FrameUtime(int index) const { return static_cast<int64_t>(std::llround(FrameTime(index) * 1e6)); }
+
+cv::Matx33d UavWorld::ImageFromGround(const Pose3& world_from_camera) const {
+  const Eigen::Matrix3d Rt = world_from_camera.linear().transpose();
+  const Eigen::Vector3d t = world_from_camera.translation();
+  Eigen::Matrix3d M;
+  M.col(0) = Rt.col(0);
+  M.col(1) = Rt.col(1);
+  M.col(2) = -Rt * t;
+  const PinholeCamera& c = options_.camera;
+  Eigen::Matrix3d K;
+  K << c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1;
+  return ToCv(K * M);
+}
+
+cv::Matx33d UavWorld::GroundHomography(double t1, double t2) const {
+  const cv::Matx33d h1 = ImageFromGround(flight_.WorldFromCamera(t1));
+  const cv::Matx33d h2 = ImageFromGround(flight_.WorldFromCamera(t2));
+  cv::Matx33d h = h2 * h1.inv();
+  return h * (1.0 / h(2, 2));
+}
+
+std::vector<GroundObject> UavWorld::ObjectsAt(double t) const {
+  std::vector<GroundObject> out;
+  for (const MovingObject& o : impl_->objects) {
+    const double total = o.cumulative.back();
+    if (total <= 0) continue;
+    double s = std::fmod(o.phase + o.speed * t, 2 * total);
+    bool back = s > total;
+    if (back) s = 2 * total - s;
+    size_t i = static_cast<size_t>(std::upper_bound(o.cumulative.begin(), o.cumulative.end(), s) - o.cumulative.begin());
+    i = std::clamp<size_t>(i, 1, o.path.size() - 1);
+    const double seg = o.cumulative[i] - o.cumulative[i - 1];
+    const double f = seg > 0 ? (s - o.cumulative[i - 1]) / seg : 0.0;
+    const Eigen::Vector2d p = o.path[i - 1] + f * (o.path[i] - o.path[i - 1]);
+    Eigen::Vector2d d = (o.path[i] - o.path[i - 1]).normalized();
+    if (back) d = -d;
+    const Eigen::Vector2d n(-d.y(), d.x());
+    GroundObject g;
+    const double hl = 0.5 * o.length, hw = 0.5 * o.width;
+    g.corners = {p + hl * d - hw * n, p + hl * d + hw * n, p - hl * d + hw * n, p - hl * d - hw * n};
+    g.colour = o.colour;
+    out.push_back(g);
+  }
+  return out;
+}
+
+std::vector<Eigen::Vector2d> UavWorld::MarkerCorners() const {
+  const double h = 0.5 * options_.marker.size, c = std::cos(options_.marker.yaw), s = std::sin(options_.marker.yaw);
+  std::vector<Eigen::Vector2d> out;
+  for (const Eigen::Vector2d& l : {Eigen::Vector2d(-h, h), Eigen::Vector2d(h, h), Eigen::Vector2d(h, -h), Eigen::Vector2d(-h, -h)})
+    out.push_back(options_.marker.position + Eigen::Vector2d(c * l.x() - s * l.y(), s * l.x() + c * l.y()));
+  return out;
+}
+
+cv::Mat UavWorld::RenderFrame(double t) const { return Render(flight_.WorldFromCamera(t), t); }
+
+cv::Mat UavWorld::RenderGroundOnly(const Pose3& world_from_camera) const {
+  const cv::Matx33d hg = ImageFromGround(world_from_camera);
+  const double gsd = std::max(world_from_camera.translation().z(), 0.1) / options_.camera.fx;
+  const int level =
+      std::clamp(static_cast<int>(std::floor(std::log2(gsd / map_->metres_per_pixel()) + 0.3)), 0, map_->NumLevels() - 1);
+  cv::Mat frame;
+  cv::warpPerspective(map_->Level(level), frame, hg * map_->PixelFromWorld(level).inv(),
+                      cv::Size(options_.camera.width, options_.camera.height), cv::INTER_LINEAR, cv::BORDER_REFLECT);
+  return frame;
+}
+
+cv::Mat UavWorld::Render(const Pose3& world_from_camera, double t) const {
+  const Impl& im = *impl_;
+  const cv::Matx33d hg = Translation(im.margin_x, im.margin_y) * ImageFromGround(world_from_camera);
+  const double height = std::max(world_from_camera.translation().z(), 0.1);
+  const double gsd = height / options_.camera.fx;  // m per px at the image centre
+
+  // Ground texture at the pyramid level just finer than the ground sample distance.
+  const int level =
+      std::clamp(static_cast<int>(std::floor(std::log2(gsd / map_->metres_per_pixel()) + 0.3)), 0, map_->NumLevels() - 1);
+  cv::Mat canvas;
+  cv::warpPerspective(map_->Level(level), canvas, hg * map_->PixelFromWorld(level).inv(), im.canvas, cv::INTER_LINEAR,
+                      cv::BORDER_REFLECT);
+  if (map_->NumDetailLevels() > 0) {
+    const int dl = std::clamp(static_cast<int>(std::floor(std::log2(gsd / map_->detail_metres_per_pixel()) + 0.3)), 0,
+                              map_->NumDetailLevels() - 1);
+    cv::Mat detail, detail3;
+    cv::warpPerspective(map_->DetailLevel(dl), detail, hg * map_->DetailPixelFromWorld(dl).inv(), im.canvas,
+                        cv::INTER_LINEAR, cv::BORDER_WRAP);
+    cv::cvtColor(detail, detail3, cv::COLOR_GRAY2BGR);
+    cv::addWeighted(canvas, 1.0, detail3, 1.0, -128.0, canvas);
+  }
+
+  // Calibration marker (only the part of the canvas it covers).
+  if (!im.marker_texture.empty()) {
+    const cv::Matx33d m = hg * im.world_from_marker_px;
+    std::vector<cv::Point2f> src = {{-0.5f, -0.5f},
+                                    {im.marker_texture.cols - 0.5f, -0.5f},
+                                    {im.marker_texture.cols - 0.5f, im.marker_texture.rows - 0.5f},
+                                    {-0.5f, im.marker_texture.rows - 0.5f}},
+                             dst;
+    cv::perspectiveTransform(src, dst, cv::Mat(m));
+    const cv::Rect roi = cv::boundingRect(dst) & cv::Rect(0, 0, im.canvas.width, im.canvas.height);
+    if (roi.area() > 0) {
+      cv::Mat view = canvas(roi);
+      cv::warpPerspective(im.marker_texture, view, Translation(-roi.x, -roi.y) * m, roi.size(), cv::INTER_LINEAR,
+                          cv::BORDER_TRANSPARENT);
+    }
+  }
+
+  // Moving objects: cars (with a dark windscreen) and people.
+  if (options_.render.moving_objects) {
+    constexpr int kShift = 4;
+    auto project = [&](const Eigen::Vector2d& g) {
+      const cv::Vec3d p = hg * cv::Vec3d(g.x(), g.y(), 1.0);
+      return cv::Point(static_cast<int>(std::lround(p[0] / p[2] * (1 << kShift))),
+                       static_cast<int>(std::lround(p[1] / p[2] * (1 << kShift))));
+    };
+    const cv::Rect2d bounds(-200, -200, im.canvas.width + 400, im.canvas.height + 400);
+    for (const GroundObject& o : ObjectsAt(t)) {
+      std::vector<cv::Point> poly;
+      bool inside = false;
+      for (const auto& c : o.corners) {
+        poly.push_back(project(c));
+        inside = inside || bounds.contains(cv::Point2d(poly.back().x, poly.back().y) / (1 << kShift));
+      }
+      if (!inside) continue;
+      cv::fillConvexPoly(canvas, poly, o.colour, cv::LINE_8, kShift);
+      const bool car = (o.corners[0] - o.corners[1]).norm() > 1.0;
+      if (car) {
+        // Windscreen: the front quarter of the roof.
+        const Eigen::Vector2d f0 = o.corners[0] + 0.18 * (o.corners[3] - o.corners[0]);
+        const Eigen::Vector2d f1 = o.corners[1] + 0.18 * (o.corners[2] - o.corners[1]);
+        const Eigen::Vector2d b0 = o.corners[0] + 0.38 * (o.corners[3] - o.corners[0]);
+        const Eigen::Vector2d b1 = o.corners[1] + 0.38 * (o.corners[2] - o.corners[1]);
+        const Eigen::Vector2d in = 0.12 * (o.corners[1] - o.corners[0]);
+        std::vector<cv::Point> glass = {project(f0 + in), project(f1 - in), project(b1 - in), project(b0 + in)};
+        cv::fillConvexPoly(canvas, glass, cv::Scalar(50, 40, 35), cv::LINE_8, kShift);
+      } else {
+        const Eigen::Vector2d c = 0.25 * (o.corners[0] + o.corners[1] + o.corners[2] + o.corners[3]);
+        const cv::Point p = project(c);
+        const int r = static_cast<int>(std::lround(0.12 * options_.camera.fx / height * (1 << kShift)));
+        cv::circle(canvas, p, std::max(r, 1), cv::Scalar(30, 50, 70), cv::FILLED, cv::LINE_8, kShift);
+      }
+    }
+  }
+
+  cv::Mat frame;
+  if (!im.map_x.empty()) cv::remap(canvas, frame, im.map_x, im.map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  else frame = canvas;
+
+  if (!im.noise_bank.empty()) {
+    // Window chosen by hashing the time: same t, same noise.
+    uint64_t h = static_cast<uint64_t>(std::llround(t * 1e6)) * 0x9E3779B97F4A7C15ull + 0x632BE59BD9B4E019ull;
+    h ^= h >> 29;
+    h *= 0xBF58476D1CE4E5B9ull;
+    h ^= h >> 32;
+    const int dx = static_cast<int>(h % 256), dy = static_cast<int>((h >> 16) % 256);
+    const cv::Mat window = im.noise_bank(cv::Rect(dx, dy, frame.cols, frame.rows));
+    cv::addWeighted(frame, 1.0, window, 1.0, -128.0, frame);
+  }
+  return frame;
+}
+
+}  // namespace vloc
