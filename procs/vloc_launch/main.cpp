@@ -5,6 +5,8 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <chrono>
 #include <iostream>
 
 #include "launch_adapter.h"
@@ -24,10 +26,10 @@ int main(int argc, char** argv) {
   auto setup = vloc::SetupProcess(
       static_cast<int>(args.size()), args.data(),
       {"vloc_launch",
-       {"group", "log-dir", "bin-dir", "exit-when-done", "echo"},
+       {"group", "log-dir", "bin-dir", "exit-when-done", "exit-grace", "echo"},
        true,
        "--config config/groups/rover_sim.yaml [--group NAME[,NAME] ...] [--log-dir DIR] [--lcm-url URL] "
-       "[--bin-dir DIR] [--exit-when-done[=NAME,...]] [--echo]"});
+       "[--bin-dir DIR] [--exit-when-done[=NAME,...]] [--exit-grace S] [--echo]"});
   if (!setup) return 1;
 
   vloc::LaunchPaths paths;
@@ -78,7 +80,21 @@ int main(int argc, char** argv) {
         return outcome.has_value();
       });
 
-  if (outcome) LOG(INFO) << "done (--exit-when-done), outcome " << *outcome << "; stopping the rest";
+  if (outcome && *outcome == 0) {
+    // Give the others time to finish their last piece of work.
+    double grace = 0.0;
+    for (const auto& n : done_names)
+      if (const auto* spec = file.Find(n)) grace = std::max(grace, spec->exit_grace);
+    grace = setup->args.GetDouble("exit-grace", grace);
+    LOG(INFO) << "done (--exit-when-done): stopping the rest in " << grace << " s";
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(grace);
+    while (std::chrono::steady_clock::now() < until && !vloc::StopSignalPending()) {
+      setup->transport->Handle(20);
+      supervisor.Step(30);
+      adapter.Tick();
+    }
+  }
+  if (outcome && *outcome != 0) LOG(ERROR) << "done (--exit-when-done) with a failure; stopping the rest";
   adapter.SetShuttingDown();
   supervisor.StopAll();
   while (!supervisor.AllStopped()) {

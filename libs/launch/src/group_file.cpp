@@ -116,6 +116,7 @@ struct RawProcess {
     r.Optional("working_dir", &spec.working_dir, "working directory");
     r.Optional("autostart", &spec.autostart, "start with its group");
     r.Optional("exit_when_done", &spec.exit_when_done, "its end ends the launcher (--exit-when-done)");
+    r.Optional("exit_grace", &spec.exit_grace, "s, after that end, before stopping the rest");
   }
 };
 
@@ -241,6 +242,7 @@ GroupFile ParseGroupYaml(const YAML::Node& root, const std::string& context, con
     if (!(spec.backoff_initial > 0)) throw ConfigError(where + ".backoff_initial: must be > 0 s");
     if (!(spec.backoff_max >= spec.backoff_initial))
       throw ConfigError(where + ".backoff_max: must be >= backoff_initial");
+    if (!(spec.exit_grace >= 0)) throw ConfigError(where + ".exit_grace: must be >= 0 s");
     if (!(spec.stop_timeout > 0)) throw ConfigError(where + ".stop_timeout: must be > 0 s");
 
     Expand(&spec.command, lookup, where + ".command");

@@ -338,22 +338,22 @@ void Supervisor::Step(int timeout_ms) {
 
 void Supervisor::Spawn(Proc& p, Clock::time_point now) {
   const ProcessSpec& spec = p.spec;
-  std::string error;
-  const std::string program = ResolveProgram(spec, &error);
-  if (program.empty() || (!spec.working_dir.empty() && !std::filesystem::is_directory(spec.working_dir))) {
-    if (error.empty()) error = "working_dir '" + spec.working_dir + "' is not a directory; fix 'working_dir'";
-    Note(p, error);
-    LOG(ERROR) << file_.path << ": process '" << spec.name << "': " << error;
-    p.state = ProcState::kGaveUp;
-    p.last_exit_code = 127;
-    p.has_exited = true;
-    return;
-  }
   if (!p.log_opened && !options_.log_dir.empty()) {
     const std::string path = options_.log_dir + "/" + spec.name + ".log";
     p.log_fd = open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
     if (p.log_fd < 0) LOG(ERROR) << "cannot write log file " << path << ": " << std::strerror(errno);
     p.log_opened = true;
+  }
+  std::string error;
+  const std::string program = ResolveProgram(spec, &error);
+  if (program.empty() || (!spec.working_dir.empty() && !std::filesystem::is_directory(spec.working_dir))) {
+    if (error.empty()) error = "working_dir '" + spec.working_dir + "' is not a directory; fix 'working_dir'";
+    WriteLine(p, "vloc_launch: " + error);
+    LOG(ERROR) << file_.path << ": process '" << spec.name << "': " << error;
+    p.state = ProcState::kGaveUp;
+    p.last_exit_code = 127;
+    p.has_exited = true;
+    return;
   }
 
   // Everything the child needs is built before fork.

@@ -24,6 +24,7 @@
 //       working_dir: ${VLOC_ROOT}
 //       autostart: true             # start with its group
 //       exit_when_done: true        # with --exit-when-done: its end ends the launcher
+//       exit_grace: 10              # s, after that end, before the others are stopped
 //
 // ${VAR} and ${VAR:-fallback} in command, args, env values and working_dir
 // are expanded from the launcher's environment when the file is read; $$
@@ -62,6 +63,7 @@ struct ProcessSpec {
   std::string working_dir;                   // empty = the launcher's working directory
   bool autostart = true;                     // started when its group is started at launch
   bool exit_when_done = false;               // with --exit-when-done, the launcher ends when it ends
+  double exit_grace = 0.0;                   // s, after an exit_when_done end, before stopping the rest
 };
 
 // A parsed group file: processes in file order (the start order when no
