@@ -1,0 +1,114 @@
+#pragma once
+// The cross-site feature front end (Wan et al. 2.1-2.2): from the stereo
+// panoramas of two adjacent sites and their dead-reckoning poses to tie
+// points for the bundle adjustment.
+//
+//   regions      predicted overlaps (current pair x previous pair), grown by the DR uncertainty
+//   wallis       Wallis filter of the regions, previous site's targets from the current site, zoom
+//   asift        ASIFT on the current regions (tilts/longitudes restricted by the prediction),
+//                SIFT on the zoomed previous regions, gated matching, RANSAC on the fundamental matrix
+//   cross_lsm    least-squares matching previous-left -> current-left from the predicted affine
+//   stereo       ZNCC along the epipolar segment at both sites
+//   median       median filter of the disparities against the neighbours
+//   lsm          least-squares matching left -> right at both sites
+//   consistency  distance-consistency voting (eq. 2) with thresholds from eq. 7
+//
+// Observations are ideal (undistorted) pixels; images with distortion are
+// undistorted first.
+
+#include <string>
+#include <vector>
+
+#include "vloc/common/camera.h"
+#include "vloc/common/rover_data.h"
+#include "vloc/crosssite/regions.h"
+#include "vloc/features/asift.h"
+#include "vloc/features/consistency.h"
+#include "vloc/features/lsm.h"
+#include "vloc/features/stereo_match.h"
+#include "vloc/features/wallis.h"
+
+namespace vloc {
+
+class OptionsReader;
+
+// One site's panorama and its dead-reckoning pose.
+struct SiteImages {
+  int site_id = 0;
+  PoseWithCovariance world_from_body;  // DR pose of the site
+  std::vector<StereoPair> pairs;       // indexed by pair_index after sorting
+};
+
+struct FrontendOptions {
+  RegionOptions regions;
+  WallisOptions wallis;
+  AsiftOptions asift;
+  GatedMatchOptions matching;
+  ZnccOptions zncc;
+  MedianFilterOptions median;
+  LsmOptions lsm;             // stereo LSM (left -> right)
+  LsmOptions cross_lsm;       // previous-left -> current-left LSM
+  ConsistencyOptions consistency;
+
+  double max_zoom = 3.0;               // the previous region is zoomed by min(1 / predicted scale, max_zoom)
+  double min_zoom = 1.0;               // ... and at least this
+  double tilt_margin = 1.25;           // simulate tilts t <= predicted tilt * tilt_margin (and always t = 1)
+  double longitude_margin_deg = 30.0;  // deg, simulated longitudes within this of the predicted one
+  double gate_margin_px = 20.0;        // px, gate radius = region growth + this (current-image px)
+  double fundamental_threshold_px = 2.0;  // px, RANSAC threshold on cross-site matches (0 = no RANSAC)
+  int max_points_per_overlap = 300;    // strongest matches kept per overlap, spread over a grid
+  double stereo_min_depth = 1.0;       // m, epipolar search starts at this depth ...
+  double stereo_max_depth = 80.0;      // m, ... and ends at this one
+  double sigma_angle_px = 0.5;         // px, lateral error of cross-site positions for the consistency threshold
+  double min_sigma_parallax = 0.1;     // px, floor of the stereo parallax sigma (eq. 7)
+  double min_region_std = 4.0;         // grey level: regions flatter than this have too little texture
+  double duplicate_radius = 1.5;       // px, tie points closer than this in a current left image are merged
+  int min_tie_points = 12;             // fewer verified points: STATUS too few points
+  int num_threads = 2;                 // OpenMP threads (stereo, LSM); asift/matching use their own
+
+  void Visit(OptionsReader& reader);
+  bool Check(std::string* error) const;
+};
+
+enum class FrontendStatus { kOk = 0, kNoOverlap = 1, kLowTexture = 2, kTooFewPoints = 3, kMissingInput = 4, kError = 5 };
+const char* FrontendStatusName(FrontendStatus status);
+
+struct StageReport {
+  std::string name;
+  int count = 0;         // points (or regions) surviving the stage
+  double seconds = 0;    // wall time
+};
+
+struct FrontendSummary {
+  FrontendStatus status = FrontendStatus::kError;
+  std::string message;               // why, when not OK
+  std::vector<StageReport> stages;
+  double total_seconds = 0;
+  int num_overlaps = 0;
+  int num_tie_points = 0;
+
+  bool IsUsable() const { return status == FrontendStatus::kOk; }
+  std::string BriefReport() const;
+};
+
+struct FrontendResult {
+  TiePointSet tie_points;
+  FrontendSummary summary;
+};
+
+class CrossSiteFrontend {
+ public:
+  CrossSiteFrontend(NavcamModel navcam, FrontendOptions options);
+
+  // Never throws for bad data: problems end up in summary.status/message.
+  FrontendResult Run(const SiteImages& previous, const SiteImages& current) const;
+
+  const FrontendOptions& options() const { return options_; }
+  const NavcamModel& navcam() const { return navcam_; }
+
+ private:
+  NavcamModel navcam_;
+  FrontendOptions options_;
+};
+
+}  // namespace vloc

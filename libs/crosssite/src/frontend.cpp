@@ -1,0 +1,673 @@
+#include "vloc/crosssite/frontend.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+#include <unordered_map>
+
+#include "vloc/common/options.h"
+
+namespace vloc {
+
+void FrontendOptions::Visit(OptionsReader& r) {
+  r.Child("regions", [&](OptionsReader& c) { regions.Visit(c); });
+  r.Child("wallis", [&](OptionsReader& c) { wallis.Visit(c); });
+  r.Child("asift", [&](OptionsReader& c) { asift.Visit(c); });
+  r.Child("matching", [&](OptionsReader& c) { matching.Visit(c); });
+  r.Child("zncc", [&](OptionsReader& c) { zncc.Visit(c); });
+  r.Child("median_filter", [&](OptionsReader& c) { median.Visit(c); });
+  r.Child("lsm", [&](OptionsReader& c) { lsm.Visit(c); });
+  r.Child("cross_lsm", [&](OptionsReader& c) { cross_lsm.Visit(c); });
+  r.Child("consistency", [&](OptionsReader& c) { consistency.Visit(c); });
+  r.Optional("max_zoom", &max_zoom, "largest zoom of the previous region");
+  r.Optional("min_zoom", &min_zoom, "smallest zoom of the previous region");
+  r.Optional("tilt_margin", &tilt_margin, "simulate tilts up to the predicted tilt times this");
+  r.Optional("longitude_margin_deg", &longitude_margin_deg, "deg, simulated longitudes around the predicted one");
+  r.Optional("gate_margin_px", &gate_margin_px, "px, added to the predicted growth for the match gate");
+  r.Optional("fundamental_threshold_px", &fundamental_threshold_px, "px, RANSAC threshold (0 = off)");
+  r.Optional("max_points_per_overlap", &max_points_per_overlap, "matches kept per overlap");
+  r.Optional("stereo_min_depth", &stereo_min_depth, "m, nearest depth searched along the epipolar line");
+  r.Optional("stereo_max_depth", &stereo_max_depth, "m, farthest depth searched along the epipolar line");
+  r.Optional("sigma_angle_px", &sigma_angle_px, "px, lateral error for the consistency threshold");
+  r.Optional("min_sigma_parallax", &min_sigma_parallax, "px, floor of the parallax sigma in eq. 7");
+  r.Optional("min_region_std", &min_region_std, "grey level, texture needed in the regions");
+  r.Optional("duplicate_radius", &duplicate_radius, "px, tie points closer than this are merged");
+  r.Optional("min_tie_points", &min_tie_points, "verified tie points needed for status OK");
+  r.Optional("num_threads", &num_threads, "OpenMP threads of the whole front end");
+}
+
+bool FrontendOptions::Check(std::string* error) const {
+  if (!regions.Check(error) || !wallis.Check(error) || !asift.Check(error) || !matching.Check(error) ||
+      !zncc.Check(error) || !median.Check(error) || !lsm.Check(error) || !cross_lsm.Check(error) ||
+      !consistency.Check(error))
+    return false;
+  if (min_zoom <= 0 || max_zoom < min_zoom) return Fail(error, "min_zoom must be > 0 and max_zoom >= min_zoom");
+  if (tilt_margin < 1) return Fail(error, "tilt_margin must be >= 1");
+  if (longitude_margin_deg < 0) return Fail(error, "longitude_margin_deg must be >= 0");
+  if (fundamental_threshold_px < 0) return Fail(error, "fundamental_threshold_px must be >= 0");
+  if (max_points_per_overlap < 1) return Fail(error, "max_points_per_overlap must be >= 1");
+  if (stereo_min_depth <= 0 || stereo_max_depth <= stereo_min_depth)
+    return Fail(error, "stereo depths must satisfy 0 < stereo_min_depth < stereo_max_depth");
+  if (sigma_angle_px < 0 || min_sigma_parallax <= 0) return Fail(error, "sigma_angle_px >= 0, min_sigma_parallax > 0");
+  if (min_tie_points < 1) return Fail(error, "min_tie_points must be >= 1");
+  if (num_threads < 1) return Fail(error, "num_threads must be >= 1");
+  return true;
+}
+
+const char* FrontendStatusName(FrontendStatus s) {
+  switch (s) {
+    case FrontendStatus::kOk: return "ok";
+    case FrontendStatus::kNoOverlap: return "no overlap";
+    case FrontendStatus::kLowTexture: return "too little texture";
+    case FrontendStatus::kTooFewPoints: return "too few tie points";
+    case FrontendStatus::kMissingInput: return "missing input";
+    case FrontendStatus::kError: return "error";
+  }
+  return "unknown";
+}
+
+std::string FrontendSummary::BriefReport() const {
+  std::ostringstream os;
+  os << "front end: " << FrontendStatusName(status);
+  if (!message.empty()) os << " (" << message << ")";
+  os << ", " << num_tie_points << " tie points in " << total_seconds << " s;";
+  for (const auto& s : stages) os << " " << s.name << " " << s.count << " (" << s.seconds << " s)";
+  return os.str();
+}
+
+CrossSiteFrontend::CrossSiteFrontend(NavcamModel navcam, FrontendOptions options)
+    : navcam_(std::move(navcam)), options_(std::move(options)) {}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+struct Prepared {
+  cv::Mat gray;    // CV_8UC1, ideal (undistorted)
+  LsmImage lsm;    // float + gradients
+};
+
+Prepared Prepare(const cv::Mat& raw, const PinholeCamera& cam) {
+  Prepared p;
+  if (cam.HasDistortion()) {
+    cv::undistort(raw, p.gray, cv::Mat(cam.K()), cam.DistortionCoeffs(), cv::Mat(cam.K()));
+  } else {
+    p.gray = raw;
+  }
+  p.lsm = MakeLsmImage(p.gray);
+  return p;
+}
+
+Eigen::Vector2d ApplyH(const cv::Matx33d& H, const Eigen::Vector2d& p) {
+  const double w = H(2, 0) * p.x() + H(2, 1) * p.y() + H(2, 2);
+  return {(H(0, 0) * p.x() + H(0, 1) * p.y() + H(0, 2)) / w, (H(1, 0) * p.x() + H(1, 1) * p.y() + H(1, 2)) / w};
+}
+
+Eigen::Matrix2d JacobianH(const cv::Matx33d& H, const Eigen::Vector2d& p) {
+  const Eigen::Vector2d f0 = ApplyH(H, p);
+  Eigen::Matrix2d J;
+  J.col(0) = ApplyH(H, p + Eigen::Vector2d(0.5, 0)) - ApplyH(H, p - Eigen::Vector2d(0.5, 0));
+  J.col(1) = ApplyH(H, p + Eigen::Vector2d(0, 0.5)) - ApplyH(H, p - Eigen::Vector2d(0, 0.5));
+  (void)f0;
+  return J;
+}
+
+// A cross-site candidate on its way through the stages.
+struct Candidate {
+  int overlap = 0;
+  int prev_pair = 0, cur_pair = 0;
+  Eigen::Vector2d prev_left = Eigen::Vector2d::Zero(), cur_left = Eigen::Vector2d::Zero();
+  Eigen::Vector2d prev_right = Eigen::Vector2d::Zero(), cur_right = Eigen::Vector2d::Zero();
+  double descriptor_distance = 0;
+  double sigma_cross = 0, sigma_prev_right = 0, sigma_cur_right = 0;
+  Eigen::Vector3d p_prev = Eigen::Vector3d::Zero(), p_cur = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d cov_prev = Eigen::Matrix3d::Zero(), cov_cur = Eigen::Matrix3d::Zero();
+  bool ok = true;
+};
+
+// Features of one image restricted to a region, in ideal pixels.
+struct ImageFeatures {
+  FeatureSet set;
+  cv::Rect region;
+  double zoom = 1.0;
+  std::vector<AffineView> views;
+};
+
+// Keeps the `cap` best (by descriptor distance) matches spread over a grid.
+std::vector<int> SpreadSelect(const std::vector<Candidate>& c, const std::vector<int>& idx, int cap, double cell) {
+  std::vector<int> order = idx;
+  std::sort(order.begin(), order.end(),
+            [&](int a, int b) { return c[a].descriptor_distance < c[b].descriptor_distance; });
+  std::unordered_map<long long, int> used;
+  std::vector<int> first, rest;
+  for (int k : order) {
+    const long long key = (static_cast<long long>(std::floor(c[k].cur_left.x() / cell)) << 32) ^
+                          static_cast<unsigned>(static_cast<int>(std::floor(c[k].cur_left.y() / cell)));
+    if (used[key]++ == 0) first.push_back(k); else rest.push_back(k);
+  }
+  first.insert(first.end(), rest.begin(), rest.end());
+  if (static_cast<int>(first.size()) > cap) first.resize(cap);
+  return first;
+}
+
+// Epipolar segment in the right image for depths [z0, z1] of the left pixel.
+bool EpipolarSegment(const StereoRig& rig, const Eigen::Vector2d& left_px, double z0, double z1, Eigen::Vector2d* a,
+                     Eigen::Vector2d* b) {
+  const Pose3 right_from_left = rig.left_from_right.inverse();
+  const Eigen::Vector3d ray = rig.left.Ray(left_px);
+  const auto pa = rig.right.ProjectIdeal(right_from_left * (ray * z1));
+  const auto pb = rig.right.ProjectIdeal(right_from_left * (ray * z0));
+  if (!pa || !pb) return false;
+  *a = *pa;
+  *b = *pb;
+  // Clip to the image (keep a small margin for the correlation window).
+  const Eigen::Vector2d d = *b - *a;
+  double t0 = 0, t1 = 1;
+  const double lo[2] = {0, 0}, hi[2] = {static_cast<double>(rig.right.width - 1), static_cast<double>(rig.right.height - 1)};
+  for (int k = 0; k < 2; ++k) {
+    if (std::abs(d(k)) < 1e-12) {
+      if ((*a)(k) < lo[k] || (*a)(k) > hi[k]) return false;
+      continue;
+    }
+    double ta = (lo[k] - (*a)(k)) / d(k), tb = (hi[k] - (*a)(k)) / d(k);
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+  }
+  if (t0 >= t1) return false;
+  const Eigen::Vector2d a0 = *a;
+  *a = a0 + t0 * d;
+  *b = a0 + t1 * d;
+  return true;
+}
+
+// Midpoint triangulation of two rays (origins o, directions d) in one frame.
+bool Triangulate(const Eigen::Vector3d& o1, const Eigen::Vector3d& d1, const Eigen::Vector3d& o2,
+                 const Eigen::Vector3d& d2, Eigen::Vector3d* p) {
+  const Eigen::Vector3d w = o1 - o2;
+  const double a = d1.dot(d1), b = d1.dot(d2), c = d2.dot(d2), d = d1.dot(w), e = d2.dot(w);
+  const double den = a * c - b * b;
+  if (den < 1e-12) return false;
+  const double s = (b * e - c * d) / den, t = (a * e - b * d) / den;
+  if (s <= 0 || t <= 0) return false;
+  *p = 0.5 * ((o1 + s * d1) + (o2 + t * d2));
+  return true;
+}
+
+}  // namespace
+
+FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteImages& current_in) const {
+  FrontendResult result;
+  FrontendSummary& sum = result.summary;
+  const FrontendOptions& o = options_;
+  const auto t_start = Clock::now();
+  auto stage = [&](const std::string& name, int count, Clock::time_point t0) {
+    sum.stages.push_back({name, count, Since(t0)});
+  };
+  auto finish = [&](FrontendStatus status, const std::string& message) {
+    sum.status = status;
+    sum.message = message;
+    sum.total_seconds = Since(t_start);
+    sum.num_tie_points = static_cast<int>(result.tie_points.points.size());
+    return result;
+  };
+  try {
+    // ---- input
+    SiteImages prev = previous_in, cur = current_in;
+    auto by_index = [](const StereoPair& a, const StereoPair& b) { return a.pair_index < b.pair_index; };
+    std::sort(prev.pairs.begin(), prev.pairs.end(), by_index);
+    std::sort(cur.pairs.begin(), cur.pairs.end(), by_index);
+    if (prev.pairs.empty() || cur.pairs.empty())
+      return finish(FrontendStatus::kMissingInput, prev.pairs.empty() ? "no stereo pairs of the previous site"
+                                                                      : "no stereo pairs of the current site");
+    const PinholeCamera& cam = navcam_.rig.left;
+    for (const SiteImages* s : {&prev, &cur}) {
+      for (const auto& p : s->pairs) {
+        for (const cv::Mat* m : {&p.left, &p.right}) {
+          if (m->empty() || m->type() != CV_8UC1 || m->cols != cam.width || m->rows != cam.height) {
+            std::ostringstream os;
+            os << "site " << s->site_id << " pair " << p.pair_index << ": image is not " << cam.width << "x"
+               << cam.height << " 8-bit grey (check the Navcam calibration file)";
+            return finish(FrontendStatus::kMissingInput, os.str());
+          }
+        }
+      }
+    }
+    TiePointSet& tps = result.tie_points;
+    tps.previous_site_id = prev.site_id;
+    tps.current_site_id = cur.site_id;
+    tps.previous_site_pose = prev.world_from_body;
+    tps.current_site_pose_dr = cur.world_from_body;
+    for (const auto& p : prev.pairs) tps.previous_pointing.push_back({p.mast_pan, p.mast_tilt});
+    for (const auto& p : cur.pairs) {
+      tps.current_pointing.push_back({p.mast_pan, p.mast_tilt});
+      tps.utime = std::max(tps.utime, p.utime);
+    }
+    const int np = static_cast<int>(prev.pairs.size()), nc = static_cast<int>(cur.pairs.size());
+
+    // ---- regions
+    auto t0 = Clock::now();
+    const RegionPrediction pred = PredictRegions(navcam_, prev.world_from_body, cur.world_from_body,
+                                                 tps.previous_pointing, tps.current_pointing, o.regions);
+    stage("regions", static_cast<int>(pred.overlaps.size()), t0);
+    sum.num_overlaps = static_cast<int>(pred.overlaps.size());
+    if (pred.overlaps.empty())
+      return finish(FrontendStatus::kNoOverlap,
+                    "no current image sees ground that a previous image sees within the range limits "
+                    "(check the DR poses, mast pointing and regions.max_range_*)");
+
+    // ---- prepare (undistort) and Wallis + zoom of the regions
+    t0 = Clock::now();
+    std::vector<Prepared> prev_l(np), prev_r(np), cur_l(nc), cur_r(nc);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
+    for (int k = 0; k < 2 * (np + nc); ++k) {
+      if (k < np) prev_l[k] = Prepare(prev.pairs[k].left, navcam_.rig.left);
+      else if (k < 2 * np) prev_r[k - np] = Prepare(prev.pairs[k - np].right, navcam_.rig.right);
+      else if (k < 2 * np + nc) cur_l[k - 2 * np] = Prepare(cur.pairs[k - 2 * np].left, navcam_.rig.left);
+      else cur_r[k - 2 * np - nc] = Prepare(cur.pairs[k - 2 * np - nc].right, navcam_.rig.right);
+    }
+    // Union of the regions per image; forward overlaps only (backward ones are matched on the ground).
+    std::vector<ImageFeatures> fprev(np), fcur(nc);
+    std::vector<double> tilt_max(nc, 1.0), lon_sum(nc, 0.0), lon_w(nc, 0.0), zoom_sum(np, 0.0);
+    std::vector<int> zoom_n(np, 0);
+    for (const auto& ov : pred.overlaps) {
+      if (ov.backward) continue;
+      fcur[ov.current_pair].region |= ov.current_region;
+      fprev[ov.previous_pair].region |= ov.previous_region;
+      tilt_max[ov.current_pair] = std::max(tilt_max[ov.current_pair], ov.tilt);
+      // Longitudes are axial (mod pi): average the doubled angle.
+      lon_sum[ov.current_pair] += ov.num_samples * std::sin(2 * ov.tilt_longitude);
+      lon_w[ov.current_pair] += ov.num_samples * std::cos(2 * ov.tilt_longitude);
+      zoom_sum[ov.previous_pair] += std::clamp(1.0 / ov.scale, o.min_zoom, o.max_zoom);
+      ++zoom_n[ov.previous_pair];
+    }
+    double best_std = 0;
+    std::vector<cv::Mat> cur_work(nc), prev_work(np);
+    cv::Mat stats_mask_vals;
+    std::vector<double> cur_means, cur_stds;
+    for (int i = 0; i < nc; ++i) {
+      if (fcur[i].region.area() == 0) continue;
+      const ImageStats raw = ComputeImageStats(cur_l[i].gray(fcur[i].region));
+      best_std = std::max(best_std, raw.std);
+      cur_work[i] = WallisFilter(cur_l[i].gray(fcur[i].region), o.wallis);
+      const ImageStats st = ComputeImageStats(cur_work[i]);
+      cur_means.push_back(st.mean);
+      cur_stds.push_back(st.std);
+    }
+    for (int j = 0; j < np; ++j) {
+      if (fprev[j].region.area() == 0) continue;
+      best_std = std::max(best_std, ComputeImageStats(prev_l[j].gray(fprev[j].region)).std);
+    }
+    if (best_std < o.min_region_std) {
+      std::ostringstream os;
+      os << "the overlap regions are flat (largest grey-level std " << best_std << " < min_region_std "
+         << o.min_region_std << "): too little texture to match";
+      stage("wallis", 0, t0);
+      return finish(FrontendStatus::kLowTexture, os.str());
+    }
+    // Previous site's Wallis targets from the current site's filtered regions (grey-level consistency).
+    WallisOptions wprev = o.wallis;
+    if (!cur_means.empty()) {
+      wprev.target_mean = std::accumulate(cur_means.begin(), cur_means.end(), 0.0) / cur_means.size();
+      wprev.target_std = std::max(1.0, std::accumulate(cur_stds.begin(), cur_stds.end(), 0.0) / cur_stds.size());
+    }
+    int num_regions = 0;
+    for (int i = 0; i < nc; ++i) num_regions += cur_work[i].empty() ? 0 : 1;
+    for (int j = 0; j < np; ++j) {
+      if (fprev[j].region.area() == 0) continue;
+      fprev[j].zoom = zoom_sum[j] / std::max(1, zoom_n[j]);
+      cv::Mat filtered = WallisFilter(prev_l[j].gray(fprev[j].region), wprev);
+      if (std::abs(fprev[j].zoom - 1.0) > 1e-3) {
+        cv::resize(filtered, prev_work[j], cv::Size(), fprev[j].zoom, fprev[j].zoom, cv::INTER_CUBIC);
+      } else {
+        prev_work[j] = filtered;
+      }
+      ++num_regions;
+    }
+    stage("wallis", num_regions, t0);
+
+    // ---- ASIFT: flat job list of (image, view) over both sites.
+    t0 = Clock::now();
+    struct Job {
+      bool current;
+      int image;
+      AffineView view;
+    };
+    std::vector<Job> jobs;
+    const double lon_margin = o.longitude_margin_deg * M_PI / 180;
+    for (int i = 0; i < nc; ++i) {
+      if (cur_work[i].empty()) continue;
+      fcur[i].views.push_back({1.0, 0.0});
+      const double lon = 0.5 * std::atan2(lon_sum[i], lon_w[i]);
+      for (double t : o.asift.tilts) {
+        if (t <= 1.0 + 1e-6 || t > tilt_max[i] * o.tilt_margin) continue;
+        const double step = o.asift.longitude_step_deg * M_PI / 180 / t;
+        const int kmax = static_cast<int>(std::floor(lon_margin / step + 1e-9));
+        for (int k = -kmax; k <= kmax; ++k) fcur[i].views.push_back({t, lon + k * step});
+      }
+      for (const auto& v : fcur[i].views) jobs.push_back({true, i, v});
+    }
+    for (int j = 0; j < np; ++j) {
+      if (prev_work[j].empty()) continue;
+      fprev[j].views.push_back({1.0, 0.0});
+      jobs.push_back({false, j, {1.0, 0.0}});
+    }
+    std::vector<FeatureSet> job_sets(jobs.size());
+    AsiftOptions single = o.asift;
+    single.num_threads = 1;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
+    for (int k = 0; k < static_cast<int>(jobs.size()); ++k) {
+      const Job& jb = jobs[k];
+      const cv::Mat& img = jb.current ? cur_work[jb.image] : prev_work[jb.image];
+      job_sets[k] = DetectAsift(img, cv::Mat(), {jb.view}, single);
+    }
+    // Assemble per image, in ideal pixels of the full image.
+    for (size_t k = 0; k < jobs.size(); ++k) {
+      ImageFeatures& f = jobs[k].current ? fcur[jobs[k].image] : fprev[jobs[k].image];
+      FeatureSet& s = job_sets[k];
+      const int view_index = static_cast<int>(f.set.views.size());
+      f.set.views.push_back(jobs[k].view);
+      for (size_t q = 0; q < s.size(); ++q) {
+        f.set.keypoints.push_back(s.keypoints[q]);
+        f.set.points.push_back(Eigen::Vector2d(f.region.x, f.region.y) + s.points[q] / f.zoom);
+        f.set.view.push_back(view_index);
+      }
+      if (!s.descriptors.empty()) {
+        if (f.set.descriptors.empty()) f.set.descriptors = s.descriptors.clone();
+        else cv::vconcat(f.set.descriptors, s.descriptors, f.set.descriptors);
+      }
+    }
+    size_t num_cur_features = 0;
+    for (const auto& f : fcur) num_cur_features += f.set.size();
+    // Gated matching per forward overlap: previous features predicted into the current image.
+    std::vector<std::vector<Candidate>> per_overlap(pred.overlaps.size());
+    GatedMatchOptions gm = o.matching;
+    gm.num_threads = 1;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
+    for (int k = 0; k < static_cast<int>(pred.overlaps.size()); ++k) {
+      const PairOverlap& ov = pred.overlaps[k];
+      if (ov.backward) continue;
+      const FeatureSet& fp = fprev[ov.previous_pair].set;
+      const FeatureSet& fc = fcur[ov.current_pair].set;
+      if (fp.size() == 0 || fc.size() == 0) continue;
+      const cv::Matx33d cur_from_prev = ov.previous_from_current.inv();
+      std::vector<Eigen::Vector2d> predicted(fp.size(), Eigen::Vector2d::Constant(NAN));
+      for (size_t q = 0; q < fp.size(); ++q) {
+        const auto& p = fp.points[q];
+        if (!ov.previous_region.contains(cv::Point(static_cast<int>(p.x()), static_cast<int>(p.y())))) continue;
+        predicted[q] = ApplyH(cur_from_prev, p);
+      }
+      GatedMatchOptions g = gm;
+      g.gate_radius = ov.growth_px / std::max(ov.scale, 1e-3) + o.gate_margin_px;
+      const auto matches = GatedMatch(fp, predicted, fc, g);
+      std::vector<Candidate> cands;
+      for (const auto& m : matches) {
+        Candidate c;
+        c.overlap = k;
+        c.prev_pair = ov.previous_pair;
+        c.cur_pair = ov.current_pair;
+        c.prev_left = fp.points[m.query];
+        c.cur_left = fc.points[m.train];
+        c.descriptor_distance = m.distance;
+        cands.push_back(c);
+      }
+      if (o.fundamental_threshold_px > 0 && cands.size() >= 8) {
+        std::vector<cv::Point2f> a, b;
+        for (const auto& c : cands) {
+          a.emplace_back(static_cast<float>(c.prev_left.x()), static_cast<float>(c.prev_left.y()));
+          b.emplace_back(static_cast<float>(c.cur_left.x()), static_cast<float>(c.cur_left.y()));
+        }
+        std::vector<uchar> inl;
+        cv::Mat F = cv::findFundamentalMat(a, b, cv::FM_RANSAC, o.fundamental_threshold_px, 0.999, inl);
+        if (!F.empty() && inl.size() == cands.size()) {
+          std::vector<Candidate> kept;
+          for (size_t q = 0; q < cands.size(); ++q)
+            if (inl[q]) kept.push_back(cands[q]);
+          cands.swap(kept);
+        } else {
+          cands.clear();
+        }
+      } else if (o.fundamental_threshold_px > 0) {
+        cands.clear();
+      }
+      std::vector<int> idx(cands.size());
+      std::iota(idx.begin(), idx.end(), 0);
+      std::vector<Candidate> sel;
+      for (int q : SpreadSelect(cands, idx, o.max_points_per_overlap, 24.0)) sel.push_back(cands[q]);
+      per_overlap[k] = std::move(sel);
+    }
+    // Backward overlaps: match on the ground plane.
+    for (int k = 0; k < static_cast<int>(pred.overlaps.size()); ++k) {
+      const PairOverlap& ov = pred.overlaps[k];
+      if (!ov.backward) continue;
+      const double res = 0.02;  // m per ortho pixel
+      const Eigen::Vector2d ext = ov.ground_max - ov.ground_min;
+      const cv::Size size(std::min(2000, static_cast<int>(ext.x() / res)), std::min(2000, static_cast<int>(ext.y() / res)));
+      if (size.width < 32 || size.height < 32) continue;
+      const Eigen::Vector2d origin(ov.ground_min.x(), ov.ground_max.y());
+      const Pose3 prev_cam = navcam_.mast.BodyFromLeft(tps.previous_pointing[ov.previous_pair].pan,
+                                                       tps.previous_pointing[ov.previous_pair].tilt, navcam_.rig);
+      const Pose3 cur_cam_in_prev = pred.previous_from_current *
+                                    navcam_.mast.BodyFromLeft(tps.current_pointing[ov.current_pair].pan,
+                                                              tps.current_pointing[ov.current_pair].tilt, navcam_.rig);
+      const cv::Matx33d Hp = ImageFromOrtho(cam, prev_cam, origin, res, o.regions.ground_height);
+      const cv::Matx33d Hc = ImageFromOrtho(cam, cur_cam_in_prev, origin, res, o.regions.ground_height);
+      const cv::Mat op = WallisFilter(GroundOrthoImage(prev_l[ov.previous_pair].gray, Hp, size), wprev);
+      const cv::Mat oc = WallisFilter(GroundOrthoImage(cur_l[ov.current_pair].gray, Hc, size), o.wallis);
+      AsiftOptions plain = o.asift;
+      const FeatureSet sp = DetectAsift(op, op > 0, {{1.0, 0.0}}, plain);
+      const FeatureSet sc = DetectAsift(oc, oc > 0, {{1.0, 0.0}}, plain);
+      GatedMatchOptions g = gm;
+      g.gate_radius = o.regions.sigma_scale * std::max(pred.relative_sigma(0), pred.relative_sigma(1)) / res + o.gate_margin_px;
+      const auto matches = GatedMatch(sp, sp.points, sc, g);
+      for (const auto& m : matches) {
+        Candidate c;
+        c.overlap = k;
+        c.prev_pair = ov.previous_pair;
+        c.cur_pair = ov.current_pair;
+        c.prev_left = ApplyH(Hp, sp.points[m.query]);
+        c.cur_left = ApplyH(Hc, sc.points[m.train]);
+        c.descriptor_distance = m.distance;
+        if (cam.InImage(c.prev_left, 10) && cam.InImage(c.cur_left, 10)) per_overlap[k].push_back(c);
+      }
+    }
+    std::vector<Candidate> cands;
+    for (auto& v : per_overlap) cands.insert(cands.end(), v.begin(), v.end());
+    stage("asift", static_cast<int>(cands.size()), t0);
+    if (num_cur_features < 20)
+      return finish(FrontendStatus::kLowTexture, "ASIFT found almost no features in the current regions (" +
+                                                     std::to_string(num_cur_features) + "): too little texture");
+
+    // ---- cross-site LSM: previous-left window into the current left image.
+    t0 = Clock::now();
+    const int n0 = static_cast<int>(cands.size());
+#pragma omp parallel for schedule(dynamic, 16) num_threads(o.num_threads)
+    for (int k = 0; k < n0; ++k) {
+      Candidate& c = cands[k];
+      const PairOverlap& ov = pred.overlaps[c.overlap];
+      Eigen::Matrix2d A = Eigen::Matrix2d::Identity();
+      if (!ov.backward) {
+        const Eigen::Matrix2d J = JacobianH(ov.previous_from_current, c.cur_left);  // prev px per cur px
+        if (std::abs(J.determinant()) > 1e-9) A = J.inverse();
+      } else {
+        A = Eigen::Matrix2d::Identity();
+      }
+      const LsmResult r = LeastSquaresMatch(prev_l[c.prev_pair].lsm, c.prev_left, cur_l[c.cur_pair].lsm, c.cur_left, A,
+                                            o.cross_lsm);
+      c.ok = r.ok;
+      if (r.ok) {
+        c.cur_left = r.target;
+        c.sigma_cross = r.sigma_px;
+      }
+    }
+    cands.erase(std::remove_if(cands.begin(), cands.end(), [](const Candidate& c) { return !c.ok; }), cands.end());
+    // Merge duplicates (the same current pixel matched through two overlaps).
+    {
+      std::sort(cands.begin(), cands.end(), [](const Candidate& a, const Candidate& b) { return a.sigma_cross < b.sigma_cross; });
+      std::unordered_map<long long, std::vector<int>> grid;
+      const double cell = std::max(o.duplicate_radius, 0.5);
+      std::vector<Candidate> kept;
+      for (const auto& c : cands) {
+        const int gx = static_cast<int>(std::floor(c.cur_left.x() / cell)), gy = static_cast<int>(std::floor(c.cur_left.y() / cell));
+        bool dup = false;
+        for (int dx = -1; dx <= 1 && !dup; ++dx)
+          for (int dy = -1; dy <= 1 && !dup; ++dy) {
+            const long long key = (static_cast<long long>(c.cur_pair) << 48) ^ (static_cast<long long>(gx + dx) << 24) ^ (gy + dy);
+            auto it = grid.find(key);
+            if (it == grid.end()) continue;
+            for (int q : it->second)
+              if ((kept[q].cur_left - c.cur_left).norm() < o.duplicate_radius) dup = true;
+          }
+        if (dup) continue;
+        const long long key = (static_cast<long long>(c.cur_pair) << 48) ^ (static_cast<long long>(gx) << 24) ^ gy;
+        grid[key].push_back(static_cast<int>(kept.size()));
+        kept.push_back(c);
+      }
+      cands.swap(kept);
+    }
+    stage("cross_lsm", static_cast<int>(cands.size()), t0);
+
+    // ---- stereo ZNCC at both sites
+    t0 = Clock::now();
+    const int n1 = static_cast<int>(cands.size());
+#pragma omp parallel for schedule(dynamic, 16) num_threads(o.num_threads)
+    for (int k = 0; k < n1; ++k) {
+      Candidate& c = cands[k];
+      Eigen::Vector2d a, b;
+      c.ok = false;
+      if (!EpipolarSegment(navcam_.rig, c.prev_left, o.stereo_min_depth, o.stereo_max_depth, &a, &b)) continue;
+      const ZnccMatch zp = ZnccAlongSegment(prev_l[c.prev_pair].lsm.gray, prev_r[c.prev_pair].lsm.gray, c.prev_left, a, b, o.zncc);
+      if (!zp.ok) continue;
+      if (!EpipolarSegment(navcam_.rig, c.cur_left, o.stereo_min_depth, o.stereo_max_depth, &a, &b)) continue;
+      const ZnccMatch zc = ZnccAlongSegment(cur_l[c.cur_pair].lsm.gray, cur_r[c.cur_pair].lsm.gray, c.cur_left, a, b, o.zncc);
+      if (!zc.ok) continue;
+      c.prev_right = zp.right;
+      c.cur_right = zc.right;
+      c.ok = true;
+    }
+    cands.erase(std::remove_if(cands.begin(), cands.end(), [](const Candidate& c) { return !c.ok; }), cands.end());
+    stage("stereo", static_cast<int>(cands.size()), t0);
+
+    // ---- median filter of the disparities, per image of each site
+    t0 = Clock::now();
+    for (int site = 0; site < 2; ++site) {
+      std::map<int, std::vector<int>> by_image;
+      for (int k = 0; k < static_cast<int>(cands.size()); ++k) by_image[site == 0 ? cands[k].prev_pair : cands[k].cur_pair].push_back(k);
+      for (const auto& [image, idx] : by_image) {
+        std::vector<Eigen::Vector2d> pts;
+        std::vector<double> disp;
+        for (int k : idx) {
+          const Candidate& c = cands[k];
+          pts.push_back(site == 0 ? c.prev_left : c.cur_left);
+          disp.push_back(site == 0 ? (c.prev_left - c.prev_right).norm() : (c.cur_left - c.cur_right).norm());
+        }
+        const auto keep = MedianDisparityFilter(pts, disp, o.median);
+        for (size_t q = 0; q < idx.size(); ++q)
+          if (!keep[q]) cands[idx[q]].ok = false;
+      }
+    }
+    cands.erase(std::remove_if(cands.begin(), cands.end(), [](const Candidate& c) { return !c.ok; }), cands.end());
+    stage("median", static_cast<int>(cands.size()), t0);
+
+    // ---- stereo LSM at both sites + intersection
+    t0 = Clock::now();
+    const int n2 = static_cast<int>(cands.size());
+    const double baseline = navcam_.rig.Baseline(), focal = cam.fx;
+#pragma omp parallel for schedule(dynamic, 16) num_threads(o.num_threads)
+    for (int k = 0; k < n2; ++k) {
+      Candidate& c = cands[k];
+      c.ok = false;
+      const LsmResult lp = LeastSquaresMatch(prev_l[c.prev_pair].lsm, c.prev_left, prev_r[c.prev_pair].lsm, c.prev_right,
+                                             Eigen::Matrix2d::Identity(), o.lsm);
+      if (!lp.ok) continue;
+      const LsmResult lc = LeastSquaresMatch(cur_l[c.cur_pair].lsm, c.cur_left, cur_r[c.cur_pair].lsm, c.cur_right,
+                                             Eigen::Matrix2d::Identity(), o.lsm);
+      if (!lc.ok) continue;
+      c.prev_right = lp.target;
+      c.cur_right = lc.target;
+      c.sigma_prev_right = lp.sigma_px;
+      c.sigma_cur_right = lc.sigma_px;
+      // Intersect at both sites, in each site's body frame.
+      bool good = true;
+      for (int site = 0; site < 2 && good; ++site) {
+        const MastPointing& mp = site == 0 ? tps.previous_pointing[c.prev_pair] : tps.current_pointing[c.cur_pair];
+        const Pose3 bl = navcam_.mast.BodyFromLeft(mp.pan, mp.tilt, navcam_.rig);
+        const Pose3 br = bl * navcam_.rig.left_from_right;
+        const Eigen::Vector2d& ul = site == 0 ? c.prev_left : c.cur_left;
+        const Eigen::Vector2d& ur = site == 0 ? c.prev_right : c.cur_right;
+        const Eigen::Vector3d dl = bl.linear() * navcam_.rig.left.Ray(ul);
+        const Eigen::Vector3d dr = br.linear() * navcam_.rig.right.Ray(ur);
+        Eigen::Vector3d p;
+        if (!Triangulate(bl.translation(), dl, br.translation(), dr, &p)) {
+          good = false;
+          break;
+        }
+        const double range = (p - bl.translation()).norm();
+        const double sp = std::max(o.min_sigma_parallax, site == 0 ? lp.sigma_px : lc.sigma_px);
+        const double sa = std::hypot(o.sigma_angle_px, c.sigma_cross) / focal;
+        const Eigen::Matrix3d cov = StereoPointCovariance(p - bl.translation(), range, baseline, focal, sp, sa);
+        if (site == 0) {
+          c.p_prev = p;
+          c.cov_prev = cov;
+        } else {
+          c.p_cur = p;
+          c.cov_cur = cov;
+        }
+      }
+      c.ok = good;
+    }
+    cands.erase(std::remove_if(cands.begin(), cands.end(), [](const Candidate& c) { return !c.ok; }), cands.end());
+    stage("lsm", static_cast<int>(cands.size()), t0);
+
+    // ---- distance consistency (eq. 2)
+    t0 = Clock::now();
+    std::vector<Eigen::Vector3d> p1, p2;
+    std::vector<Eigen::Matrix3d> c1, c2;
+    for (const auto& c : cands) {
+      p1.push_back(c.p_prev);
+      p2.push_back(c.p_cur);
+      c1.push_back(c.cov_prev);
+      c2.push_back(c.cov_cur);
+    }
+    const ConsistencyResult cons = DistanceConsistencyCheck(p1, c1, p2, c2, o.consistency);
+    int id = 0;
+    for (size_t k = 0; k < cands.size(); ++k) {
+      if (!cons.inlier[k]) continue;
+      const Candidate& c = cands[k];
+      TiePoint tp;
+      tp.id = id++;
+      tp.p_previous = c.p_prev;
+      tp.p_current = c.p_cur;
+      tp.weight = cons.weights[k];
+      const double s_left = std::max(c.sigma_cross, 0.02);
+      tp.observations.push_back({SiteRole::kPrevious, c.prev_pair, CameraSide::kLeft, c.prev_left, s_left});
+      tp.observations.push_back({SiteRole::kPrevious, c.prev_pair, CameraSide::kRight, c.prev_right,
+                                 std::max(std::hypot(c.sigma_prev_right, s_left), 0.02)});
+      tp.observations.push_back({SiteRole::kCurrent, c.cur_pair, CameraSide::kLeft, c.cur_left, s_left});
+      tp.observations.push_back({SiteRole::kCurrent, c.cur_pair, CameraSide::kRight, c.cur_right,
+                                 std::max(std::hypot(c.sigma_cur_right, s_left), 0.02)});
+      tps.points.push_back(std::move(tp));
+    }
+    stage("consistency", static_cast<int>(tps.points.size()), t0);
+    if (static_cast<int>(tps.points.size()) < o.min_tie_points) {
+      std::ostringstream os;
+      os << "only " << tps.points.size() << " verified tie points (need " << o.min_tie_points << ")";
+      if (cands.empty()) os << "; matches were lost before the consistency check";
+      return finish(FrontendStatus::kTooFewPoints, os.str());
+    }
+    return finish(FrontendStatus::kOk, "");
+  } catch (const std::exception& e) {
+    result.tie_points.points.clear();
+    return finish(FrontendStatus::kError, std::string("internal error: ") + e.what());
+  }
+}
+
+}  // namespace vloc

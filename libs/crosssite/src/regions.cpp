@@ -1,0 +1,221 @@
+#include "vloc/crosssite/regions.h"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "vloc/common/options.h"
+
+namespace vloc {
+
+void RegionOptions::Visit(OptionsReader& r) {
+  r.Optional("ground_height", &ground_height, "m, ground plane z in the body frame");
+  r.Optional("max_range_previous", &max_range_previous, "m, farthest ground point from the previous camera");
+  r.Optional("max_range_current", &max_range_current, "m, farthest ground point from the current camera");
+  r.Optional("grid_step", &grid_step, "px, footprint sampling step");
+  r.Optional("sigma_scale", &sigma_scale, "regions cover the pose perturbed by this many sigma");
+  r.Optional("default_position_sigma_fraction", &default_position_sigma_fraction,
+             "relative position sigma as a fraction of the distance when no covariance");
+  r.Optional("default_yaw_sigma_deg", &default_yaw_sigma_deg, "deg, relative yaw sigma when no covariance");
+  r.Optional("default_tilt_sigma_deg", &default_tilt_sigma_deg, "deg, relative roll/pitch sigma when no covariance");
+  r.Optional("max_position_sigma_fraction", &max_position_sigma_fraction,
+             "cap of the relative position sigma, fraction of the distance");
+  r.Optional("min_samples", &min_samples, "ground samples an overlap needs");
+  r.Optional("backward_angle_deg", &backward_angle_deg, "deg, viewing directions further apart: backward pair");
+  r.Optional("image_margin", &image_margin, "px, samples closer to the border are dropped");
+}
+
+bool RegionOptions::Check(std::string* error) const {
+  if (max_range_previous <= 0 || max_range_current <= 0) return Fail(error, "regions.max_range_* must be > 0");
+  if (grid_step < 2) return Fail(error, "regions.grid_step must be >= 2");
+  if (sigma_scale < 0) return Fail(error, "regions.sigma_scale must be >= 0");
+  if (default_position_sigma_fraction < 0 || max_position_sigma_fraction <= 0)
+    return Fail(error, "regions position sigma fractions must be >= 0 (max > 0)");
+  if (min_samples < 4) return Fail(error, "regions.min_samples must be >= 4");
+  if (backward_angle_deg <= 0 || backward_angle_deg > 180) return Fail(error, "regions.backward_angle_deg must be in (0, 180]");
+  return true;
+}
+
+Vector6d RelativePoseSigma(const PoseWithCovariance& prev, const PoseWithCovariance& cur, const RegionOptions& o) {
+  const double distance = (cur.pose.translation() - prev.pose.translation()).norm();
+  Vector6d sigma = Vector6d::Zero();
+  const bool known = !cur.covariance.isZero(0.0);
+  if (known) {
+    for (int k = 0; k < 6; ++k) sigma(k) = std::sqrt(std::max(cur.covariance(k, k) - prev.covariance(k, k), 0.0));
+  }
+  if (!known || sigma.isZero(1e-12)) {
+    const double sp = o.default_position_sigma_fraction * distance;
+    const double st = o.default_tilt_sigma_deg * M_PI / 180, sy = o.default_yaw_sigma_deg * M_PI / 180;
+    sigma << sp, sp, 0.5 * sp, st, st, sy;
+  }
+  const double cap = std::max(o.max_position_sigma_fraction * distance, 0.05);
+  for (int k = 0; k < 3; ++k) sigma(k) = std::min(sigma(k), cap);
+  return sigma;
+}
+
+namespace {
+
+struct Sample {
+  Eigen::Vector2d px;          // current left ideal px
+  Eigen::Vector3d p_current;   // ground point, current body
+};
+
+Eigen::Vector2d Apply(const cv::Matx33d& H, const Eigen::Vector2d& p) {
+  const double w = H(2, 0) * p.x() + H(2, 1) * p.y() + H(2, 2);
+  return {(H(0, 0) * p.x() + H(0, 1) * p.y() + H(0, 2)) / w, (H(1, 0) * p.x() + H(1, 1) * p.y() + H(1, 2)) / w};
+}
+
+cv::Rect ClipRect(double x0, double y0, double x1, double y1, const PinholeCamera& cam) {
+  const int a = std::max(0, static_cast<int>(std::floor(x0))), b = std::max(0, static_cast<int>(std::floor(y0)));
+  const int c = std::min(cam.width, static_cast<int>(std::ceil(x1)) + 1);
+  const int d = std::min(cam.height, static_cast<int>(std::ceil(y1)) + 1);
+  if (c <= a || d <= b) return cv::Rect();
+  return cv::Rect(a, b, c - a, d - b);
+}
+
+}  // namespace
+
+RegionPrediction PredictRegions(const NavcamModel& navcam, const PoseWithCovariance& world_from_previous,
+                                const PoseWithCovariance& world_from_current,
+                                const std::vector<MastPointing>& previous_pointing,
+                                const std::vector<MastPointing>& current_pointing, const RegionOptions& o) {
+  RegionPrediction out;
+  const Pose3 previous_from_world = world_from_previous.pose.inverse();
+  out.previous_from_current = previous_from_world * world_from_current.pose;
+  out.relative_sigma = RelativePoseSigma(world_from_previous, world_from_current, o);
+  // Perturbed relative poses: 0 = nominal, then +-k sigma per axis (world frame).
+  std::vector<Pose3> perturbed{out.previous_from_current};
+  for (int axis = 0; axis < 6; ++axis) {
+    for (int sign = -1; sign <= 1; sign += 2) {
+      const double delta = sign * o.sigma_scale * out.relative_sigma(axis);
+      if (delta == 0) continue;
+      Pose3 w = world_from_current.pose;
+      if (axis < 3) {
+        w.translation()(axis) += delta;
+      } else {
+        Eigen::Vector3d rv = Eigen::Vector3d::Zero();
+        rv(axis - 3) = delta;
+        w.linear() = ExpSO3(rv) * w.linear();
+      }
+      perturbed.push_back(previous_from_world * w);
+    }
+  }
+  const PinholeCamera& cam_l = navcam.rig.left;
+  std::vector<Pose3> prev_cams, prev_cams_inv;
+  for (const auto& pt : previous_pointing) {
+    prev_cams.push_back(navcam.mast.BodyFromLeft(pt.pan, pt.tilt, navcam.rig));
+    prev_cams_inv.push_back(prev_cams.back().inverse());
+  }
+  const double cos_backward = std::cos(o.backward_angle_deg * M_PI / 180);
+  for (size_t i = 0; i < current_pointing.size(); ++i) {
+    const Pose3 body_from_cur = navcam.mast.BodyFromLeft(current_pointing[i].pan, current_pointing[i].tilt, navcam.rig);
+    std::vector<Sample> samples;
+    for (double v = o.image_margin; v < cam_l.height - o.image_margin; v += o.grid_step) {
+      for (double u = o.image_margin; u < cam_l.width - o.image_margin; u += o.grid_step) {
+        const Eigen::Vector3d d = body_from_cur.linear() * cam_l.Ray({u, v});
+        const Eigen::Vector3d c = body_from_cur.translation();
+        if (d.z() >= -1e-9) continue;
+        const double lambda = (o.ground_height - c.z()) / d.z();
+        if (lambda <= 0) continue;
+        const Eigen::Vector3d p = c + lambda * d;
+        if ((p - c).norm() > o.max_range_current) continue;
+        samples.push_back({{u, v}, p});
+      }
+    }
+    if (samples.empty()) continue;
+    const Eigen::Vector3d cur_axis = out.previous_from_current.linear() * body_from_cur.linear().col(2);
+    for (size_t j = 0; j < prev_cams.size(); ++j) {
+      PairOverlap ov;
+      ov.current_pair = static_cast<int>(i);
+      ov.previous_pair = static_cast<int>(j);
+      const Eigen::Vector3d prev_axis = prev_cams[j].linear().col(2);
+      const Eigen::Vector2d a(cur_axis.x(), cur_axis.y()), b(prev_axis.x(), prev_axis.y());
+      ov.backward = a.norm() > 1e-6 && b.norm() > 1e-6 && a.normalized().dot(b.normalized()) < cos_backward;
+      std::vector<cv::Point2d> cur_px, prev_px;
+      double cx0 = 1e9, cy0 = 1e9, cx1 = -1e9, cy1 = -1e9;
+      double px0 = 1e9, py0 = 1e9, px1 = -1e9, py1 = -1e9;
+      double gx0 = 1e9, gy0 = 1e9, gx1 = -1e9, gy1 = -1e9;
+      double growth = 0;
+      for (const auto& s : samples) {
+        const Eigen::Vector3d p_prev = out.previous_from_current * s.p_current;
+        const Eigen::Vector3d p_cam = prev_cams_inv[j] * p_prev;
+        if (p_cam.norm() > o.max_range_previous) continue;
+        const auto q = cam_l.ProjectIdeal(p_cam);
+        if (!q || !cam_l.InImage(*q, o.image_margin)) continue;
+        cur_px.emplace_back(s.px.x(), s.px.y());
+        prev_px.emplace_back(q->x(), q->y());
+        cx0 = std::min(cx0, s.px.x()), cy0 = std::min(cy0, s.px.y());
+        cx1 = std::max(cx1, s.px.x()), cy1 = std::max(cy1, s.px.y());
+        gx0 = std::min(gx0, p_prev.x()), gy0 = std::min(gy0, p_prev.y());
+        gx1 = std::max(gx1, p_prev.x()), gy1 = std::max(gy1, p_prev.y());
+        px0 = std::min(px0, q->x()), py0 = std::min(py0, q->y());
+        px1 = std::max(px1, q->x()), py1 = std::max(py1, q->y());
+        for (size_t k = 1; k < perturbed.size(); ++k) {
+          const auto qk = cam_l.ProjectIdeal(prev_cams_inv[j] * (perturbed[k] * s.p_current));
+          if (!qk) continue;
+          growth = std::max(growth, (*qk - *q).norm());
+          px0 = std::min(px0, qk->x()), py0 = std::min(py0, qk->y());
+          px1 = std::max(px1, qk->x()), py1 = std::max(py1, qk->y());
+        }
+      }
+      ov.num_samples = static_cast<int>(cur_px.size());
+      if (ov.num_samples < o.min_samples) continue;
+      const double half = 0.5 * o.grid_step;
+      ov.current_region = ClipRect(cx0 - half, cy0 - half, cx1 + half, cy1 + half, cam_l);
+      ov.previous_region = ClipRect(px0 - half, py0 - half, px1 + half, py1 + half, cam_l);
+      if (ov.current_region.area() == 0 || ov.previous_region.area() == 0) continue;
+      const double gs = o.sigma_scale * std::max(out.relative_sigma(0), out.relative_sigma(1));
+      ov.ground_min = {gx0 - gs, gy0 - gs};
+      ov.ground_max = {gx1 + gs, gy1 + gs};
+      ov.growth_px = growth;
+      cv::Mat H = cv::findHomography(cur_px, prev_px, 0);
+      if (H.empty()) continue;
+      ov.previous_from_current = cv::Matx33d(H);
+      // Jacobian at the centre of the current region.
+      const Eigen::Vector2d c(ov.current_region.x + 0.5 * ov.current_region.width,
+                              ov.current_region.y + 0.5 * ov.current_region.height);
+      const Eigen::Vector2d f0 = Apply(ov.previous_from_current, c);
+      Eigen::Matrix2d J;
+      J.col(0) = Apply(ov.previous_from_current, c + Eigen::Vector2d(1, 0)) - f0;
+      J.col(1) = Apply(ov.previous_from_current, c + Eigen::Vector2d(0, 1)) - f0;
+      Eigen::JacobiSVD<Eigen::Matrix2d> svd(J, Eigen::ComputeFullV);
+      const Eigen::Vector2d sv = svd.singularValues();
+      ov.scale = std::sqrt(std::max(sv(0) * sv(1), 1e-12));
+      ov.tilt = sv(1) > 1e-9 ? sv(0) / sv(1) : 1.0;
+      const Eigen::Vector2d v2 = svd.matrixV().col(1);
+      double lon = std::atan2(v2.y(), v2.x());
+      if (lon < 0) lon += M_PI;
+      if (lon >= M_PI) lon -= M_PI;
+      ov.tilt_longitude = lon;
+      out.overlaps.push_back(ov);
+    }
+  }
+  return out;
+}
+
+cv::Matx33d ImageFromOrtho(const PinholeCamera& camera, const Pose3& body_from_camera, const Eigen::Vector2d& origin,
+                           double resolution, double ground_height) {
+  // Ground point of ortho (u, v): G * (u, v, 1); camera point: R^T (G - t).
+  Eigen::Matrix3d G;
+  G << resolution, 0, origin.x(), 0, -resolution, origin.y(), 0, 0, ground_height;
+  const Eigen::Matrix3d Rt = body_from_camera.linear().transpose();
+  Eigen::Matrix3d M = Rt * G;
+  M.col(2) -= Rt * body_from_camera.translation();
+  Eigen::Matrix3d K;
+  K << camera.fx, 0, camera.cx, 0, camera.fy, camera.cy, 0, 0, 1;
+  const Eigen::Matrix3d H = K * M;
+  cv::Matx33d out;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) out(r, c) = H(r, c);
+  return out;
+}
+
+cv::Mat GroundOrthoImage(const cv::Mat& image, const cv::Matx33d& image_from_ortho, const cv::Size& size) {
+  cv::Mat out;
+  cv::warpPerspective(image, out, cv::Mat(image_from_ortho), size, cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
+                      cv::BORDER_CONSTANT, 0);
+  return out;
+}
+
+}  // namespace vloc

@@ -1,0 +1,94 @@
+#include "vloc/features/consistency.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "vloc/common/options.h"
+
+namespace vloc {
+
+Eigen::Matrix3d StereoPointCovariance(const Eigen::Vector3d& ray, double range, double baseline, double focal,
+                                      double sigma_parallax, double sigma_angle) {
+  const Eigen::Vector3d u = ray.normalized();
+  const double sr = RangeSigma(range, baseline, focal, sigma_parallax);
+  const double sl = range * sigma_angle;
+  const Eigen::Matrix3d uu = u * u.transpose();
+  return sr * sr * uu + sl * sl * (Eigen::Matrix3d::Identity() - uu);
+}
+
+void ConsistencyOptions::Visit(OptionsReader& r) {
+  r.Optional("k_sigma", &k_sigma, "threshold e_L in standard deviations of the distance residual");
+  r.Optional("min_threshold", &min_threshold, "m, added to every pair's threshold");
+  r.Optional("min_weight_fraction", &min_weight_fraction, "weight threshold as a fraction of the median weight");
+  r.Optional("min_weight", &min_weight, "votes, lowest weight threshold");
+  r.Optional("max_passes", &max_passes, "voting passes among the survivors");
+}
+
+bool ConsistencyOptions::Check(std::string* error) const {
+  if (k_sigma <= 0) return Fail(error, "consistency.k_sigma must be > 0");
+  if (min_threshold < 0) return Fail(error, "consistency.min_threshold must be >= 0");
+  if (min_weight_fraction <= 0 || min_weight_fraction > 1)
+    return Fail(error, "consistency.min_weight_fraction must be in (0, 1]");
+  if (min_weight < 1) return Fail(error, "consistency.min_weight must be >= 1");
+  if (max_passes < 1) return Fail(error, "consistency.max_passes must be >= 1");
+  return true;
+}
+
+ConsistencyResult DistanceConsistencyCheck(const std::vector<Eigen::Vector3d>& p1,
+                                           const std::vector<Eigen::Matrix3d>& cov1,
+                                           const std::vector<Eigen::Vector3d>& p2,
+                                           const std::vector<Eigen::Matrix3d>& cov2,
+                                           const ConsistencyOptions& o) {
+  const int n = static_cast<int>(p1.size());
+  const bool have_cov = cov1.size() == p1.size() && cov2.size() == p2.size();
+  ConsistencyResult res;
+  res.inlier.assign(n, true);
+  res.weights.assign(n, 0);
+  // consistent(i, j) does not change between passes: compute it once.
+  std::vector<uint8_t> ok(static_cast<size_t>(n) * n, 0);
+  for (int i = 0; i < n; ++i) {
+    for (int j = i + 1; j < n; ++j) {
+      const Eigen::Vector3d d1 = p1[i] - p1[j], d2 = p2[i] - p2[j];
+      const double l1 = d1.norm(), l2 = d2.norm();
+      double var = 0;
+      if (have_cov && l1 > 1e-9 && l2 > 1e-9) {
+        const Eigen::Vector3d n1 = d1 / l1, n2 = d2 / l2;
+        var = n1.dot((cov1[i] + cov1[j]) * n1) + n2.dot((cov2[i] + cov2[j]) * n2);
+      }
+      const double e_l = o.k_sigma * std::sqrt(var) + o.min_threshold;
+      const uint8_t c = std::abs(l1 - l2) <= e_l ? 1 : 0;
+      ok[static_cast<size_t>(i) * n + j] = ok[static_cast<size_t>(j) * n + i] = c;
+    }
+  }
+  for (int pass = 0; pass < o.max_passes; ++pass) {
+    res.passes = pass + 1;
+    std::vector<int> w(n, 0);
+    for (int i = 0; i < n; ++i) {
+      const uint8_t* row = &ok[static_cast<size_t>(i) * n];
+      for (int j = 0; j < n; ++j)
+        if (j != i && res.inlier[j] && row[j]) ++w[i];
+    }
+    std::vector<int> inlier_w;
+    for (int i = 0; i < n; ++i)
+      if (res.inlier[i]) inlier_w.push_back(w[i]);
+    int threshold = o.min_weight;
+    if (!inlier_w.empty()) {
+      std::nth_element(inlier_w.begin(), inlier_w.begin() + inlier_w.size() / 2, inlier_w.end());
+      threshold = std::max(o.min_weight,
+                           static_cast<int>(std::ceil(o.min_weight_fraction * inlier_w[inlier_w.size() / 2])));
+    }
+    bool changed = false;
+    for (int i = 0; i < n; ++i) {
+      const bool in = res.inlier[i] && w[i] >= threshold;
+      changed |= in != res.inlier[i];
+      res.inlier[i] = in;
+    }
+    res.weights = w;
+    res.weight_threshold = threshold;
+    if (!changed) break;
+  }
+  res.num_inliers = static_cast<int>(std::count(res.inlier.begin(), res.inlier.end(), true));
+  return res;
+}
+
+}  // namespace vloc

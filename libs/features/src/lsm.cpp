@@ -1,0 +1,210 @@
+#include "vloc/features/lsm.h"
+
+#include <Eigen/Cholesky>
+#include <cmath>
+#include <vector>
+
+#include "vloc/common/options.h"
+#include "vloc/features/stereo_match.h"
+
+namespace vloc {
+
+void LsmOptions::Visit(OptionsReader& r) {
+  r.Optional("half_window", &half_window, "px, template half size");
+  r.Optional("max_iterations", &max_iterations, "Gauss-Newton iterations");
+  r.Optional("convergence_px", &convergence_px, "px, shift update that ends the iteration");
+  r.Optional("max_shift_px", &max_shift_px, "px, largest accepted move from the initial position");
+  r.Optional("min_template_std", &min_template_std, "grey level, minimum template std");
+  r.Optional("max_sigma_px", &max_sigma_px, "px, largest accepted 1-sigma precision");
+  r.Optional("min_correlation", &min_correlation, "minimum correlation at the solution");
+  r.Optional("estimate_affine", &estimate_affine, "estimate the 4 affine shape parameters");
+}
+
+bool LsmOptions::Check(std::string* error) const {
+  if (half_window < 2 || half_window > 30) return Fail(error, "lsm.half_window must be in [2, 30]");
+  if (max_iterations < 1) return Fail(error, "lsm.max_iterations must be >= 1");
+  if (convergence_px <= 0) return Fail(error, "lsm.convergence_px must be > 0");
+  if (max_shift_px <= 0) return Fail(error, "lsm.max_shift_px must be > 0");
+  if (max_sigma_px <= 0) return Fail(error, "lsm.max_sigma_px must be > 0");
+  return true;
+}
+
+LsmImage MakeLsmImage(const cv::Mat& gray) {
+  LsmImage out;
+  if (gray.type() == CV_32FC1) {
+    out.gray = gray;
+  } else {
+    CV_Assert(gray.type() == CV_8UC1);
+    gray.convertTo(out.gray, CV_32F);
+  }
+  out.gx = cv::Mat::zeros(out.gray.size(), CV_32F);
+  out.gy = cv::Mat::zeros(out.gray.size(), CV_32F);
+  for (int y = 1; y + 1 < out.gray.rows; ++y) {
+    const float* p = out.gray.ptr<float>(y);
+    const float* pu = out.gray.ptr<float>(y - 1);
+    const float* pd = out.gray.ptr<float>(y + 1);
+    float* gx = out.gx.ptr<float>(y);
+    float* gy = out.gy.ptr<float>(y);
+    for (int x = 1; x + 1 < out.gray.cols; ++x) {
+      gx[x] = 0.5f * (p[x + 1] - p[x - 1]);
+      gy[x] = 0.5f * (pd[x] - pu[x]);
+    }
+  }
+  return out;
+}
+
+namespace {
+bool Inside(const cv::Mat& m, const Eigen::Vector2d& p, double margin) {
+  return p.x() >= margin && p.y() >= margin && p.x() <= m.cols - 1 - margin && p.y() <= m.rows - 1 - margin;
+}
+}  // namespace
+
+LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& template_px, const LsmImage& target,
+                            const Eigen::Vector2d& initial_target, const Eigen::Matrix2d& initial_affine,
+                            const LsmOptions& o) {
+  LsmResult res;
+  const int h = o.half_window, side = 2 * h + 1, n = side * side;
+  if (!Inside(templ.gray, template_px, h + 1)) {
+    res.why = "template outside its image";
+    return res;
+  }
+  std::vector<float> T(n);
+  double sum = 0, sum2 = 0;
+  for (int r = -h, i = 0; r <= h; ++r) {
+    for (int c = -h; c <= h; ++c, ++i) {
+      T[i] = SampleBilinear(templ.gray, template_px.x() + c, template_px.y() + r);
+      sum += T[i];
+      sum2 += static_cast<double>(T[i]) * T[i];
+    }
+  }
+  const double tmean = sum / n;
+  const double tstd = std::sqrt(std::max(sum2 / n - tmean * tmean, 0.0));
+  if (tstd < o.min_template_std) {
+    res.why = "too little texture";
+    return res;
+  }
+  // Parameters: t (2), A (4, row-major), r0, r1.
+  Eigen::Vector2d t = initial_target;
+  Eigen::Matrix2d A = initial_affine;
+  double r0 = 0, r1 = 1;
+  // Fixed 8 parameters; without affine estimation the 4 shape parameters
+  // get zero Jacobians and a unit diagonal, so their update is zero.
+  constexpr int np = 8;
+  const int n_estimated = o.estimate_affine ? 8 : 4;
+  using Mat8 = Eigen::Matrix<double, 8, 8>;
+  using Vec8 = Eigen::Matrix<double, 8, 1>;
+  Mat8 N;
+  Vec8 b, J = Vec8::Zero();
+  std::vector<float> G(n);
+  bool converged = false;
+  double ssr = 0;
+  int it = 0;
+  for (; it < o.max_iterations; ++it) {
+    // Bounding margin of the warped window.
+    const double reach = h * (std::abs(A(0, 0)) + std::abs(A(0, 1)) + std::abs(A(1, 0)) + std::abs(A(1, 1))) + 2;
+    if (!Inside(target.gray, t, reach)) {
+      res.why = "window left the target image";
+      return res;
+    }
+    N.setZero();
+    b.setZero();
+    ssr = 0;
+    for (int r = -h, i = 0; r <= h; ++r) {
+      for (int c = -h; c <= h; ++c, ++i) {
+        const double x = t.x() + A(0, 0) * c + A(0, 1) * r;
+        const double y = t.y() + A(1, 0) * c + A(1, 1) * r;
+        const double g = SampleBilinear(target.gray, x, y);
+        const double gx = r1 * SampleBilinear(target.gx, x, y);
+        const double gy = r1 * SampleBilinear(target.gy, x, y);
+        G[i] = static_cast<float>(g);
+        const double resid = T[i] - (r0 + r1 * g);
+        ssr += resid * resid;
+        J(0) = gx;
+        J(1) = gy;
+        if (o.estimate_affine) {
+          J(2) = gx * c;
+          J(3) = gx * r;
+          J(4) = gy * c;
+          J(5) = gy * r;
+        }
+        J(np - 2) = 1;
+        J(np - 1) = g;
+        N.selfadjointView<Eigen::Lower>().rankUpdate(J);
+        b += J * resid;
+      }
+    }
+    N.triangularView<Eigen::StrictlyUpper>() = N.transpose();
+    if (!o.estimate_affine) N.block<4, 4>(2, 2).diagonal().array() += 1.0;
+    Eigen::LDLT<Mat8> ldlt(N);
+    if (ldlt.info() != Eigen::Success) {
+      res.why = "singular normal equations";
+      return res;
+    }
+    const Vec8 dx = ldlt.solve(b);
+    if (!dx.allFinite()) {
+      res.why = "singular normal equations";
+      return res;
+    }
+    t += dx.head<2>();
+    if (o.estimate_affine) {
+      A(0, 0) += dx(2);
+      A(0, 1) += dx(3);
+      A(1, 0) += dx(4);
+      A(1, 1) += dx(5);
+    }
+    r0 += dx(np - 2);
+    r1 += dx(np - 1);
+    if ((t - initial_target).norm() > o.max_shift_px) {
+      res.why = "moved beyond max_shift_px";
+      return res;
+    }
+    const double det = A.determinant();
+    if (!(det > 0.1 && det < 10) || r1 <= 0.05) {
+      res.why = "degenerate shape or radiometry";
+      return res;
+    }
+    if (dx.head<2>().norm() < o.convergence_px) {
+      converged = true;
+      ++it;
+      break;
+    }
+  }
+  res.iterations = it;
+  if (!converged) {
+    res.why = "did not converge";
+    return res;
+  }
+  // Precision from the last linearisation (at the previous step's values,
+  // a negligible difference at convergence).
+  const double sigma0_sq = ssr / std::max(1, n - n_estimated);
+  const Mat8 Ninv = Eigen::LDLT<Mat8>(N).solve(Mat8::Identity());
+  res.sigma0 = std::sqrt(sigma0_sq);
+  res.sigma_px = std::sqrt(sigma0_sq * 0.5 * (Ninv(0, 0) + Ninv(1, 1)));
+  // Correlation of template and the last resampled window.
+  double gm = 0;
+  for (float v : G) gm += v;
+  gm /= n;
+  double stg = 0, sgg = 0, stt = 0;
+  for (int i = 0; i < n; ++i) {
+    stg += (T[i] - tmean) * (G[i] - gm);
+    sgg += (G[i] - gm) * (G[i] - gm);
+    stt += (T[i] - tmean) * (T[i] - tmean);
+  }
+  res.correlation = stg / std::sqrt(std::max(sgg * stt, 1e-12));
+  res.target = t;
+  res.affine = A;
+  res.r0 = r0;
+  res.r1 = r1;
+  if (res.correlation < o.min_correlation) {
+    res.why = "correlation below min_correlation";
+    return res;
+  }
+  if (!(res.sigma_px <= o.max_sigma_px)) {
+    res.why = "precision worse than max_sigma_px";
+    return res;
+  }
+  res.ok = true;
+  return res;
+}
+
+}  // namespace vloc

@@ -1,0 +1,185 @@
+#include "vloc/features/stereo_match.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "vloc/common/options.h"
+
+namespace vloc {
+
+void ZnccOptions::Visit(OptionsReader& r) {
+  r.Optional("window", &window, "px, side of the correlation window (odd)");
+  r.Optional("min_score", &min_score, "minimum ZNCC of the accepted peak");
+  r.Optional("min_peak_margin", &min_peak_margin, "best minus second peak (>= 3 steps away)");
+  r.Optional("min_template_std", &min_template_std, "grey level, minimum template std (texture)");
+  r.Optional("step", &step, "px, sampling step along the epipolar segment");
+}
+
+bool ZnccOptions::Check(std::string* error) const {
+  if (window < 3 || window % 2 == 0) return Fail(error, "zncc.window must be odd and >= 3");
+  if (min_score <= -1 || min_score >= 1) return Fail(error, "zncc.min_score must be in (-1, 1)");
+  if (min_peak_margin < 0) return Fail(error, "zncc.min_peak_margin must be >= 0");
+  if (step <= 0 || step > 2) return Fail(error, "zncc.step must be in (0, 2]");
+  return true;
+}
+
+void MedianFilterOptions::Visit(OptionsReader& r) {
+  r.Optional("radius", &radius, "px, neighbourhood radius in the left image");
+  r.Optional("min_neighbours", &min_neighbours, "points with fewer neighbours are kept");
+  r.Optional("abs_tolerance", &abs_tolerance, "px, allowed disparity deviation from the median");
+  r.Optional("rel_tolerance", &rel_tolerance, "fraction of the median disparity added to the tolerance");
+}
+
+bool MedianFilterOptions::Check(std::string* error) const {
+  if (radius <= 0) return Fail(error, "median_filter.radius must be > 0");
+  if (min_neighbours < 1) return Fail(error, "median_filter.min_neighbours must be >= 1");
+  if (abs_tolerance < 0 || rel_tolerance < 0) return Fail(error, "median_filter tolerances must be >= 0");
+  return true;
+}
+
+float SampleBilinear(const cv::Mat& image, double x, double y) {
+  x = std::clamp(x, 0.0, image.cols - 1.001);
+  y = std::clamp(y, 0.0, image.rows - 1.001);
+  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+  const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
+  const float* r0 = image.ptr<float>(y0) + x0;
+  const float* r1 = image.ptr<float>(y0 + 1) + x0;
+  return (1 - fy) * ((1 - fx) * r0[0] + fx * r0[1]) + fy * ((1 - fx) * r1[0] + fx * r1[1]);
+}
+
+namespace {
+
+// Samples the window around (x, y) into `out`; false when outside.
+bool SamplePatch(const cv::Mat& image, double x, double y, int half, float* out) {
+  if (x - half < 0 || y - half < 0 || x + half > image.cols - 1.001 || y + half > image.rows - 1.001) return false;
+  const double fx = x - std::floor(x), fy = y - std::floor(y);
+  const int x0 = static_cast<int>(std::floor(x)) - half, y0 = static_cast<int>(std::floor(y)) - half;
+  const int n = 2 * half + 1;
+  const bool integer = fx < 1e-6 && fy < 1e-6;
+  for (int r = 0; r < n; ++r) {
+    const float* p0 = image.ptr<float>(y0 + r) + x0;
+    if (integer) {
+      std::copy(p0, p0 + n, out + r * n);
+      continue;
+    }
+    const float* p1 = image.ptr<float>(std::min(y0 + r + 1, image.rows - 1)) + x0;
+    const float w00 = static_cast<float>((1 - fx) * (1 - fy)), w01 = static_cast<float>(fx * (1 - fy));
+    const float w10 = static_cast<float>((1 - fx) * fy), w11 = static_cast<float>(fx * fy);
+    for (int c = 0; c < n; ++c) out[r * n + c] = w00 * p0[c] + w01 * p0[c + 1] + w10 * p1[c] + w11 * p1[c + 1];
+  }
+  return true;
+}
+
+// Normalises a patch to zero mean and unit norm; returns its std.
+double Normalise(float* p, int count) {
+  double sum = 0, sum2 = 0;
+  for (int i = 0; i < count; ++i) sum += p[i];
+  const double mean = sum / count;
+  for (int i = 0; i < count; ++i) {
+    p[i] = static_cast<float>(p[i] - mean);
+    sum2 += static_cast<double>(p[i]) * p[i];
+  }
+  const double norm = std::sqrt(sum2);
+  if (norm > 1e-9) {
+    const float inv = static_cast<float>(1.0 / norm);
+    for (int i = 0; i < count; ++i) p[i] *= inv;
+  }
+  return std::sqrt(sum2 / count);
+}
+
+}  // namespace
+
+ZnccMatch ZnccAlongSegment(const cv::Mat& left, const cv::Mat& right, const Eigen::Vector2d& left_px,
+                           const Eigen::Vector2d& seg_start, const Eigen::Vector2d& seg_end,
+                           const ZnccOptions& o) {
+  CV_Assert(left.type() == CV_32FC1 && right.type() == CV_32FC1);
+  ZnccMatch result;
+  const int half = o.window / 2, n = o.window * o.window;
+  std::vector<float> tmpl(n), cand(n);
+  if (!SamplePatch(left, left_px.x(), left_px.y(), half, tmpl.data())) {
+    result.why = "template outside the left image";
+    return result;
+  }
+  if (Normalise(tmpl.data(), n) < o.min_template_std) {
+    result.why = "too little texture";
+    return result;
+  }
+  const Eigen::Vector2d d = seg_end - seg_start;
+  const double length = d.norm();
+  const int steps = std::max(1, static_cast<int>(std::ceil(length / o.step)));
+  std::vector<double> scores(steps + 1, -2.0);
+  for (int k = 0; k <= steps; ++k) {
+    const Eigen::Vector2d p = seg_start + d * (static_cast<double>(k) / steps);
+    if (!SamplePatch(right, p.x(), p.y(), half, cand.data())) continue;
+    if (Normalise(cand.data(), n) < 1e-3) continue;
+    double s = 0;
+    for (int i = 0; i < n; ++i) s += tmpl[i] * cand[i];
+    scores[k] = s;
+  }
+  const int best = static_cast<int>(std::max_element(scores.begin(), scores.end()) - scores.begin());
+  if (scores[best] < o.min_score) {
+    result.why = "correlation below min_score";
+    result.score = scores[best];
+    return result;
+  }
+  double second = -2;
+  for (int k = 0; k <= steps; ++k) {
+    if (std::abs(k - best) < 3) continue;
+    // Only count local maxima as competing peaks.
+    const bool peak = (k == 0 || scores[k] >= scores[k - 1]) && (k == steps || scores[k] >= scores[k + 1]);
+    if (peak) second = std::max(second, scores[k]);
+  }
+  if (scores[best] - second < o.min_peak_margin) {
+    result.why = "ambiguous correlation peak";
+    result.score = scores[best];
+    return result;
+  }
+  double offset = 0;
+  if (best > 0 && best < steps && scores[best - 1] > -2 && scores[best + 1] > -2) {
+    const double a = scores[best - 1], b = scores[best], c = scores[best + 1];
+    const double den = a - 2 * b + c;
+    if (den < -1e-12) offset = std::clamp(0.5 * (a - c) / den, -0.5, 0.5);
+  }
+  result.ok = true;
+  result.score = scores[best];
+  result.right = seg_start + d * ((best + offset) / steps);
+  return result;
+}
+
+std::vector<bool> MedianDisparityFilter(const std::vector<Eigen::Vector2d>& pts, const std::vector<double>& disp,
+                                        const MedianFilterOptions& o) {
+  const size_t n = pts.size();
+  std::vector<bool> keep(n, true);
+  // Grid of cell = radius for the neighbour search.
+  const double cell = o.radius;
+  std::vector<std::pair<long long, int>> keys(n);
+  auto key_of = [&](int cx, int cy) { return (static_cast<long long>(cx) << 32) ^ static_cast<unsigned>(cy); };
+  for (size_t i = 0; i < n; ++i) {
+    keys[i] = {key_of(static_cast<int>(std::floor(pts[i].x() / cell)), static_cast<int>(std::floor(pts[i].y() / cell))),
+               static_cast<int>(i)};
+  }
+  std::sort(keys.begin(), keys.end());
+  std::vector<double> neigh;
+  for (size_t i = 0; i < n; ++i) {
+    const int cx = static_cast<int>(std::floor(pts[i].x() / cell)), cy = static_cast<int>(std::floor(pts[i].y() / cell));
+    neigh.clear();
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        const long long k = key_of(cx + dx, cy + dy);
+        auto it = std::lower_bound(keys.begin(), keys.end(), std::make_pair(k, -1));
+        for (; it != keys.end() && it->first == k; ++it) {
+          const int j = it->second;
+          if (static_cast<size_t>(j) == i) continue;
+          if ((pts[j] - pts[i]).squaredNorm() <= o.radius * o.radius) neigh.push_back(disp[j]);
+        }
+      }
+    }
+    if (static_cast<int>(neigh.size()) < o.min_neighbours) continue;
+    std::nth_element(neigh.begin(), neigh.begin() + neigh.size() / 2, neigh.end());
+    const double median = neigh[neigh.size() / 2];
+    keep[i] = std::abs(disp[i] - median) <= o.abs_tolerance + o.rel_tolerance * std::abs(median);
+  }
+  return keep;
+}
+
+}  // namespace vloc
