@@ -1,0 +1,94 @@
+#pragma once
+// Renders what the Navcam stereo pair sees of a simulated Terrain.
+//
+// Each pixel casts one ray (through the lens distortion of the camera model
+// when it has one) into the height field; the hit is shaded Lambertian with
+// the terrain's sun and cast shadows, the albedo texture is band-limited to
+// the pixel footprint, and sensor noise (read + shot) and 8-bit quantisation
+// are applied. Pixels that see no terrain (sky, off the field) are black
+// level + noise. Noise is a pure function of (noise_seed, pixel): same
+// inputs, same bytes, whatever the thread count.
+//
+//   vloc::sim::NavcamRenderer renderer(terrain, navcam_model, options);
+//   vloc::sim::RenderedPair pair = renderer.RenderPair(world_from_body, pan, tilt, seed, true);
+//   pair.left.image   // CV_8UC1, raw (distorted) image
+//   pair.left.depth   // CV_32F, z in the left camera frame (m), 0 where nothing was hit
+//
+// Frames: world_from_body as in vloc/common/pose.h; the cameras sit where
+// MastKinematics::BodyFromLeft/BodyFromRight put them.
+
+#include <cstdint>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "vloc/common/camera.h"
+#include "vloc/common/pose.h"
+#include "vloc/sim/terrain.h"
+
+namespace vloc {
+class OptionsReader;
+}
+
+namespace vloc::sim {
+
+struct NavcamRenderOptions {
+  double exposure_gain_dn = 1600.0;      // DN per unit radiance (radiance = albedo x illumination)
+  double black_level_dn = 4.0;           // DN, output with no light
+  double read_noise_dn = 1.0;            // DN, 1-sigma Gaussian read noise
+  double shot_noise_dn2_per_dn = 0.02;   // DN^2 of shot-noise variance per DN of signal
+  bool add_noise = true;                 // false: noise-free images (still quantised)
+  bool apply_distortion = true;          // render through the camera's lens distortion
+  double max_range_m = 200.0;            // m, rays beyond this see sky
+  int num_threads = 2;                   // OpenMP threads
+
+  void Visit(OptionsReader& reader);
+  bool Check(std::string* error) const;
+};
+
+struct RenderedImage {
+  cv::Mat image;        // CV_8UC1
+  cv::Mat depth;        // CV_32F, camera-frame z (m) of each pixel's hit, 0 = none; empty unless asked
+  Pose3 world_from_camera = Pose3::Identity();
+  int sky_pixels = 0;   // pixels that hit no terrain
+  double seconds = 0;   // wall time of the render
+};
+
+struct RenderedPair {
+  RenderedImage left;
+  RenderedImage right;
+};
+
+class NavcamRenderer {
+ public:
+  // Throws std::invalid_argument when the options or the model are invalid.
+  // The terrain must outlive the renderer.
+  NavcamRenderer(const Terrain& terrain, const NavcamModel& model, const NavcamRenderOptions& options);
+
+  // Renders one camera at world_from_camera (camera: x right, y down, z forward).
+  RenderedImage Render(const PinholeCamera& camera, const Pose3& world_from_camera, uint64_t noise_seed,
+                       bool with_depth = false) const;
+
+  // Renders the stereo pair for the rover at world_from_body with the mast
+  // at pan/tilt (rad, as in MastKinematics). The right image uses a noise
+  // seed derived from noise_seed.
+  RenderedPair RenderPair(const Pose3& world_from_body, double pan, double tilt, uint64_t noise_seed,
+                          bool with_depth = false) const;
+
+  const NavcamModel& model() const { return model_; }
+  const NavcamRenderOptions& options() const { return options_; }
+
+ private:
+  // Unit-z camera rays (x, y, 1) of every raw pixel, row-major.
+  std::vector<Eigen::Vector3f> PixelRays(const PinholeCamera& camera) const;
+
+  const Terrain& terrain_;
+  NavcamModel model_;
+  NavcamRenderOptions options_;
+  std::vector<Eigen::Vector3f> left_rays_, right_rays_;
+};
+
+// Same camera model (size, intrinsics, distortion)?
+bool SameCamera(const PinholeCamera& a, const PinholeCamera& b);
+
+}  // namespace vloc::sim

@@ -1,0 +1,136 @@
+#include "vloc/sim/navcam_renderer.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include "vloc/common/options.h"
+#include "vloc/sim/noise.h"
+
+namespace vloc::sim {
+
+void NavcamRenderOptions::Visit(OptionsReader& r) {
+  r.Optional("exposure_gain_dn", &exposure_gain_dn, "DN per unit radiance");
+  r.Optional("black_level_dn", &black_level_dn, "DN with no light");
+  r.Optional("read_noise_dn", &read_noise_dn, "DN, 1-sigma read noise");
+  r.Optional("shot_noise_dn2_per_dn", &shot_noise_dn2_per_dn, "DN^2 shot-noise variance per DN");
+  r.Optional("add_noise", &add_noise, "false: noise-free images");
+  r.Optional("apply_distortion", &apply_distortion, "render through the lens distortion");
+  r.Optional("max_range_m", &max_range_m, "m, rays beyond see sky");
+  r.Optional("num_threads", &num_threads, "OpenMP threads");
+}
+
+bool NavcamRenderOptions::Check(std::string* error) const {
+  if (!(exposure_gain_dn > 0)) return Fail(error, "render exposure_gain_dn must be > 0");
+  if (!(black_level_dn >= 0 && black_level_dn < 255)) return Fail(error, "render black_level_dn must be in [0, 255)");
+  if (!(read_noise_dn >= 0 && shot_noise_dn2_per_dn >= 0)) return Fail(error, "render noise levels must be >= 0");
+  if (!(max_range_m > 0)) return Fail(error, "render max_range_m must be > 0");
+  if (num_threads < 1) return Fail(error, "render num_threads must be >= 1");
+  return true;
+}
+
+bool SameCamera(const PinholeCamera& a, const PinholeCamera& b) {
+  return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy && a.cx == b.cx &&
+         a.cy == b.cy && a.k1 == b.k1 && a.k2 == b.k2 && a.p1 == b.p1 && a.p2 == b.p2 && a.k3 == b.k3;
+}
+
+NavcamRenderer::NavcamRenderer(const Terrain& terrain, const NavcamModel& model,
+                               const NavcamRenderOptions& options)
+    : terrain_(terrain), model_(model), options_(options) {
+  std::string error;
+  if (!options_.Check(&error)) throw std::invalid_argument(error);
+  if (!model_.Check(&error)) throw std::invalid_argument("navcam model: " + error);
+  left_rays_ = PixelRays(model_.rig.left);
+  right_rays_ = PixelRays(model_.rig.right);
+}
+
+std::vector<Eigen::Vector3f> NavcamRenderer::PixelRays(const PinholeCamera& camera) const {
+  std::vector<Eigen::Vector3f> rays(static_cast<size_t>(camera.width) * camera.height);
+  const bool distort = options_.apply_distortion && camera.HasDistortion();
+#pragma omp parallel for schedule(static) num_threads(options_.num_threads)
+  for (int v = 0; v < camera.height; ++v) {
+    for (int u = 0; u < camera.width; ++u) {
+      Eigen::Vector2d px(u, v);
+      if (distort) px = camera.Undistort(px);
+      rays[static_cast<size_t>(v) * camera.width + u] = camera.Ray(px).cast<float>();
+    }
+  }
+  return rays;
+}
+
+RenderedImage NavcamRenderer::Render(const PinholeCamera& camera, const Pose3& world_from_camera,
+                                     uint64_t noise_seed, bool with_depth) const {
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<Eigen::Vector3f> own_rays;
+  const std::vector<Eigen::Vector3f>* rays = nullptr;
+  if (SameCamera(camera, model_.rig.left)) {
+    rays = &left_rays_;
+  } else if (SameCamera(camera, model_.rig.right)) {
+    rays = &right_rays_;
+  } else {
+    own_rays = PixelRays(camera);
+    rays = &own_rays;
+  }
+  RenderedImage out;
+  out.world_from_camera = world_from_camera;
+  out.image.create(camera.height, camera.width, CV_8UC1);
+  if (with_depth) out.depth = cv::Mat::zeros(camera.height, camera.width, CV_32F);
+  const Eigen::Matrix3d R = world_from_camera.linear();
+  const Eigen::Vector3d origin = world_from_camera.translation();
+  const Eigen::Vector3d& sun = terrain_.SunDirection();
+  const double ambient = terrain_.options().ambient;
+  const double inv_f = 1.0 / std::sqrt(camera.fx * camera.fy);
+  int sky = 0;
+#pragma omp parallel for schedule(dynamic, 4) num_threads(options_.num_threads) reduction(+ : sky)
+  for (int v = 0; v < camera.height; ++v) {
+    uint8_t* row = out.image.ptr<uint8_t>(v);
+    float* depth_row = with_depth ? out.depth.ptr<float>(v) : nullptr;
+    for (int u = 0; u < camera.width; ++u) {
+      const size_t index = static_cast<size_t>(v) * camera.width + u;
+      const Eigen::Vector3d ray_cam = (*rays)[index].cast<double>();
+      const double ray_norm = ray_cam.norm();
+      const Eigen::Vector3d dir = R * (ray_cam / ray_norm);
+      double signal = 0.0;
+      const auto hit = terrain_.Raycast(origin, dir, options_.max_range_m);
+      if (hit) {
+        const Eigen::Vector3d& p = hit->point;
+        const Eigen::Vector3d n = terrain_.Normal(p.x(), p.y());
+        const double cos_view = std::max(0.05, std::abs(dir.dot(n)));
+        // Pixel footprint on the ground (m): range / f, stretched by obliquity.
+        const double footprint = hit->range * ray_norm * inv_f / std::sqrt(cos_view);
+        const double albedo = terrain_.Albedo(p.x(), p.y(), footprint);
+        const Eigen::Vector3d shading_normal = terrain_.ShadingNormal(p.x(), p.y(), footprint);
+        const double direct = std::max(0.0, shading_normal.dot(sun)) * terrain_.SunVisibility(p.x(), p.y());
+        signal = options_.exposure_gain_dn * albedo * (ambient + (1.0 - ambient) * direct);
+        if (depth_row) depth_row[u] = static_cast<float>(hit->range / ray_norm);
+      } else {
+        ++sky;
+      }
+      double dn = options_.black_level_dn + signal;
+      if (options_.add_noise) {
+        const double sigma = std::sqrt(options_.read_noise_dn * options_.read_noise_dn +
+                                       options_.shot_noise_dn2_per_dn * signal);
+        dn += sigma * HashToGaussian(Hash3(noise_seed, index, 0xCA3E7AULL));
+      }
+      row[u] = static_cast<uint8_t>(std::clamp(std::lround(dn), 0L, 255L));
+    }
+  }
+  out.sky_pixels = sky;
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+RenderedPair NavcamRenderer::RenderPair(const Pose3& world_from_body, double pan, double tilt,
+                                        uint64_t noise_seed, bool with_depth) const {
+  RenderedPair pair;
+  const Pose3 world_from_left = world_from_body * model_.mast.BodyFromLeft(pan, tilt, model_.rig);
+  const Pose3 world_from_right = world_from_body * model_.mast.BodyFromRight(pan, tilt, model_.rig);
+  pair.left = Render(model_.rig.left, world_from_left, noise_seed, with_depth);
+  pair.right = Render(model_.rig.right, world_from_right, HashMix(noise_seed ^ 0x52494748ULL), with_depth);
+  return pair;
+}
+
+}  // namespace vloc::sim
