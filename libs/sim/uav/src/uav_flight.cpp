@@ -106,8 +106,23 @@ Eigen::Vector3d UavFlight::CurvePoint(double u, Eigen::Vector3d* derivative) con
   const Eigen::Vector3d b = p2 - p0;
   const Eigen::Vector3d c = 2 * p0 - 5 * p1 + 4 * p2 - p3;
   const Eigen::Vector3d d = -p0 + 3 * p1 - 3 * p2 + p3;
+  Eigen::Vector3d point = 0.5 * (a + b * s + c * s * s + d * s * s * s);
   if (derivative) *derivative = 0.5 * (b + 2 * c * s + 3 * d * s * s);
-  return 0.5 * (a + b * s + c * s * s + d * s * s * s);
+  // Height: monotone cubic Hermite (no overshoot above or below the waypoints).
+  auto slope = [&](int k) {
+    if (k <= 0 || k >= segments) return 0.0;
+    const double d0 = points_[k].z() - points_[k - 1].z(), d1 = points_[k + 1].z() - points_[k].z();
+    if (d0 * d1 <= 0) return 0.0;
+    const double m = 0.5 * (d0 + d1);
+    const double limit = 3.0 * std::min(std::abs(d0), std::abs(d1));
+    return std::copysign(std::min(std::abs(m), limit), m);
+  };
+  const double z0 = p1.z(), z1 = p2.z(), m0 = slope(i), m1 = slope(i + 1);
+  const double s2 = s * s, s3 = s2 * s;
+  point.z() = (2 * s3 - 3 * s2 + 1) * z0 + (s3 - 2 * s2 + s) * m0 + (-2 * s3 + 3 * s2) * z1 + (s3 - s2) * m1;
+  if (derivative)
+    derivative->z() = (6 * s2 - 6 * s) * z0 + (3 * s2 - 4 * s + 1) * m0 + (-6 * s2 + 6 * s) * z1 + (3 * s2 - 2 * s) * m1;
+  return point;
 }
 
 double UavFlight::ArcLengthAtTime(double rt, double* speed) const {
