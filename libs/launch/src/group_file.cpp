@@ -100,8 +100,9 @@ struct RawProcess {
 
   void Visit(OptionsReader& r, bool is_defaults) {
     if (!is_defaults) {
-      r.Required("name", &spec.name, "unique process name");
-      r.Required("command", &spec.command, "program path or name on PATH");
+      // Optional here so that a misspelt key is reported before a missing one.
+      r.Optional("name", &spec.name, "unique process name");
+      r.Optional("command", &spec.command, "program path or name on PATH");
     }
     r.Optional("args", &spec.args, "arguments");
     r.Optional("group", &spec.group, "group name");
@@ -221,11 +222,12 @@ GroupFile ParseGroupYaml(const YAML::Node& root, const std::string& context, con
     for (const auto& [k, v] : ReadEnv(default_env, where)) spec.env[k] = v;
     for (const auto& [k, v] : ReadEnv(entry["env"], where)) spec.env[k] = v;
 
-    if (spec.name.empty()) throw ConfigError(where + ": empty name; give every process a name");
+    if (spec.name.empty()) throw ConfigError(where + ": no 'name'; give every process a unique name");
     if (spec.name.find('/') != std::string::npos || spec.name.find(' ') != std::string::npos)
       throw ConfigError(where + ": name must not contain '/' or spaces (it names the log file)");
     if (file.Find(spec.name)) throw ConfigError(where + ": duplicate name; process names must be unique");
-    if (spec.command.empty()) throw ConfigError(where + ".command: empty; give the program to run");
+    if (spec.command.empty())
+      throw ConfigError(where + ": no 'command'; add command: <program path or name on PATH>");
     if (spec.group.empty()) spec.group = default_group;
 
     if (raw.restart == "never") spec.restart = RestartPolicy::kNever;

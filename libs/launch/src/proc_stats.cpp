@@ -57,7 +57,7 @@ std::map<pid_t, ProcUsage> ReadProcessGroupUsage() {
   while (dirent* e = readdir(dir)) {
     if (e->d_name[0] < '0' || e->d_name[0] > '9') continue;
     auto s = ReadStat(std::string("/proc/") + e->d_name + "/stat");
-    if (!s) continue;
+    if (!s || s->state == 'Z' || s->state == 'X') continue;  // zombies hold no resources
     ProcUsage& g = groups[s->pgrp];
     g.cpu_ticks += s->usage.cpu_ticks;
     g.rss_bytes += s->usage.rss_bytes;

@@ -221,6 +221,7 @@ void Supervisor::KillAll() {
 }
 
 bool Supervisor::AllStopped() const {
+  if (!lingering_.empty()) return false;
   for (const auto& p : procs_) {
     if (p->pid > 0 || p->state == ProcState::kStarting || p->state == ProcState::kBackoff) return false;
   }
@@ -296,6 +297,20 @@ void Supervisor::Step(int timeout_ms) {
     const pid_t r = waitpid(p->pid, &status, WNOHANG);
     if (r == p->pid) OnExit(*p, status, now);
     else if (r < 0 && errno == ECHILD) OnExit(*p, 0, now);  // reaped elsewhere: treat as ended
+  }
+  if (!lingering_.empty()) {
+    const auto usage = ReadProcessGroupUsage();
+    for (auto it = lingering_.begin(); it != lingering_.end();) {
+      if (!usage.count(it->first)) {
+        it = lingering_.erase(it);
+      } else if (Seconds(now - it->second) > 5.0) {
+        LOG(ERROR) << "process group " << it->first << " still has processes 5 s after SIGKILL; giving up on them";
+        it = lingering_.erase(it);
+      } else {
+        kill(-it->first, SIGKILL);
+        ++it;
+      }
+    }
   }
   for (auto& p : procs_) {
     switch (p->state) {
@@ -438,7 +453,9 @@ void Supervisor::OnExit(Proc& p, int wait_status, Clock::time_point now) {
     }
   }
   const pid_t pid = p.pid;
-  kill(-pid, SIGKILL);  // whatever the process left behind in its group
+  // Whatever the process left behind in its group goes too; Step() checks
+  // that it is gone before AllStopped() says so.
+  if (kill(-pid, SIGKILL) == 0) lingering_.push_back({pid, now});
   p.pid = 0;
   p.has_exited = true;
   int code = 0;

@@ -18,8 +18,8 @@ struct ProcUsage {
 // Usage of one process from /proc/<pid>/stat; nullopt when it is gone.
 std::optional<ProcUsage> ReadProcessUsage(pid_t pid);
 
-// Usage summed over every process of each process group, keyed by the
-// group id, from one pass over /proc.
+// Usage summed over every live (not zombie) process of each process group,
+// keyed by the group id, from one pass over /proc.
 std::map<pid_t, ProcUsage> ReadProcessGroupUsage();
 
 // Clock ticks per second for cpu_ticks.

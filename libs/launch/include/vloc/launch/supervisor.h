@@ -88,8 +88,8 @@ class Supervisor {
   void StopAll();
   // SIGKILLs every process group still alive, now.
   void KillAll();
-  // True when no child is alive and no start is pending (after StopAll:
-  // everything has ended).
+  // True when no child (nor anything left in a child's process group) is
+  // alive and no start is pending (after StopAll: everything has ended).
   bool AllStopped() const;
 
   // Waits up to timeout_ms for child output, then copies output to the
@@ -134,6 +134,9 @@ class Supervisor {
   GroupFile file_;
   SupervisorOptions options_;
   std::vector<std::unique_ptr<Proc>> procs_;
+  // Process groups whose leader ended but whose other members (SIGKILLed)
+  // have not all gone yet, with the time the leader ended.
+  std::vector<std::pair<pid_t, Clock::time_point>> lingering_;
   Clock::time_point last_status_time_;
 };
 

@@ -1,0 +1,202 @@
+// Group-file parsing: every key, defaults, variables, and one clear error
+// line for each kind of mistake; the shipped group files parse.
+
+#include <gtest/gtest.h>
+
+#include <csignal>
+
+#include "vloc/common/options.h"
+#include "vloc/launch/group_file.h"
+
+namespace vloc {
+namespace {
+
+VariableLookup Vars(std::map<std::string, std::string> vars) {
+  return [vars](const std::string& name) -> std::optional<std::string> {
+    auto it = vars.find(name);
+    if (it == vars.end()) return std::nullopt;
+    return it->second;
+  };
+}
+
+GroupFile Parse(const std::string& text, const VariableLookup& lookup = Vars({})) {
+  return ParseGroupYaml(YAML::Load(text), "test.yaml", lookup);
+}
+
+// The ConfigError message of parsing `text` ("" when it parses).
+std::string ErrorOf(const std::string& text, const VariableLookup& lookup = Vars({})) {
+  try {
+    Parse(text, lookup);
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(GroupFile, ReadsEveryKeyDefaultsAndVariables) {
+  const GroupFile file = Parse(R"(
+group: g1
+env: {A: top, B: top}
+defaults: {restart: always, stop_timeout: 2.5, env: {B: defaults}}
+processes:
+  - name: first
+    command: ${BIN}/first
+    args: [--config, "${ROOT}/x.yaml", "$$literal", "${MISSING:-fallback}"]
+    env: {C: "${ROOT}"}
+  - name: second
+    command: sleep
+    args: ["10"]
+    group: g2
+    depends_on: [first]
+    start_delay: 0.25
+    restart: never
+    max_restarts: -1
+    backoff_initial: 0.1
+    backoff_max: 2
+    stop_signal: SIGINT
+    stop_timeout: 1
+    working_dir: /tmp
+    autostart: false
+    exit_when_done: true
+    exit_grace: 3
+)",
+                               Vars({{"BIN", "/b"}, {"ROOT", "/r"}}));
+  ASSERT_EQ(file.processes.size(), 2u);
+  const ProcessSpec& a = file.processes[0];
+  EXPECT_EQ(a.name, "first");
+  EXPECT_EQ(a.command, "/b/first");
+  EXPECT_EQ(a.args, (std::vector<std::string>{"--config", "/r/x.yaml", "$literal", "fallback"}));
+  EXPECT_EQ(a.group, "g1");
+  EXPECT_EQ(a.restart, RestartPolicy::kAlways);
+  EXPECT_DOUBLE_EQ(a.stop_timeout, 2.5);
+  EXPECT_EQ(a.stop_signal, SIGTERM);
+  EXPECT_EQ(a.env.at("A"), "top");
+  EXPECT_EQ(a.env.at("B"), "defaults");
+  EXPECT_EQ(a.env.at("C"), "/r");
+  const ProcessSpec& b = file.processes[1];
+  EXPECT_EQ(b.group, "g2");
+  EXPECT_EQ(b.depends_on, std::vector<std::string>{"first"});
+  EXPECT_DOUBLE_EQ(b.start_delay, 0.25);
+  EXPECT_EQ(b.restart, RestartPolicy::kNever);
+  EXPECT_EQ(b.max_restarts, -1);
+  EXPECT_DOUBLE_EQ(b.backoff_initial, 0.1);
+  EXPECT_DOUBLE_EQ(b.backoff_max, 2.0);
+  EXPECT_EQ(b.stop_signal, SIGINT);
+  EXPECT_DOUBLE_EQ(b.stop_timeout, 1.0);
+  EXPECT_EQ(b.working_dir, "/tmp");
+  EXPECT_FALSE(b.autostart);
+  EXPECT_TRUE(b.exit_when_done);
+  EXPECT_DOUBLE_EQ(b.exit_grace, 3.0);
+  EXPECT_EQ(file.Groups(), (std::vector<std::string>{"g1", "g2"}));
+}
+
+TEST(GroupFile, UnknownKeyIsOneLineNamingFileProcessKeyAndFix) {
+  const std::string error = ErrorOf("processes:\n  - {name: sim, comand: /bin/true}\n");
+  EXPECT_NE(error.find("test.yaml"), std::string::npos) << error;
+  EXPECT_NE(error.find("'sim'"), std::string::npos) << error;
+  EXPECT_NE(error.find("comand"), std::string::npos) << error;
+  EXPECT_NE(error.find("did you mean 'command'"), std::string::npos) << error;
+  EXPECT_EQ(error.find('\n'), std::string::npos) << error;
+}
+
+TEST(GroupFile, MissingCommandIsOneLine) {
+  const std::string error = ErrorOf("processes:\n  - {name: sim, args: [a]}\n");
+  EXPECT_NE(error.find("'sim'"), std::string::npos) << error;
+  EXPECT_NE(error.find("command"), std::string::npos) << error;
+  EXPECT_NE(error.find("no 'command'"), std::string::npos) << error;
+  EXPECT_EQ(error.find('\n'), std::string::npos) << error;
+}
+
+TEST(GroupFile, EachMistakeIsReported) {
+  EXPECT_NE(ErrorOf("procs: []").find("unknown top-level key 'procs'"), std::string::npos);
+  EXPECT_NE(ErrorOf("processes: []").find("non-empty list"), std::string::npos);
+  EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: x}\n  - {name: a, command: y}\n").find("duplicate name"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: x, depends_on: [b]}\n").find("unknown process 'b'"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: x, depends_on: [b]}\n"
+                    "  - {name: b, command: x, depends_on: [a]}\n")
+                .find("circular depends_on"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: x, restart: sometimes}\n").find("never, on-failure"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: x, stop_signal: SIGFOO}\n").find("unknown signal"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: x, stop_timeout: 0}\n").find("stop_timeout"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: x, max_restarts: many}\n").find("expected an integer"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: \"${NOPE}/x\"}\n").find("variable NOPE is not set"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("defaults: {name: x}\nprocesses:\n  - {name: a, command: x}\n").find("unknown key"),
+            std::string::npos);
+  EXPECT_EQ(ErrorOf("processes:\n  - {name: a, command: x}\n"), "");
+}
+
+TEST(GroupFile, MissingFileIsOneLine) {
+  try {
+    ParseGroupFile("config/groups/no_such_group.yaml");
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("config/groups/no_such_group.yaml"), std::string::npos) << e.what();
+  }
+}
+
+TEST(GroupFile, ExpandVariables) {
+  std::string out, error;
+  const auto vars = Vars({{"A", "1"}, {"EMPTY", ""}});
+  ASSERT_TRUE(ExpandVariables("x${A}y$${A}$z${EMPTY:-d}", vars, &out, &error)) << error;
+  EXPECT_EQ(out, "x1y${A}$zd");
+  EXPECT_FALSE(ExpandVariables("${A", vars, &out, &error));
+  EXPECT_NE(error.find("closing"), std::string::npos);
+  EXPECT_FALSE(ExpandVariables("${B}", vars, &out, &error));
+  EXPECT_NE(error.find("variable B is not set"), std::string::npos);
+}
+
+TEST(GroupFile, SignalNames) {
+  EXPECT_EQ(ParseSignalName("SIGINT"), SIGINT);
+  EXPECT_EQ(ParseSignalName("term"), SIGTERM);
+  EXPECT_EQ(ParseSignalName("9"), 9);
+  EXPECT_EQ(ParseSignalName("SIGNOPE"), -1);
+  EXPECT_EQ(SignalName(SIGINT), "SIGINT");
+}
+
+// The shipped groups: the right executables, config paths, the logger
+// first and the simulator / driver last with exit_when_done.
+TEST(GroupFile, ShippedGroupFilesParse) {
+  const auto vars = Vars({{"VLOC_BIN", "/bin_dir"}, {"VLOC_ROOT", "/root_dir"},
+                          {"VLOC_LCM_URL", "udpm://239.255.76.67:7667?ttl=0"}, {"VLOC_LOG_DIR", "/logs"}});
+  const std::map<std::string, std::vector<std::string>> expected = {
+      {"rover_sim", {"logger", "dead_reckoning", "feature_frontend", "crosssite_ba", "traverse_graph", "sim_rover"}},
+      {"rover_field",
+       {"logger", "dead_reckoning", "feature_frontend", "crosssite_ba", "traverse_graph", "imu_odometry_driver",
+        "navcam_driver"}},
+      {"uav_sim", {"logger", "uav_mosaicker", "sim_uav"}},
+      {"uav_field", {"logger", "uav_mosaicker", "uav_video_driver"}},
+  };
+  for (const auto& [group, names] : expected) {
+    SCOPED_TRACE(group);
+    const GroupFile file = ParseGroupFile("config/groups/" + group + ".yaml", vars);
+    std::vector<std::string> got;
+    for (const auto& p : file.processes) got.push_back(p.name);
+    EXPECT_EQ(got, names);
+    EXPECT_EQ(file.Groups(), std::vector<std::string>{group});
+    const ProcessSpec& logger = file.processes.front();
+    EXPECT_EQ(logger.command, "lcm-logger");
+    EXPECT_EQ(logger.args.front(), "--lcm-url=udpm://239.255.76.67:7667?ttl=0");
+    EXPECT_EQ(logger.args.back(), "/logs/" + group + ".lcmlog");
+    EXPECT_EQ(logger.stop_signal, SIGINT);
+    for (size_t i = 1; i < file.processes.size(); ++i) {
+      const ProcessSpec& p = file.processes[i];
+      EXPECT_EQ(p.command, "/bin_dir/" + p.name);
+      EXPECT_EQ(p.args, (std::vector<std::string>{"--config", "config/procs/" + p.name + ".yaml", "--lcm-url",
+                                                  "udpm://239.255.76.67:7667?ttl=0"}));
+      EXPECT_EQ(p.working_dir, "/root_dir");
+      EXPECT_FALSE(p.depends_on.empty());
+    }
+    EXPECT_TRUE(file.processes.back().exit_when_done);
+  }
+}
+
+}  // namespace
+}  // namespace vloc

@@ -1,0 +1,265 @@
+// Supervisor with small real children (/bin/sh, sleep): start order,
+// restarts after SIGKILL, giving up, stop escalation to SIGKILL, stop order,
+// no process left behind, per-process log files, CPU and memory. Every wait
+// has a timeout; nothing relies on a fixed sleep.
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <sstream>
+
+#include "vloc/launch/proc_stats.h"
+#include "vloc/launch/supervisor.h"
+
+namespace vloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string TempDir(const std::string& name) {
+  const std::string dir = ::testing::TempDir() + "/launch_unit_" + std::to_string(getpid()) + "_" + name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+ProcessSpec Shell(const std::string& name, const std::string& script) {
+  ProcessSpec p;
+  p.name = name;
+  p.command = "/bin/sh";
+  p.args = {"-c", script};
+  p.group = "test";
+  p.backoff_initial = 0.05;
+  p.backoff_max = 0.2;
+  p.stop_timeout = 2.0;
+  return p;
+}
+
+ProcessStatus StatusOf(Supervisor& s, const std::string& name) {
+  for (const auto& st : s.Status())
+    if (st.name == name) return st;
+  ADD_FAILURE() << "no process " << name;
+  return {};
+}
+
+// Steps the supervisor until `done` holds or timeout_s passes.
+bool StepUntil(Supervisor& s, const std::function<bool()>& done, double timeout_s = 10.0) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  while (!done()) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    s.Step(20);
+  }
+  return true;
+}
+
+bool GroupGone(pid_t pgid) { return ReadProcessGroupUsage().count(pgid) == 0; }
+
+TEST(Supervisor, StartsAGroupAfterItsDependencies) {
+  GroupFile file;
+  file.path = "test";
+  file.processes = {Shell("base", "exec sleep 30"), Shell("top", "exec sleep 30")};
+  file.processes[1].depends_on = {"base"};
+  file.processes[1].start_delay = 0.3;
+  Supervisor s(file, {});
+  std::string error;
+  ASSERT_TRUE(s.StartGroups({}, &error)) << error;
+  s.Step(0);
+  EXPECT_EQ(StatusOf(s, "base").state, ProcState::kRunning);
+  EXPECT_EQ(StatusOf(s, "top").state, ProcState::kStarting);  // start_delay after base runs
+  EXPECT_EQ(StatusOf(s, "top").pid, 0);
+  ASSERT_TRUE(StepUntil(s, [&] { return StatusOf(s, "top").state == ProcState::kRunning; }));
+  EXPECT_GT(StatusOf(s, "top").pid, 0);
+  EXPECT_EQ(s.LivePids().size(), 2u);
+  EXPECT_FALSE(s.StartGroups({"nope"}, &error));
+  EXPECT_NE(error.find("unknown group 'nope'"), std::string::npos) << error;
+}
+
+TEST(Supervisor, DependentOfAProcessThatCannotRunWaitsAndIsReportedAsFailed) {
+  GroupFile file;
+  file.processes = {Shell("base", ""), Shell("top", "exec sleep 30")};
+  file.processes[0].command = "/no/such/program";
+  file.processes[1].depends_on = {"base"};
+  Supervisor s(file, {});
+  ASSERT_TRUE(s.StartGroups({}, nullptr));
+  s.Step(0);
+  EXPECT_EQ(StatusOf(s, "base").state, ProcState::kGaveUp);
+  EXPECT_EQ(StatusOf(s, "base").last_exit_code, 127);
+  EXPECT_EQ(StatusOf(s, "top").state, ProcState::kStarting);
+  EXPECT_EQ(s.DoneOutcome({"top"}), std::optional<int>(1));
+}
+
+TEST(Supervisor, RestartsAProcessKilledWithSigkill) {
+  GroupFile file;
+  file.processes = {Shell("victim", "exec sleep 30")};
+  Supervisor s(file, {});
+  ASSERT_TRUE(s.StartGroups({}, nullptr));
+  s.Step(0);
+  const pid_t first = StatusOf(s, "victim").pid;
+  ASSERT_GT(first, 0);
+  ASSERT_EQ(kill(first, SIGKILL), 0);
+  ASSERT_TRUE(StepUntil(s, [&] {
+    const auto st = StatusOf(s, "victim");
+    return st.state == ProcState::kRunning && st.pid != first;
+  }));
+  const auto st = StatusOf(s, "victim");
+  EXPECT_EQ(st.restarts, 1);
+  EXPECT_EQ(st.last_exit_code, -SIGKILL);
+  EXPECT_TRUE(GroupGone(first));
+}
+
+TEST(Supervisor, GivesUpAfterMaxRestarts) {
+  GroupFile file;
+  file.processes = {Shell("crasher", "echo crashing; exit 3")};
+  file.processes[0].max_restarts = 2;
+  Supervisor s(file, {});
+  ASSERT_TRUE(s.StartGroups({}, nullptr));
+  ASSERT_TRUE(StepUntil(s, [&] { return StatusOf(s, "crasher").state == ProcState::kGaveUp; }));
+  const auto st = StatusOf(s, "crasher");
+  EXPECT_EQ(st.restarts, 2);
+  EXPECT_EQ(st.last_exit_code, 3);
+  EXPECT_EQ(st.pid, 0);
+  EXPECT_EQ(s.DoneOutcome({}), std::optional<int>(1));
+  // A start order clears the count and runs it again.
+  ASSERT_TRUE(s.Start("crasher", false, nullptr));
+  ASSERT_TRUE(StepUntil(s, [&] { return StatusOf(s, "crasher").restarts == 3; }));
+}
+
+TEST(Supervisor, PolicyNeverLeavesACleanExitAlone) {
+  GroupFile file;
+  file.processes = {Shell("once", "exit 0"), Shell("failing_once", "exit 4")};
+  file.processes[0].restart = RestartPolicy::kOnFailure;
+  file.processes[1].restart = RestartPolicy::kNever;
+  Supervisor s(file, {});
+  ASSERT_TRUE(s.StartGroups({}, nullptr));
+  ASSERT_TRUE(StepUntil(s, [&] { return s.DoneOutcome({}).has_value(); }));
+  EXPECT_EQ(StatusOf(s, "once").state, ProcState::kExited);
+  EXPECT_EQ(StatusOf(s, "once").restarts, 0);
+  EXPECT_EQ(StatusOf(s, "failing_once").state, ProcState::kExited);
+  EXPECT_EQ(StatusOf(s, "failing_once").last_exit_code, 4);
+  EXPECT_EQ(s.DoneOutcome({"once"}), std::optional<int>(0));
+  EXPECT_EQ(s.DoneOutcome({}), std::optional<int>(1));
+}
+
+TEST(Supervisor, StopEscalatesToSigkillAfterTheTimeAllowed) {
+  const std::string dir = TempDir("escalate");
+  GroupFile file;
+  file.processes = {Shell("stubborn", "trap '' TERM; echo ready; while :; do sleep 0.05; done")};
+  file.processes[0].stop_timeout = 0.5;
+  Supervisor s(file, {dir});
+  ASSERT_TRUE(s.StartGroups({}, nullptr));
+  ASSERT_TRUE(StepUntil(s, [&] { return ReadFile(dir + "/stubborn.log").find("] ready") != std::string::npos; }));
+  const pid_t pid = StatusOf(s, "stubborn").pid;
+  s.StopAll();
+  s.Step(0);
+  EXPECT_EQ(StatusOf(s, "stubborn").state, ProcState::kStopping);
+  ASSERT_TRUE(StepUntil(s, [&] { return s.AllStopped(); }));
+  EXPECT_EQ(StatusOf(s, "stubborn").state, ProcState::kStopped);
+  EXPECT_EQ(StatusOf(s, "stubborn").last_exit_code, -SIGKILL);
+  EXPECT_TRUE(GroupGone(pid));
+  EXPECT_NE(ReadFile(dir + "/stubborn.log").find("sending SIGKILL"), std::string::npos);
+}
+
+TEST(Supervisor, StopAllStopsDependentsFirstAndLeavesNoProcess) {
+  const std::string dir = TempDir("order");
+  const std::string order = dir + "/order.txt";
+  auto child = [&](const std::string& name) {
+    // Appends its name when stopped; a grandchild sleeps in its group.
+    return Shell(name, "trap 'echo " + name + " >> " + order + "; exit 0' TERM; sleep 30 & echo ready; "
+                       "while :; do sleep 0.05; done");
+  };
+  GroupFile file;
+  file.processes = {child("logger"), child("worker"), child("sim")};
+  file.processes[1].depends_on = {"logger"};
+  file.processes[2].depends_on = {"logger", "worker"};
+  Supervisor s(file, {dir});
+  ASSERT_TRUE(s.StartGroups({}, nullptr));
+  ASSERT_TRUE(StepUntil(s, [&] {
+    for (const char* n : {"logger", "worker", "sim"})
+      if (ReadFile(dir + "/" + n + ".log").find("] ready") == std::string::npos) return false;
+    return true;
+  }));
+  const std::vector<pid_t> groups = s.LivePids();
+  ASSERT_EQ(groups.size(), 3u);
+  s.StopAll();
+  ASSERT_TRUE(StepUntil(s, [&] { return s.AllStopped(); }));
+  EXPECT_EQ(ReadFile(order), "sim\nworker\nlogger\n");
+  for (pid_t g : groups) EXPECT_TRUE(GroupGone(g)) << "process group " << g << " still has processes";
+}
+
+TEST(Supervisor, LogFilesPrefixEveryLineWithTheName) {
+  const std::string dir = TempDir("logs");
+  GroupFile file;
+  file.processes = {Shell("talker", "echo one; echo two >&2; printf 'three'; exit 0")};
+  file.processes[0].restart = RestartPolicy::kNever;
+  Supervisor s(file, {dir});
+  ASSERT_TRUE(s.StartGroups({}, nullptr));
+  ASSERT_TRUE(StepUntil(s, [&] { return StatusOf(s, "talker").state == ProcState::kExited; }));
+  const std::string log = ReadFile(dir + "/talker.log");
+  EXPECT_NE(log.find("[talker] one\n"), std::string::npos) << log;
+  EXPECT_NE(log.find("[talker] two\n"), std::string::npos) << log;
+  EXPECT_NE(log.find("[talker] three\n"), std::string::npos) << log;
+  std::istringstream lines(log);
+  std::string line;
+  int count = 0;
+  while (std::getline(lines, line)) {
+    EXPECT_EQ(line.rfind("[talker] ", 0), 0u) << line;
+    ++count;
+  }
+  EXPECT_GE(count, 5);  // three lines + started + exited
+}
+
+TEST(Supervisor, OrdersStopStartAndRestart) {
+  GroupFile file;
+  file.processes = {Shell("a", "exec sleep 30"), Shell("b", "exec sleep 30")};
+  file.processes[1].group = "other";
+  file.processes[1].autostart = true;
+  Supervisor s(file, {});
+  ASSERT_TRUE(s.StartGroups({"test"}, nullptr));
+  s.Step(0);
+  EXPECT_EQ(StatusOf(s, "a").state, ProcState::kRunning);
+  EXPECT_EQ(StatusOf(s, "b").state, ProcState::kStopped);  // its group was not started
+  const pid_t a1 = StatusOf(s, "a").pid;
+  ASSERT_TRUE(s.Restart("a", false, nullptr));
+  ASSERT_TRUE(StepUntil(s, [&] { return StatusOf(s, "a").state == ProcState::kRunning && StatusOf(s, "a").pid != a1; }));
+  EXPECT_EQ(StatusOf(s, "a").restarts, 0);  // ordered, not automatic
+  ASSERT_TRUE(s.Start("other", true, nullptr));
+  ASSERT_TRUE(StepUntil(s, [&] { return StatusOf(s, "b").state == ProcState::kRunning; }));
+  ASSERT_TRUE(s.Stop("a", false, nullptr));
+  ASSERT_TRUE(StepUntil(s, [&] { return StatusOf(s, "a").state == ProcState::kStopped; }));
+  EXPECT_EQ(StatusOf(s, "b").state, ProcState::kRunning);
+  std::string error;
+  EXPECT_FALSE(s.Stop("nobody", false, &error));
+  EXPECT_NE(error.find("unknown process 'nobody'"), std::string::npos) << error;
+}
+
+TEST(Supervisor, ReportsCpuAndMemory) {
+  GroupFile file;
+  file.processes = {Shell("busy", "while :; do :; done")};
+  Supervisor s(file, {});
+  ASSERT_TRUE(s.StartGroups({}, nullptr));
+  s.Step(0);
+  s.Status();  // baseline
+  ProcessStatus st;
+  ASSERT_TRUE(StepUntil(s, [&] {
+    st = StatusOf(s, "busy");
+    return st.cpu_percent > 0.0;
+  }));
+  EXPECT_GT(st.rss_bytes, 0);
+  EXPECT_LE(st.cpu_percent, 100.0 * 1.05 * sysconf(_SC_NPROCESSORS_ONLN));
+  EXPECT_GT(st.uptime_seconds, 0.0);
+}
+
+}  // namespace
+}  // namespace vloc
