@@ -1,0 +1,199 @@
+#pragma once
+// The UAV nadir SLAM of Avola et al. (seeds/004): calibration (sec. 2.1),
+// flight height from the frame-to-frame scale change (sec. 2.2, eqs. 2-5)
+// and the route from frame centres on an incremental mosaic (sec. 2.3).
+//
+//   UavMosaicker m(options);
+//   m.AddGps(fix);                       // whenever a fix arrives (optional)
+//   FrameState s = m.ProcessFrame(bgr, utime);
+//   m.WriteMosaic("out/mosaic.png");     // PNG (+ .pgw when tied to GPS)
+//
+// Geometry: every frame gets mosaic_from_frame, a similarity taking frame
+// pixels (undistorted) to mosaic pixels. The mosaic has one fixed ground
+// resolution r (m/px), so the similarity's scale s gives the height,
+// h = s r f (f = focal length in px; eqs. 4-5 chained), and the frame centre
+// (principal point) gives the route. Frames are matched against the current
+// keyframe (the last frame that started a new reference), which is the
+// frame-to-frame chain of the paper with fewer links, hence less drift.
+
+#include <opencv2/core.hpp>
+#include <cstdint>
+#include <deque>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "vloc/common/camera.h"
+#include "vloc/mosaic/calibration.h"
+#include "vloc/mosaic/frame_matcher.h"
+#include "vloc/mosaic/geometry.h"
+#include "vloc/mosaic/height_filter.h"
+#include "vloc/mosaic/tiled_canvas.h"
+
+namespace vloc {
+class OptionsReader;
+}
+
+namespace vloc::mosaic {
+
+struct GeoOptions {
+  int min_fixes = 5;              // GPS fixes paired with frames before the mosaic is tied to GPS
+  double min_spread = 10.0;       // m, RMS spread of those fixes needed (the rotation needs a baseline)
+  int window_fixes = 2000;        // most recent pairs used for the mosaic -> local ENU fit
+  double max_time_gap = 0.25;     // s, a fix pairs with the frames around it only within this gap
+  double gps_timeout = 1.5;       // s, without a fix for this long the route is carried by vision alone
+
+  void Visit(OptionsReader& reader);
+  bool Check(std::string* error) const;
+};
+
+struct MosaickerOptions {
+  PinholeCamera camera;                 // intrinsics and distortion of the nadir camera
+  CalibrationOptions calibration;       // sec. 2.1
+  MatcherOptions matcher;               // sec. 2.2, eqs. 2-3
+  HeightFilterOptions height_filter;    // smoothing of eqs. 4-5, GPS fusion option
+  CanvasOptions canvas;                 // tiled mosaic, blending, memory budget
+  GeoOptions geo;                       // tie to GPS
+  int mosaic_every_n_frames = 3;        // blend every n-th tracked frame into the mosaic (keyframes always)
+  int keyframe_min_inliers = 150;       // below this many background matches the frame becomes the keyframe
+  double keyframe_min_overlap = 0.6;    // below this footprint overlap with the keyframe, likewise
+  double keyframe_max_scale = 1.2;      // a scale change beyond [1/x, x] from the keyframe, likewise
+  double recovery_view_scale = 1.6;     // when lost, the mosaic is searched over this many frame sizes around the last pose
+  double recovery_min_painted = 0.25;   // fraction of that view the mosaic must cover to try
+  int num_threads = 2;                  // OpenCV threads (A-KAZE, matching, warping)
+
+  void Visit(OptionsReader& reader);
+  bool Check(std::string* error) const;
+};
+
+struct GpsFix {
+  int64_t utime = 0;                    // us
+  bool valid = false;                   // has a horizontal fix
+  double latitude = 0, longitude = 0;   // deg
+  double altitude = 0;                  // m, ellipsoid
+  double height_above_ground = std::numeric_limits<double>::quiet_NaN();  // m, NaN when unknown
+  double horizontal_sigma = 2.0;        // m
+  double vertical_sigma = 3.0;          // m
+};
+
+enum class TrackStatus { kCalibrating = 0, kTracking = 1, kLost = 2, kRecovered = 3 };
+const char* ToString(TrackStatus status);
+
+// The estimate after one frame (what UAV_STATE carries).
+struct FrameState {
+  int64_t utime = 0;
+  int frame_index = -1;
+  TrackStatus status = TrackStatus::kCalibrating;
+  std::string message;                  // why, when not tracking
+  double height = 0;                    // m, filtered
+  double height_raw = 0;                // m, from the chain of scale changes alone
+  double scale = 1.0;                   // lambda from the previous frame; > 1 = descending
+  cv::Point2d route_px;                 // mosaic px of the frame centre
+  cv::Point2d route_local;              // m, east/north (of the first GPS fix when tied, else of the first frame centre)
+  double latitude = std::numeric_limits<double>::quiet_NaN();
+  double longitude = std::numeric_limits<double>::quiet_NaN();
+  bool gps_aided = false;               // tied to GPS and a fix is recent
+  bool georeferenced = false;           // a mosaic -> ENU tie exists
+  int num_matches = 0, num_inliers = 0, num_foreground = 0;
+  bool keyframe = false;                // this frame became the keyframe
+  bool mosaic_updated = false;          // blended into the mosaic
+  double tracking_seconds = 0;          // s, features + matching + height
+  double mosaic_seconds = 0;            // s, blending (0 when not blended)
+};
+
+struct MosaickerSummary {
+  int frames = 0, tracked = 0, lost = 0, recoveries = 0, keyframes = 0, blends = 0;
+  std::string last_problem;
+  Calibration calibration;
+  double metres_per_pixel = 0;          // mosaic ground resolution
+  bool georeferenced = false;
+  double tie_rms = 0;                   // m, residual of the GPS tie
+  int tie_pairs = 0;
+  CanvasStats canvas;
+  std::string BriefReport() const;
+};
+
+class UavMosaicker {
+ public:
+  explicit UavMosaicker(const MosaickerOptions& options);
+  ~UavMosaicker();
+
+  // One frame (BGR or gray, raw: undistorted here). Never throws on bad
+  // input: an empty frame gives status LOST with a message.
+  FrameState ProcessFrame(const cv::Mat& image, int64_t utime);
+  void AddGps(const GpsFix& fix);
+
+  // Downscaled mosaic (BGR) with the route drawn, longest side <= max_side.
+  cv::Mat Preview(int max_side, bool draw_route = true) const;
+  // Full mosaic as PNG (BGRA, alpha = covered) + world file `<stem>.pgw`
+  // (lon/lat degrees, WGS84, linearised) when tied to GPS.
+  bool WriteMosaic(const std::string& png_path, std::string* error);
+
+  MosaickerSummary summary() const;
+  const Calibration& calibration() const { return calibration_; }
+  double metres_per_pixel() const { return metres_per_pixel_; }
+  // Local ENU east/north (m) of a mosaic pixel (best current estimate).
+  cv::Point2d MosaicToLocal(const cv::Point2d& mosaic_px) const;
+  // Forces calibration (e.g. from a tool that knows height and focal).
+  void SetCalibration(const Calibration& calibration);
+
+ private:
+  struct Keyframe {
+    FrameFeatures features;
+    Similarity2 mosaic_from_frame;
+    int64_t utime = 0;
+  };
+  struct TiePair {
+    cv::Point2d mosaic_px;
+    cv::Point2d enu;
+  };
+  cv::Mat Undistort(const cv::Mat& image);
+  bool TryCalibrate(const cv::Mat& frame, FrameState* state);
+  void StartMosaic(const cv::Mat& frame, const FrameFeatures& features, int64_t utime, FrameState* state);
+  bool RegisterToMosaic(const cv::Mat& frame, const FrameFeatures& features, Similarity2* mosaic_from_frame,
+                        MotionEstimate* motion, std::string* why);
+  double KeyframeOverlap(const Similarity2& key_to_cur, cv::Size size) const;
+  void PairPendingFixes();
+  void RefitTie();
+  void FillRoute(FrameState* state);
+
+  MosaickerOptions options_;
+  Calibration calibration_;
+  bool calibrated_ = false;
+  double focal_ = 0;                       // px
+  double metres_per_pixel_ = 0;            // mosaic m/px
+  std::unique_ptr<TiledCanvas> canvas_;
+  HeightFilter height_filter_;
+  cv::Mat map1_, map2_;
+  cv::Size map_size_;
+  PinholeCamera camera_;                   // scaled to the incoming frame size
+  bool camera_scaled_warned_ = false;
+
+  std::optional<Keyframe> keyframe_;
+  Similarity2 last_good_;                  // mosaic_from_frame of the last tracked frame
+  double last_scale_ = 0;                  // its similarity scale
+  bool lost_ = false;
+  int frames_since_blend_ = 0;
+  FrameState last_state_;
+  MosaickerSummary summary_;
+  int frame_counter_ = 0;
+
+  // GPS
+  std::optional<GpsFix> origin_fix_;
+  double last_hag_ = std::numeric_limits<double>::quiet_NaN();
+  int64_t last_fix_utime_ = INT64_MIN / 2;
+  std::deque<GpsFix> pending_fixes_;
+  std::deque<std::pair<int64_t, cv::Point2d>> history_;   // utime, route_px of tracked frames
+  std::deque<TiePair> pairs_;
+  std::optional<Similarity2> enu_from_flipped_;           // (x, -y) mosaic px -> ENU m
+  double tie_rms_ = 0;
+  std::vector<cv::Point2d> route_;                        // for the preview
+};
+
+// Local east/north (m) of a lat/lon relative to an origin (flat earth).
+cv::Point2d LatLonToEnu(double lat, double lon, double lat0, double lon0);
+void EnuToLatLon(const cv::Point2d& enu, double lat0, double lon0, double* lat, double* lon);
+
+}  // namespace vloc::mosaic

@@ -1,0 +1,203 @@
+#include "vloc/mosaic/frame_matcher.h"
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "vloc/common/options.h"
+
+namespace vloc::mosaic {
+
+void MatcherOptions::Visit(OptionsReader& r) {
+  r.Optional("downscale", &downscale, "A-KAZE runs on the frame resized by this factor");
+  r.Optional("akaze_threshold", &akaze_threshold, "A-KAZE detector response threshold");
+  r.Optional("akaze_octaves", &akaze_octaves, "A-KAZE octaves");
+  r.Optional("max_features", &max_features, "strongest keypoints kept per frame");
+  r.Optional("grid_cells", &grid_cells, "grid cells per side for spreading keypoints");
+  r.Optional("ratio", &ratio, "Lowe ratio test");
+  r.Optional("ransac_threshold", &ransac_threshold, "px, RANSAC reprojection threshold");
+  r.Optional("foreground_rho", &foreground_rho, "px, rho of equation 2");
+  r.Optional("foreground_rule", &foreground_rule, "eq2 | reprojection");
+  r.Optional("scale_model", &scale_model, "similarity | axis_scale | affine");
+  r.Optional("min_inliers", &min_inliers, "background matches needed");
+  r.Optional("max_scale_change", &max_scale_change, "largest believable scale change between frames");
+  r.Optional("num_threads", &num_threads, "OpenCV threads");
+}
+
+bool MatcherOptions::Check(std::string* error) const {
+  if (!(downscale >= 0.1 && downscale <= 1.0)) return Fail(error, "matcher.downscale must be in [0.1, 1]");
+  if (!(akaze_threshold > 0)) return Fail(error, "matcher.akaze_threshold must be > 0");
+  if (akaze_octaves < 1 || akaze_octaves > 8) return Fail(error, "matcher.akaze_octaves must be in [1, 8]");
+  if (max_features < 20) return Fail(error, "matcher.max_features must be >= 20");
+  if (grid_cells < 1 || grid_cells > 64) return Fail(error, "matcher.grid_cells must be in [1, 64]");
+  if (!(ratio > 0 && ratio <= 1)) return Fail(error, "matcher.ratio must be in (0, 1]");
+  if (!(ransac_threshold > 0)) return Fail(error, "matcher.ransac_threshold must be > 0");
+  if (!(foreground_rho > 0)) return Fail(error, "matcher.foreground_rho must be > 0");
+  if (foreground_rule != "eq2" && foreground_rule != "reprojection")
+    return Fail(error, "matcher.foreground_rule must be 'eq2' or 'reprojection'");
+  if (scale_model != "similarity" && scale_model != "axis_scale" && scale_model != "affine")
+    return Fail(error, "matcher.scale_model must be 'similarity', 'axis_scale' or 'affine'");
+  if (min_inliers < 4) return Fail(error, "matcher.min_inliers must be >= 4");
+  if (!(max_scale_change > 1)) return Fail(error, "matcher.max_scale_change must be > 1");
+  if (num_threads < 1) return Fail(error, "matcher.num_threads must be >= 1");
+  return true;
+}
+
+namespace {
+double Seconds(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Keeps at most `budget` keypoints, the strongest of each grid cell first.
+std::vector<cv::KeyPoint> SpreadKeypoints(std::vector<cv::KeyPoint> kps, cv::Size size, int cells, int budget) {
+  if (static_cast<int>(kps.size()) <= budget) return kps;
+  std::sort(kps.begin(), kps.end(), [](const cv::KeyPoint& a, const cv::KeyPoint& b) { return a.response > b.response; });
+  const int per_cell = std::max(1, budget / (cells * cells));
+  std::vector<int> count(cells * cells, 0);
+  std::vector<cv::KeyPoint> kept, rest;
+  kept.reserve(budget);
+  for (const auto& k : kps) {
+    const int cx = std::clamp(static_cast<int>(k.pt.x * cells / size.width), 0, cells - 1);
+    const int cy = std::clamp(static_cast<int>(k.pt.y * cells / size.height), 0, cells - 1);
+    if (count[cy * cells + cx] < per_cell) {
+      ++count[cy * cells + cx];
+      kept.push_back(k);
+    } else {
+      rest.push_back(k);
+    }
+  }
+  for (size_t i = 0; i < rest.size() && static_cast<int>(kept.size()) < budget; ++i) kept.push_back(rest[i]);
+  return kept;
+}
+}  // namespace
+
+FrameFeatures ExtractFeatures(const cv::Mat& image, const MatcherOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  FrameFeatures f;
+  f.size = image.size();
+  if (image.empty()) return f;
+  cv::Mat gray;
+  if (image.channels() == 3) {
+    cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
+  } else {
+    gray = image;
+  }
+  cv::Mat small;
+  if (options.downscale < 0.999) {
+    cv::resize(gray, small, cv::Size(), options.downscale, options.downscale, cv::INTER_AREA);
+  } else {
+    small = gray;
+  }
+  auto akaze = cv::AKAZE::create(cv::AKAZE::DESCRIPTOR_MLDB, 0, 3, static_cast<float>(options.akaze_threshold),
+                                 options.akaze_octaves, 4, cv::KAZE::DIFF_PM_G2);
+  std::vector<cv::KeyPoint> kps;
+  akaze->detect(small, kps);
+  kps = SpreadKeypoints(std::move(kps), small.size(), options.grid_cells, options.max_features);
+  if (!kps.empty()) akaze->compute(small, kps, f.descriptors);
+  // Keypoint coordinates of the resized image -> full resolution (pixel centres).
+  const double sx = static_cast<double>(gray.cols) / small.cols;
+  const double sy = static_cast<double>(gray.rows) / small.rows;
+  f.points.reserve(kps.size());
+  for (const auto& k : kps)
+    f.points.emplace_back(static_cast<float>((k.pt.x + 0.5) * sx - 0.5), static_cast<float>((k.pt.y + 0.5) * sy - 0.5));
+  f.seconds = Seconds(t0);
+  return f;
+}
+
+std::vector<bool> ForegroundFilter(const std::vector<cv::Point2f>& from, const std::vector<cv::Point2f>& to,
+                                   const cv::Matx33d& H, double rho, const std::string& rule) {
+  std::vector<bool> fg(from.size(), true);
+  for (size_t i = 0; i < from.size(); ++i) {
+    const cv::Vec3d h = H * cv::Vec3d(from[i].x, from[i].y, 1.0);
+    if (std::abs(h[2]) < 1e-12) continue;
+    const cv::Point2d hk(h[0] / h[2], h[1] / h[2]);
+    const cv::Point2d k(from[i]), khat(to[i]);
+    if (rule == "eq2") {
+      // Equation 2: distance moved by the match minus distance moved under H.
+      const double d_match = cv::norm(k - khat);
+      const double d_h = cv::norm(k - hk);
+      fg[i] = std::abs(d_match - d_h) >= rho;
+    } else {
+      fg[i] = cv::norm(khat - hk) >= rho;
+    }
+  }
+  return fg;
+}
+
+MotionEstimate EstimateMotion(const FrameFeatures& from, const FrameFeatures& to, const MatcherOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  MotionEstimate m;
+  auto fail = [&](const std::string& why) {
+    m.ok = false;
+    m.why = why;
+    m.seconds = Seconds(t0);
+    return m;
+  };
+  if (from.points.size() < 8 || to.points.size() < 8)
+    return fail("too few features (" + std::to_string(std::min(from.points.size(), to.points.size())) +
+                "): blank, blurred or featureless frame");
+  cv::BFMatcher matcher(cv::NORM_HAMMING);
+  std::vector<std::vector<cv::DMatch>> knn;
+  matcher.knnMatch(from.descriptors, to.descriptors, knn, 2);
+  std::vector<cv::Point2f> a, b;
+  for (const auto& pair : knn) {
+    if (pair.size() < 2) continue;
+    if (pair[0].distance < options.ratio * pair[1].distance) {
+      a.push_back(from.points[pair[0].queryIdx]);
+      b.push_back(to.points[pair[0].trainIdx]);
+    }
+  }
+  m.num_matches = static_cast<int>(a.size());
+  if (m.num_matches < options.min_inliers) return fail("too few matches (" + std::to_string(m.num_matches) + ")");
+  std::vector<uchar> inlier_mask;
+  // RANSAC, then Levenberg-Marquardt refinement of the inliers' reprojection error (OpenCV does both).
+  cv::Mat H = cv::findHomography(a, b, cv::RANSAC, options.ransac_threshold, inlier_mask, 2000, 0.995);
+  if (H.empty()) return fail("no homography (matches inconsistent)");
+  m.homography = cv::Matx33d(H);
+  m.num_inliers = cv::countNonZero(inlier_mask);
+  if (m.num_inliers < options.min_inliers)
+    return fail("too few RANSAC inliers (" + std::to_string(m.num_inliers) + " of " + std::to_string(m.num_matches) + ")");
+  const std::vector<bool> fg = ForegroundFilter(a, b, m.homography, options.foreground_rho, options.foreground_rule);
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (fg[i]) {
+      ++m.num_foreground;
+    } else {
+      m.from_background.push_back(a[i]);
+      m.to_background.push_back(b[i]);
+    }
+  }
+  m.num_background = static_cast<int>(m.from_background.size());
+  if (m.num_background < options.min_inliers)
+    return fail("too few background matches (" + std::to_string(m.num_background) + ")");
+  // Equation 3 by least squares over all background matches.
+  double rms = 0;
+  if (!FitSimilarity(m.from_background, m.to_background, &m.similarity, &rms)) return fail("degenerate scale fit");
+  const AxisScaleFit axis = FitAxisScale(m.from_background, m.to_background);
+  if (axis.ok) {
+    m.lambda_x = axis.lambda_x;
+    m.lambda_y = axis.lambda_y;
+  }
+  if (options.scale_model == "similarity") {
+    m.lambda = m.similarity.Scale();
+    m.fit_rms = rms;
+  } else if (options.scale_model == "axis_scale") {
+    if (!axis.ok) return fail("degenerate axis-scale fit");
+    m.lambda = 0.5 * (axis.lambda_x + axis.lambda_y);
+    m.fit_rms = axis.rms;
+  } else {
+    cv::Matx23d A;
+    if (!FitAffine(m.from_background, m.to_background, &A, &m.fit_rms)) return fail("degenerate affine fit");
+    m.lambda = std::sqrt(std::abs(A(0, 0) * A(1, 1) - A(0, 1) * A(1, 0)));
+  }
+  if (!(m.lambda > 1.0 / options.max_scale_change && m.lambda < options.max_scale_change))
+    return fail("implausible scale change " + std::to_string(m.lambda));
+  m.ok = true;
+  m.seconds = Seconds(t0);
+  return m;
+}
+
+}  // namespace vloc::mosaic

@@ -1,0 +1,557 @@
+#include "vloc/mosaic/uav_mosaicker.h"
+
+#include <glog/logging.h>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+
+#include "vloc/common/options.h"
+
+namespace vloc::mosaic {
+
+namespace {
+constexpr double kEarthRadius = 6378137.0;
+constexpr double kDeg = M_PI / 180.0;
+
+double Seconds(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+}  // namespace
+
+cv::Point2d LatLonToEnu(double lat, double lon, double lat0, double lon0) {
+  return {(lon - lon0) * kDeg * kEarthRadius * std::cos(lat0 * kDeg), (lat - lat0) * kDeg * kEarthRadius};
+}
+void EnuToLatLon(const cv::Point2d& enu, double lat0, double lon0, double* lat, double* lon) {
+  *lat = lat0 + enu.y / kEarthRadius / kDeg;
+  *lon = lon0 + enu.x / (kEarthRadius * std::cos(lat0 * kDeg)) / kDeg;
+}
+
+const char* ToString(TrackStatus status) {
+  switch (status) {
+    case TrackStatus::kCalibrating: return "CALIBRATING";
+    case TrackStatus::kTracking: return "TRACKING";
+    case TrackStatus::kLost: return "LOST";
+    case TrackStatus::kRecovered: return "RECOVERED";
+  }
+  return "?";
+}
+
+void GeoOptions::Visit(OptionsReader& r) {
+  r.Optional("min_fixes", &min_fixes, "fixes before the mosaic is tied to GPS");
+  r.Optional("min_spread", &min_spread, "m, RMS spread of tied fixes");
+  r.Optional("window_fixes", &window_fixes, "most recent pairs used in the tie");
+  r.Optional("max_time_gap", &max_time_gap, "s, fix-to-frame pairing gap");
+  r.Optional("gps_timeout", &gps_timeout, "s, after this without a fix the route is vision only");
+}
+bool GeoOptions::Check(std::string* error) const {
+  if (min_fixes < 2) return Fail(error, "geo.min_fixes must be >= 2");
+  if (!(min_spread >= 0)) return Fail(error, "geo.min_spread must be >= 0 m");
+  if (window_fixes < min_fixes) return Fail(error, "geo.window_fixes must be >= geo.min_fixes");
+  if (!(max_time_gap > 0)) return Fail(error, "geo.max_time_gap must be > 0 s");
+  if (!(gps_timeout > 0)) return Fail(error, "geo.gps_timeout must be > 0 s");
+  return true;
+}
+
+void MosaickerOptions::Visit(OptionsReader& r) {
+  r.Child("camera", [&](OptionsReader& c) { camera.Visit(c); });
+  r.Child("calibration", [&](OptionsReader& c) { calibration.Visit(c); });
+  r.Child("matcher", [&](OptionsReader& c) { matcher.Visit(c); });
+  r.Child("height_filter", [&](OptionsReader& c) { height_filter.Visit(c); });
+  r.Child("canvas", [&](OptionsReader& c) { canvas.Visit(c); });
+  r.Child("geo", [&](OptionsReader& c) { geo.Visit(c); });
+  r.Optional("mosaic_every_n_frames", &mosaic_every_n_frames, "blend every n-th tracked frame");
+  r.Optional("keyframe_min_inliers", &keyframe_min_inliers, "new keyframe below this many background matches");
+  r.Optional("keyframe_min_overlap", &keyframe_min_overlap, "new keyframe below this overlap");
+  r.Optional("keyframe_max_scale", &keyframe_max_scale, "new keyframe beyond this scale change");
+  r.Optional("recovery_view_scale", &recovery_view_scale, "frame sizes searched in the mosaic when lost");
+  r.Optional("recovery_min_painted", &recovery_min_painted, "covered fraction needed for recovery");
+  r.Optional("num_threads", &num_threads, "OpenCV threads");
+}
+
+bool MosaickerOptions::Check(std::string* error) const {
+  if (!camera.Check(error) || !calibration.Check(error) || !matcher.Check(error) || !height_filter.Check(error) ||
+      !canvas.Check(error) || !geo.Check(error))
+    return false;
+  if (mosaic_every_n_frames < 1) return Fail(error, "mosaic_every_n_frames must be >= 1");
+  if (keyframe_min_inliers < matcher.min_inliers)
+    return Fail(error, "keyframe_min_inliers must be >= matcher.min_inliers");
+  if (!(keyframe_min_overlap > 0 && keyframe_min_overlap < 1)) return Fail(error, "keyframe_min_overlap must be in (0, 1)");
+  if (!(keyframe_max_scale > 1 && keyframe_max_scale < matcher.max_scale_change))
+    return Fail(error, "keyframe_max_scale must be in (1, matcher.max_scale_change)");
+  if (!(recovery_view_scale >= 1 && recovery_view_scale <= 4)) return Fail(error, "recovery_view_scale must be in [1, 4]");
+  if (!(recovery_min_painted > 0 && recovery_min_painted <= 1)) return Fail(error, "recovery_min_painted must be in (0, 1]");
+  if (num_threads < 1) return Fail(error, "num_threads must be >= 1");
+  return true;
+}
+
+std::string MosaickerSummary::BriefReport() const {
+  std::ostringstream s;
+  s << "frames " << frames << ", tracked " << tracked << ", lost " << lost << ", recoveries " << recoveries
+    << ", keyframes " << keyframes << ", blends " << blends << ", mosaic " << metres_per_pixel << " m/px, tiles "
+    << canvas.tiles_total << " (" << canvas.tiles_in_memory << " in memory, peak " << canvas.peak_tiles_in_memory
+    << ", spilled " << canvas.spills << "), " << (georeferenced ? "tied to GPS" : "not georeferenced");
+  if (georeferenced) s << " (" << tie_pairs << " fixes, rms " << tie_rms << " m)";
+  if (!last_problem.empty()) s << "; last problem: " << last_problem;
+  return s.str();
+}
+
+UavMosaicker::UavMosaicker(const MosaickerOptions& options)
+    : options_(options), height_filter_(options.height_filter), camera_(options.camera) {
+  cv::setNumThreads(options_.num_threads);
+}
+
+UavMosaicker::~UavMosaicker() = default;
+
+cv::Mat UavMosaicker::Undistort(const cv::Mat& image) {
+  if (image.cols != camera_.width || image.rows != camera_.height) {
+    // Scale the configured intrinsics to the frame size (same field of view).
+    const double sx = static_cast<double>(image.cols) / options_.camera.width;
+    const double sy = static_cast<double>(image.rows) / options_.camera.height;
+    camera_ = options_.camera;
+    camera_.width = image.cols;
+    camera_.height = image.rows;
+    camera_.fx *= sx; camera_.cx = (camera_.cx + 0.5) * sx - 0.5;
+    camera_.fy *= sy; camera_.cy = (camera_.cy + 0.5) * sy - 0.5;
+    map1_.release();
+    if (!camera_scaled_warned_) {
+      LOG(WARNING) << "uav frames are " << image.cols << "x" << image.rows << " but camera is configured for "
+                   << options_.camera.width << "x" << options_.camera.height
+                   << "; intrinsics scaled to fit (fix camera.width/height in the config)";
+      camera_scaled_warned_ = true;
+    }
+  }
+  if (!camera_.HasDistortion()) return image;
+  if (map1_.empty() || map_size_ != image.size()) {
+    cv::initUndistortRectifyMap(camera_.K(), camera_.DistortionCoeffs(), cv::noArray(), camera_.K(), image.size(),
+                                CV_16SC2, map1_, map2_);
+    map_size_ = image.size();
+  }
+  cv::Mat out;
+  cv::remap(image, out, map1_, map2_, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  return out;
+}
+
+void UavMosaicker::SetCalibration(const Calibration& calibration) {
+  calibration_ = calibration;
+  calibrated_ = calibration.valid;
+  focal_ = calibration.focal_px;
+}
+
+bool UavMosaicker::TryCalibrate(const cv::Mat& frame, FrameState* state) {
+  const CalibrationOptions& co = options_.calibration;
+  std::string why;
+  Calibration c;
+  const double focal = camera_.fx;
+  const double known_height = co.height > 0 ? co.height : last_hag_;
+  if (co.source == "config") {
+    c.valid = true;
+    c.source = "config";
+    c.height = co.height;
+    c.height_source = "config";
+    c.focal_px = focal;
+    c.pixels_per_metre = focal / co.height;
+  } else if (co.source == "gps") {
+    if (!(last_hag_ > 0)) {
+      why = "waiting for a GPS fix with height_above_ground (calibration.source: gps)";
+    } else {
+      c.valid = true;
+      c.source = "gps";
+      c.height = last_hag_;
+      c.height_source = "gps";
+      c.focal_px = focal;
+      c.pixels_per_metre = focal / last_hag_;
+    }
+  } else {
+    const MarkerObservation marker = DetectMarker(frame, co);
+    if (marker.found && !co.focal_known && !(known_height > 0)) {
+      why = "marker seen but no height yet (GPS height_above_ground or calibration.height) for eq. 1";
+    } else {
+      c = CalibrateFromMarker(marker, known_height, focal, co, &why);
+    }
+  }
+  if (!c.valid) {
+    state->status = TrackStatus::kCalibrating;
+    state->message = why;
+    if (summary_.frames == co.max_frames)
+      LOG(WARNING) << "uav_mosaicker: no calibration after " << co.max_frames << " frames: " << why
+                   << " (or set calibration.source: config with calibration.height)";
+    return false;
+  }
+  SetCalibration(c);
+  LOG(INFO) << c.Describe();
+  return true;
+}
+
+void UavMosaicker::StartMosaic(const cv::Mat& frame, const FrameFeatures& features, int64_t utime, FrameState* state) {
+  // Ground px of the first frame: height / focal m/px.
+  const double ground = calibration_.height / focal_;
+  metres_per_pixel_ = options_.canvas.metres_per_pixel > 0 ? options_.canvas.metres_per_pixel
+                                                           : ground * options_.canvas.resolution_factor;
+  canvas_ = std::make_unique<TiledCanvas>(options_.canvas);
+  const double s = ground / metres_per_pixel_;
+  // The principal point of the first frame is mosaic px (0, 0).
+  Similarity2 S{s, 0, -s * camera_.cx, -s * camera_.cy};
+  keyframe_ = Keyframe{features, S, utime};
+  last_good_ = S;
+  last_scale_ = s;
+  height_filter_.Reset(calibration_.height, utime);
+  const auto t0 = std::chrono::steady_clock::now();
+  std::string why;
+  if (canvas_->Blend(frame, S, &why)) {
+    state->mosaic_updated = true;
+    ++summary_.blends;
+  }
+  state->mosaic_seconds = Seconds(t0);
+  frames_since_blend_ = 0;
+  state->status = TrackStatus::kTracking;
+  state->keyframe = true;
+  state->height = state->height_raw = calibration_.height;
+  ++summary_.keyframes;
+  LOG(INFO) << "mosaic started: " << metres_per_pixel_ << " m/px, first frame at height " << calibration_.height
+            << " m, " << features.points.size() << " features";
+}
+
+double UavMosaicker::KeyframeOverlap(const Similarity2& key_to_cur, cv::Size size) const {
+  const Similarity2 cur_to_key = key_to_cur.Inverse();
+  std::vector<cv::Point2f> rect = {{0, 0}, {float(size.width), 0}, {float(size.width), float(size.height)}, {0, float(size.height)}};
+  std::vector<cv::Point2f> quad;
+  for (const auto& p : rect) quad.push_back(cur_to_key.Apply(p));
+  std::vector<cv::Point2f> inter;
+  const float area = cv::intersectConvexConvex(rect, quad, inter, true);
+  return area / (static_cast<double>(size.area()) + 1e-9);
+}
+
+bool UavMosaicker::RegisterToMosaic(const cv::Mat& frame, const FrameFeatures& features,
+                                    Similarity2* mosaic_from_frame, MotionEstimate* motion, std::string* why) {
+  if (!canvas_) return false;
+  const double k = options_.recovery_view_scale;
+  const cv::Size view_size(static_cast<int>(frame.cols * k), static_cast<int>(frame.rows * k));
+  const cv::Point2d offset((view_size.width - frame.cols) / 2.0, (view_size.height - frame.rows) / 2.0);
+  // view px v -> frame px v - offset -> mosaic via the last good pose.
+  const Similarity2 mosaic_from_view = last_good_ * Similarity2{1, 0, -offset.x, -offset.y};
+  cv::Mat view, mask;
+  const double painted = canvas_->Render(mosaic_from_view, view_size, &view, &mask);
+  if (painted < options_.recovery_min_painted) {
+    *why += "; mosaic covers only " + std::to_string(painted) + " of the search area";
+    return false;
+  }
+  FrameFeatures vf = ExtractFeatures(view, options_.matcher);
+  // Drop features on the border of the painted area (artificial corners).
+  cv::erode(mask, mask, cv::Mat(), cv::Point(-1, -1), 6);
+  FrameFeatures kept;
+  kept.size = vf.size;
+  for (size_t i = 0; i < vf.points.size(); ++i) {
+    const cv::Point p(cvRound(vf.points[i].x), cvRound(vf.points[i].y));
+    if (p.inside(cv::Rect(0, 0, mask.cols, mask.rows)) && mask.at<uchar>(p)) {
+      kept.points.push_back(vf.points[i]);
+      kept.descriptors.push_back(vf.descriptors.row(static_cast<int>(i)));
+    }
+  }
+  *motion = EstimateMotion(kept, features, options_.matcher);
+  if (!motion->ok) {
+    *why += "; against the mosaic: " + motion->why;
+    return false;
+  }
+  *mosaic_from_frame = mosaic_from_view * motion->similarity.Inverse();
+  return true;
+}
+
+FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
+  const auto t0 = std::chrono::steady_clock::now();
+  FrameState state = last_state_;
+  state.utime = utime;
+  state.frame_index = frame_counter_++;
+  state.message.clear();
+  state.keyframe = state.mosaic_updated = false;
+  state.mosaic_seconds = 0;
+  state.num_matches = state.num_inliers = state.num_foreground = 0;
+  state.scale = 1.0;
+  ++summary_.frames;
+  if (image_in.empty() || (image_in.type() != CV_8UC1 && image_in.type() != CV_8UC3)) {
+    state.status = calibrated_ ? TrackStatus::kLost : TrackStatus::kCalibrating;
+    state.message = "frame empty or not 8-bit gray/BGR; skipped";
+    if (calibrated_) lost_ = true;
+    summary_.last_problem = state.message;
+    last_state_ = state;
+    return state;
+  }
+  const cv::Mat frame = Undistort(image_in);
+  if (!calibrated_ && !TryCalibrate(frame, &state)) {
+    last_state_ = state;
+    return state;
+  }
+  const FrameFeatures features = ExtractFeatures(frame, options_.matcher);
+  if (!canvas_) {
+    if (features.points.size() < static_cast<size_t>(options_.matcher.min_inliers)) {
+      state.status = TrackStatus::kCalibrating;
+      state.message = "calibrated, waiting for a frame with enough features to start the mosaic";
+      last_state_ = state;
+      return state;
+    }
+    StartMosaic(frame, features, utime, &state);
+    state.tracking_seconds = Seconds(t0) - state.mosaic_seconds;
+    history_.emplace_back(utime, cv::Point2d(0, 0));
+    FillRoute(&state);
+    PairPendingFixes();
+    last_state_ = state;
+    ++summary_.tracked;
+    return state;
+  }
+
+  // Track against the keyframe.
+  MotionEstimate motion = EstimateMotion(keyframe_->features, features, options_.matcher);
+  Similarity2 S;
+  bool ok = motion.ok;
+  bool via_mosaic = false;
+  std::string why = motion.ok ? "" : "matching failed: " + motion.why;
+  if (ok) {
+    S = keyframe_->mosaic_from_frame * motion.similarity.Inverse();
+  } else if (lost_) {
+    MotionEstimate m2;
+    if (RegisterToMosaic(frame, features, &S, &m2, &why)) {
+      ok = true;
+      via_mosaic = true;
+      motion = m2;
+    }
+  }
+  state.num_matches = motion.num_matches;
+  state.num_inliers = motion.num_inliers;
+  state.num_foreground = motion.num_foreground;
+  if (!ok) {
+    // Keep the last good state; say why.
+    state.status = TrackStatus::kLost;
+    state.message = why;
+    if (!lost_) ++summary_.lost;
+    lost_ = true;
+    summary_.last_problem = why;
+    state.tracking_seconds = Seconds(t0);
+    last_state_ = state;
+    return state;
+  }
+  state.status = lost_ ? TrackStatus::kRecovered : TrackStatus::kTracking;
+  if (lost_) {
+    ++summary_.recoveries;
+    state.message = via_mosaic ? "re-acquired against the mosaic" : "re-acquired against the last keyframe";
+    LOG(INFO) << "frame " << state.frame_index << ": " << state.message;
+  }
+  const bool was_lost = lost_;
+  lost_ = false;
+  ++summary_.tracked;
+
+  // Height (eqs. 4-5 chained through the similarity scale) and lambda.
+  const double s = S.Scale();
+  state.scale = last_scale_ / s;
+  state.height_raw = s * metres_per_pixel_ * focal_;
+  state.height = height_filter_.UpdateVision(state.height_raw, utime);
+  last_good_ = S;
+  last_scale_ = s;
+
+  // New keyframe?
+  const double key_scale = motion.lambda;
+  const bool new_key = was_lost || via_mosaic || motion.num_background < options_.keyframe_min_inliers ||
+                       key_scale > options_.keyframe_max_scale || key_scale < 1.0 / options_.keyframe_max_scale ||
+                       (!via_mosaic && KeyframeOverlap(motion.similarity, frame.size()) < options_.keyframe_min_overlap);
+  if (new_key) {
+    keyframe_ = Keyframe{features, S, utime};
+    state.keyframe = true;
+    ++summary_.keyframes;
+  }
+  state.tracking_seconds = Seconds(t0);
+
+  history_.emplace_back(utime, S.Apply({camera_.cx, camera_.cy}));
+  while (history_.size() > 256) history_.pop_front();
+  FillRoute(&state);
+  PairPendingFixes();
+
+  // Mosaic.
+  ++frames_since_blend_;
+  if (new_key || frames_since_blend_ >= options_.mosaic_every_n_frames) {
+    const auto t1 = std::chrono::steady_clock::now();
+    std::string blend_why;
+    if (canvas_->Blend(frame, S, &blend_why)) {
+      state.mosaic_updated = true;
+      ++summary_.blends;
+      frames_since_blend_ = 0;
+    } else {
+      LOG_EVERY_N(WARNING, 50) << "mosaic: frame not blended: " << blend_why;
+    }
+    state.mosaic_seconds = Seconds(t1);
+  }
+  last_state_ = state;
+  return state;
+}
+
+void UavMosaicker::FillRoute(FrameState* state) {
+  state->route_px = history_.empty() ? cv::Point2d(0, 0) : history_.back().second;
+  state->route_local = MosaicToLocal(state->route_px);
+  state->georeferenced = enu_from_flipped_.has_value();
+  state->gps_aided = state->georeferenced && (state->utime - last_fix_utime_) * 1e-6 <= options_.geo.gps_timeout;
+  if (state->georeferenced && origin_fix_) {
+    EnuToLatLon(state->route_local, origin_fix_->latitude, origin_fix_->longitude, &state->latitude, &state->longitude);
+  }
+  route_.push_back(state->route_px);
+  if (route_.size() > 200000) route_.erase(route_.begin(), route_.begin() + 100000);
+}
+
+cv::Point2d UavMosaicker::MosaicToLocal(const cv::Point2d& p) const {
+  if (enu_from_flipped_) return enu_from_flipped_->Apply({p.x, -p.y});
+  // Not tied: the first frame's image up is taken as north.
+  return {p.x * metres_per_pixel_, -p.y * metres_per_pixel_};
+}
+
+void UavMosaicker::AddGps(const GpsFix& fix) {
+  if (std::isfinite(fix.height_above_ground) && fix.height_above_ground > 0) {
+    last_hag_ = fix.height_above_ground;
+    if (canvas_) height_filter_.UpdateGps(fix.height_above_ground, fix.vertical_sigma, fix.utime);
+  }
+  if (!fix.valid || !std::isfinite(fix.latitude) || !std::isfinite(fix.longitude)) return;
+  if (!origin_fix_) origin_fix_ = fix;
+  last_fix_utime_ = std::max(last_fix_utime_, fix.utime);
+  pending_fixes_.push_back(fix);
+  while (pending_fixes_.size() > 256) pending_fixes_.pop_front();
+  PairPendingFixes();
+}
+
+void UavMosaicker::PairPendingFixes() {
+  if (history_.empty() || !origin_fix_) return;
+  bool added = false;
+  const int64_t gap = static_cast<int64_t>(options_.geo.max_time_gap * 1e6);
+  while (!pending_fixes_.empty()) {
+    const GpsFix& f = pending_fixes_.front();
+    if (f.utime > history_.back().first) {
+      // Frames for this fix may still come; give up only when it is far behind.
+      break;
+    }
+    // Interpolate the route at the fix time.
+    std::optional<cv::Point2d> p;
+    for (size_t i = history_.size(); i-- > 0;) {
+      if (history_[i].first <= f.utime) {
+        if (i + 1 < history_.size()) {
+          const auto& a = history_[i];
+          const auto& b = history_[i + 1];
+          if (b.first - a.first <= 2 * gap) {
+            const double w = b.first > a.first ? double(f.utime - a.first) / double(b.first - a.first) : 0.0;
+            p = a.second + w * (b.second - a.second);
+          }
+        } else if (f.utime - history_[i].first <= gap) {
+          p = history_[i].second;
+        }
+        break;
+      }
+    }
+    if (p) {
+      pairs_.push_back({*p, LatLonToEnu(f.latitude, f.longitude, origin_fix_->latitude, origin_fix_->longitude)});
+      added = true;
+    }
+    pending_fixes_.pop_front();
+  }
+  while (static_cast<int>(pairs_.size()) > options_.geo.window_fixes) pairs_.pop_front();
+  if (added) RefitTie();
+}
+
+void UavMosaicker::RefitTie() {
+  if (static_cast<int>(pairs_.size()) < options_.geo.min_fixes) return;
+  std::vector<cv::Point2d> from, to;
+  cv::Point2d mean(0, 0);
+  for (const auto& p : pairs_) {
+    from.emplace_back(p.mosaic_px.x, -p.mosaic_px.y);
+    to.push_back(p.enu);
+    mean += p.enu;
+  }
+  mean *= 1.0 / to.size();
+  double spread = 0;
+  for (const auto& e : to) spread += (e - mean).dot(e - mean);
+  spread = std::sqrt(spread / to.size());
+  if (spread < options_.geo.min_spread) return;
+  Similarity2 T;
+  double rms = 0;
+  if (FitSimilarity(from, to, &T, &rms)) {
+    if (!enu_from_flipped_) LOG(INFO) << "mosaic tied to GPS: " << pairs_.size() << " fixes, rms " << rms << " m";
+    enu_from_flipped_ = T;
+    tie_rms_ = rms;
+  }
+}
+
+cv::Mat UavMosaicker::Preview(int max_side, bool draw_route) const {
+  if (!canvas_) return {};
+  double scale = 1;
+  cv::Point2d origin;
+  cv::Mat preview = canvas_->Preview(max_side, &scale, &origin);
+  if (preview.empty() || !draw_route || route_.size() < 2) return preview;
+  preview = preview.clone();
+  const size_t step = std::max<size_t>(1, route_.size() / 2000);
+  for (size_t i = step; i < route_.size(); i += step) {
+    const cv::Point2d a = (route_[i - step] - origin) * scale, b = (route_[i] - origin) * scale;
+    cv::line(preview, a, b, cv::Scalar(0, 0, 255), 1, cv::LINE_AA);
+  }
+  cv::circle(preview, (route_.back() - origin) * scale, 3, cv::Scalar(0, 255, 255), -1);
+  return preview;
+}
+
+bool UavMosaicker::WriteMosaic(const std::string& png_path, std::string* error) {
+  if (!canvas_) {
+    if (error) *error = "no mosaic yet (not calibrated or no frame tracked)";
+    return false;
+  }
+  cv::Mat bgra;
+  double scale = 1;
+  cv::Point2d origin;
+  if (!canvas_->Export(&bgra, &scale, &origin, error)) return false;
+  std::error_code ec;
+  const std::filesystem::path path(png_path);
+  if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path(), ec);
+  bool written = false;
+  try {
+    written = cv::imwrite(png_path, bgra);
+  } catch (const cv::Exception& e) {
+    written = false;
+  }
+  if (!written) {
+    if (error) *error = "cannot write " + png_path + " (folder writable? name ends in .png?)";
+    return false;
+  }
+  std::filesystem::path world = path;
+  world.replace_extension(".pgw");
+  if (enu_from_flipped_ && origin_fix_) {
+    // pixel (col,row) -> mosaic px origin + (col,row)/scale -> (x,-y) -> ENU -> lon/lat.
+    const Similarity2& T = *enu_from_flipped_;
+    const double lat0 = origin_fix_->latitude, lon0 = origin_fix_->longitude;
+    const double ke = 1.0 / (kEarthRadius * std::cos(lat0 * kDeg)) / kDeg, kn = 1.0 / kEarthRadius / kDeg;
+    const double a = T.a, b = T.b, s = scale, ox = origin.x, oy = origin.y;
+    std::ofstream out(world);
+    out << std::setprecision(12) << ke * a / s << "\n"
+        << kn * b / s << "\n"
+        << ke * b / s << "\n"
+        << -kn * a / s << "\n"
+        << lon0 + ke * (a * ox + b * oy + T.tx) << "\n"
+        << lat0 + kn * (b * ox - a * oy + T.ty) << "\n";
+    if (!out && error) *error = "mosaic written but not its world file " + world.string();
+  } else {
+    std::filesystem::remove(world, ec);
+  }
+  LOG(INFO) << "mosaic written: " << png_path << " (" << bgra.cols << "x" << bgra.rows << ", "
+            << metres_per_pixel_ / scale << " m/px" << (enu_from_flipped_ ? ", world file " + world.string() : "")
+            << ")";
+  return true;
+}
+
+MosaickerSummary UavMosaicker::summary() const {
+  MosaickerSummary s = summary_;
+  s.calibration = calibration_;
+  s.metres_per_pixel = metres_per_pixel_;
+  s.georeferenced = enu_from_flipped_.has_value();
+  s.tie_rms = tie_rms_;
+  s.tie_pairs = static_cast<int>(pairs_.size());
+  if (canvas_) s.canvas = canvas_->stats();
+  return s;
+}
+
+}  // namespace vloc::mosaic
