@@ -1,0 +1,159 @@
+#include "sim_uav_publisher.h"
+
+#include <opencv2/imgproc.hpp>
+
+#include <glog/logging.h>
+#include <lcm/lcm-cpp.hpp>
+
+#include <chrono>
+#include <thread>
+#include <cmath>
+#include <stdexcept>
+
+#include "vloc/common/options.h"
+#include "vloc/lcm_io/process.h"
+#include "vloc/uav_gps_t.hpp"
+
+namespace vloc {
+
+void SimUavOptions::Visit(OptionsReader& r) {
+  r.Optional("camera_channel", &camera_channel, "image_t channel");
+  r.Optional("gps_channel", &gps_channel, "uav_gps_t channel");
+  r.Optional("gt_channel", &gt_channel, "pose_t channel, world_from_body ground truth");
+  r.Optional("frame_id", &frame_id, "image_t.frame_id");
+  r.Optional("encoding", &encoding, "jpeg, png, rgb8 or gray8");
+  r.Optional("jpeg_quality", &jpeg_quality, "1..100");
+  r.Optional("speed", &speed, "real-time factor, 0 = as fast as possible");
+  r.Optional("duration", &duration, "s, 0 = whole flight plan");
+  r.Optional("start_utime", &start_utime, "microseconds added to every message time");
+  r.Child("world", [&](OptionsReader& c) { world.Visit(c); });
+}
+
+bool SimUavOptions::Check(std::string* error) const {
+  try {
+    ParseImageEncoding(encoding);
+  } catch (const std::invalid_argument& e) {
+    return Fail(error, std::string("encoding: ") + e.what());
+  }
+  if (jpeg_quality < 1 || jpeg_quality > 100) return Fail(error, "jpeg_quality must be in [1, 100]");
+  if (speed < 0) return Fail(error, "speed must be >= 0 (0 = as fast as possible)");
+  if (duration < 0) return Fail(error, "duration must be >= 0 s (0 = whole flight)");
+  if (camera_channel.empty() || gps_channel.empty() || gt_channel.empty())
+    return Fail(error, "channel names must not be empty");
+  return world.Check(error);
+}
+
+namespace {
+template <class Msg>
+std::vector<uint8_t> Encode(const Msg& msg) {
+  std::vector<uint8_t> bytes(static_cast<size_t>(msg.getEncodedSize()));
+  msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  return bytes;
+}
+}  // namespace
+
+SimUavPublisher::SimUavPublisher(const SimUavOptions& options, const UavWorld& world)
+    : options_(options), world_(world), encoding_(ParseImageEncoding(options.encoding)) {
+  const double plan = world_.flight().Duration();
+  end_time_ = options_.duration > 0 ? std::min(options_.duration, plan) : plan;
+}
+
+bool SimUavPublisher::Done() const { return NextTime() > end_time_ + 1e-9; }
+
+double SimUavPublisher::NextTime() const {
+  const double tf = world_.FrameTime(next_frame_);
+  const double tg = next_gps_ < world_.gps().NumSamples() ? world_.gps().SampleTime(next_gps_) : 1e300;
+  return std::min(tf, tg);
+}
+
+void SimUavPublisher::EmitNext(const Sink& sink) {
+  const double tf = world_.FrameTime(next_frame_);
+  const double tg = next_gps_ < world_.gps().NumSamples() ? world_.gps().SampleTime(next_gps_) : 1e300;
+  if (tg < tf) {
+    const UavGpsSample& s = world_.gps().Sample(next_gps_++);
+    uav_gps_t msg;
+    msg.utime = options_.start_utime + s.utime;
+    msg.fix = s.has_fix ? uav_gps_t::FIX_3D : uav_gps_t::FIX_NONE;
+    msg.latitude = s.latitude;
+    msg.longitude = s.longitude;
+    msg.altitude = s.altitude;
+    msg.height_above_ground = s.height_above_ground;
+    msg.horizontal_sigma = s.horizontal_sigma;
+    msg.vertical_sigma = s.vertical_sigma;
+    ++summary_.gps_fixes;
+    if (!s.has_fix) ++summary_.gps_dropouts;
+    sink(options_.gps_channel, Encode(msg), msg.utime);
+    return;
+  }
+  const int64_t utime = options_.start_utime + world_.FrameUtime(next_frame_);
+  const auto start = std::chrono::steady_clock::now();
+  cv::Mat frame = world_.RenderFrame(tf);
+  if (encoding_ == ImageEncoding::kGray8) cv::cvtColor(frame, frame, cv::COLOR_BGR2GRAY);
+  summary_.render_ms_total +=
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  ++next_frame_;
+  ++summary_.frames;
+  PoseWithCovariance truth;
+  truth.utime = utime;
+  truth.pose = world_.flight().WorldFromBody(tf);
+  sink(options_.gt_channel, Encode(PoseToMessage(truth, "world", "uav_body")), utime);
+  sink(options_.camera_channel,
+       Encode(ImageToMessage(frame, encoding_, utime, options_.frame_id, options_.jpeg_quality)), utime);
+}
+
+namespace {
+void LogSummary(const char* what, const SimUavSummary& s) {
+  LOG(INFO) << what << " " << s.frames << " frames, " << s.gps_fixes << " GPS messages (" << s.gps_dropouts
+            << " without fix), mean render " << s.MeanRenderMs() << " ms";
+}
+}  // namespace
+
+bool WriteSimUavLog(const std::string& path, SimUavPublisher* publisher, std::string* error) {
+  lcm::LogFile log(path, "w");
+  if (!log.good()) return Fail(error, "cannot open log " + path + " for writing (check the folder exists)");
+  int64_t event_number = 0;
+  while (!publisher->Done() && !StopSignalPending()) {
+    publisher->EmitNext([&](const std::string& channel, const std::vector<uint8_t>& bytes, int64_t utime) {
+      lcm::LogEvent event;
+      event.eventnum = event_number++;
+      event.timestamp = utime;
+      event.channel = channel;
+      event.datalen = static_cast<int32_t>(bytes.size());
+      event.data = const_cast<uint8_t*>(bytes.data());
+      log.writeEvent(&event);
+    });
+  }
+  LogSummary(("wrote " + path + ":").c_str(), publisher->summary());
+  return true;
+}
+
+int PublishSimUavRealTime(Transport& transport, double speed, SimUavPublisher* publisher) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  const double first = publisher->NextTime();
+  bool warned_late = false;
+  auto on_idle = [&] {
+    for (int burst = 0; burst < 8 && !publisher->Done(); ++burst) {
+      const double t = publisher->NextTime();
+      if (speed > 0) {
+        const auto due = wall_start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                          std::chrono::duration<double>((t - first) / speed));
+        const auto now = std::chrono::steady_clock::now();
+        if (now < due) {
+          std::this_thread::sleep_until(std::min(due, now + std::chrono::milliseconds(20)));
+          if (std::chrono::steady_clock::now() < due) return;
+        } else if (!warned_late && now - due > std::chrono::seconds(1)) {
+          warned_late = true;
+          LOG(WARNING) << "rendering is more than 1 s behind real time; lower --fps or --speed";
+        }
+      }
+      publisher->EmitNext([&](const std::string& channel, const std::vector<uint8_t>& bytes, int64_t) {
+        transport.Publish(channel, bytes.data(), bytes.size());
+      });
+    }
+  };
+  const int code = RunUntilSignal(transport, 0, on_idle, [&] { return publisher->Done(); });
+  LogSummary("published", publisher->summary());
+  return code;
+}
+
+}  // namespace vloc
