@@ -1,0 +1,471 @@
+#include "vloc/ba/crosssite_ba.h"
+
+#include <ceres/ceres.h>
+#include <ceres/covariance.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "reprojection.h"
+#include "vloc/ba/geometry.h"
+#include "vloc/common/options.h"
+
+namespace vloc {
+
+void CrossSiteBaOptions::Visit(OptionsReader& r) {
+  r.Optional("min_tie_points", &min_tie_points, "count, usable tie points needed");
+  r.Optional("huber_sigmas", &huber_sigmas, "sigmas, Huber loss threshold");
+  r.Optional("outlier_sigmas", &outlier_sigmas, "sigmas, tie-point rejection threshold");
+  r.Optional("rejection_rounds", &rejection_rounds, "count, robust solve + rejection rounds");
+  r.Optional("max_iterations", &max_iterations, "count, Ceres iterations per solve");
+  r.Optional("function_tolerance", &function_tolerance, "relative cost change to stop");
+  r.Optional("max_condition_number", &max_condition_number, "scaled pose covariance condition limit");
+  r.Optional("max_final_rms_sigmas", &max_final_rms_sigmas, "sigmas, final normalised RMS limit");
+  r.Optional("max_correction_m", &max_correction_m, "m, largest accepted move from dead reckoning");
+  r.Optional("min_intersection_parallax_rad", &min_intersection_parallax_rad, "rad, intersection ray angle");
+  r.Optional("inflate_by_variance_factor", &inflate_by_variance_factor, "scale covariance by max(1, s0^2)");
+  r.Optional("num_threads", &num_threads, "count, Ceres threads");
+}
+
+bool CrossSiteBaOptions::Check(std::string* error) const {
+  if (min_tie_points < 3) return Fail(error, "min_tie_points must be at least 3");
+  if (!(huber_sigmas > 0)) return Fail(error, "huber_sigmas must be positive");
+  if (!(outlier_sigmas > 0)) return Fail(error, "outlier_sigmas must be positive");
+  if (rejection_rounds < 0) return Fail(error, "rejection_rounds must be >= 0");
+  if (max_iterations < 1) return Fail(error, "max_iterations must be >= 1");
+  if (!(function_tolerance > 0)) return Fail(error, "function_tolerance must be positive");
+  if (!(max_condition_number > 1)) return Fail(error, "max_condition_number must be > 1");
+  if (!(max_final_rms_sigmas > 0)) return Fail(error, "max_final_rms_sigmas must be positive");
+  if (!(max_correction_m > 0)) return Fail(error, "max_correction_m must be positive");
+  if (!(min_intersection_parallax_rad > 0)) return Fail(error, "min_intersection_parallax_rad must be positive");
+  if (num_threads < 1) return Fail(error, "num_threads must be >= 1");
+  return true;
+}
+
+const char* ToString(CrossSiteBaStatus status) {
+  switch (status) {
+    case CrossSiteBaStatus::kOk: return "OK";
+    case CrossSiteBaStatus::kTooFewPoints: return "TOO_FEW_POINTS";
+    case CrossSiteBaStatus::kIllConditioned: return "ILL_CONDITIONED";
+    case CrossSiteBaStatus::kNotConverged: return "NOT_CONVERGED";
+    case CrossSiteBaStatus::kBadInput: return "BAD_INPUT";
+  }
+  return "UNKNOWN";
+}
+
+std::string CrossSiteBaSummary::BriefReport() const {
+  std::ostringstream s;
+  s << "site " << previous_site_id << " -> " << current_site_id << ": " << ToString(status) << " (" << message
+    << "); points used " << num_tie_points_used << ", rejected " << num_tie_points_rejected << ", unusable "
+    << num_tie_points_unusable << " of " << num_tie_points_in << "; observations " << num_observations
+    << "; RMS " << initial_rms_px << " -> " << final_rms_px << " px; " << iterations << " iterations, "
+    << solve_seconds << " s; condition " << condition_number;
+  return s.str();
+}
+
+void SiteCameraPoses(const Pose3& world_from_body, const std::vector<MastPointing>& pointing,
+                     const NavcamModel& navcam, std::vector<Pose3>* world_from_left,
+                     std::vector<Pose3>* world_from_right) {
+  world_from_left->clear();
+  world_from_right->clear();
+  for (const auto& p : pointing) {
+    const Pose3 left = world_from_body * navcam.mast.BodyFromLeft(p.pan, p.tilt, navcam.rig);
+    world_from_left->push_back(left);
+    world_from_right->push_back(left * navcam.rig.left_from_right);
+  }
+}
+
+namespace {
+
+bool PoseIsValid(const Pose3& pose) {
+  if (!pose.matrix().allFinite()) return false;
+  const Eigen::Matrix3d R = pose.linear();
+  return (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < 1e-6 && R.determinant() > 0;
+}
+
+// A tie point prepared for the adjustment.
+struct BaPoint {
+  int id = 0;
+  Eigen::Vector3d p_world = Eigen::Vector3d::Zero();
+  std::vector<TieObservation> previous;  // validated observations
+  std::vector<TieObservation> current;
+  bool inlier = true;
+};
+
+struct Network {
+  std::vector<Pose3> prev_left, prev_right;          // world_from_camera, fixed
+  std::vector<Pose3> body_from_left, body_from_right;  // current site
+  const NavcamModel* navcam = nullptr;
+
+  const PinholeCamera& Intrinsics(CameraSide side) const {
+    return side == CameraSide::kLeft ? navcam->rig.left : navcam->rig.right;
+  }
+  const Pose3& PreviousCamera(const TieObservation& o) const {
+    return o.camera == CameraSide::kLeft ? prev_left[o.pair_index] : prev_right[o.pair_index];
+  }
+  const Pose3& BodyFromCurrentCamera(const TieObservation& o) const {
+    return o.camera == CameraSide::kLeft ? body_from_left[o.pair_index] : body_from_right[o.pair_index];
+  }
+  // Reprojection error (px) of an observation of p_world given the current site pose.
+  Eigen::Vector2d Residual(const TieObservation& o, const Eigen::Vector3d& p_world, const Pose3& world_from_current) const {
+    const Pose3 world_from_camera = o.site == SiteRole::kPrevious ? PreviousCamera(o)
+                                                                 : world_from_current * BodyFromCurrentCamera(o);
+    const auto px = CameraView::Make(world_from_camera, Intrinsics(o.camera)).Project(p_world);
+    return px ? Eigen::Vector2d(*px - o.uv) : Eigen::Vector2d(1e4, 1e4);
+  }
+};
+
+struct PassResult {
+  bool converged = false;
+  int iterations = 0;
+  std::string message;
+};
+
+// One Ceres solve over the inlier points; updates `world_from_current` and the points.
+PassResult SolvePass(const Network& net, std::vector<BaPoint>* points, Pose3* world_from_current, bool robust,
+                     const CrossSiteBaOptions& options) {
+  const Eigen::Matrix3d R0 = world_from_current->linear();
+  double pose[6] = {world_from_current->translation().x(), world_from_current->translation().y(),
+                    world_from_current->translation().z(), 0, 0, 0};
+  ceres::Problem problem;
+  for (auto& p : *points) {
+    if (!p.inlier) continue;
+    for (const auto& o : p.previous) {
+      const PinholeCamera& k = net.Intrinsics(o.camera);
+      problem.AddResidualBlock(
+          internal::FixedCameraReprojection::Create(net.PreviousCamera(o), k.fx, k.fy, k.cx, k.cy, o.uv, o.sigma),
+          robust ? new ceres::HuberLoss(options.huber_sigmas) : nullptr, p.p_world.data());
+    }
+    for (const auto& o : p.current) {
+      const PinholeCamera& k = net.Intrinsics(o.camera);
+      problem.AddResidualBlock(internal::BodyCameraReprojection::Create(R0, net.BodyFromCurrentCamera(o), k.fx, k.fy,
+                                                                        k.cx, k.cy, o.uv, o.sigma),
+                               robust ? new ceres::HuberLoss(options.huber_sigmas) : nullptr, pose,
+                               p.p_world.data());
+    }
+  }
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::DENSE_SCHUR;
+  so.max_num_iterations = options.max_iterations;
+  so.function_tolerance = options.function_tolerance;
+  so.num_threads = options.num_threads;
+  so.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  PassResult r;
+  r.iterations = static_cast<int>(summary.iterations.size());
+  r.converged = summary.termination_type == ceres::CONVERGENCE;
+  r.message = summary.message;
+  *world_from_current = internal::BodyPoseFromParameters(R0, pose);
+  return r;
+}
+
+struct Residuals {
+  double rms_px = 0;
+  double normalised_rms = 0;
+  double chi2 = 0;  // sum of squared normalised residuals
+  int observations = 0;
+  int points = 0;
+};
+
+Residuals ComputeResiduals(const Network& net, const std::vector<BaPoint>& points, const Pose3& world_from_current) {
+  Residuals r;
+  double sum_px = 0;
+  for (const auto& p : points) {
+    if (!p.inlier) continue;
+    ++r.points;
+    for (const auto* list : {&p.previous, &p.current}) {
+      for (const auto& o : *list) {
+        const Eigen::Vector2d e = net.Residual(o, p.p_world, world_from_current);
+        sum_px += e.squaredNorm();
+        r.chi2 += e.squaredNorm() / (o.sigma * o.sigma);
+        ++r.observations;
+      }
+    }
+  }
+  if (r.observations > 0) {
+    r.rms_px = std::sqrt(sum_px / (2.0 * r.observations));
+    r.normalised_rms = std::sqrt(r.chi2 / (2.0 * r.observations));
+  }
+  return r;
+}
+
+// Marks points whose worst normalised residual is too large; returns how many.
+int RejectOutliers(const Network& net, std::vector<BaPoint>* points, const Pose3& world_from_current,
+                   const CrossSiteBaOptions& options) {
+  std::vector<double> worst_of_point;
+  std::vector<double> all;
+  for (auto& p : *points) {
+    if (!p.inlier) continue;
+    double worst = 0;
+    for (const auto* list : {&p.previous, &p.current}) {
+      for (const auto& o : *list) {
+        const double e = net.Residual(o, p.p_world, world_from_current).norm() / o.sigma;
+        worst = std::max(worst, e);
+        all.push_back(e);
+      }
+    }
+    worst_of_point.push_back(worst);
+  }
+  if (all.empty()) return 0;
+  std::nth_element(all.begin(), all.begin() + all.size() / 2, all.end());
+  // Median of |e| for a 2-D unit Gaussian is sqrt(2 ln 2) = 1.1774.
+  const double robust_scale = std::max(1.0, all[all.size() / 2] / 1.1774);
+  const double threshold = options.outlier_sigmas * robust_scale;
+  int rejected = 0, k = 0;
+  for (auto& p : *points) {
+    if (!p.inlier) continue;
+    if (worst_of_point[k++] > threshold) {
+      p.inlier = false;
+      ++rejected;
+    }
+  }
+  return rejected;
+}
+
+int CountInliers(const std::vector<BaPoint>& points) {
+  return static_cast<int>(std::count_if(points.begin(), points.end(), [](const BaPoint& p) { return p.inlier; }));
+}
+
+// Covariance of the current site pose at `world_from_current` (dr = 0) by
+// ceres::Covariance over a plain least-squares problem; false when singular.
+bool PoseCovariance(const Network& net, std::vector<BaPoint> points, const Pose3& world_from_current,
+                    const CrossSiteBaOptions& options, Matrix6d* covariance, std::string* why) {
+  const Eigen::Matrix3d R0 = world_from_current.linear();
+  double pose[6] = {world_from_current.translation().x(), world_from_current.translation().y(),
+                    world_from_current.translation().z(), 0, 0, 0};
+  ceres::Problem problem;
+  for (auto& p : points) {
+    if (!p.inlier) continue;
+    for (const auto& o : p.previous) {
+      const PinholeCamera& k = net.Intrinsics(o.camera);
+      problem.AddResidualBlock(
+          internal::FixedCameraReprojection::Create(net.PreviousCamera(o), k.fx, k.fy, k.cx, k.cy, o.uv, o.sigma),
+          nullptr, p.p_world.data());
+    }
+    for (const auto& o : p.current) {
+      const PinholeCamera& k = net.Intrinsics(o.camera);
+      problem.AddResidualBlock(internal::BodyCameraReprojection::Create(R0, net.BodyFromCurrentCamera(o), k.fx, k.fy,
+                                                                        k.cx, k.cy, o.uv, o.sigma),
+                               nullptr, pose, p.p_world.data());
+    }
+  }
+  ceres::Covariance::Options co;
+  co.algorithm_type = ceres::SPARSE_QR;
+  co.num_threads = options.num_threads;
+  ceres::Covariance cov(co);
+  std::vector<std::pair<const double*, const double*>> blocks = {{pose, pose}};
+  if (!cov.Compute(blocks, &problem)) {
+    *why = "the adjustment's normal matrix is singular (rank deficient)";
+    return false;
+  }
+  Eigen::Matrix<double, 6, 6, Eigen::RowMajor> c;
+  cov.GetCovarianceBlock(pose, pose, c.data());
+  *covariance = c;
+  if (!covariance->allFinite()) {
+    *why = "the pose covariance is not finite";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+CrossSiteBaSummary SolveCrossSiteBa(const TiePointSet& set, const NavcamModel& navcam,
+                                    const CrossSiteBaOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  CrossSiteBaSummary s;
+  s.previous_site_id = set.previous_site_id;
+  s.current_site_id = set.current_site_id;
+  s.num_tie_points_in = static_cast<int>(set.points.size());
+  s.world_from_current = set.current_site_pose_dr;
+  s.world_from_current_initial = set.current_site_pose_dr.pose;
+  auto finish = [&](CrossSiteBaStatus status, const std::string& message) {
+    s.status = status;
+    s.usable = status == CrossSiteBaStatus::kOk;
+    s.message = message;
+    if (!s.usable) s.world_from_current = set.current_site_pose_dr;
+    s.world_from_current.utime = set.current_site_pose_dr.utime;
+    const Pose3 previous_from_world = set.previous_site_pose.pose.inverse();
+    s.previous_from_current.utime = s.world_from_current.utime;
+    s.previous_from_current.pose = previous_from_world * s.world_from_current.pose;
+    if (s.usable) {
+      s.previous_from_current.covariance = ComposeCovariance(previous_from_world, Matrix6d::Zero(),
+                                                             s.world_from_current.pose, s.world_from_current.covariance);
+    } else {
+      // Dead reckoning: the relative covariance is unknown here beyond the DR one.
+      s.previous_from_current.covariance = s.world_from_current.covariance;
+    }
+    SiteCameraPoses(set.previous_site_pose.pose, set.previous_pointing, navcam, &s.world_from_left_previous,
+                    &s.world_from_right_previous);
+    SiteCameraPoses(s.world_from_current.pose, set.current_pointing, navcam, &s.world_from_left_current,
+                    &s.world_from_right_current);
+    s.solve_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return s;
+  };
+
+  std::string error;
+  if (!options.Check(&error)) return finish(CrossSiteBaStatus::kBadInput, "bad BA options: " + error);
+  if (!navcam.Check(&error)) return finish(CrossSiteBaStatus::kBadInput, "bad Navcam model: " + error);
+  if (!PoseIsValid(set.previous_site_pose.pose))
+    return finish(CrossSiteBaStatus::kBadInput, "previous site pose is not a finite rigid pose; check the tie-point message");
+  if (!PoseIsValid(set.current_site_pose_dr.pose))
+    return finish(CrossSiteBaStatus::kBadInput, "dead-reckoning pose of the current site is not a finite rigid pose");
+  if (set.previous_pointing.empty() || set.current_pointing.empty())
+    return finish(CrossSiteBaStatus::kBadInput, "no mast pointing for the previous or current site's pairs");
+  for (const auto* list : {&set.previous_pointing, &set.current_pointing})
+    for (const auto& p : *list)
+      if (!std::isfinite(p.pan) || !std::isfinite(p.tilt))
+        return finish(CrossSiteBaStatus::kBadInput, "a mast pan/tilt is not finite");
+
+  Network net;
+  net.navcam = &navcam;
+  SiteCameraPoses(set.previous_site_pose.pose, set.previous_pointing, navcam, &net.prev_left, &net.prev_right);
+  for (const auto& p : set.current_pointing) {
+    net.body_from_left.push_back(navcam.mast.BodyFromLeft(p.pan, p.tilt, navcam.rig));
+    net.body_from_right.push_back(net.body_from_left.back() * navcam.rig.left_from_right);
+  }
+
+  // Validate observations and intersect the points from the previous site.
+  std::vector<BaPoint> points;
+  for (const auto& tp : set.points) {
+    BaPoint bp;
+    bp.id = tp.id;
+    for (const auto& o : tp.observations) {
+      const size_t pairs = o.site == SiteRole::kPrevious ? set.previous_pointing.size() : set.current_pointing.size();
+      if (o.pair_index < 0 || o.pair_index >= static_cast<int>(pairs) || !(o.sigma > 0) ||
+          !std::isfinite(o.sigma) || !o.uv.allFinite()) {
+        ++s.num_bad_observations;
+        continue;
+      }
+      (o.site == SiteRole::kPrevious ? bp.previous : bp.current).push_back(o);
+    }
+    if (bp.previous.size() < 2 || bp.current.empty()) {
+      ++s.num_tie_points_unusable;
+      continue;
+    }
+    std::vector<CameraView> views;
+    std::vector<Eigen::Vector2d> uv;
+    std::vector<double> sigma;
+    for (const auto& o : bp.previous) {
+      views.push_back(CameraView::Make(net.PreviousCamera(o), net.Intrinsics(o.camera)));
+      uv.push_back(o.uv);
+      sigma.push_back(o.sigma);
+    }
+    const IntersectionResult ir = IntersectPoint(views, uv, sigma, options.min_intersection_parallax_rad);
+    if (!ir.ok) {
+      ++s.num_tie_points_unusable;
+      continue;
+    }
+    bp.p_world = ir.p_world;
+    points.push_back(bp);
+  }
+  const int usable = static_cast<int>(points.size());
+  if (usable < options.min_tie_points) {
+    return finish(CrossSiteBaStatus::kTooFewPoints,
+                  std::to_string(usable) + " tie points seen from both sites and intersectable, need " +
+                      std::to_string(options.min_tie_points));
+  }
+
+  // Resection of the current site from the intersected points.
+  std::vector<Pose3> body_from_camera;
+  std::vector<PinholeCamera> intrinsics;
+  for (size_t i = 0; i < net.body_from_left.size(); ++i) {
+    body_from_camera.push_back(net.body_from_left[i]);
+    intrinsics.push_back(navcam.rig.left);
+    body_from_camera.push_back(net.body_from_right[i]);
+    intrinsics.push_back(navcam.rig.right);
+  }
+  std::vector<ResectionObservation> robs;
+  for (const auto& p : points) {
+    for (const auto& o : p.current) {
+      ResectionObservation r;
+      r.p_world = p.p_world;
+      r.uv = o.uv;
+      r.sigma_px = o.sigma;
+      r.camera = 2 * o.pair_index + (o.camera == CameraSide::kLeft ? 0 : 1);
+      robs.push_back(r);
+    }
+  }
+  ResectionOptions ro;
+  ro.huber_px = options.huber_sigmas;
+  const ResectionResult rr = ResectBody(body_from_camera, intrinsics, robs, set.current_site_pose_dr.pose, ro);
+  Pose3 world_from_current = rr.ok ? rr.world_from_body : set.current_site_pose_dr.pose;
+  s.world_from_current_initial = world_from_current;
+  s.iterations += rr.iterations;
+  s.initial_rms_px = ComputeResiduals(net, points, world_from_current).rms_px;
+
+  // Robust passes with outlier rejection, then a plain least-squares pass.
+  for (int round = 0; round < options.rejection_rounds; ++round) {
+    const PassResult pr = SolvePass(net, &points, &world_from_current, /*robust=*/true, options);
+    s.iterations += pr.iterations;
+    const int rejected = RejectOutliers(net, &points, world_from_current, options);
+    s.num_tie_points_rejected += rejected;
+    if (CountInliers(points) < options.min_tie_points) {
+      return finish(CrossSiteBaStatus::kTooFewPoints,
+                    std::to_string(CountInliers(points)) + " tie points left after rejecting " +
+                        std::to_string(s.num_tie_points_rejected) + " outliers, need " +
+                        std::to_string(options.min_tie_points));
+    }
+    if (rejected == 0) break;
+  }
+  const PassResult final_pass = SolvePass(net, &points, &world_from_current, /*robust=*/false, options);
+  s.iterations += final_pass.iterations;
+  const Residuals res = ComputeResiduals(net, points, world_from_current);
+  s.num_tie_points_used = res.points;
+  s.num_observations = res.observations;
+  s.final_rms_px = res.rms_px;
+  s.final_normalised_rms = res.normalised_rms;
+  s.world_from_current.pose = world_from_current;
+
+  // Covariance and conditioning of the site pose.
+  Matrix6d cov;
+  std::string why;
+  if (!PoseCovariance(net, points, world_from_current, options, &cov, &why)) {
+    s.condition_number = std::numeric_limits<double>::infinity();
+    return finish(CrossSiteBaStatus::kIllConditioned, why);
+  }
+  const int dof = 2 * res.observations - 6 - 3 * res.points;
+  const double variance_factor = dof > 0 ? res.chi2 / dof : 1.0;
+  if (options.inflate_by_variance_factor) cov *= std::max(1.0, variance_factor);
+  double mean_range = 0;
+  for (const auto& p : points)
+    if (p.inlier) mean_range += (p.p_world - world_from_current.translation()).norm();
+  mean_range /= std::max(1, res.points);
+  Vector6d scale;
+  scale << 1, 1, 1, mean_range, mean_range, mean_range;
+  const Matrix6d scaled = scale.asDiagonal() * cov * scale.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Matrix6d> eig(scaled);
+  const double lmin = eig.eigenvalues()(0), lmax = eig.eigenvalues()(5);
+  s.condition_number = lmin > 0 ? lmax / lmin : std::numeric_limits<double>::infinity();
+  s.world_from_current.covariance = cov;
+
+  std::ostringstream msg;
+  if (!final_pass.converged) {
+    msg << "adjustment did not converge: " << final_pass.message;
+    return finish(CrossSiteBaStatus::kNotConverged, msg.str());
+  }
+  if (res.normalised_rms > options.max_final_rms_sigmas) {
+    msg << "final reprojection RMS " << res.normalised_rms << " sigmas exceeds " << options.max_final_rms_sigmas;
+    return finish(CrossSiteBaStatus::kNotConverged, msg.str());
+  }
+  const double correction = (world_from_current.translation() - set.current_site_pose_dr.pose.translation()).norm();
+  if (correction > options.max_correction_m) {
+    msg << "solution moved " << correction << " m from dead reckoning, more than " << options.max_correction_m;
+    return finish(CrossSiteBaStatus::kNotConverged, msg.str());
+  }
+  if (!(s.condition_number <= options.max_condition_number)) {
+    msg << "pose covariance condition number " << s.condition_number << " exceeds " << options.max_condition_number
+        << " (tie points too few, clustered or collinear)";
+    return finish(CrossSiteBaStatus::kIllConditioned, msg.str());
+  }
+  msg << "adjusted " << res.points << " tie points, moved " << correction << " m from dead reckoning, position sigma "
+      << std::sqrt(cov.block<3, 3>(0, 0).trace()) << " m, variance factor " << variance_factor;
+  return finish(CrossSiteBaStatus::kOk, msg.str());
+}
+
+}  // namespace vloc

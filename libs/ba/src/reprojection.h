@@ -1,0 +1,89 @@
+#pragma once
+// Ceres residuals shared by the resection and the bundle adjustment
+// (internal header). A body pose parameter block is [t (3), dr (3)]:
+// world_from_body = (Exp(dr) * R0, t), so its covariance is directly in
+// vloc's convention [x y z rx ry rz] (world-frame position and rotation
+// errors) when evaluated at dr = 0.
+
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+
+#include <Eigen/Core>
+
+#include "vloc/common/pose.h"
+
+namespace vloc::internal {
+
+// An observation by a camera rigidly attached to a moving body.
+// Parameters: body pose [t, dr] (6), point in world (3). Residual: 2, in sigmas.
+struct BodyCameraReprojection {
+  BodyCameraReprojection(const Eigen::Matrix3d& R0, const Pose3& body_from_camera, double fx, double fy, double cx,
+                         double cy, const Eigen::Vector2d& uv, double sigma)
+      : fx(fx), fy(fy), cx(cx), cy(cy), u(uv.x()), v(uv.y()), inv_sigma(1.0 / sigma) {
+    const Pose3 camera_from_body = body_from_camera.inverse();
+    M = camera_from_body.linear() * R0.transpose();
+    t_cb = camera_from_body.translation();
+  }
+
+  template <class T>
+  bool operator()(const T* pose, const T* point, T* residual) const {
+    const T d[3] = {point[0] - pose[0], point[1] - pose[1], point[2] - pose[2]};
+    const T minus_dr[3] = {-pose[3], -pose[4], -pose[5]};
+    T w[3];
+    ceres::AngleAxisRotatePoint(minus_dr, d, w);  // Exp(dr)^T (p - t)
+    T pc[3];
+    for (int i = 0; i < 3; ++i) pc[i] = M(i, 0) * w[0] + M(i, 1) * w[1] + M(i, 2) * w[2] + t_cb[i];
+    if (pc[2] < T(1e-6)) pc[2] = T(1e-6);  // behind the camera: keep finite, huge residual
+    residual[0] = (fx * pc[0] / pc[2] + cx - u) * inv_sigma;
+    residual[1] = (fy * pc[1] / pc[2] + cy - v) * inv_sigma;
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const Eigen::Matrix3d& R0, const Pose3& body_from_camera, double fx, double fy,
+                                     double cx, double cy, const Eigen::Vector2d& uv, double sigma) {
+    return new ceres::AutoDiffCostFunction<BodyCameraReprojection, 2, 6, 3>(
+        new BodyCameraReprojection(R0, body_from_camera, fx, fy, cx, cy, uv, sigma));
+  }
+
+  Eigen::Matrix3d M;
+  Eigen::Vector3d t_cb;
+  double fx, fy, cx, cy, u, v, inv_sigma;
+};
+
+// An observation by a camera whose pose is fixed. Parameters: point (3).
+struct FixedCameraReprojection {
+  FixedCameraReprojection(const Pose3& world_from_camera, double fx, double fy, double cx, double cy,
+                          const Eigen::Vector2d& uv, double sigma)
+      : fx(fx), fy(fy), cx(cx), cy(cy), u(uv.x()), v(uv.y()), inv_sigma(1.0 / sigma) {
+    const Pose3 camera_from_world = world_from_camera.inverse();
+    R = camera_from_world.linear();
+    t = camera_from_world.translation();
+  }
+
+  template <class T>
+  bool operator()(const T* point, T* residual) const {
+    T pc[3];
+    for (int i = 0; i < 3; ++i) pc[i] = R(i, 0) * point[0] + R(i, 1) * point[1] + R(i, 2) * point[2] + t[i];
+    if (pc[2] < T(1e-6)) pc[2] = T(1e-6);
+    residual[0] = (fx * pc[0] / pc[2] + cx - u) * inv_sigma;
+    residual[1] = (fy * pc[1] / pc[2] + cy - v) * inv_sigma;
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const Pose3& world_from_camera, double fx, double fy, double cx, double cy,
+                                     const Eigen::Vector2d& uv, double sigma) {
+    return new ceres::AutoDiffCostFunction<FixedCameraReprojection, 2, 3>(
+        new FixedCameraReprojection(world_from_camera, fx, fy, cx, cy, uv, sigma));
+  }
+
+  Eigen::Matrix3d R;
+  Eigen::Vector3d t;
+  double fx, fy, cx, cy, u, v, inv_sigma;
+};
+
+// world_from_body from a linearisation rotation and a parameter block.
+inline Pose3 BodyPoseFromParameters(const Eigen::Matrix3d& R0, const double* pose) {
+  return MakePose(ExpSO3(Eigen::Vector3d(pose[3], pose[4], pose[5])) * R0, Eigen::Vector3d(pose[0], pose[1], pose[2]));
+}
+
+}  // namespace vloc::internal
