@@ -47,8 +47,12 @@ bool SetupLaunchEnvironment(const CommandLine& args, const std::string& lcm_url,
   namespace fs = std::filesystem;
   std::error_code ec;
   std::string self_dir = fs::read_symlink("/proc/self/exe", ec).parent_path().string();
-  paths->bin_dir = args.Get("bin-dir", EnvOr("VLOC_BIN", EnvOr("VLOC_BIN_DIR", self_dir)));
-  paths->root = EnvOr("VLOC_ROOT", fs::current_path(ec).string());
+  paths->bin_dir = fs::absolute(args.Get("bin-dir", EnvOr("VLOC_BIN", EnvOr("VLOC_BIN_DIR", self_dir))), ec)
+                       .lexically_normal()
+                       .string();
+  paths->root = fs::absolute(EnvOr("VLOC_ROOT", fs::current_path(ec).string()), ec).lexically_normal().string();
+  if (paths->bin_dir.size() > 1 && paths->bin_dir.back() == '/') paths->bin_dir.pop_back();
+  if (paths->root.size() > 1 && paths->root.back() == '/') paths->root.pop_back();
   std::string log_dir = args.Get("log-dir", EnvOr("VLOC_LOG_DIR", "logs"));
   fs::create_directories(log_dir, ec);
   if (ec) {

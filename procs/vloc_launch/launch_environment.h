@@ -16,8 +16,8 @@ std::vector<std::string> CollectFlagValues(int argc, char** argv, const std::str
 std::vector<std::string> ArgsWithDefaultLcmUrl(int argc, char** argv);
 
 struct LaunchPaths {
-  std::string bin_dir;   // ${VLOC_BIN}
-  std::string root;      // ${VLOC_ROOT}
+  std::string bin_dir;   // ${VLOC_BIN}, absolute
+  std::string root;      // ${VLOC_ROOT}, absolute
   std::string log_dir;   // ${VLOC_LOG_DIR}, absolute, created
 };
 

@@ -1,4 +1,4 @@
-// vloc_launch as a real process over real LCM (ports 7820-7839), with
+// vloc_launch as a real process over real LCM (ports 7822-7831), with
 // /bin/sh and sleep as its children: starting a group, restarting after
 // SIGKILL, giving up, SIGTERM leaving no process, orders over LCM, log
 // files, bad group files, --exit-when-done. Every wait has a timeout.
@@ -12,6 +12,7 @@
 #include <functional>
 #include <set>
 #include <sstream>
+#include <thread>
 
 #include "vloc/launch/proc_stats.h"
 #include "vloc/lcm_io/transport.h"
@@ -236,6 +237,31 @@ processes:
   const auto after = ReadProcessGroupUsage();  // live processes only
   for (pid_t g : groups) EXPECT_EQ(after.count(g), 0u) << "process group " << g << " still has processes";
   EXPECT_NE(scratch.Log("stubborn").find("sending SIGKILL"), std::string::npos) << scratch.Log("stubborn");
+}
+
+// The safety net: a launcher killed with SIGKILL cannot stop its children,
+// but they get SIGTERM from the kernel (PR_SET_PDEATHSIG).
+TEST(VlocLaunch, ChildrenEndWhenTheLauncherIsKilled) {
+  Scratch scratch("pdeathsig");
+  const int port = 7831;
+  StatusWatcher watcher(TestLcmUrl(port));
+  Subprocess launcher = Launch(scratch, scratch.WriteGroup(kTwoSleepers), port);
+  ASSERT_TRUE(watcher.WaitFor([&](const procman_status_t&) {
+    return watcher.Is("first", kRunning) && watcher.Is("second", kRunning);
+  })) << launcher.output();
+  std::vector<pid_t> pids;
+  for (const auto& p : watcher.last()->procs) pids.push_back(p.pid);
+  launcher.Signal(SIGKILL);
+  ASSERT_TRUE(launcher.WaitExit(10).has_value());
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  auto any_alive = [&] {
+    for (pid_t pid : pids)
+      if (ProcessAlive(pid)) return true;
+    return false;
+  };
+  while (any_alive() && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_FALSE(any_alive());
 }
 
 TEST(VlocLaunch, ObeysOrdersSentOverLcm) {
