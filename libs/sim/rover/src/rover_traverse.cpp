@@ -1,0 +1,493 @@
+#include "vloc/sim/rover_traverse.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "vloc/common/options.h"
+#include "vloc/sim/noise.h"
+
+namespace vloc::sim {
+namespace {
+
+constexpr double kDegToRad = M_PI / 180.0;
+
+// Counter-based random numbers: a pure function of (seed, stream, index).
+class Random {
+ public:
+  Random(uint64_t seed, uint64_t stream) : seed_(Hash3(seed, stream, 0x7A3F1ULL)) {}
+  double Uniform() { return HashToUnit(Hash3(seed_, counter_++, 1)); }
+  double Uniform(double lo, double hi) { return lo + (hi - lo) * Uniform(); }
+  double Gaussian() { return HashToGaussian(Hash3(seed_, counter_++, 2)); }
+  Eigen::Vector3d Gaussian3() {
+    const double a = Gaussian(), b = Gaussian(), c = Gaussian();
+    return {a, b, c};
+  }
+
+ private:
+  uint64_t seed_;
+  uint64_t counter_ = 0;
+};
+
+double DistanceToSegment(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  const Eigen::Vector2d ab = b - a;
+  const double t = std::clamp((p - a).dot(ab) / std::max(ab.squaredNorm(), 1e-12), 0.0, 1.0);
+  return (a + t * ab - p).norm();
+}
+
+// Smooth 0 -> 1 -> 0 profile of duration T with cosine ramps of `ramp` s.
+double Profile(double t, double T, double ramp) {
+  if (t <= 0 || t >= T) return 0.0;
+  const double r = std::min(ramp, 0.5 * T);
+  if (t < r) return 0.5 * (1 - std::cos(M_PI * t / r));
+  if (t > T - r) return 0.5 * (1 - std::cos(M_PI * (T - t) / r));
+  return 1.0;
+}
+
+class Simulator {
+ public:
+  Simulator(const Terrain& terrain, const TraverseOptions& options)
+      : terrain_(terrain),
+        o_(options),
+        dt_(1.0 / options.imu.rate_hz),
+        wheel_every_(std::max(1, static_cast<int>(std::lround(options.imu.rate_hz / options.wheels.rate_hz)))),
+        noise_(options.seed, 11),
+        soil_seed_(Hash3(options.seed, 12, 0x5017ULL)) {}
+
+  SimulatedTraverse Run() {
+    const std::vector<Eigen::Vector2d> plan = PlanSites();
+    const int num_planned = static_cast<int>(plan.size());
+    // Initial state at site 0, heading as planned, attitude settled.
+    p_ = Eigen::Vector3d(plan[0].x(), plan[0].y(), 0.0);
+    yaw_ = o_.plan.initial_heading_deg * kDegToRad;
+    if (!o_.plan.sites_xy.empty() && num_planned > 1) {
+      const Eigen::Vector2d d = plan[1] - plan[0];
+      yaw_ = std::atan2(d.y(), d.x());
+    }
+    const Eigen::Vector3d fit = FitPlane(p_.x(), p_.y(), yaw_);
+    roll_ = fit.x();
+    pitch_ = fit.y();
+    p_.z() = fit.z();
+    R_ = RotationFromRollPitchYaw(roll_, pitch_, yaw_);
+    utime_ = static_cast<int64_t>(o_.motion.start_utime);
+    if (!o_.ideal_sensors) {
+      out_.gyro_bias = o_.imu.gyro_bias_sigma * noise_.Gaussian3();
+      out_.accel_bias = o_.imu.accel_bias_sigma * noise_.Gaussian3();
+    }
+    gyro_bias_ = out_.gyro_bias;
+    Record(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, o_.imu.gravity_mps2));
+
+    Stationary(o_.motion.stop_pause_s);
+    std::vector<double> site_heading;
+    for (int i = 0; i < num_planned; ++i) {
+      const bool revisit = o_.plan.revisit_site >= 0 && o_.plan.sites_xy.empty() && i == num_planned - 1;
+      if (i > 0) {
+        Event(i - 1, SiteEventType::kDeparted);
+        out_.sites.back().departed_utime = utime_;
+        const Eigen::Vector2d to_next = plan[i] - p_.head<2>();
+        Turn(WrapAngle(std::atan2(to_next.y(), to_next.x()) - yaw_));
+        Stationary(o_.motion.stop_pause_s);
+        Drive(to_next.norm());
+        Stationary(o_.motion.stop_pause_s);
+        if (revisit) {
+          Turn(WrapAngle(site_heading[o_.plan.revisit_site] - yaw_));
+          Stationary(o_.motion.stop_pause_s);
+        }
+      }
+      SiteVisit site;
+      site.site_id = i;
+      site.revisit_of = revisit ? o_.plan.revisit_site : -1;
+      site.planned_xy = plan[i];
+      site.arrived_utime = utime_;
+      site.world_from_body = MakePose(R_, p_);
+      site.distance_from_start_m = out_.path_length_m;
+      out_.sites.push_back(site);
+      site_heading.push_back(yaw_);
+      const std::vector<MastPointing> pointings = o_.panorama.Pointings();
+      Event(i, SiteEventType::kArrived, static_cast<int>(pointings.size()));
+      Stationary(o_.panorama.settle_s);
+      for (size_t k = 0; k < pointings.size(); ++k) {
+        Exposure e;
+        e.utime = utime_;
+        e.site_id = i;
+        e.pair_index = static_cast<int>(k);
+        e.num_pairs = static_cast<int>(pointings.size());
+        e.mast_pan = pointings[k].pan;
+        e.mast_tilt = pointings[k].tilt;
+        e.world_from_body = MakePose(R_, p_);
+        out_.exposures.push_back(e);
+        out_.sites.back().exposures.push_back(e);
+        Stationary(k + 1 < pointings.size() ? o_.panorama.pair_interval_s : o_.motion.stop_pause_s);
+      }
+      Event(i, SiteEventType::kImagingDone, static_cast<int>(pointings.size()));
+      out_.sites.back().imaging_done_utime = utime_;
+      if (i + 1 < num_planned) Stationary(o_.motion.stop_pause_s);
+    }
+    out_.duration_s = (utime_ - static_cast<int64_t>(o_.motion.start_utime)) * 1e-6;
+    return std::move(out_);
+  }
+
+ private:
+  // Sites: explicit, or a random walk that stays inside the terrain and
+  // steers around large craters and rocks.
+  std::vector<Eigen::Vector2d> PlanSites() {
+    std::vector<Eigen::Vector2d> sites;
+    const Region b = terrain_.Bounds();
+    auto inside = [&](const Eigen::Vector2d& q, double margin) {
+      return q.x() >= b.x_min + margin && q.x() <= b.x_max - margin && q.y() >= b.y_min + margin &&
+             q.y() <= b.y_max - margin;
+    };
+    if (!o_.plan.sites_xy.empty()) {
+      for (size_t k = 0; k + 1 < o_.plan.sites_xy.size(); k += 2)
+        sites.emplace_back(o_.plan.sites_xy[k], o_.plan.sites_xy[k + 1]);
+    } else {
+      Random rng(o_.seed, 10);
+      sites.emplace_back(0.0, 0.0);
+      double heading = o_.plan.initial_heading_deg * kDegToRad;
+      for (int i = 1; i < o_.plan.num_sites; ++i) {
+        double best_penalty = 1e300;
+        Eigen::Vector2d best;
+        double best_heading = heading;
+        for (int c = 0; c < 16; ++c) {
+          const double h = heading + o_.plan.max_turn_deg * kDegToRad * rng.Uniform(-1.0, 1.0);
+          const double spacing = rng.Uniform(o_.plan.spacing_min_m, o_.plan.spacing_max_m);
+          const Eigen::Vector2d q = sites.back() + spacing * Eigen::Vector2d(std::cos(h), std::sin(h));
+          double penalty = 0.01 * c;
+          if (!inside(q, o_.plan.margin_m)) penalty += 1000.0;
+          // Steer away early: a soft penalty within 25 m of the margin.
+          const double edge = std::min({q.x() - b.x_min, b.x_max - q.x(), q.y() - b.y_min, b.y_max - q.y()});
+          penalty += 2.0 * std::max(0.0, o_.plan.margin_m + 25.0 - edge);
+          for (const Crater& cr : terrain_.craters()) {
+            if (cr.diameter < 1.5) continue;
+            const double gap = DistanceToSegment(cr.centre, sites.back(), q) - (0.5 * cr.diameter + 0.8);
+            if (gap < 0) penalty += 10.0 * (-gap) * cr.diameter;
+          }
+          for (const Rock& rock : terrain_.rocks()) {
+            if (rock.diameter < 0.25) continue;
+            if (DistanceToSegment(rock.centre, sites.back(), q) < 1.0 + 0.5 * rock.diameter) penalty += 5.0;
+          }
+          if (penalty < best_penalty) {
+            best_penalty = penalty;
+            best = q;
+            best_heading = h;
+          }
+        }
+        sites.push_back(best);
+        heading = best_heading;
+      }
+      if (o_.plan.revisit_site >= 0) sites.push_back(sites[o_.plan.revisit_site]);
+    }
+    for (size_t k = 0; k < sites.size(); ++k) {
+      if (!inside(sites[k], 3.0))
+        throw std::invalid_argument("traverse: site " + std::to_string(k) +
+                                    " lies within 3 m of the terrain edge or outside it; move it or enlarge the terrain");
+    }
+    return sites;
+  }
+
+  // Terrain height averaged over a 16 cm footprint (a wheel contact patch).
+  double ContactHeight(double x, double y) const {
+    const double r = 0.08;
+    return 0.2 * (terrain_.Height(x, y) + terrain_.Height(x + r, y) + terrain_.Height(x - r, y) +
+                  terrain_.Height(x, y + r) + terrain_.Height(x, y - r));
+  }
+
+  // Plane through the six wheel contacts: (roll, pitch, height at centre).
+  Eigen::Vector3d FitPlane(double x, double y, double yaw) const {
+    const double c = std::cos(yaw), s = std::sin(yaw);
+    const double half_l = 0.5 * o_.motion.wheel_base_m, half_w = 0.5 * o_.motion.track_width_m;
+    double sum = 0, sum_fx = 0, sum_fy = 0, sxx = 0, syy = 0;
+    for (double fx : {half_l, 0.0, -half_l}) {
+      for (double fy : {half_w, -half_w}) {
+        const double h = ContactHeight(x + fx * c - fy * s, y + fx * s + fy * c);
+        sum += h;
+        sum_fx += fx * h;
+        sum_fy += fy * h;
+        sxx += fx * fx;
+        syy += fy * fy;
+      }
+    }
+    const double slope_x = sum_fx / sxx, slope_y = sum_fy / syy;
+    const double pitch = -std::atan(slope_x);
+    const double roll = std::atan(slope_y / std::cos(pitch));
+    return {roll, pitch, sum / 6.0};
+  }
+
+  double SoilFactor(double x, double y) const {
+    const double n = FractalNoise(x, y, o_.wheels.soil_wavelength_m, 3, 0.5, soil_seed_) / 0.35;
+    return 1.0 + o_.wheels.soil_variation * std::clamp(n, -1.0, 1.0);
+  }
+
+  // One IMU period with speed v (m/s) and yaw rate (rad/s) at its midpoint.
+  void Step(double v, double yaw_rate) {
+    utime_ += static_cast<int64_t>(std::lround(dt_ * 1e6));
+    ++step_;
+    yaw_ = WrapAngle(yaw_ + yaw_rate * dt_);
+    const Eigen::Vector3d target = FitPlane(p_.x(), p_.y(), yaw_);
+    const double w = 1.0 / o_.motion.attitude_time_constant_s;
+    auto filter = [&](double goal, double* x, double* x_dot) {
+      const double acc = w * w * (WrapAngle(goal - *x)) - 2.0 * w * *x_dot;
+      *x_dot += acc * dt_;
+      *x += *x_dot * dt_;
+    };
+    filter(target.x(), &roll_, &roll_rate_);
+    filter(target.y(), &pitch_, &pitch_rate_);
+    const Eigen::Matrix3d R_new = RotationFromRollPitchYaw(roll_, pitch_, yaw_);
+    const double lateral = o_.ideal_sensors ? 0.0 : -o_.wheels.sideslip_per_rad_roll * roll_ * v;
+    const Eigen::Vector3d dp = dt_ * (v * 0.5 * (R_.col(0) + R_new.col(0)) + lateral * R_new.col(1));
+    p_ += dp;
+    out_.path_length_m += dp.norm();
+
+    double slip = 0.0;
+    if (!o_.ideal_sensors) {
+      const double uphill = std::asin(std::clamp(R_new(2, 0), -1.0, 1.0));
+      slip = o_.wheels.slip_flat * SoilFactor(p_.x(), p_.y()) +
+             (uphill > 0 ? o_.wheels.slip_per_rad_uphill * uphill : o_.wheels.skid_per_rad_downhill * uphill);
+      slip = std::clamp(slip, -0.3, 0.6);
+    }
+    wheel_distance_ += dt_ * v / (1.0 - slip);
+    if (!o_.ideal_sensors && v > 1e-6) wheel_distance_ += o_.wheels.distance_noise_m * noise_.Gaussian();
+
+    Eigen::Vector3d gyro = LogSO3(R_.transpose() * R_new) / dt_;
+    const Eigen::Vector3d velocity = dp / dt_;
+    const Eigen::Vector3d accel_world = (velocity - velocity_) / dt_;
+    Eigen::Vector3d specific_force = R_new.transpose() * (accel_world + Eigen::Vector3d(0, 0, o_.imu.gravity_mps2));
+    if (!o_.ideal_sensors) {
+      const double sqrt_rate = std::sqrt(o_.imu.rate_hz);
+      gyro_bias_ += o_.imu.gyro_bias_walk * std::sqrt(dt_) * noise_.Gaussian3();
+      gyro += gyro_bias_ + o_.imu.gyro_noise_density * sqrt_rate * noise_.Gaussian3();
+      specific_force += out_.accel_bias + o_.imu.accel_noise_density * sqrt_rate * noise_.Gaussian3();
+    }
+    R_ = R_new;
+    velocity_ = velocity;
+    Record(velocity, gyro, specific_force);
+  }
+
+  void Record(const Eigen::Vector3d& velocity, const Eigen::Vector3d& gyro, const Eigen::Vector3d& specific_force) {
+    GroundTruthSample gt;
+    gt.utime = utime_;
+    gt.world_from_body = MakePose(R_, p_);
+    gt.velocity = velocity;
+    out_.ground_truth.push_back(gt);
+    ImuSample imu;
+    imu.utime = utime_;
+    imu.angular_velocity = gyro;
+    imu.linear_acceleration = specific_force;
+    out_.imu.push_back(imu);
+    if (step_ % wheel_every_ == 0) {
+      WheelOdometrySample wheel;
+      wheel.utime = utime_;
+      wheel.distance = wheel_distance_;
+      wheel.speed = (wheel_distance_ - last_wheel_distance_) / (wheel_every_ * dt_);
+      if (step_ == 0) wheel.speed = 0.0;
+      last_wheel_distance_ = wheel_distance_;
+      out_.wheel.push_back(wheel);
+    }
+  }
+
+  void Stationary(double seconds) {
+    const int n = static_cast<int>(std::lround(seconds / dt_));
+    for (int k = 0; k < n; ++k) Step(0.0, 0.0);
+  }
+
+  // Runs a smooth profile whose integral is exactly `amount` (m or rad):
+  // `peak` is the nominal rate, driving speed or turn rate.
+  template <class StepFn>
+  void RunProfile(double amount, double peak, StepFn step) {
+    if (std::abs(amount) < 1e-9) return;
+    const double ramp = o_.motion.ramp_s;
+    double T = std::abs(amount) / peak + ramp;
+    if (T < 2 * ramp) T = 2 * ramp;
+    const int n = std::max(2, static_cast<int>(std::ceil(T / dt_)));
+    T = n * dt_;
+    double sum = 0;
+    for (int k = 0; k < n; ++k) sum += Profile((k + 0.5) * dt_, T, ramp) * dt_;
+    const double scale = amount / sum;
+    for (int k = 0; k < n; ++k) step(scale * Profile((k + 0.5) * dt_, T, ramp));
+  }
+
+  void Turn(double angle) {
+    RunProfile(angle, o_.motion.turn_rate_deg_s * kDegToRad, [&](double rate) { Step(0.0, rate); });
+  }
+  void Drive(double distance) {
+    RunProfile(distance, o_.motion.speed_mps, [&](double speed) { Step(speed, 0.0); });
+  }
+
+  void Event(int site_id, SiteEventType type, int num_pairs = 0) {
+    SiteEvent e;
+    e.utime = utime_;
+    e.site_id = site_id;
+    e.event = type;
+    e.num_pairs = num_pairs;
+    if (type != SiteEventType::kArrived && num_pairs == 0) e.num_pairs = static_cast<int>(o_.panorama.Pointings().size());
+    out_.events.push_back(e);
+  }
+
+  const Terrain& terrain_;
+  const TraverseOptions& o_;
+  const double dt_;
+  const int wheel_every_;
+  Random noise_;
+  const uint64_t soil_seed_;
+  SimulatedTraverse out_;
+  int64_t utime_ = 0;
+  int64_t step_ = 0;
+  Eigen::Vector3d p_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d R_ = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d velocity_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d gyro_bias_ = Eigen::Vector3d::Zero();
+  double yaw_ = 0, roll_ = 0, pitch_ = 0, roll_rate_ = 0, pitch_rate_ = 0;
+  double wheel_distance_ = 0, last_wheel_distance_ = 0;
+};
+
+}  // namespace
+
+void PanoramaOptions::Visit(OptionsReader& r) {
+  r.Optional("num_pairs", &num_pairs, "pairs across the forward direction");
+  r.Optional("pan_step_deg", &pan_step_deg, "deg between adjacent pairs");
+  r.Optional("tilt_deg", &tilt_deg, "deg, mast tilt, positive down");
+  r.Optional("backward_pair", &backward_pair, "add one pair looking backward");
+  r.Optional("backward_tilt_deg", &backward_tilt_deg, "deg, tilt of the backward pair");
+  r.Optional("settle_s", &settle_s, "s from arrival to the first exposure");
+  r.Optional("pair_interval_s", &pair_interval_s, "s between exposures");
+}
+
+bool PanoramaOptions::Check(std::string* error) const {
+  if (num_pairs < 1 || num_pairs > 36) return Fail(error, "panorama num_pairs must be in [1, 36]");
+  if (!(pan_step_deg >= 0 && pan_step_deg * (num_pairs - 1) <= 360)) return Fail(error, "panorama pan_step_deg must be >= 0 and span <= 360 deg");
+  if (!(tilt_deg > -60 && tilt_deg < 89 && backward_tilt_deg > -60 && backward_tilt_deg < 89))
+    return Fail(error, "panorama tilt_deg and backward_tilt_deg must be in (-60, 89)");
+  if (!(settle_s >= 0 && pair_interval_s > 0)) return Fail(error, "panorama settle_s must be >= 0 and pair_interval_s > 0");
+  return true;
+}
+
+std::vector<MastPointing> PanoramaOptions::Pointings() const {
+  std::vector<MastPointing> out;
+  for (int i = 0; i < num_pairs; ++i)
+    out.push_back({(0.5 * (num_pairs - 1) - i) * pan_step_deg * kDegToRad, tilt_deg * kDegToRad});
+  if (backward_pair) out.push_back({M_PI, backward_tilt_deg * kDegToRad});
+  return out;
+}
+
+void TraversePlanOptions::Visit(OptionsReader& r) {
+  r.Optional("num_sites", &num_sites, "sites including the start");
+  r.Optional("spacing_min_m", &spacing_min_m, "m, shortest leg");
+  r.Optional("spacing_max_m", &spacing_max_m, "m, longest leg");
+  r.Optional("initial_heading_deg", &initial_heading_deg, "deg, heading at site 0, ccw from east");
+  r.Optional("max_turn_deg", &max_turn_deg, "deg, largest heading change between legs");
+  r.Optional("margin_m", &margin_m, "m, sites stay this far inside the terrain");
+  r.Optional("revisit_site", &revisit_site, ">= 0: extra final site back at that site");
+  r.Optional("sites_xy", &sites_xy, "m, explicit site positions x0,y0,x1,y1,...");
+}
+
+bool TraversePlanOptions::Check(std::string* error) const {
+  if (sites_xy.empty() && num_sites < 1) return Fail(error, "plan num_sites must be >= 1");
+  if (sites_xy.size() % 2 != 0) return Fail(error, "plan sites_xy must hold x,y pairs (even count)");
+  if (!(spacing_min_m > 0 && spacing_max_m >= spacing_min_m)) return Fail(error, "plan spacing must satisfy 0 < min <= max");
+  if (!(max_turn_deg >= 0 && max_turn_deg <= 180)) return Fail(error, "plan max_turn_deg must be in [0, 180]");
+  if (!(margin_m >= 3)) return Fail(error, "plan margin_m must be >= 3");
+  if (revisit_site >= num_sites) return Fail(error, "plan revisit_site must be < num_sites (or -1 for none)");
+  return true;
+}
+
+void MotionOptions::Visit(OptionsReader& r) {
+  r.Optional("speed_mps", &speed_mps, "m/s, driving speed");
+  r.Optional("ramp_s", &ramp_s, "s, speed and turn-rate ramps");
+  r.Optional("turn_rate_deg_s", &turn_rate_deg_s, "deg/s, point-turn rate");
+  r.Optional("attitude_time_constant_s", &attitude_time_constant_s, "s, roll/pitch smoothing");
+  r.Optional("wheel_base_m", &wheel_base_m, "m, front to rear contacts");
+  r.Optional("track_width_m", &track_width_m, "m, left to right contacts");
+  r.Optional("start_utime", &start_utime, "us, time of the first sample");
+  r.Optional("stop_pause_s", &stop_pause_s, "s, pause between events");
+}
+
+bool MotionOptions::Check(std::string* error) const {
+  if (!(speed_mps > 0 && speed_mps <= 2)) return Fail(error, "motion speed_mps must be in (0, 2]");
+  if (!(ramp_s > 0 && turn_rate_deg_s > 0)) return Fail(error, "motion ramp_s and turn_rate_deg_s must be > 0");
+  if (!(attitude_time_constant_s >= 0.05)) return Fail(error, "motion attitude_time_constant_s must be >= 0.05");
+  if (!(wheel_base_m > 0 && track_width_m > 0)) return Fail(error, "motion wheel_base_m and track_width_m must be > 0");
+  if (!(start_utime >= 0 && stop_pause_s >= 0)) return Fail(error, "motion start_utime and stop_pause_s must be >= 0");
+  return true;
+}
+
+void ImuOptions::Visit(OptionsReader& r) {
+  r.Optional("rate_hz", &rate_hz, "Hz");
+  r.Optional("gravity_mps2", &gravity_mps2, "m/s^2 (1.62 lunar)");
+  r.Optional("gyro_noise_density", &gyro_noise_density, "rad/s/sqrt(Hz)");
+  r.Optional("gyro_bias_sigma", &gyro_bias_sigma, "rad/s, constant bias 1-sigma");
+  r.Optional("gyro_bias_walk", &gyro_bias_walk, "rad/s^2/sqrt(Hz)");
+  r.Optional("accel_noise_density", &accel_noise_density, "m/s^2/sqrt(Hz)");
+  r.Optional("accel_bias_sigma", &accel_bias_sigma, "m/s^2, constant bias 1-sigma");
+}
+
+bool ImuOptions::Check(std::string* error) const {
+  if (!(rate_hz >= 10 && rate_hz <= 2000)) return Fail(error, "imu rate_hz must be in [10, 2000]");
+  if (!(gravity_mps2 > 0)) return Fail(error, "imu gravity_mps2 must be > 0");
+  if (!(gyro_noise_density >= 0 && gyro_bias_sigma >= 0 && gyro_bias_walk >= 0 && accel_noise_density >= 0 &&
+        accel_bias_sigma >= 0))
+    return Fail(error, "imu noise and bias levels must be >= 0");
+  return true;
+}
+
+void WheelOptions::Visit(OptionsReader& r) {
+  r.Optional("rate_hz", &rate_hz, "Hz");
+  r.Optional("slip_flat", &slip_flat, "slip ratio on level ground");
+  r.Optional("soil_variation", &soil_variation, "relative spread of the soil factor");
+  r.Optional("soil_wavelength_m", &soil_wavelength_m, "m, soil patch size");
+  r.Optional("slip_per_rad_uphill", &slip_per_rad_uphill, "slip added per rad uphill");
+  r.Optional("skid_per_rad_downhill", &skid_per_rad_downhill, "slip removed per rad downhill");
+  r.Optional("sideslip_per_rad_roll", &sideslip_per_rad_roll, "side velocity / speed per rad of roll");
+  r.Optional("distance_noise_m", &distance_noise_m, "m, 1-sigma per sample");
+}
+
+bool WheelOptions::Check(std::string* error) const {
+  if (!(rate_hz > 0)) return Fail(error, "wheels rate_hz must be > 0");
+  if (!(slip_flat >= 0 && slip_flat < 0.5)) return Fail(error, "wheels slip_flat must be in [0, 0.5)");
+  if (!(soil_variation >= 0 && soil_variation < 1 && soil_wavelength_m > 0))
+    return Fail(error, "wheels soil_variation must be in [0, 1) and soil_wavelength_m > 0");
+  if (!(slip_per_rad_uphill >= 0 && skid_per_rad_downhill >= 0 && sideslip_per_rad_roll >= 0 && distance_noise_m >= 0))
+    return Fail(error, "wheels slip coefficients and distance_noise_m must be >= 0");
+  return true;
+}
+
+void TraverseOptions::Visit(OptionsReader& r) {
+  r.Optional("seed", &seed, "plan randomness and sensor noise");
+  r.Optional("ideal_sensors", &ideal_sensors, "true: no IMU noise/bias and no wheel slip");
+  r.Child("plan", [&](OptionsReader& c) { plan.Visit(c); });
+  r.Child("panorama", [&](OptionsReader& c) { panorama.Visit(c); });
+  r.Child("motion", [&](OptionsReader& c) { motion.Visit(c); });
+  r.Child("imu", [&](OptionsReader& c) { imu.Visit(c); });
+  r.Child("wheels", [&](OptionsReader& c) { wheels.Visit(c); });
+}
+
+bool TraverseOptions::Check(std::string* error) const {
+  if (!(plan.Check(error) && panorama.Check(error) && motion.Check(error) && imu.Check(error) && wheels.Check(error)))
+    return false;
+  if (wheels.rate_hz > imu.rate_hz) return Fail(error, "wheels rate_hz must not exceed imu rate_hz");
+  return true;
+}
+
+SimulatedTraverse SimulateTraverse(const Terrain& terrain, const TraverseOptions& options) {
+  std::string error;
+  if (!options.Check(&error)) throw std::invalid_argument(error);
+  Simulator simulator(terrain, options);
+  return simulator.Run();
+}
+
+Pose3 GroundTruthAt(const SimulatedTraverse& traverse, int64_t utime) {
+  const auto& gt = traverse.ground_truth;
+  if (gt.empty()) return Pose3::Identity();
+  if (utime <= gt.front().utime) return gt.front().world_from_body;
+  if (utime >= gt.back().utime) return gt.back().world_from_body;
+  const auto it = std::lower_bound(gt.begin(), gt.end(), utime,
+                                   [](const GroundTruthSample& s, int64_t t) { return s.utime < t; });
+  if (it->utime == utime) return it->world_from_body;
+  const GroundTruthSample& b = *it;
+  const GroundTruthSample& a = *(it - 1);
+  const double f = static_cast<double>(utime - a.utime) / static_cast<double>(b.utime - a.utime);
+  const Eigen::Quaterniond qa(a.world_from_body.linear()), qb(b.world_from_body.linear());
+  return MakePose(qa.slerp(f, qb).toRotationMatrix(),
+                  (1 - f) * a.world_from_body.translation() + f * b.world_from_body.translation());
+}
+
+}  // namespace vloc::sim

@@ -1,0 +1,207 @@
+// The Navcam renderer: the rendered stereo pair agrees with the terrain
+// geometry (depth lands on the surface; stereo matching of the two images
+// finds the disparity the depth predicts and triangulates back onto the
+// terrain), lens distortion is rendered through the camera model, and the
+// same seed gives the same bytes.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <opencv2/imgproc.hpp>
+#include <vector>
+
+#include "vloc/sim/navcam_renderer.h"
+#include "vloc/sim/terrain.h"
+
+namespace vloc::sim {
+namespace {
+
+const Terrain& TestTerrain() {
+  static const auto terrain = [] {
+    TerrainOptions options;
+    options.size_m = 60.0;
+    options.origin_x_m = -15.0;
+    options.origin_y_m = -30.0;
+    return std::make_unique<Terrain>(options);
+  }();
+  return *terrain;
+}
+
+// The Navcam at half resolution (same field of view, same baseline).
+NavcamModel HalfNavcam() {
+  NavcamModel model;
+  for (PinholeCamera* c : {&model.rig.left, &model.rig.right}) {
+    c->width = c->height = 512;
+    c->fx = c->fy = 1189.0 / 2;
+    c->cx = c->cy = 255.5;
+  }
+  return model;
+}
+
+double Median(std::vector<double> v) {
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+double Percentile(std::vector<double> v, double q) {
+  std::sort(v.begin(), v.end());
+  return v[static_cast<size_t>(q * (v.size() - 1))];
+}
+
+TEST(SimRender, DepthLandsOnTheTerrain) {
+  const NavcamModel model = HalfNavcam();
+  const NavcamRenderer renderer(TestTerrain(), model, NavcamRenderOptions{});
+  const Pose3 world_from_body = MakePose(0, 0, 0, 0.02, -0.03, 0.3);
+  const RenderedPair pair = renderer.RenderPair(world_from_body, 0.2, 25 * M_PI / 180, 5, true);
+  for (const RenderedImage* image : {&pair.left, &pair.right}) {
+    int valid = 0;
+    double worst = 0;
+    for (int v = 0; v < 512; v += 8) {
+      for (int u = 0; u < 512; u += 8) {
+        const float z = image->depth.at<float>(v, u);
+        if (z <= 0) continue;
+        ++valid;
+        const Eigen::Vector3d p = image->world_from_camera * (z * model.rig.left.Ray(Eigen::Vector2d(u, v)));
+        worst = std::max(worst, std::abs(p.z() - TestTerrain().Height(p.x(), p.y())));
+      }
+    }
+    EXPECT_GT(valid, 60 * 60);
+    EXPECT_LT(worst, 1e-3);
+  }
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(pair.left.image, mean, stddev);
+  EXPECT_GT(mean[0], 50);
+  EXPECT_LT(mean[0], 200);
+  // Texture near (bottom) and far (top) in the image.
+  for (const cv::Rect& band : {cv::Rect(0, 400, 512, 100), cv::Rect(0, 40, 512, 60)}) {
+    cv::Mat high_pass;
+    cv::Mat region;
+    pair.left.image(band).convertTo(region, CV_32F);
+    cv::Mat blurred;
+    cv::GaussianBlur(region, blurred, cv::Size(0, 0), 3.0);
+    cv::meanStdDev(region - blurred, mean, stddev);
+    EXPECT_GT(stddev[0], 3.0) << "too little fine texture in rows " << band.y << "..";
+  }
+}
+
+// Stereo block matching (ZNCC, parabola sub-pixel) on the rendered pair
+// finds the disparity that the rendered depth predicts, and triangulating
+// the matched disparity returns the terrain height within the expected
+// error sigma_z = z^2 / (f B) * sigma_d.
+TEST(SimRender, StereoMatchingTriangulatesOntoTheTerrain) {
+  const NavcamModel model = HalfNavcam();
+  const NavcamRenderer renderer(TestTerrain(), model, NavcamRenderOptions{});
+  const Pose3 world_from_body = MakePose(0, 0, 0, 0.0, 0.0, 0.0);
+  const RenderedPair pair = renderer.RenderPair(world_from_body, 0.0, 25 * M_PI / 180, 9, true);
+  const double f = model.rig.left.fx, baseline = model.rig.Baseline();
+  const int half = 7;
+  std::vector<double> disparity_errors, height_errors_in_sigma;
+  for (int v = 40; v < 500; v += 23) {
+    for (int u = 60; u < 480; u += 23) {
+      const float z = pair.left.depth.at<float>(v, u);
+      if (z <= 0 || z > 25) continue;
+      const double d_true = f * baseline / z;
+      const int d_lo = static_cast<int>(std::floor(d_true)) - 6, d_hi = static_cast<int>(std::ceil(d_true)) + 6;
+      if (u - d_hi - half - 1 < 0) continue;
+      const cv::Mat templ = pair.left.image(cv::Rect(u - half, v - half, 2 * half + 1, 2 * half + 1));
+      const cv::Mat strip = pair.right.image(cv::Rect(u - d_hi - half, v - half, d_hi - d_lo + 2 * half + 1, 2 * half + 1));
+      cv::Mat score;
+      cv::matchTemplate(strip, templ, score, cv::TM_CCOEFF_NORMED);
+      cv::Point best;
+      double best_score;
+      cv::minMaxLoc(score, nullptr, &best_score, nullptr, &best);
+      if (best_score < 0.6 || best.x == 0 || best.x == score.cols - 1) continue;
+      const float s0 = score.at<float>(0, best.x - 1), s1 = score.at<float>(0, best.x), s2 = score.at<float>(0, best.x + 1);
+      const double offset = 0.5 * (s0 - s2) / (s0 - 2 * s1 + s2);
+      // Column best.x in the strip is disparity d_hi - best.x.
+      const double d_match = d_hi - (best.x + offset);
+      disparity_errors.push_back(std::abs(d_match - d_true));
+      const double z_match = f * baseline / d_match;
+      const Eigen::Vector3d p = pair.left.world_from_camera * (z_match * model.rig.left.Ray(Eigen::Vector2d(u, v)));
+      const double sigma_z = z * z / (f * baseline) * 0.3;  // 0.3 px matching error
+      // Height error from a depth error along a ray that meets the ground obliquely.
+      const Eigen::Vector3d ray = (pair.left.world_from_camera.linear() * model.rig.left.Ray(Eigen::Vector2d(u, v))).normalized();
+      const double sigma_h = sigma_z * std::abs(ray.z()) * model.rig.left.Ray(Eigen::Vector2d(u, v)).norm() + 1e-3;
+      height_errors_in_sigma.push_back(std::abs(p.z() - TestTerrain().Height(p.x(), p.y())) / sigma_h);
+    }
+  }
+  ASSERT_GT(disparity_errors.size(), 200u);
+  std::printf("stereo check: %zu points, median |d error| %.3f px, 90%% %.3f px, median height error %.2f sigma\n",
+              disparity_errors.size(), Median(disparity_errors), Percentile(disparity_errors, 0.9),
+              Median(height_errors_in_sigma));
+  EXPECT_LT(Median(disparity_errors), 0.3);
+  EXPECT_LT(Percentile(disparity_errors, 0.9), 1.0);
+  EXPECT_LT(Median(height_errors_in_sigma), 1.5);
+}
+
+TEST(SimRender, RendersThroughLensDistortion) {
+  NavcamModel model = HalfNavcam();
+  model.rig.left.k1 = -0.12;
+  model.rig.left.k2 = 0.03;
+  model.rig.left.p1 = 2e-4;
+  const NavcamRenderer renderer(TestTerrain(), model, NavcamRenderOptions{});
+  const Pose3 world_from_left = MakePose(0, 0, 0, 0, 0, 0) * model.mast.BodyFromLeft(0.0, 0.45, model.rig);
+  const RenderedImage image = renderer.Render(model.rig.left, world_from_left, 3, true);
+  double worst = 0;
+  int checked = 0;
+  for (int v = 10; v < 502; v += 31) {
+    for (int u = 10; u < 502; u += 31) {
+      const float z = image.depth.at<float>(v, u);
+      if (z <= 0) continue;
+      // The hit of raw pixel (u, v) projects back to (u, v) through the distortion model.
+      const Eigen::Vector2d ideal = model.rig.left.Undistort(Eigen::Vector2d(u, v));
+      const Eigen::Vector3d p_world = world_from_left * (z * model.rig.left.Ray(ideal));
+      const auto px = model.rig.left.Project(world_from_left.inverse() * p_world);
+      ASSERT_TRUE(px.has_value());
+      worst = std::max(worst, (*px - Eigen::Vector2d(u, v)).norm());
+      ++checked;
+      EXPECT_NEAR(p_world.z(), TestTerrain().Height(p_world.x(), p_world.y()), 1e-3);
+    }
+  }
+  EXPECT_GT(checked, 200);
+  EXPECT_LT(worst, 0.01);
+  // Distortion changes the picture: the same view without it differs.
+  NavcamRenderOptions no_distortion;
+  no_distortion.apply_distortion = false;
+  const NavcamRenderer plain(TestTerrain(), model, no_distortion);
+  const RenderedImage undistorted = plain.Render(model.rig.left, world_from_left, 3, false);
+  EXPECT_GT(cv::norm(image.image, undistorted.image, cv::NORM_L1) / (512.0 * 512.0), 2.0);
+}
+
+TEST(SimRender, SameSeedSameBytes) {
+  const NavcamModel model = HalfNavcam();
+  NavcamRenderOptions options;
+  options.num_threads = 2;
+  const NavcamRenderer renderer(TestTerrain(), model, options);
+  options.num_threads = 1;
+  const NavcamRenderer single(TestTerrain(), model, options);
+  const Pose3 world_from_body = MakePose(1, 0.5, 0, 0, 0, -0.2);
+  const RenderedPair a = renderer.RenderPair(world_from_body, 0.1, 0.4, 77);
+  const RenderedPair b = single.RenderPair(world_from_body, 0.1, 0.4, 77);
+  EXPECT_EQ(cv::norm(a.left.image, b.left.image, cv::NORM_L1), 0.0);
+  EXPECT_EQ(cv::norm(a.right.image, b.right.image, cv::NORM_L1), 0.0);
+  const RenderedPair c = renderer.RenderPair(world_from_body, 0.1, 0.4, 78);
+  EXPECT_GT(cv::norm(a.left.image, c.left.image, cv::NORM_L1), 0.0);  // other noise
+  // Noise level: difference of two noise seeds ~ sqrt(2) x per-image noise.
+  cv::Mat diff;
+  cv::subtract(a.left.image, c.left.image, diff, cv::noArray(), CV_32F);
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(diff, mean, stddev);
+  EXPECT_GT(stddev[0], 1.0);
+  EXPECT_LT(stddev[0], 4.0);
+}
+
+TEST(SimRender, LookingAtTheSkyGivesBlackLevel) {
+  const NavcamModel model = HalfNavcam();
+  NavcamRenderOptions options;
+  options.add_noise = false;
+  const NavcamRenderer renderer(TestTerrain(), model, options);
+  const RenderedPair pair = renderer.RenderPair(MakePose(0, 0, 0, 0, 0, 0), 0.0, -60 * M_PI / 180 + 0.1, 1, true);
+  EXPECT_EQ(pair.left.sky_pixels, 512 * 512);
+  EXPECT_EQ(cv::countNonZero(pair.left.image != static_cast<int>(options.black_level_dn)), 0);
+  EXPECT_EQ(cv::countNonZero(pair.left.depth), 0);
+}
+
+}  // namespace
+}  // namespace vloc::sim
