@@ -1,0 +1,130 @@
+#include "navcam_manifest.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+
+namespace vloc {
+
+namespace {
+
+// Reads `key` of a row; false with a message when missing or of the wrong type.
+template <class T>
+bool Field(const YAML::Node& row, const char* key, T* value, std::string* error) {
+  const YAML::Node n = row[key];
+  if (!n) {
+    *error = std::string("missing '") + key + "'";
+    return false;
+  }
+  try {
+    *value = n.as<T>();
+  } catch (const YAML::Exception&) {
+    *error = std::string("'") + key + "' is '" + YAML::Dump(n) + "', expected " +
+             (std::is_same_v<T, std::string> ? "a file name" : "a number");
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+NavcamManifest ReadNavcamManifest(const std::string& path) {
+  NavcamManifest out;
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    out.problems.push_back("manifest " + path + " cannot be read: no such file (give the path of the manifest YAML)");
+    return out;
+  } catch (const YAML::Exception& e) {
+    out.problems.push_back("manifest " + path + " is not valid YAML: " + e.what());
+    return out;
+  }
+  const YAML::Node pairs = root["pairs"];
+  if (!root.IsMap() || !pairs || !pairs.IsSequence()) {
+    out.problems.push_back("manifest " + path + " has no 'pairs' list (see procs/navcam_driver/navcam_manifest.h)");
+    return out;
+  }
+  out.readable = true;
+  double angle_scale = 1.0;
+  const std::string unit = root["angle_unit"] ? root["angle_unit"].as<std::string>("") : "rad";
+  if (unit == "deg") angle_scale = M_PI / 180.0;
+  else if (unit != "rad")
+    out.problems.push_back("manifest " + path + ": angle_unit '" + unit + "' unknown (use rad or deg); assuming rad");
+  const std::filesystem::path dir = std::filesystem::path(path).parent_path();
+  int row_number = 0;
+  for (const YAML::Node& row : pairs) {
+    ++row_number;
+    const std::string where = "manifest " + path + " row " + std::to_string(row_number);
+    NavcamManifestEntry e;
+    e.row = row_number;
+    double time = 0, pan = 0, tilt = 0;
+    std::string left, right, error;
+    if (!row.IsMap()) {
+      out.problems.push_back(where + ": not a map of site/pair/pan/tilt/time/left/right; row skipped");
+      continue;
+    }
+    if (!Field(row, "site", &e.site_id, &error) || !Field(row, "pair", &e.pair_index, &error) ||
+        !Field(row, "pan", &pan, &error) || !Field(row, "tilt", &tilt, &error) || !Field(row, "time", &time, &error) ||
+        !Field(row, "left", &left, &error) || !Field(row, "right", &right, &error)) {
+      out.problems.push_back(where + ": " + error + "; row skipped");
+      continue;
+    }
+    e.pan = pan * angle_scale;
+    e.tilt = tilt * angle_scale;
+    if (e.site_id < 0 || e.pair_index < 0) error = "site and pair must be >= 0";
+    else if (!std::isfinite(e.pan) || std::abs(e.pan) > 2 * M_PI) error = "pan " + std::to_string(pan) + " out of range (|pan| <= 360 deg)";
+    else if (!std::isfinite(e.tilt) || std::abs(e.tilt) > M_PI / 2) error = "tilt " + std::to_string(tilt) + " out of range (|tilt| <= 90 deg)";
+    else if (!std::isfinite(time) || time < 0) error = "time " + std::to_string(time) + " must be a finite number of seconds >= 0";
+    if (!error.empty()) {
+      out.problems.push_back(where + " (site " + std::to_string(e.site_id) + " pair " + std::to_string(e.pair_index) +
+                             "): " + error + "; row skipped");
+      continue;
+    }
+    e.utime = static_cast<int64_t>(std::llround(time * 1e6));
+    e.left_path = (dir / left).string();
+    e.right_path = (dir / right).string();
+    bool files_ok = true;
+    for (const std::string* p : {&e.left_path, &e.right_path}) {
+      if (!std::filesystem::is_regular_file(*p)) {
+        out.problems.push_back(where + " (site " + std::to_string(e.site_id) + " pair " + std::to_string(e.pair_index) +
+                               "): image file " + *p + " missing; row skipped");
+        files_ok = false;
+        break;
+      }
+    }
+    if (files_ok) out.entries.push_back(e);
+  }
+  std::stable_sort(out.entries.begin(), out.entries.end(),
+                   [](const NavcamManifestEntry& a, const NavcamManifestEntry& b) { return a.utime < b.utime; });
+  return out;
+}
+
+bool LoadNavcamPair(const NavcamManifestEntry& entry, StereoPair* pair, std::string* error) {
+  const std::string where = "site " + std::to_string(entry.site_id) + " pair " + std::to_string(entry.pair_index);
+  pair->left = cv::imread(entry.left_path, cv::IMREAD_GRAYSCALE);
+  if (pair->left.empty()) {
+    *error = where + ": left image " + entry.left_path + " cannot be decoded (not an image or corrupt); pair skipped";
+    return false;
+  }
+  pair->right = cv::imread(entry.right_path, cv::IMREAD_GRAYSCALE);
+  if (pair->right.empty()) {
+    *error = where + ": right image " + entry.right_path + " cannot be decoded (not an image or corrupt); pair skipped";
+    return false;
+  }
+  if (pair->left.size() != pair->right.size()) {
+    *error = where + ": left and right images differ in size; pair skipped";
+    return false;
+  }
+  pair->utime = entry.utime;
+  pair->site_id = entry.site_id;
+  pair->pair_index = entry.pair_index;
+  pair->mast_pan = entry.pan;
+  pair->mast_tilt = entry.tilt;
+  return true;
+}
+
+}  // namespace vloc

@@ -1,0 +1,46 @@
+#pragma once
+// Reading a Navcam manifest: a YAML file listing recorded stereo pairs.
+//
+//   # times in seconds (any epoch), angles in `angle_unit` (rad or deg)
+//   angle_unit: deg
+//   pairs:
+//     - {site: 0, pair: 0, pan: 30.0, tilt: 25.0, time: 100.0, left: site0/L0.png, right: site0/R0.png}
+//     - {site: 0, pair: 1, pan: 15.0, tilt: 25.0, time: 102.5, left: site0/L1.png, right: site0/R1.png}
+//
+// Image paths are relative to the manifest's folder. Every problem with a
+// row (missing key, value out of range, missing image file) is one line in
+// `problems` naming the row and the fix; the row is skipped and the good
+// rows are kept. No LCM here (the driver's adapter publishes).
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "vloc/common/rover_data.h"
+
+namespace vloc {
+
+struct NavcamManifestEntry {
+  int row = 0;            // 1-based row in `pairs`
+  int64_t utime = 0;      // microseconds
+  int site_id = 0;
+  int pair_index = 0;
+  double pan = 0;         // rad, positive left
+  double tilt = 0;        // rad, positive down
+  std::string left_path;  // resolved paths
+  std::string right_path;
+};
+
+struct NavcamManifest {
+  std::vector<NavcamManifestEntry> entries;  // good rows, sorted by time
+  std::vector<std::string> problems;         // one line per skipped row or file-level problem
+  bool readable = false;                     // false when the manifest itself could not be read
+};
+
+NavcamManifest ReadNavcamManifest(const std::string& path);
+
+// Loads both images of an entry as CV_8UC1. False with one line in *error
+// (unreadable image, sizes differ); `num_pairs` is set by the caller.
+bool LoadNavcamPair(const NavcamManifestEntry& entry, StereoPair* pair, std::string* error);
+
+}  // namespace vloc

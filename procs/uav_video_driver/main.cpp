@@ -1,0 +1,50 @@
+// uav_video_driver: replays a UAV video (file, image pattern or folder of
+// images) and optional telemetry CSV (uav_video_input.h) on UAV_CAMERA and
+// UAV_GPS, at the recorded pace (x speed) or as fast as possible.
+//   uav_video_driver --config config/procs/uav_video_driver.yaml --video flight.mp4 [--telemetry gps.csv] [--speed 0]
+#include <iostream>
+
+#include "uav_video_replay.h"
+#include "vloc/common/logging.h"
+#include "vloc/common/options.h"
+#include "vloc/lcm_io/process.h"
+
+int main(int argc, char** argv) {
+  vloc::InitLogging(argv[0]);
+  auto setup = vloc::SetupProcess(
+      argc, argv,
+      {"uav_video_driver", {"video", "telemetry", "speed", "fps"}, false,
+       "[--config config/procs/uav_video_driver.yaml] --video FILE|PATTERN|FOLDER [--telemetry CSV] [--speed X] [--fps F]"});
+  if (!setup) return 1;
+  vloc::UavVideoDriverOptions options;
+  try {
+    std::string echo;
+    options = vloc::LoadOptions<vloc::UavVideoDriverOptions>(setup->config, setup->config_path, &echo);
+    if (setup->args.Has("video")) options.video = setup->args.Get("video");
+    if (setup->args.Has("telemetry")) options.telemetry_csv = setup->args.Get("telemetry");
+    if (setup->args.Has("speed")) options.speed = setup->args.GetDouble("speed", options.speed);
+    if (setup->args.Has("fps")) options.fps = setup->args.GetDouble("fps", options.fps);
+    std::string error;
+    if (!options.Check(&error)) throw vloc::ConfigError("command line: " + error);
+    LOG(INFO) << "uav_video_driver options:\n" << echo << "\n(effective video " << options.video << ", telemetry "
+              << options.telemetry_csv << ", speed " << options.speed << ", fps " << options.fps << ")";
+  } catch (const vloc::ConfigError& e) {
+    std::cerr << "uav_video_driver: " << e.what() << "\n";
+    return 1;
+  }
+  vloc::UavVideoSource video;
+  std::string error;
+  if (options.video.empty() || !video.Open(options.video, options.fps, &error)) {
+    std::cerr << "uav_video_driver: " << (options.video.empty() ? "no video given (--video FILE)" : error) << "\n";
+    return 1;
+  }
+  vloc::TelemetryCsv telemetry;
+  if (!options.telemetry_csv.empty()) telemetry = vloc::ReadTelemetryCsv(options.telemetry_csv, options.telemetry_time_offset);
+  for (const auto& p : telemetry.problems) LOG(ERROR) << p;
+  vloc::ReplayPacer pacer(options.speed);
+  const auto summary = vloc::ReplayUavVideo(options, video, telemetry, *setup->transport, pacer);
+  LOG(INFO) << "uav_video_driver: published " << summary.frames_published << " frames (" << video.fps()
+            << " fps), " << summary.fixes_published << " GPS fixes; skipped " << summary.frames_skipped
+            << " frames and " << telemetry.problems.size() << " telemetry rows";
+  return 0;
+}

@@ -1,0 +1,142 @@
+#include "uav_video_input.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "vloc/common/csv_table.h"
+
+namespace vloc {
+
+bool UavVideoSource::Open(const std::string& path, double fps, std::string* error) {
+  namespace fs = std::filesystem;
+  if (fs::is_directory(path)) {
+    for (const auto& entry : fs::directory_iterator(path)) {
+      if (!entry.is_regular_file()) continue;
+      std::string ext = entry.path().extension().string();
+      std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+      if (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff" || ext == ".bmp")
+        files_.push_back(entry.path().string());
+    }
+    std::sort(files_.begin(), files_.end());
+    if (files_.empty()) {
+      *error = "video folder " + path + " holds no .png/.jpg/.tif/.bmp images";
+      return false;
+    }
+    fps_ = fps > 0 ? fps : 30.0;
+    return true;
+  }
+  if (path.find('%') == std::string::npos && !fs::exists(path)) {
+    *error = "video " + path + " missing (give a video file, an image pattern like frames/%05d.png or a folder)";
+    return false;
+  }
+  if (!capture_.open(path)) {
+    *error = "video " + path + " cannot be opened by OpenCV (unknown format or corrupt)";
+    return false;
+  }
+  const double container_fps = capture_.get(cv::CAP_PROP_FPS);
+  fps_ = fps > 0 ? fps : (container_fps > 0 && container_fps < 1000 ? container_fps : 30.0);
+  return true;
+}
+
+UavVideoSource::Status UavVideoSource::Next(cv::Mat* frame, int64_t* utime, std::string* problem) {
+  *utime = static_cast<int64_t>(std::llround(index_ * 1e6 / fps_));
+  if (!files_.empty()) {
+    if (next_file_ >= files_.size()) return Status::kEnd;
+    const std::string& file = files_[next_file_++];
+    ++index_;
+    *frame = cv::imread(file, cv::IMREAD_COLOR);
+    if (frame->empty()) {
+      *problem = "frame " + std::to_string(index_ - 1) + " " + file + " cannot be decoded (not an image or corrupt); skipped";
+      return Status::kSkipped;
+    }
+    return Status::kFrame;
+  }
+  if (!capture_.read(*frame) || frame->empty()) return Status::kEnd;
+  ++index_;
+  if (frame->channels() == 1) cv::cvtColor(*frame, *frame, cv::COLOR_GRAY2BGR);
+  return Status::kFrame;
+}
+
+TelemetryCsv ReadTelemetryCsv(const std::string& path, double time_offset) {
+  TelemetryCsv out;
+  CsvTable table;
+  std::string error;
+  if (!ReadCsvTable(path, &table, &error)) {
+    out.problems.push_back(error + "; telemetry skipped");
+    return out;
+  }
+  out.problems = table.problems;
+  int time_column = table.Column({"utime"});
+  const bool us = time_column >= 0;
+  if (!us) time_column = table.Column({"time", "t", "timestamp"});
+  const int lat = table.Column({"latitude", "lat"}), lon = table.Column({"longitude", "lon"});
+  const int alt = table.Column({"altitude", "alt"});
+  const int hag = table.Column({"height_above_ground", "height"}), fix = table.Column({"fix"});
+  const int hs = table.Column({"horizontal_sigma"}), vs = table.Column({"vertical_sigma"});
+  if (time_column < 0 || lat < 0 || lon < 0 || alt < 0) {
+    out.problems.push_back(path + ": header needs time (or utime), latitude, longitude, altitude columns; telemetry skipped");
+    return out;
+  }
+  out.readable = true;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  int64_t previous = std::numeric_limits<int64_t>::min();
+  for (size_t r = 0; r < table.rows.size(); ++r) {
+    const auto& row = table.rows[r];
+    const std::string where = path + " line " + std::to_string(table.line_numbers[r]);
+    std::string problem;
+    auto number = [&](int column, const char* name, double lo, double hi, double* value) {
+      if (column < 0) {
+        *value = nan;
+        return true;
+      }
+      const std::string& text = row[static_cast<size_t>(column)];
+      if (!ParseCsvNumber(text, value)) {
+        problem = where + ": column '" + name + "' value '" + text + "' is not a number; row skipped";
+        return false;
+      }
+      if (*value < lo || *value > hi) {
+        problem = where + ": column '" + name + "' = " + text + " out of range [" + std::to_string(lo) + ", " +
+                  std::to_string(hi) + "]; row skipped";
+        return false;
+      }
+      return true;
+    };
+    TelemetryFix f;
+    double t = 0, fix_value = 2;
+    bool ok = number(time_column, us ? "utime" : "time", -1e12, 1e15, &t) && number(fix, "fix", 0, 2, &fix_value);
+    if (ok) {
+      f.fix = fix < 0 ? 2 : static_cast<int>(fix_value);
+      if (f.fix == 0) {
+        f.latitude = f.longitude = f.altitude = nan;
+        ok = true;
+      } else {
+        ok = number(lat, "latitude", -90, 90, &f.latitude) && number(lon, "longitude", -180, 180, &f.longitude) &&
+             number(alt, "altitude", -500, 20000, &f.altitude);
+      }
+    }
+    ok = ok && number(hag, "height_above_ground", 0, 5000, &f.height_above_ground) &&
+         number(hs, "horizontal_sigma", 0, 1000, &f.horizontal_sigma) &&
+         number(vs, "vertical_sigma", 0, 1000, &f.vertical_sigma);
+    if (ok) {
+      f.utime = us ? static_cast<int64_t>(std::llround(t + time_offset * 1e6))
+                   : static_cast<int64_t>(std::llround((t + time_offset) * 1e6));
+      if (f.utime < previous) {
+        problem = where + ": time goes back; row skipped";
+        ok = false;
+      }
+    }
+    if (!ok) {
+      out.problems.push_back(problem);
+      continue;
+    }
+    previous = f.utime;
+    out.fixes.push_back(f);
+  }
+  return out;
+}
+
+}  // namespace vloc
