@@ -2,6 +2,9 @@
 
 #include <omp.h>
 
+#include <Eigen/LU>
+#include <Eigen/SVD>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>

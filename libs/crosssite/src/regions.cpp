@@ -1,5 +1,7 @@
 #include "vloc/crosssite/regions.h"
 
+#include <Eigen/LU>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <opencv2/calib3d.hpp>

@@ -1,6 +1,7 @@
 #include "vloc/features/lsm.h"
 
 #include <Eigen/Cholesky>
+#include <Eigen/LU>
 #include <cmath>
 #include <vector>
 
@@ -54,6 +55,42 @@ LsmImage MakeLsmImage(const cv::Mat& gray) {
 }
 
 namespace {
+
+// Keys cubic convolution (a = -0.5) weights and their derivatives for the
+// four taps at offsets -1, 0, 1, 2 from floor(x), t = x - floor(x).
+inline void CubicWeights(float t, float w[4], float dw[4]) {
+  const float t2 = t * t, t3 = t2 * t;
+  w[0] = -0.5f * t3 + t2 - 0.5f * t;
+  w[1] = 1.5f * t3 - 2.5f * t2 + 1.f;
+  w[2] = -1.5f * t3 + 2.f * t2 + 0.5f * t;
+  w[3] = 0.5f * t3 - 0.5f * t2;
+  dw[0] = -1.5f * t2 + 2.f * t - 0.5f;
+  dw[1] = 4.5f * t2 - 5.f * t;
+  dw[2] = -4.5f * t2 + 4.f * t + 0.5f;
+  dw[3] = 1.5f * t2 - t;
+}
+
+// Bicubic value and gradient at (x, y); the caller keeps (x, y) at least 2 px
+// inside the image.
+inline void SampleCubic(const cv::Mat& img, double x, double y, double* value, double* gx, double* gy) {
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  float wx[4], dwx[4], wy[4], dwy[4];
+  CubicWeights(static_cast<float>(x - x0), wx, dwx);
+  CubicWeights(static_cast<float>(y - y0), wy, dwy);
+  float v = 0, vx = 0, vy = 0;
+  for (int i = 0; i < 4; ++i) {
+    const float* row = img.ptr<float>(y0 - 1 + i) + (x0 - 1);
+    const float rv = wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] + wx[3] * row[3];
+    const float rdx = dwx[0] * row[0] + dwx[1] * row[1] + dwx[2] * row[2] + dwx[3] * row[3];
+    v += wy[i] * rv;
+    vx += wy[i] * rdx;
+    vy += dwy[i] * rv;
+  }
+  *value = v;
+  *gx = vx;
+  *gy = vy;
+}
+
 bool Inside(const cv::Mat& m, const Eigen::Vector2d& p, double margin) {
   return p.x() >= margin && p.y() >= margin && p.x() <= m.cols - 1 - margin && p.y() <= m.rows - 1 - margin;
 }
@@ -64,7 +101,7 @@ LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& templa
                             const LsmOptions& o) {
   LsmResult res;
   const int h = o.half_window, side = 2 * h + 1, n = side * side;
-  if (!Inside(templ.gray, template_px, h + 1)) {
+  if (!Inside(templ.gray, template_px, h + 3)) {
     res.why = "template outside its image";
     return res;
   }
@@ -72,7 +109,9 @@ LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& templa
   double sum = 0, sum2 = 0;
   for (int r = -h, i = 0; r <= h; ++r) {
     for (int c = -h; c <= h; ++c, ++i) {
-      T[i] = SampleBilinear(templ.gray, template_px.x() + c, template_px.y() + r);
+      double v, unused_x, unused_y;
+      SampleCubic(templ.gray, template_px.x() + c, template_px.y() + r, &v, &unused_x, &unused_y);
+      T[i] = static_cast<float>(v);
       sum += T[i];
       sum2 += static_cast<double>(T[i]) * T[i];
     }
@@ -101,7 +140,7 @@ LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& templa
   int it = 0;
   for (; it < o.max_iterations; ++it) {
     // Bounding margin of the warped window.
-    const double reach = h * (std::abs(A(0, 0)) + std::abs(A(0, 1)) + std::abs(A(1, 0)) + std::abs(A(1, 1))) + 2;
+    const double reach = h * (std::abs(A(0, 0)) + std::abs(A(0, 1)) + std::abs(A(1, 0)) + std::abs(A(1, 1))) + 3;
     if (!Inside(target.gray, t, reach)) {
       res.why = "window left the target image";
       return res;
@@ -113,9 +152,10 @@ LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& templa
       for (int c = -h; c <= h; ++c, ++i) {
         const double x = t.x() + A(0, 0) * c + A(0, 1) * r;
         const double y = t.y() + A(1, 0) * c + A(1, 1) * r;
-        const double g = SampleBilinear(target.gray, x, y);
-        const double gx = r1 * SampleBilinear(target.gx, x, y);
-        const double gy = r1 * SampleBilinear(target.gy, x, y);
+        double g, gx, gy;
+        SampleCubic(target.gray, x, y, &g, &gx, &gy);
+        gx *= r1;
+        gy *= r1;
         G[i] = static_cast<float>(g);
         const double resid = T[i] - (r0 + r1 * g);
         ssr += resid * resid;

@@ -31,7 +31,7 @@ inline double RangeSigma(double range, double baseline, double focal, double sig
 struct ConsistencyOptions {
   double k_sigma = 3.0;               // e_L = k_sigma * sigma(e) + min_threshold
   double min_threshold = 0.02;        // m, added to every pair's threshold
-  double min_weight_fraction = 0.5;   // weight threshold = this * median weight of the current inliers
+  double min_weight_fraction = 0.8;   // weight threshold = this * median weight of the current inliers
   int min_weight = 3;                 // and at least this many votes
   int max_passes = 5;                 // re-vote among the survivors until nothing changes
 

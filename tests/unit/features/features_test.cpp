@@ -1,0 +1,318 @@
+// Known-answer tests of the matching building blocks on synthetic images.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+#include "test_images.h"
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+
+#include "vloc/common/options.h"
+#include "vloc/common/pose.h"
+#include "vloc/features/asift.h"
+#include "vloc/features/consistency.h"
+#include "vloc/features/lsm.h"
+#include "vloc/features/stereo_match.h"
+#include "vloc/features/wallis.h"
+
+namespace vloc {
+namespace {
+
+using testing::TexturedImage;
+
+TEST(Wallis, DefaultOptionsPassCheck) {
+  std::string error;
+  EXPECT_TRUE(WallisOptions().Check(&error)) << error;
+  EXPECT_TRUE(ZnccOptions().Check(&error)) << error;
+  EXPECT_TRUE(MedianFilterOptions().Check(&error)) << error;
+  EXPECT_TRUE(LsmOptions().Check(&error)) << error;
+  EXPECT_TRUE(ConsistencyOptions().Check(&error)) << error;
+  EXPECT_TRUE(AsiftOptions().Check(&error)) << error;
+  EXPECT_TRUE(GatedMatchOptions().Check(&error)) << error;
+}
+
+TEST(Wallis, LocalMeanAndStdHitTheTargets) {
+  // Four quadrants of the same texture with very different gain and offset.
+  cv::Mat tex = TexturedImage(256, 256, 7, 1.0, 10.0);
+  cv::Mat img(256, 256, CV_8UC1);
+  const double gains[4] = {0.4, 1.0, 2.0, 3.0}, offsets[4] = {40, 150, 60, 100};
+  for (int q = 0; q < 4; ++q) {
+    const cv::Rect r((q % 2) * 128, (q / 2) * 128, 128, 128);
+    cv::Mat f;
+    tex(r).convertTo(f, CV_32F);
+    f = (f - 128) * gains[q] + offsets[q];
+    f.convertTo(img(r), CV_8U);
+  }
+  WallisOptions o;
+  o.window = 31;
+  o.target_mean = 127;
+  o.target_std = 40;
+  o.contrast = 1.0;
+  o.brightness = 1.0;
+  const cv::Mat out = WallisFilter(img, o);
+  for (int q = 0; q < 4; ++q) {
+    // Interior of each quadrant (away from the quadrant borders by a window).
+    const cv::Rect r((q % 2) * 128 + 24, (q / 2) * 128 + 24, 80, 80);
+    const ImageStats before = ComputeImageStats(img(r));
+    const ImageStats after = ComputeImageStats(out(r));
+    EXPECT_NEAR(after.mean, 127.0, 3.0) << "quadrant " << q << " before mean " << before.mean;
+    // The window std varies about the quadrant std by sampling: within 10 %.
+    EXPECT_NEAR(after.std, 40.0, 4.0) << "quadrant " << q << " before std " << before.std;
+  }
+}
+
+TEST(Wallis, PartialContrastMovesStdTowardsTarget) {
+  cv::Mat img = TexturedImage(200, 200, 3, 1.0, 8.0);
+  WallisOptions o;
+  o.target_std = 40;
+  o.contrast = 0.75;
+  o.brightness = 1.0;
+  const ImageStats after = ComputeImageStats(WallisFilter(img, o)(cv::Rect(30, 30, 140, 140)));
+  // r1 = c sf / (c sg + (1 - c) sf) with sg ~ 8: std between 8 and 40.
+  const double expected = 0.75 * 40 / (0.75 * 8 + 0.25 * 40) * 8;
+  EXPECT_NEAR(after.std, expected, 0.15 * expected);
+  EXPECT_GT(after.std, 12.0);
+}
+
+TEST(Wallis, RejectsBadOptions) {
+  WallisOptions o;
+  o.window = 10;
+  std::string error;
+  EXPECT_FALSE(o.Check(&error));
+  EXPECT_NE(error.find("window"), std::string::npos);
+}
+
+// Right image = left shifted by `disparity` px to the left (rectified pair).
+void MakeShiftedPair(double disparity, cv::Mat* left, cv::Mat* right, uint64_t seed = 11) {
+  const cv::Mat base = TexturedImage(400, 200, seed);
+  base.convertTo(*left, CV_32F);
+  const cv::Matx23d shift(1, 0, -disparity, 0, 1, 0);
+  cv::warpAffine(*left, *right, shift, left->size(), cv::INTER_CUBIC, cv::BORDER_REFLECT);
+}
+
+TEST(Zncc, PeakAtTheKnownDisparity) {
+  cv::Mat left, right;
+  const double disparity = 23.4;
+  MakeShiftedPair(disparity, &left, &right);
+  ZnccOptions o;
+  int checked = 0;
+  for (int y = 40; y < 160; y += 30) {
+    for (int x = 150; x < 350; x += 50) {
+      const Eigen::Vector2d l(x, y);
+      const ZnccMatch m = ZnccAlongSegment(left, right, l, l - Eigen::Vector2d(100, 0), l, o);
+      ASSERT_TRUE(m.ok) << m.why << " at " << x << "," << y;
+      EXPECT_NEAR(l.x() - m.right.x(), disparity, 0.3);
+      EXPECT_NEAR(m.right.y(), y, 1e-9);
+      EXPECT_GT(m.score, 0.9);
+      ++checked;
+    }
+  }
+  EXPECT_EQ(checked, 16);
+}
+
+TEST(Zncc, FlatTemplateIsRejected) {
+  cv::Mat flat(100, 200, CV_32F, cv::Scalar(90));
+  const ZnccMatch m = ZnccAlongSegment(flat, flat, {120, 50}, {20, 50}, {120, 50}, ZnccOptions());
+  EXPECT_FALSE(m.ok);
+  EXPECT_STREQ(m.why, "too little texture");
+}
+
+TEST(MedianFilter, RemovesPlantedDisparityOutliers) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> ux(0, 1000), uy(300, 1000), noise(-0.3, 0.3), jump(15, 40);
+  std::vector<Eigen::Vector2d> pts;
+  std::vector<double> disp;
+  std::vector<bool> planted;
+  // Dense enough that every point has neighbours (about 17 within 50 px).
+  for (int i = 0; i < 1500; ++i) {
+    const Eigen::Vector2d p(ux(rng), uy(rng));
+    // Ground plane: disparity grows linearly with the image row.
+    double d = 0.08 * (p.y() - 250) + noise(rng);
+    const bool out = i % 20 == 0;
+    if (out) {
+      const double j = jump(rng);
+      d += (i % 40 == 0 || d - j < 1.0) ? j : -j;  // a disparity stays positive
+    }
+    pts.push_back(p);
+    disp.push_back(d);
+    planted.push_back(out);
+  }
+  const auto keep = MedianDisparityFilter(pts, disp, MedianFilterOptions());
+  int removed_out = 0, removed_good = 0, n_out = 0;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    n_out += planted[i];
+    if (!keep[i]) (planted[i] ? removed_out : removed_good)++;
+  }
+  EXPECT_EQ(removed_out, n_out);
+  EXPECT_LE(removed_good, 7);  // 0.5 % of the good ones
+}
+
+struct AffineCase {
+  Eigen::Vector2d shift;
+  Eigen::Matrix2d A;
+};
+
+// The target shows the template's texture under y = A (x - c) + c + shift,
+// both rendered exactly from a continuous texture.
+void CheckLsm(const AffineCase& k, bool estimate_affine, double tolerance) {
+  const testing::BlobTexture tex(160, 160, 1400, 21);
+  const Eigen::Vector2d c(80, 80);
+  const Eigen::Matrix2d Ainv = k.A.inverse();
+  const cv::Mat templ_f = tex.Render(160, 160, [](int x, int y) { return std::make_pair<double, double>(x, y); });
+  cv::Mat target_f = tex.Render(160, 160, [&](int x, int y) {
+    const Eigen::Vector2d s = Ainv * (Eigen::Vector2d(x, y) - c - k.shift) + c;
+    return std::make_pair(s.x(), s.y());
+  });
+  target_f = target_f * 0.8 + 20;  // radiometric difference
+  const LsmImage a = MakeLsmImage(templ_f), b = MakeLsmImage(target_f);
+  LsmOptions o;
+  o.estimate_affine = estimate_affine;
+  o.half_window = 10;
+  int n = 0;
+  for (int dy = -20; dy <= 20; dy += 20) {
+    for (int dx = -20; dx <= 20; dx += 20) {
+      const Eigen::Vector2d p = c + Eigen::Vector2d(dx, dy);
+      const Eigen::Vector2d truth = k.A * (p - c) + c + k.shift;
+      const Eigen::Vector2d start = truth.array().round();  // integer start, up to 0.5 px off
+      const LsmResult r = LeastSquaresMatch(a, p, b, start, Eigen::Matrix2d::Identity(), o);
+      ASSERT_TRUE(r.ok) << r.why;
+      EXPECT_LT((r.target - truth).norm(), tolerance) << "at offset " << dx << "," << dy << " error "
+                                                      << (r.target - truth).transpose();
+      EXPECT_LT(r.sigma_px, 0.1);
+      if (estimate_affine) EXPECT_LT((r.affine - k.A).norm(), 0.01);
+      EXPECT_NEAR(r.r1, 1.25, 0.05);  // T = r0 + r1 G with G = 0.8 T + 20
+      ++n;
+    }
+  }
+  EXPECT_EQ(n, 9);
+}
+
+TEST(Lsm, RecoversSubPixelShift) {
+  CheckLsm({{0.37, -0.21}, Eigen::Matrix2d::Identity()}, false, 0.03);
+}
+
+TEST(Lsm, RecoversAffineDistortion) {
+  Eigen::Matrix2d A;
+  A << 1.08, 0.06, -0.04, 0.93;
+  CheckLsm({{-0.42, 0.28}, A}, true, 0.05);
+}
+
+TEST(Lsm, FlatTemplateIsRejected) {
+  cv::Mat flat(64, 64, CV_32F, cv::Scalar(50));
+  const LsmImage a = MakeLsmImage(flat);
+  const LsmResult r = LeastSquaresMatch(a, {32, 32}, a, {32, 32}, Eigen::Matrix2d::Identity(), LsmOptions());
+  EXPECT_FALSE(r.ok);
+}
+
+TEST(Consistency, RejectsPlantedOutliers) {
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> ux(3, 30), uy(-10, 10), uz(-0.5, 0.5), usign(0, 1), umag(0.4, 2.0);
+  std::normal_distribution<double> gauss(0, 1);
+  const Pose3 site2_from_site1 = MakePose(-9.5, 0.8, 0.1, 0.01, -0.02, 0.12);
+  const double baseline = 0.27, focal = 1189, sigma_p = 0.1, sigma_a = 0.5 / focal;
+  std::vector<Eigen::Vector3d> p1, p2;
+  std::vector<Eigen::Matrix3d> c1, c2;
+  std::vector<bool> planted;
+  const Eigen::Vector3d cam(0, 0, 1.5);
+  for (int i = 0; i < 300; ++i) {
+    const Eigen::Vector3d truth(ux(rng), uy(rng), uz(rng));
+    const Eigen::Vector3d t2 = site2_from_site1 * truth;
+    Eigen::Vector3d m1 = truth, m2 = t2;
+    // Noise along the ray per eq. 7 at each site.
+    for (int s = 0; s < 2; ++s) {
+      Eigen::Vector3d& m = s == 0 ? m1 : m2;
+      const Eigen::Vector3d ray = m - cam;
+      const double r = ray.norm();
+      const Eigen::Matrix3d cov = StereoPointCovariance(ray, r, baseline, focal, sigma_p, sigma_a);
+      const Eigen::LLT<Eigen::Matrix3d> llt(cov);
+      m += llt.matrixL() * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+      (s == 0 ? c1 : c2).push_back(cov);
+    }
+    // Outliers: a wrong match moves the point by more than the noise model
+    // allows (10 range sigmas at its range, and at least 1 m).
+    const bool out = i % 10 == 3;
+    const double sr = RangeSigma((t2 - cam).norm(), baseline, focal, sigma_p);
+    if (out) m2 += Eigen::Vector3d(usign(rng) - 0.5, usign(rng) - 0.5, 0.2 * (usign(rng) - 0.5)).normalized() *
+                   std::max(1.0 + umag(rng), 10 * sr);
+    p1.push_back(m1);
+    p2.push_back(m2);
+    planted.push_back(out);
+  }
+  const ConsistencyResult res = DistanceConsistencyCheck(p1, c1, p2, c2, ConsistencyOptions());
+  int outliers_kept = 0, inliers_lost = 0;
+  for (size_t i = 0; i < planted.size(); ++i) {
+    if (planted[i] && res.inlier[i]) ++outliers_kept;
+
+    if (!planted[i] && !res.inlier[i]) ++inliers_lost;
+  }
+  EXPECT_EQ(outliers_kept, 0);
+  EXPECT_LE(inliers_lost, 6);  // 2 % of 270
+  EXPECT_GT(res.weight_threshold, 50);
+}
+
+TEST(Consistency, RangeSigmaFollowsEquation7) {
+  // sigma_r = r^2 / (b f) sigma_p: Yutu numbers, r = 10 m, sigma_p = 1/3 px.
+  EXPECT_NEAR(RangeSigma(10.0, 0.27, 1189.0, 1.0 / 3.0), 100.0 / (0.27 * 1189.0) / 3.0, 1e-12);
+}
+
+// Counts matches whose points agree with the known map within tol px.
+template <class Map>
+void CountCorrect(const FeatureSet& a, const FeatureSet& b, const std::vector<FeatureMatch>& m, Map map, double tol,
+                  int* correct, int* wrong) {
+  *correct = *wrong = 0;
+  for (const auto& x : m) ((map(a.points[x.query]) - b.points[x.train]).norm() < tol ? *correct : *wrong)++;
+}
+
+TEST(Asift, SimulatedTiltMatchesACompressedView) {
+  // View B = A compressed by 2.5 along y (a grazing view of the ground) and shifted.
+  const cv::Mat a = TexturedImage(480, 480, 31, 1.4);
+  const double tilt = 2.5;
+  const cv::Matx23d M(1, 0, 10, 0, 1 / tilt, 30);
+  cv::Mat b;
+  cv::warpAffine(a, b, M, cv::Size(500, 260), cv::INTER_AREA, cv::BORDER_CONSTANT, 0);
+  auto map = [&](const Eigen::Vector2d& p) { return Eigen::Vector2d(p.x() + 10, p.y() / tilt + 30); };
+  AsiftOptions plain;
+  plain.tilts = {1.0};
+  AsiftOptions restricted;
+  restricted.tilts = {1.0, 2.0, 2.8284271247461903};
+  // Compress A along y: longitude 90 deg only.
+  restricted.longitude_min_deg = 90;
+  restricted.longitude_max_deg = 91;
+  const FeatureSet fa_plain = DetectAsift(a, cv::Mat(), plain);
+  const FeatureSet fa = DetectAsift(a, cv::Mat(), restricted);
+  const FeatureSet fb = DetectAsift(b, cv::Mat(), plain);
+  EXPECT_EQ(restricted.Views().size(), 3u);
+  ASSERT_GT(fa.size(), fa_plain.size());
+  // Gated matching with a prediction that is 15 px off.
+  std::vector<Eigen::Vector2d> pred;
+  for (const auto& p : fa.points) pred.push_back(map(p) + Eigen::Vector2d(12, -9));
+  GatedMatchOptions g;
+  g.gate_radius = 40;
+  const auto m_asift = GatedMatch(fa, pred, fb, g);
+  std::vector<Eigen::Vector2d> pred_plain;
+  for (const auto& p : fa_plain.points) pred_plain.push_back(map(p) + Eigen::Vector2d(12, -9));
+  const auto m_plain = GatedMatch(fa_plain, pred_plain, fb, g);
+  int ca, wa, cp, wp;
+  CountCorrect(fa, fb, m_asift, map, 3.0, &ca, &wa);
+  CountCorrect(fa_plain, fb, m_plain, map, 3.0, &cp, &wp);
+  EXPECT_GT(ca, 100);
+  EXPECT_GT(ca, 2 * cp) << "ASIFT should beat plain SIFT at tilt 2.5";
+  EXPECT_LT(wa, 0.05 * (ca + wa));
+}
+
+TEST(Asift, ViewTransformMapsBackToOriginalPixels) {
+  const AffineView v{2.0, 0.6};
+  cv::Size vs;
+  const cv::Matx23d A = AffineViewTransform(cv::Size(300, 200), v, &vs);
+  // The image centre maps to the view centre.
+  const double x = A(0, 0) * 149.5 + A(0, 1) * 99.5 + A(0, 2), y = A(1, 0) * 149.5 + A(1, 1) * 99.5 + A(1, 2);
+  EXPECT_NEAR(x, (vs.width - 1) / 2.0, 1.0);
+  EXPECT_NEAR(y, (vs.height - 1) / 2.0, 1.0);
+  // Determinant = 1 / tilt.
+  EXPECT_NEAR(A(0, 0) * A(1, 1) - A(0, 1) * A(1, 0), 0.5, 1e-12);
+}
+
+}  // namespace
+}  // namespace vloc
