@@ -1,0 +1,166 @@
+// sim_rover: the simulated lunar rover world (terrain, traverse, Navcam, IMU, wheels).
+//   sim_rover [--config config/procs/sim_rover.yaml] [--speed X] [--sites N]
+//       publishes NAVCAM_STEREO, ROVER_SITE, IMU, WHEEL_ODOM, GT_POSE, SITE_POSE_GT over LCM
+//       in real time (x speed; 0 = as fast as possible)
+//   sim_rover ... --log FILE           writes the messages straight to an LCM log, as fast as it
+//                                      can (event timestamps = message utimes)
+//   sim_rover ... --render-sample DIR  saves the middle pair of site 0 as DIR/navcam_left.png,
+//                                      DIR/navcam_right.png (and DIR/terrain_ortho.png) and exits
+// See sim_rover_publisher.h for the channels and frames.
+#include <glog/logging.h>
+
+#include <chrono>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "sim_rover_publisher.h"
+#include "vloc/common/logging.h"
+#include "vloc/common/options.h"
+#include "vloc/lcm_io/process.h"
+
+namespace {
+
+// --log and --render-sample need no network: run them on an in-process LCM.
+std::vector<char*> WithMemqWhenOffline(int argc, char** argv, std::string* memq) {
+  std::vector<char*> args(argv, argv + argc);
+  bool offline = false, has_url = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    offline = offline || a.rfind("--log", 0) == 0 || a.rfind("--render-sample", 0) == 0;
+    has_url = has_url || a.rfind("--lcm-url", 0) == 0;
+  }
+  if (offline && !has_url) args.push_back(memq->data());
+  return args;
+}
+
+int RenderSample(const vloc::SimRoverPublisher& publisher, const vloc::sim::SimulatedTraverse& traverse,
+                 const vloc::sim::Terrain& terrain, const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  const auto& exposures = traverse.sites.front().exposures;
+  const vloc::sim::Exposure& e = exposures[exposures.size() / 2];
+  const auto start = std::chrono::steady_clock::now();
+  const vloc::StereoPair pair = publisher.RenderExposure(e);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const Eigen::Vector3d p = e.world_from_body.translation();
+  const cv::Mat ortho = terrain.RenderOrthoimage({p.x() - 10, p.y() - 20, p.x() + 30, p.y() + 20}, 0.04);
+  for (const auto& [name, image] : {std::pair<std::string, cv::Mat>{"navcam_left.png", pair.left},
+                                    {"navcam_right.png", pair.right},
+                                    {"terrain_ortho.png", ortho}}) {
+    const std::string path = dir + "/" + name;
+    if (!cv::imwrite(path, image)) {
+      std::cerr << "sim_rover: cannot write " << path << " (check the folder is writable)\n";
+      return 1;
+    }
+  }
+  std::cout << "sim_rover: wrote " << dir << "/navcam_left.png, navcam_right.png (site 0, pair " << e.pair_index
+            << ", pan " << e.mast_pan * 180 / M_PI << " deg, tilt " << e.mast_tilt * 180 / M_PI << " deg, "
+            << pair.left.cols << "x" << pair.left.rows << ", pair rendered in " << seconds
+            << " s) and terrain_ortho.png (40 m x 40 m, 4 cm/px)\n";
+  return 0;
+}
+
+// Publishes each message when the wall clock reaches its (scaled) time.
+int PublishRealTime(vloc::Transport& transport, double speed, vloc::SimRoverPublisher* publisher) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  const int64_t sim_start = publisher->NextUtime();
+  const vloc::SimRoverPublisher::Sink sink = [&](const std::string& channel, const std::vector<uint8_t>& bytes, int64_t) {
+    if (!transport.Publish(channel, bytes.data(), bytes.size()))
+      LOG(ERROR) << "channel " << channel << ": publish of " << bytes.size() << " bytes failed";
+  };
+  while (!publisher->Done()) {
+    if (vloc::StopSignalPending()) {
+      LOG(INFO) << "stop signal received, shutting down";
+      return 0;
+    }
+    if (speed > 0) {
+      const auto due = wall_start + std::chrono::microseconds(
+                                        static_cast<int64_t>((publisher->NextUtime() - sim_start) / speed));
+      // Sleep in short slices so a stop signal is seen promptly.
+      while (std::chrono::steady_clock::now() < due) {
+        if (vloc::StopSignalPending()) return 0;
+        std::this_thread::sleep_for(std::min<std::chrono::steady_clock::duration>(
+            due - std::chrono::steady_clock::now(), std::chrono::milliseconds(50)));
+      }
+    }
+    publisher->EmitNext(sink);
+    transport.Handle(0);
+  }
+  LOG(INFO) << "traverse finished";
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  vloc::InitLogging(argv[0]);
+  std::string memq = "--lcm-url=memq://";
+  std::vector<char*> args = WithMemqWhenOffline(argc, argv, &memq);
+  auto setup = vloc::SetupProcess(static_cast<int>(args.size()), args.data(),
+                                  {"sim_rover",
+                                   {"log", "speed", "sites", "render-sample"},
+                                   false,
+                                   "[--config config/procs/sim_rover.yaml] [--speed X] [--sites N] "
+                                   "[--log FILE | --render-sample DIR]"});
+  if (!setup) return 1;
+
+  vloc::SimRoverOptions options;
+  try {
+    std::string echo;
+    options = vloc::LoadOptions<vloc::SimRoverOptions>(
+        setup->config, setup->config_path.empty() ? "defaults" : setup->config_path, &echo);
+    if (setup->args.Has("speed")) options.speed = setup->args.GetDouble("speed", options.speed);
+    if (setup->args.Has("sites")) {
+      options.traverse.plan.num_sites = setup->args.GetInt("sites", options.traverse.plan.num_sites);
+      if (!options.traverse.plan.sites_xy.empty())
+        options.traverse.plan.sites_xy.resize(
+            std::min<size_t>(options.traverse.plan.sites_xy.size(), 2 * std::max(1, options.traverse.plan.num_sites)));
+      if (options.traverse.plan.revisit_site >= options.traverse.plan.num_sites) options.traverse.plan.revisit_site = -1;
+    }
+    std::string error;
+    if (!options.Check(&error)) throw vloc::ConfigError("command line: " + error);
+    LOG(INFO) << "sim_rover options:\n"
+              << echo << "\n(overrides: speed " << options.speed << ", sites " << options.traverse.plan.num_sites << ")";
+  } catch (const vloc::ConfigError& e) {
+    std::cerr << "sim_rover: " << e.what() << "\n";
+    return 1;
+  }
+
+  std::unique_ptr<vloc::sim::Terrain> terrain;
+  vloc::sim::SimulatedTraverse traverse;
+  try {
+    terrain = std::make_unique<vloc::sim::Terrain>(options.terrain);
+    const auto& s = terrain->summary();
+    LOG(INFO) << "terrain: " << s.grid_vertices << "^2 vertices, " << s.num_craters << " craters, " << s.num_rocks
+              << " rocks, heights " << s.min_height << " .. " << s.max_height << " m, built in " << s.build_seconds << " s";
+    traverse = vloc::sim::SimulateTraverse(*terrain, options.traverse);
+  } catch (const std::exception& e) {
+    std::cerr << "sim_rover: " << e.what() << "\n";
+    return 1;
+  }
+  LOG(INFO) << "traverse: " << traverse.sites.size() << " sites, " << traverse.path_length_m << " m driven in "
+            << traverse.duration_s << " s, " << traverse.exposures.size() << " stereo pairs";
+
+  const vloc::sim::NavcamRenderer renderer(*terrain, options.navcam, options.render);
+  vloc::SimRoverPublisher publisher(options, traverse, renderer);
+  if (setup->args.Has("render-sample")) return RenderSample(publisher, traverse, *terrain, setup->args.Get("render-sample"));
+  if (setup->args.Has("log")) {
+    std::string error;
+    const std::string path = setup->args.Get("log");
+    if (!vloc::WriteSimRoverLog(path, &publisher, &error)) {
+      std::cerr << "sim_rover: " << error << "\n";
+      return 1;
+    }
+    const auto& s = publisher.summary();
+    LOG(INFO) << "wrote " << path << ": " << s.stereo_pairs << " stereo pairs, " << s.site_events << " site events, "
+              << s.imu_samples << " IMU, " << s.wheel_samples << " wheel, " << s.gt_poses << " GT poses, "
+              << s.site_poses << " site poses; rendering took " << s.render_seconds_total << " s";
+    return 0;
+  }
+  return PublishRealTime(*setup->transport, options.speed, &publisher);
+}
