@@ -1,0 +1,351 @@
+#include "vloc/deadreckoning/dead_reckoning.h"
+
+#include <glog/logging.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+
+#include "vloc/common/options.h"
+
+namespace vloc {
+
+namespace {
+constexpr int kP = 0, kR = 3, kS = 6, kC = 7, kB = 8;
+constexpr double kMicro = 1e-6;
+}  // namespace
+
+void DeadReckoningOptions::Visit(OptionsReader& r) {
+  r.Optional("gravity_mps2", &gravity_mps2, "m/s^2, local gravity");
+  r.Optional("publish_period_s", &publish_period_s, "s, message time between DR_POSE");
+  r.Optional("initial_position", &initial_position, "m, start position in world");
+  r.Optional("initial_yaw_rad", &initial_yaw_rad, "rad, start heading");
+  r.Optional("initial_position_sigma_m", &initial_position_sigma_m, "m, start position 1-sigma");
+  r.Optional("initial_yaw_sigma_rad", &initial_yaw_sigma_rad, "rad, start heading 1-sigma");
+  r.Optional("tilt_sigma_rad", &tilt_sigma_rad, "rad, gravity roll/pitch 1-sigma");
+  r.Optional("odometry_scale", &odometry_scale, "distance per odometer metre");
+  r.Optional("along_track_sigma_per_m", &along_track_sigma_per_m, "along-track sigma per metre");
+  r.Optional("cross_track_sigma_per_m", &cross_track_sigma_per_m, "cross-track sigma per metre");
+  r.Optional("distance_noise_m_per_sqrt_m", &distance_noise_m_per_sqrt_m, "m/sqrt(m), random position noise");
+  r.Optional("gyro_noise_density", &gyro_noise_density, "rad/s/sqrt(Hz)");
+  r.Optional("gyro_bias_sigma", &gyro_bias_sigma, "rad/s, constant gyro bias 1-sigma");
+  r.Optional("gyro_bias_walk", &gyro_bias_walk, "rad/s^2/sqrt(Hz)");
+  r.Optional("still_gyro_threshold", &still_gyro_threshold, "rad/s");
+  r.Optional("still_accel_tolerance", &still_accel_tolerance, "m/s^2");
+  r.Optional("still_speed_threshold", &still_speed_threshold, "m/s");
+  r.Optional("still_duration_s", &still_duration_s, "s averaged per gravity update");
+  r.Optional("max_imu_gap_s", &max_imu_gap_s, "s, longer IMU gaps are bridged");
+  r.Optional("gap_attitude_sigma_rate", &gap_attitude_sigma_rate, "rad/s added over a bridged gap");
+  r.Optional("max_speed_mps", &max_speed_mps, "m/s, faster odometer increments dropped");
+  r.Optional("wheel_wait_s", &wheel_wait_s, "s, wheel samples wait this long for the IMU");
+  r.Optional("reset_backward_jump_s", &reset_backward_jump_s, "s, larger backward jumps restart");
+}
+
+bool DeadReckoningOptions::Check(std::string* error) const {
+  if (!(gravity_mps2 > 0)) return Fail(error, "gravity_mps2 must be positive (1.62 Moon, 3.71 Mars, 9.81 Earth)");
+  if (!(publish_period_s > 0)) return Fail(error, "publish_period_s must be positive");
+  if (!initial_position.allFinite()) return Fail(error, "initial_position must be finite");
+  if (!(initial_position_sigma_m > 0) || !(initial_yaw_sigma_rad > 0) || !(tilt_sigma_rad > 0))
+    return Fail(error, "initial_position_sigma_m, initial_yaw_sigma_rad and tilt_sigma_rad must be positive");
+  if (!(odometry_scale > 0)) return Fail(error, "odometry_scale must be positive");
+  if (along_track_sigma_per_m < 0 || cross_track_sigma_per_m < 0 || distance_noise_m_per_sqrt_m < 0 ||
+      gyro_noise_density < 0 || gyro_bias_sigma < 0 || gyro_bias_walk < 0 || gap_attitude_sigma_rate < 0)
+    return Fail(error, "noise and drift sigmas must be >= 0");
+  if (!(still_gyro_threshold > 0) || !(still_accel_tolerance > 0) || !(still_speed_threshold > 0))
+    return Fail(error, "still_* thresholds must be positive");
+  if (!(still_duration_s > 0)) return Fail(error, "still_duration_s must be positive");
+  if (!(max_imu_gap_s > 0) || !(max_speed_mps > 0) || !(wheel_wait_s >= 0) || !(reset_backward_jump_s > 0))
+    return Fail(error, "max_imu_gap_s, max_speed_mps, reset_backward_jump_s must be positive, wheel_wait_s >= 0");
+  return true;
+}
+
+DeadReckoning::DeadReckoning(const DeadReckoningOptions& options) : options_(options) {}
+
+void DeadReckoning::Reset(const char* why) {
+  LOG(WARNING) << "dead reckoning restarts: " << why;
+  ++stats_.resets;
+  const DeadReckoningStats keep = stats_;
+  *this = DeadReckoning(options_);
+  stats_ = keep;
+}
+
+bool DeadReckoning::TimeWentBack(int64_t utime, int64_t last, const char* what) {
+  if (utime > last) return false;
+  if ((last - utime) * kMicro > options_.reset_backward_jump_s) {
+    Reset(("time of " + std::string(what) + " jumped back " + std::to_string((last - utime) * kMicro) +
+           " s (a new log?)").c_str());
+    return false;  // take the sample as the new start
+  }
+  return true;
+}
+
+void DeadReckoning::Initialize(const ImuSample& first) {
+  // Roll/pitch from gravity when the first sample is consistent with standing still.
+  double roll = 0, pitch = 0;
+  const Eigen::Vector3d f = first.linear_acceleration;
+  const bool gravity_like = std::abs(f.norm() - options_.gravity_mps2) < options_.still_accel_tolerance;
+  if (gravity_like) {
+    roll = std::atan2(f.y(), f.z());
+    pitch = std::atan2(-f.x(), std::hypot(f.y(), f.z()));
+  } else {
+    LOG(WARNING) << "dead reckoning: first IMU sample is not at rest (|f| = " << f.norm() << " m/s^2, gravity "
+                 << options_.gravity_mps2 << "); starting level until the first stop";
+  }
+  R_ = RotationFromRollPitchYaw(roll, pitch, options_.initial_yaw_rad);
+  p_ = options_.initial_position;
+  gyro_bias_.setZero();
+  P_.setZero();
+  P_.block<3, 3>(kP, kP) = Eigen::Matrix3d::Identity() * std::pow(options_.initial_position_sigma_m, 2);
+  const double tilt = gravity_like ? options_.tilt_sigma_rad : 0.1;
+  P_.block<3, 3>(kR, kR) =
+      Eigen::Vector3d(tilt * tilt, tilt * tilt, std::pow(options_.initial_yaw_sigma_rad, 2)).asDiagonal();
+  P_(kS, kS) = std::pow(options_.along_track_sigma_per_m, 2);
+  P_(kC, kC) = std::pow(options_.cross_track_sigma_per_m, 2);
+  P_.block<3, 3>(kB, kB) = Eigen::Matrix3d::Identity() * std::pow(options_.gyro_bias_sigma, 2);
+  imu_utime_ = state_utime_ = first.utime;
+  next_publish_utime_ = first.utime;
+  attitude_history_.clear();
+  attitude_history_.emplace_back(first.utime, R_);
+  initialized_ = true;
+  stop_updated_ = gravity_like;  // the start counts as this stop's gravity alignment
+  EmitPendingArrivals();
+}
+
+void DeadReckoning::PropagateAttitude(const Eigen::Vector3d& rate, double dt) {
+  R_ = R_ * ExpSO3(rate * dt);
+  // Make R_ exactly orthonormal again now and then (cheap).
+  const Eigen::Quaterniond q(R_);
+  R_ = q.normalized().toRotationMatrix();
+  StateMatrix F = StateMatrix::Identity();
+  F.block<3, 3>(kR, kB) = -R_ * dt;  // true rate = measured - bias
+  P_ = F * P_ * F.transpose();
+  P_.block<3, 3>(kR, kR) += Eigen::Matrix3d::Identity() * options_.gyro_noise_density * options_.gyro_noise_density * dt;
+  P_.block<3, 3>(kB, kB) += Eigen::Matrix3d::Identity() * options_.gyro_bias_walk * options_.gyro_bias_walk * dt;
+}
+
+void DeadReckoning::AddImu(const ImuSample& s) {
+  if (!s.angular_velocity.allFinite() || !s.linear_acceleration.allFinite()) {
+    ++stats_.imu_dropped;
+    LOG_EVERY_N(WARNING, 100) << "dead reckoning: IMU sample at " << s.utime << " is not finite; dropped ("
+                              << google::COUNTER << " so far)";
+    return;
+  }
+  if (!initialized_) {
+    Initialize(s);
+    ++stats_.imu_used;
+    FlushWheel(false);
+    return;
+  }
+  if (TimeWentBack(s.utime, imu_utime_, "IMU")) {
+    ++stats_.imu_dropped;
+    LOG_EVERY_N(WARNING, 100) << "dead reckoning: IMU sample at " << s.utime << " is not after " << imu_utime_
+                              << " (duplicated or out of order); dropped (" << google::COUNTER << " so far)";
+    return;
+  }
+  if (!initialized_) {  // Reset() above
+    Initialize(s);
+    ++stats_.imu_used;
+    return;
+  }
+  const double dt = (s.utime - imu_utime_) * kMicro;
+  const Eigen::Vector3d rate = s.angular_velocity - gyro_bias_;
+  if (dt > options_.max_imu_gap_s) {
+    ++stats_.imu_gaps;
+    LOG(WARNING) << "dead reckoning: " << dt << " s without IMU before " << s.utime
+                 << "; attitude held over the gap, its sigma inflated";
+    P_.block<3, 3>(kR, kR) += Eigen::Matrix3d::Identity() * std::pow(options_.gap_attitude_sigma_rate * dt, 2);
+    PropagateAttitude(rate, options_.max_imu_gap_s);
+  } else {
+    PropagateAttitude(rate, dt);
+  }
+  imu_utime_ = s.utime;
+  state_utime_ = std::max(state_utime_, s.utime);
+  attitude_history_.emplace_back(s.utime, R_);
+  while (attitude_history_.size() > 2 &&
+         (attitude_history_.back().first - attitude_history_.front().first) * kMicro >
+             options_.wheel_wait_s + options_.max_imu_gap_s + 5.0)
+    attitude_history_.pop_front();
+  ++stats_.imu_used;
+
+  // Gravity-aided roll/pitch once per stop.
+  const bool still = s.angular_velocity.norm() < options_.still_gyro_threshold &&
+                     std::abs(s.linear_acceleration.norm() - options_.gravity_mps2) < options_.still_accel_tolerance &&
+                     std::abs(last_speed_) < options_.still_speed_threshold;
+  if (!still) {
+    still_seconds_ = 0;
+    still_force_sum_.setZero();
+    still_count_ = 0;
+    stop_updated_ = false;
+  } else if (!stop_updated_) {
+    still_seconds_ += dt;
+    still_force_sum_ += s.linear_acceleration;
+    ++still_count_;
+    if (still_seconds_ >= options_.still_duration_s) {
+      GravityUpdate(still_force_sum_ / still_count_);
+      stop_updated_ = true;
+    }
+  }
+  FlushWheel(false);
+}
+
+void DeadReckoning::GravityUpdate(const Eigen::Vector3d& f) {
+  // With R_true = exp(dr) R, R f / |f| = exp(-dr) e_z ~ (-dr_y, dr_x, 1): the
+  // accelerometer observes the world-frame tilt errors dr_x, dr_y.
+  const Eigen::Vector3d v = R_ * f.normalized();
+  const Eigen::Vector2d y(v.y(), -v.x());
+  Eigen::Matrix<double, 2, kN> H = Eigen::Matrix<double, 2, kN>::Zero();
+  H(0, kR) = 1;
+  H(1, kR + 1) = 1;
+  const Eigen::Matrix2d S = H * P_ * H.transpose() + Eigen::Matrix2d::Identity() * std::pow(options_.tilt_sigma_rad, 2);
+  const Eigen::Matrix<double, kN, 2> K = P_ * H.transpose() * S.inverse();
+  const Eigen::Matrix<double, kN, 1> dx = K * y;
+  p_ += dx.segment<3>(kP);
+  R_ = ExpSO3(dx.segment<3>(kR)) * R_;
+  gyro_bias_ -= dx.segment<3>(kB);  // error = true - estimate, and true rate = measured - bias
+  const StateMatrix IKH = StateMatrix::Identity() - K * H;
+  P_ = IKH * P_ * IKH.transpose() + K * Eigen::Matrix2d::Identity() * std::pow(options_.tilt_sigma_rad, 2) * K.transpose();
+  if (!attitude_history_.empty()) attitude_history_.back().second = R_;
+  ++stats_.gravity_updates;
+}
+
+Eigen::Matrix3d DeadReckoning::AttitudeAt(int64_t utime) const {
+  if (attitude_history_.empty()) return R_;
+  if (utime <= attitude_history_.front().first) return attitude_history_.front().second;
+  if (utime >= attitude_history_.back().first) return attitude_history_.back().second;
+  auto it = std::lower_bound(attitude_history_.begin(), attitude_history_.end(), utime,
+                             [](const auto& a, int64_t t) { return a.first < t; });
+  const auto& b = *it;
+  const auto& a = *(it - 1);
+  const double w = static_cast<double>(utime - a.first) / static_cast<double>(b.first - a.first);
+  const Eigen::Quaterniond qa(a.second), qb(b.second);
+  return qa.slerp(w, qb).toRotationMatrix();
+}
+
+void DeadReckoning::AddWheel(const WheelOdometrySample& s) {
+  if (!std::isfinite(s.distance) || !std::isfinite(s.speed)) {
+    ++stats_.wheel_dropped;
+    LOG_EVERY_N(WARNING, 100) << "dead reckoning: wheel sample at " << s.utime << " is not finite; dropped";
+    return;
+  }
+  const int64_t last = !wheel_queue_.empty() ? wheel_queue_.back().utime : (have_wheel_ ? last_wheel_.utime : INT64_MIN);
+  if (last != INT64_MIN && TimeWentBack(s.utime, last, "wheel odometry")) {
+    ++stats_.wheel_dropped;
+    LOG_EVERY_N(WARNING, 100) << "dead reckoning: wheel sample at " << s.utime << " is not after " << last
+                              << " (duplicated or out of order); dropped (" << google::COUNTER << " so far)";
+    return;
+  }
+  wheel_queue_.push_back(s);
+  FlushWheel(false);
+}
+
+void DeadReckoning::FlushWheel(bool force_all) {
+  if (!initialized_) {
+    // Without attitude nothing can be integrated; keep only the newest sample as the odometer reference.
+    while (wheel_queue_.size() > 1) wheel_queue_.pop_front();
+    return;
+  }
+  while (!wheel_queue_.empty()) {
+    const WheelOdometrySample& s = wheel_queue_.front();
+    const bool imu_caught_up = s.utime <= imu_utime_;
+    const bool waited_too_long = (s.utime - imu_utime_) * kMicro > options_.wheel_wait_s;
+    if (!imu_caught_up && !waited_too_long && !force_all) break;
+    IntegrateWheel(s);
+    wheel_queue_.pop_front();
+  }
+}
+
+void DeadReckoning::IntegrateWheel(const WheelOdometrySample& s) {
+  last_speed_ = s.speed;
+  if (!have_wheel_) {
+    have_wheel_ = true;
+    last_wheel_ = s;
+    ++stats_.wheel_used;
+    return;
+  }
+  const double dt = (s.utime - last_wheel_.utime) * kMicro;
+  double ds = (s.distance - last_wheel_.distance) * options_.odometry_scale;
+  if (ds < -1e-9) {
+    ++stats_.odometer_resets;
+    LOG(WARNING) << "dead reckoning: odometer went from " << last_wheel_.distance << " to " << s.distance
+                 << " m at " << s.utime << " (reset?); rebased, no distance integrated";
+    last_wheel_ = s;
+    return;
+  }
+  if (ds > options_.max_speed_mps * dt + 0.05) {
+    ++stats_.wheel_dropped;
+    LOG(WARNING) << "dead reckoning: odometer increment " << ds << " m in " << dt << " s at " << s.utime
+                 << " exceeds max_speed_mps " << options_.max_speed_mps << "; dropped and rebased";
+    last_wheel_ = s;
+    return;
+  }
+  ds = std::max(0.0, ds);
+  if (ds > 0) {
+    const Eigen::Matrix3d R_mid = AttitudeAt((last_wheel_.utime + s.utime) / 2);
+    const Eigen::Vector3d u = R_mid.col(0) * ds;
+    const Eigen::Vector3d v = R_mid.col(1) * ds;
+    p_ += u;
+    StateMatrix F = StateMatrix::Identity();
+    F.block<3, 3>(kP, kR) = -Skew(u);
+    F.block<3, 1>(kP, kS) = u;
+    F.block<3, 1>(kP, kC) = v;
+    P_ = F * P_ * F.transpose();
+    P_.block<3, 3>(kP, kP) +=
+        Eigen::Matrix3d::Identity() * options_.distance_noise_m_per_sqrt_m * options_.distance_noise_m_per_sqrt_m * ds;
+    stats_.distance_m += ds;
+  }
+  last_wheel_ = s;
+  state_utime_ = std::max(state_utime_, s.utime);
+  ++stats_.wheel_used;
+}
+
+PoseWithCovariance DeadReckoning::Current() const {
+  PoseWithCovariance out;
+  out.utime = state_utime_;
+  out.pose = MakePose(R_, p_);
+  out.covariance = P_.topLeftCorner<6, 6>();
+  return out;
+}
+
+void DeadReckoning::AddSiteEvent(const SiteEvent& event) {
+  if (event.event != SiteEventType::kArrived) return;
+  if (std::find(sites_seen_.begin(), sites_seen_.end(), event.site_id) != sites_seen_.end()) {
+    ++stats_.site_events_dropped;
+    LOG(WARNING) << "dead reckoning: site " << event.site_id << " arrival already reported; duplicate dropped";
+    return;
+  }
+  sites_seen_.push_back(event.site_id);
+  pending_arrivals_.push_back(event);
+  EmitPendingArrivals();
+}
+
+void DeadReckoning::EmitPendingArrivals() {
+  if (!initialized_) return;
+  for (const SiteEvent& event : pending_arrivals_) {
+    // Integrate what the wheels reported up to the arrival.
+    while (!wheel_queue_.empty() && wheel_queue_.front().utime <= event.utime) {
+      IntegrateWheel(wheel_queue_.front());
+      wheel_queue_.pop_front();
+    }
+    PoseWithCovariance pose = Current();
+    pose.utime = event.utime;
+    ready_sites_.emplace_back(event.site_id, pose);
+  }
+  pending_arrivals_.clear();
+}
+
+std::vector<std::pair<int, PoseWithCovariance>> DeadReckoning::PopSitePoses() {
+  std::vector<std::pair<int, PoseWithCovariance>> out;
+  out.swap(ready_sites_);
+  return out;
+}
+
+std::optional<PoseWithCovariance> DeadReckoning::PopPeriodicPose() {
+  if (!initialized_ || imu_utime_ < next_publish_utime_) return std::nullopt;
+  const int64_t period = static_cast<int64_t>(options_.publish_period_s * 1e6);
+  next_publish_utime_ += period * (1 + (imu_utime_ - next_publish_utime_) / period);
+  PoseWithCovariance pose = Current();
+  pose.utime = imu_utime_;
+  return pose;
+}
+
+}  // namespace vloc

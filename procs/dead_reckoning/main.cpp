@@ -1,0 +1,28 @@
+// dead_reckoning: wheel odometry + IMU attitude -> DR_POSE and SITE_POSE_DR.
+//   dead_reckoning --config config/procs/dead_reckoning.yaml [--lcm-url URL]
+#include <iostream>
+
+#include "dead_reckoning_adapter.h"
+#include "vloc/common/logging.h"
+#include "vloc/common/options.h"
+#include "vloc/lcm_io/process.h"
+
+int main(int argc, char** argv) {
+  vloc::InitLogging(argv[0]);
+  auto setup = vloc::SetupProcess(argc, argv,
+                                  {"dead_reckoning", {}, false, "[--config config/procs/dead_reckoning.yaml]"});
+  if (!setup) return 1;
+  vloc::DeadReckoningProcOptions options;
+  try {
+    std::string echo;
+    options = vloc::LoadOptions<vloc::DeadReckoningProcOptions>(setup->config, setup->config_path, &echo);
+    LOG(INFO) << "dead_reckoning options:\n" << echo;
+  } catch (const vloc::ConfigError& e) {
+    std::cerr << "dead_reckoning: " << e.what() << "\n";
+    return 1;
+  }
+  vloc::DeadReckoningAdapter adapter(*setup->transport, options);
+  const int rc = vloc::RunUntilSignal(*setup->transport, 200);
+  LOG(INFO) << "dead_reckoning: " << adapter.StatusLine();
+  return rc;
+}
