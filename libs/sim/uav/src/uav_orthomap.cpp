@@ -260,14 +260,24 @@ void Orthomap::BuildProcedural() {
     }
   }
   for (const auto& t : trees) {
+    // A lumpy crown of a few overlapping blobs, its shadow cast to the north-east.
     const double radius = 1.2 + u01(rng) * 2.5;
     const cv::Point2d c = px(t);
-    cv::circle(map, c + cv::Point2d(0.8 * radius * m, -0.8 * radius * m), static_cast<int>(radius * m),
-               cv::Scalar(30, 45, 35), cv::FILLED);
+    const int lobes = 4 + static_cast<int>(u01(rng) * 4);
+    std::vector<std::pair<cv::Point2d, double>> blobs;
+    for (int k = 0; k < lobes; ++k) {
+      const double a = u01(rng) * 2 * M_PI, d = (k == 0 ? 0.0 : 0.35 + 0.2 * u01(rng)) * radius;
+      blobs.push_back({c + cv::Point2d(std::cos(a) * d * m, std::sin(a) * d * m), (0.45 + 0.25 * u01(rng)) * radius * m});
+    }
+    const cv::Point2d shadow(0.5 * radius * m, -0.5 * radius * m);
+    for (const auto& [p, r] : blobs)
+      cv::circle(map, p + shadow, static_cast<int>(r), cv::Scalar(30, 45, 35), cv::FILLED);
     const cv::Scalar crown = Jitter(cv::Scalar(40, 95, 55), 0.25, rng);
-    cv::circle(map, c, static_cast<int>(radius * m), crown, cv::FILLED);
-    cv::circle(map, c - cv::Point2d(0.3 * radius * m, -0.3 * radius * m), static_cast<int>(0.55 * radius * m),
-               crown * 1.25, cv::FILLED);
+    for (const auto& [p, r] : blobs) {
+      const cv::Scalar lobe = crown * (0.85 + 0.3 * u01(rng));
+      cv::circle(map, p, static_cast<int>(r), lobe, cv::FILLED);
+      cv::circle(map, p - cv::Point2d(0.3 * r, -0.3 * r), static_cast<int>(0.5 * r), lobe * 1.2, cv::FILLED);
+    }
   }
 
   // 5. Multi-scale brightness variation (60 m down to 0.3 m) and per-pixel grain.
