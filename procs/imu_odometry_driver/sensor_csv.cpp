@@ -80,6 +80,34 @@ bool ParseRow(const CsvTable& table, size_t r, int time_column, bool time_in_us,
   return true;
 }
 
+// Reads every row of `path` with the time and `specs` columns (|value| <=
+// `bounds`), and hands the values to `fill`, which may reject the row with
+// a problem line. Keeps the rows in time order.
+template <class Sample, class Fill>
+bool ReadSamples(const std::string& path, const std::vector<ColumnSpec>& specs, const std::vector<double>& bounds,
+                 const std::vector<const char*>& units, std::vector<Sample>* samples,
+                 std::vector<std::string>* problems, Fill fill) {
+  CsvTable table;
+  int time_column = -1;
+  bool us = false;
+  std::vector<int> indices;
+  if (!OpenTable(path, specs, &table, &time_column, &us, &indices, problems)) return false;
+  int64_t previous = 0;
+  std::vector<double> v;
+  for (size_t r = 0; r < table.rows.size(); ++r) {
+    Sample s;
+    std::string problem;
+    if (!ParseRow(table, r, time_column, us, specs, indices, bounds, units, previous, &s.utime, &v, &problem) ||
+        !fill(v, table.path + " line " + std::to_string(table.line_numbers[r]), &s, &problem)) {
+      problems->push_back(problem);
+      continue;
+    }
+    previous = s.utime;
+    samples->push_back(s);
+  }
+  return true;
+}
+
 }  // namespace
 
 ImuCsv ReadImuCsv(const std::string& path, const SensorCsvLimits& limits) {
@@ -87,63 +115,32 @@ ImuCsv ReadImuCsv(const std::string& path, const SensorCsvLimits& limits) {
   const std::vector<ColumnSpec> specs = {{"gx", {"gx", "wx", "gyro_x"}}, {"gy", {"gy", "wy", "gyro_y"}},
                                          {"gz", {"gz", "wz", "gyro_z"}}, {"ax", {"ax", "acc_x"}},
                                          {"ay", {"ay", "acc_y"}},        {"az", {"az", "acc_z"}}};
-  CsvTable table;
-  int time_column = -1;
-  bool us = false;
-  std::vector<int> indices;
-  if (!OpenTable(path, specs, &table, &time_column, &us, &indices, &out.problems)) return out;
-  out.readable = true;
   const double w = limits.max_angular_velocity, a = limits.max_acceleration;
-  const std::vector<double> bounds = {w, w, w, a, a, a};
-  const std::vector<const char*> units = {"rad/s", "rad/s", "rad/s", "m/s^2", "m/s^2", "m/s^2"};
-  int64_t previous = 0;
-  std::vector<double> v;
-  for (size_t r = 0; r < table.rows.size(); ++r) {
-    ImuSample s;
-    std::string problem;
-    if (!ParseRow(table, r, time_column, us, specs, indices, bounds, units, previous, &s.utime, &v, &problem)) {
-      out.problems.push_back(problem);
-      continue;
-    }
-    s.angular_velocity = Eigen::Vector3d(v[0], v[1], v[2]);
-    s.linear_acceleration = Eigen::Vector3d(v[3], v[4], v[5]);
-    previous = s.utime;
-    out.samples.push_back(s);
-  }
+  out.readable = ReadSamples(path, specs, {w, w, w, a, a, a}, {"rad/s", "rad/s", "rad/s", "m/s^2", "m/s^2", "m/s^2"},
+                             &out.samples, &out.problems,
+                             [](const std::vector<double>& v, const std::string&, ImuSample* s, std::string*) {
+                               s->angular_velocity = Eigen::Vector3d(v[0], v[1], v[2]);
+                               s->linear_acceleration = Eigen::Vector3d(v[3], v[4], v[5]);
+                               return true;
+                             });
   return out;
 }
 
 WheelCsv ReadWheelCsv(const std::string& path, const SensorCsvLimits& limits) {
   WheelCsv out;
   const std::vector<ColumnSpec> specs = {{"distance", {"distance", "odometer"}}, {"speed", {"speed", "velocity"}}};
-  CsvTable table;
-  int time_column = -1;
-  bool us = false;
-  std::vector<int> indices;
-  if (!OpenTable(path, specs, &table, &time_column, &us, &indices, &out.problems)) return out;
-  out.readable = true;
-  const std::vector<double> bounds = {1e7, limits.max_speed};
-  const std::vector<const char*> units = {"m", "m/s"};
-  int64_t previous = 0;
-  std::vector<double> v;
-  for (size_t r = 0; r < table.rows.size(); ++r) {
-    WheelOdometrySample s;
-    std::string problem;
-    if (!ParseRow(table, r, time_column, us, specs, indices, bounds, units, previous, &s.utime, &v, &problem)) {
-      out.problems.push_back(problem);
-      continue;
-    }
-    if (v[0] < 0) {
-      out.problems.push_back(table.path + " line " + std::to_string(table.line_numbers[r]) + ": column 'distance' = " +
-                             table.rows[r][static_cast<size_t>(indices[0])] +
-                             " m out of range (cumulative distance must be >= 0); row skipped");
-      continue;
-    }
-    s.distance = v[0];
-    s.speed = v[1];
-    previous = s.utime;
-    out.samples.push_back(s);
-  }
+  out.readable = ReadSamples(
+      path, specs, {1e7, limits.max_speed}, {"m", "m/s"}, &out.samples, &out.problems,
+      [](const std::vector<double>& v, const std::string& where, WheelOdometrySample* s, std::string* problem) {
+        if (v[0] < 0) {
+          *problem = where + ": column 'distance' = " + std::to_string(v[0]) +
+                     " m out of range (cumulative distance must be >= 0); row skipped";
+          return false;
+        }
+        s->distance = v[0];
+        s->speed = v[1];
+        return true;
+      });
   return out;
 }
 
