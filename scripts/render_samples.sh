@@ -18,3 +18,8 @@ build_target() { cmake --build "$build" --target "$1" -j "$(nproc)" >/dev/null; 
 build_target sim_uav
 "$build/bin/sim_uav" --config config/procs/sim_uav.yaml --snapshot "$out/uav_frame.png" --at 12
 echo "wrote $out/uav_frame.png"
+
+# --- simulated rover: the middle Navcam pair of site 0 (pan 0, tilt 25 deg, 1024 x 1024)
+# -> navcam_left.png, navcam_right.png, plus terrain_ortho.png (40 m x 40 m around it).
+build_target sim_rover
+"$build/bin/sim_rover" --config config/procs/sim_rover.yaml --render-sample "$out"

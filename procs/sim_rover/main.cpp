@@ -38,14 +38,15 @@ std::vector<char*> WithMemqWhenOffline(int argc, char** argv, std::string* memq)
   return args;
 }
 
-int RenderSample(const vloc::SimRoverPublisher& publisher, const vloc::sim::SimulatedTraverse& traverse,
-                 const vloc::sim::Terrain& terrain, const std::string& dir) {
+int RenderSample(const vloc::sim::RoverWorld& world, const std::string& dir) {
+  const vloc::sim::SimulatedTraverse& traverse = world.traverse();
+  const vloc::sim::Terrain& terrain = world.terrain();
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   const auto& exposures = traverse.sites.front().exposures;
   const vloc::sim::Exposure& e = exposures[exposures.size() / 2];
   const auto start = std::chrono::steady_clock::now();
-  const vloc::StereoPair pair = publisher.RenderExposure(e);
+  const vloc::StereoPair pair = world.RenderExposure(e);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const Eigen::Vector3d p = e.world_from_body.translation();
   const cv::Mat ortho = terrain.RenderOrthoimage({p.x() - 10, p.y() - 20, p.x() + 30, p.y() + 20}, 0.04);
@@ -116,39 +117,37 @@ int main(int argc, char** argv) {
         setup->config, setup->config_path.empty() ? "defaults" : setup->config_path, &echo);
     if (setup->args.Has("speed")) options.speed = setup->args.GetDouble("speed", options.speed);
     if (setup->args.Has("sites")) {
-      options.traverse.plan.num_sites = setup->args.GetInt("sites", options.traverse.plan.num_sites);
-      if (!options.traverse.plan.sites_xy.empty())
-        options.traverse.plan.sites_xy.resize(
-            std::min<size_t>(options.traverse.plan.sites_xy.size(), 2 * std::max(1, options.traverse.plan.num_sites)));
-      if (options.traverse.plan.revisit_site >= options.traverse.plan.num_sites) options.traverse.plan.revisit_site = -1;
+      options.world.traverse.plan.num_sites = setup->args.GetInt("sites", options.world.traverse.plan.num_sites);
+      if (!options.world.traverse.plan.sites_xy.empty())
+        options.world.traverse.plan.sites_xy.resize(
+            std::min<size_t>(options.world.traverse.plan.sites_xy.size(), 2 * std::max(1, options.world.traverse.plan.num_sites)));
+      if (options.world.traverse.plan.revisit_site >= options.world.traverse.plan.num_sites) options.world.traverse.plan.revisit_site = -1;
     }
     std::string error;
     if (!options.Check(&error)) throw vloc::ConfigError("command line: " + error);
     LOG(INFO) << "sim_rover options:\n"
-              << echo << "\n(overrides: speed " << options.speed << ", sites " << options.traverse.plan.num_sites << ")";
+              << echo << "\n(overrides: speed " << options.speed << ", sites " << options.world.traverse.plan.num_sites << ")";
   } catch (const vloc::ConfigError& e) {
     std::cerr << "sim_rover: " << e.what() << "\n";
     return 1;
   }
 
-  std::unique_ptr<vloc::sim::Terrain> terrain;
-  vloc::sim::SimulatedTraverse traverse;
+  std::unique_ptr<vloc::sim::RoverWorld> world;
   try {
-    terrain = std::make_unique<vloc::sim::Terrain>(options.terrain);
-    const auto& s = terrain->summary();
-    LOG(INFO) << "terrain: " << s.grid_vertices << "^2 vertices, " << s.num_craters << " craters, " << s.num_rocks
-              << " rocks, heights " << s.min_height << " .. " << s.max_height << " m, built in " << s.build_seconds << " s";
-    traverse = vloc::sim::SimulateTraverse(*terrain, options.traverse);
+    world = std::make_unique<vloc::sim::RoverWorld>(options.world);
   } catch (const std::exception& e) {
     std::cerr << "sim_rover: " << e.what() << "\n";
     return 1;
   }
+  const auto& s = world->terrain().summary();
+  LOG(INFO) << "terrain: " << s.grid_vertices << "^2 vertices, " << s.num_craters << " craters, " << s.num_rocks
+            << " rocks, heights " << s.min_height << " .. " << s.max_height << " m, built in " << s.build_seconds << " s";
+  const auto& traverse = world->traverse();
   LOG(INFO) << "traverse: " << traverse.sites.size() << " sites, " << traverse.path_length_m << " m driven in "
             << traverse.duration_s << " s, " << traverse.exposures.size() << " stereo pairs";
+  if (setup->args.Has("render-sample")) return RenderSample(*world, setup->args.Get("render-sample"));
 
-  const vloc::sim::NavcamRenderer renderer(*terrain, options.navcam, options.render);
-  vloc::SimRoverPublisher publisher(options, traverse, renderer);
-  if (setup->args.Has("render-sample")) return RenderSample(publisher, traverse, *terrain, setup->args.Get("render-sample"));
+  vloc::SimRoverPublisher publisher(options, *world);
   if (setup->args.Has("log")) {
     std::string error;
     const std::string path = setup->args.Get("log");
@@ -156,10 +155,11 @@ int main(int argc, char** argv) {
       std::cerr << "sim_rover: " << error << "\n";
       return 1;
     }
-    const auto& s = publisher.summary();
-    LOG(INFO) << "wrote " << path << ": " << s.stereo_pairs << " stereo pairs, " << s.site_events << " site events, "
-              << s.imu_samples << " IMU, " << s.wheel_samples << " wheel, " << s.gt_poses << " GT poses, "
-              << s.site_poses << " site poses; rendering took " << s.render_seconds_total << " s";
+    const auto& summary = publisher.summary();
+    LOG(INFO) << "wrote " << path << ": " << summary.stereo_pairs << " stereo pairs, " << summary.site_events
+              << " site events, " << summary.imu_samples << " IMU, " << summary.wheel_samples << " wheel, "
+              << summary.gt_poses << " GT poses, " << summary.site_poses << " site poses; rendering took "
+              << summary.render_seconds_total << " s";
     return 0;
   }
   return PublishRealTime(*setup->transport, options.speed, &publisher);

@@ -9,7 +9,6 @@
 #include "vloc/common/options.h"
 #include "vloc/lcm_io/convert.h"
 #include "vloc/lcm_io/convert_rover.h"
-#include "vloc/sim/noise.h"
 
 namespace vloc {
 namespace {
@@ -34,10 +33,7 @@ void SimRoverOptions::Visit(OptionsReader& r) {
   r.Optional("jpeg_quality", &jpeg_quality, "1..100");
   r.Optional("speed", &speed, "real-time factor; 0 = as fast as possible");
   r.Optional("gt_rate_hz", &gt_rate_hz, "Hz, GT_POSE rate");
-  r.Child("navcam", [&](OptionsReader& c) { navcam.Visit(c); });
-  r.Child("terrain", [&](OptionsReader& c) { terrain.Visit(c); });
-  r.Child("render", [&](OptionsReader& c) { render.Visit(c); });
-  r.Child("traverse", [&](OptionsReader& c) { traverse.Visit(c); });
+  world.Visit(r);
 }
 
 bool SimRoverOptions::Check(std::string* error) const {
@@ -49,31 +45,15 @@ bool SimRoverOptions::Check(std::string* error) const {
   }
   if (jpeg_quality < 1 || jpeg_quality > 100) return Fail(error, "jpeg_quality must be in [1, 100]");
   if (!(speed >= 0)) return Fail(error, "speed must be >= 0 (0 = as fast as possible)");
-  if (!(gt_rate_hz > 0 && gt_rate_hz <= traverse.imu.rate_hz)) return Fail(error, "gt_rate_hz must be in (0, imu rate]");
+  if (!(gt_rate_hz > 0 && gt_rate_hz <= world.traverse.imu.rate_hz)) return Fail(error, "gt_rate_hz must be in (0, imu rate]");
   for (const std::string* c : {&stereo_channel, &site_channel, &imu_channel, &wheel_channel, &gt_channel, &site_pose_channel})
     if (c->empty()) return Fail(error, "channel names must not be empty");
-  return navcam.Check(error) && terrain.Check(error) && render.Check(error) && traverse.Check(error);
+  return world.Check(error);
 }
 
-SimRoverPublisher::SimRoverPublisher(const SimRoverOptions& options, const sim::SimulatedTraverse& traverse,
-                                     const sim::NavcamRenderer& renderer)
-    : options_(options), traverse_(traverse), renderer_(renderer) {
-  gt_every_ = std::max(1, static_cast<int>(std::lround(options.traverse.imu.rate_hz / options.gt_rate_hz)));
-}
-
-StereoPair SimRoverPublisher::RenderExposure(const sim::Exposure& e) const {
-  const uint64_t seed = sim::Hash3(options_.traverse.seed, static_cast<uint64_t>(e.site_id), static_cast<uint64_t>(e.pair_index));
-  const sim::RenderedPair rendered = renderer_.RenderPair(e.world_from_body, e.mast_pan, e.mast_tilt, seed);
-  StereoPair pair;
-  pair.utime = e.utime;
-  pair.site_id = e.site_id;
-  pair.pair_index = e.pair_index;
-  pair.num_pairs = e.num_pairs;
-  pair.mast_pan = e.mast_pan;
-  pair.mast_tilt = e.mast_tilt;
-  pair.left = rendered.left.image;
-  pair.right = rendered.right.image;
-  return pair;
+SimRoverPublisher::SimRoverPublisher(const SimRoverOptions& options, const sim::RoverWorld& world)
+    : options_(options), world_(world), traverse_(world.traverse()) {
+  gt_every_ = std::max(1, static_cast<int>(std::lround(options.world.traverse.imu.rate_hz / options.gt_rate_hz)));
 }
 
 void SimRoverPublisher::EmitNext(const Sink& sink) {
@@ -109,7 +89,7 @@ void SimRoverPublisher::EmitNext(const Sink& sink) {
   while (exposure_ < traverse_.exposures.size() && traverse_.exposures[exposure_].utime <= t) {
     const sim::Exposure& e = traverse_.exposures[exposure_++];
     const auto start = std::chrono::steady_clock::now();
-    const StereoPair pair = RenderExposure(e);
+    const StereoPair pair = world_.RenderExposure(e);
     summary_.render_seconds_total += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     stereo_image_t msg = StereoPairToMessage(pair, ParseImageEncoding(options_.image_encoding));
     sink(options_.stereo_channel, Encode(msg), e.utime);

@@ -17,10 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "vloc/common/camera.h"
-#include "vloc/sim/navcam_renderer.h"
-#include "vloc/sim/rover_traverse.h"
-#include "vloc/sim/terrain.h"
+#include "vloc/sim/rover_world.h"
 
 namespace vloc {
 
@@ -37,10 +34,7 @@ struct SimRoverOptions {
   int jpeg_quality = 95;                           // 1..100 when image_encoding is jpeg
   double speed = 1.0;                              // real-time factor; 0 = as fast as possible
   double gt_rate_hz = 10.0;                        // Hz, GT_POSE rate (a divisor of the IMU rate)
-  NavcamModel navcam;                              // calibration (include ../navcam.yaml)
-  sim::TerrainOptions terrain;                     // the world
-  sim::NavcamRenderOptions render;                 // the camera's radiometry and noise
-  sim::TraverseOptions traverse;                   // plan, panorama, motion, IMU, wheels
+  sim::RoverWorldOptions world;                    // sections navcam, terrain, render, traverse (top level)
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
@@ -61,9 +55,8 @@ class SimRoverPublisher {
   // Receives one encoded message: channel, bytes, message utime.
   using Sink = std::function<void(const std::string& channel, const std::vector<uint8_t>& bytes, int64_t utime)>;
 
-  // All references must outlive the publisher.
-  SimRoverPublisher(const SimRoverOptions& options, const sim::SimulatedTraverse& traverse,
-                    const sim::NavcamRenderer& renderer);
+  // Both must outlive the publisher.
+  SimRoverPublisher(const SimRoverOptions& options, const sim::RoverWorld& world);
 
   bool Done() const { return step_ >= traverse_.imu.size(); }
   int64_t NextUtime() const { return Done() ? 0 : traverse_.imu[step_].utime; }
@@ -72,13 +65,10 @@ class SimRoverPublisher {
   void EmitNext(const Sink& sink);
   const SimRoverSummary& summary() const { return summary_; }
 
-  // Renders the stereo pair of one exposure (noise seeded by seed, site, pair).
-  StereoPair RenderExposure(const sim::Exposure& exposure) const;
-
  private:
   const SimRoverOptions& options_;
+  const sim::RoverWorld& world_;
   const sim::SimulatedTraverse& traverse_;
-  const sim::NavcamRenderer& renderer_;
   size_t step_ = 0, event_ = 0, wheel_ = 0, exposure_ = 0;
   int gt_every_ = 10;
   SimRoverSummary summary_;

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "vloc/sim/navcam_renderer.h"
+#include "vloc/sim/rover_world.h"
 #include "vloc/sim/terrain.h"
 
 namespace vloc::sim {
@@ -201,6 +202,42 @@ TEST(SimRender, LookingAtTheSkyGivesBlackLevel) {
   EXPECT_EQ(pair.left.sky_pixels, 512 * 512);
   EXPECT_EQ(cv::countNonZero(pair.left.image != static_cast<int>(options.black_level_dn)), 0);
   EXPECT_EQ(cv::countNonZero(pair.left.depth), 0);
+}
+
+}  // namespace
+}  // namespace vloc::sim
+
+namespace vloc::sim {
+namespace {
+
+// Two sites 10 m apart, forward-looking 7-pair panoramas (the front end's
+// test scene), at a quarter of the Navcam resolution.
+TEST(SimRoverWorld, TwoSitesTenMetresApartRenderTheirPanoramas) {
+  RoverWorldOptions options;
+  options.terrain.size_m = 60.0;
+  options.terrain.origin_x_m = -15.0;
+  options.terrain.origin_y_m = -30.0;
+  for (PinholeCamera* c : {&options.navcam.rig.left, &options.navcam.rig.right}) {
+    c->width = c->height = 256;
+    c->fx = c->fy = 1189.0 / 4;
+    c->cx = c->cy = 127.5;
+  }
+  options.traverse.plan.sites_xy = {0, 0, 10, 0};
+  const RoverWorld world(options);
+  ASSERT_EQ(world.traverse().sites.size(), 2u);
+  const Pose3& site1 = world.traverse().sites[1].world_from_body;
+  EXPECT_NEAR((site1.translation().head<2>() - Eigen::Vector2d(10, 0)).norm(), 0.0, 0.3);
+  EXPECT_NEAR(Heading(site1), 0.0, 1e-3);
+  const std::vector<StereoPair> pairs = world.RenderSite(1);
+  ASSERT_EQ(pairs.size(), 7u);
+  for (const StereoPair& pair : pairs) {
+    EXPECT_EQ(pair.site_id, 1);
+    EXPECT_EQ(pair.left.size(), cv::Size(256, 256));
+    EXPECT_EQ(pair.utime, world.traverse().sites[1].exposures[pair.pair_index].utime);
+  }
+  const std::vector<StereoPair> again = world.RenderSite(1);
+  EXPECT_EQ(cv::norm(pairs[3].left, again[3].left, cv::NORM_L1), 0.0);
+  EXPECT_THROW(world.RenderSite(2), std::invalid_argument);
 }
 
 }  // namespace
