@@ -1,0 +1,103 @@
+#include "crosssite_ba_adapter.h"
+
+#include <sstream>
+
+#include "vloc/common/options.h"
+#include "vloc/lcm_io/convert.h"
+#include "vloc/lcm_io/convert_rover.h"
+
+namespace vloc {
+
+void CrossSiteBaProcOptions::Visit(OptionsReader& r) {
+  r.Optional("navcam_config", &navcam_config, "Navcam calibration YAML");
+  r.Optional("tie_points_channel", &tie_points_channel, "tie_points_t in");
+  r.Optional("dr_channel", &dr_channel, "site_pose_t in (dead reckoning)");
+  r.Optional("visual_channel", &visual_channel, "localization_t out");
+  r.Optional("chain_previous", &chain_previous, "hold the previous site at our own estimate");
+  r.Optional("queue_capacity", &queue_capacity, "messages per subscription queue");
+  r.Child("ba", [&](OptionsReader& c) { ba.Visit(c); });
+}
+
+bool CrossSiteBaProcOptions::Check(std::string* error) const {
+  if (navcam_config.empty()) return Fail(error, "navcam_config must name the Navcam calibration file");
+  if (tie_points_channel.empty() || dr_channel.empty() || visual_channel.empty())
+    return Fail(error, "channel names must not be empty");
+  if (queue_capacity < 1) return Fail(error, "queue_capacity must be >= 1");
+  return ba.Check(error);
+}
+
+localization_t LocalizationToMessage(const CrossSiteBaSummary& s, int64_t utime) {
+  localization_t msg;
+  msg.utime = utime;
+  msg.site_id = s.current_site_id;
+  msg.reference_site_id = s.previous_site_id;
+  msg.status = static_cast<int8_t>(s.status);
+  msg.message = s.message;
+  msg.pose = PoseToMessage(s.world_from_current, "world", "body");
+  msg.relative_pose = PoseToMessage(s.previous_from_current, "site_" + std::to_string(s.previous_site_id),
+                                    "site_" + std::to_string(s.current_site_id));
+  msg.num_tie_points_used = s.num_tie_points_used;
+  msg.num_tie_points_rejected = s.num_tie_points_rejected;
+  msg.num_observations = s.num_observations;
+  msg.initial_rms_px = s.initial_rms_px;
+  msg.final_rms_px = s.final_rms_px;
+  msg.iterations = s.iterations;
+  msg.solve_seconds = s.solve_seconds;
+  msg.condition_number = std::isfinite(s.condition_number) ? s.condition_number : 1e300;
+  return msg;
+}
+
+CrossSiteBaAdapter::CrossSiteBaAdapter(Transport& transport, const CrossSiteBaProcOptions& options,
+                                       const NavcamModel& navcam)
+    : transport_(transport), options_(options), navcam_(navcam) {
+  dr_stats_ = Subscribe<site_pose_t>(
+      transport_, options_.dr_channel,
+      [this](const std::string&, const site_pose_t& msg) { dr_poses_[msg.site_id] = PoseFromMessage(msg.pose); },
+      options_.queue_capacity);
+  tie_stats_ = Subscribe<tie_points_t>(
+      transport_, options_.tie_points_channel,
+      [this](const std::string&, const tie_points_t& msg) {
+        const CrossSiteBaSummary s = Process(TiePointsFromMessage(msg));
+        Publish(transport_, options_.visual_channel, LocalizationToMessage(s, msg.utime));
+      },
+      options_.queue_capacity);
+}
+
+CrossSiteBaSummary CrossSiteBaAdapter::Process(TiePointSet set) {
+  const int prev = set.previous_site_id, cur = set.current_site_id;
+  // Dead-reckoning motion from the previous to the current site.
+  Pose3 previous_from_current_dr = set.previous_site_pose.pose.inverse() * set.current_site_pose_dr.pose;
+  std::string motion_source = "tie-point message";
+  if (dr_poses_.count(prev) && dr_poses_.count(cur)) {
+    previous_from_current_dr = dr_poses_[prev].pose.inverse() * dr_poses_[cur].pose;
+    motion_source = "SITE_POSE_DR";
+  }
+  std::string previous_source = "tie-point message";
+  if (options_.chain_previous && estimates_.count(prev)) {
+    set.previous_site_pose = estimates_[prev];
+    previous_source = "own estimate";
+  }
+  if (dr_poses_.count(cur)) set.current_site_pose_dr.covariance = dr_poses_[cur].covariance;
+  set.current_site_pose_dr.pose = set.previous_site_pose.pose * previous_from_current_dr;
+  CrossSiteBaSummary s = SolveCrossSiteBa(set, navcam_, options_.ba);
+  estimates_[cur] = s.world_from_current;
+  (s.usable ? solved_ : failed_)++;
+  if (s.usable) {
+    LOG(INFO) << s.BriefReport() << " [previous site from " << previous_source << ", motion from " << motion_source
+              << "]";
+  } else {
+    LOG(WARNING) << s.BriefReport() << " [dead reckoning stands; previous site from " << previous_source
+                 << ", motion from " << motion_source << "]";
+  }
+  return s;
+}
+
+std::string CrossSiteBaAdapter::StatusLine() const {
+  std::ostringstream o;
+  o << "site pairs solved " << solved_ << ", failed " << failed_ << "; tie-point messages received "
+    << tie_stats_->received << " (undecodable " << tie_stats_->decode_failures << ", rejected "
+    << tie_stats_->handler_failures << ")";
+  return o.str();
+}
+
+}  // namespace vloc

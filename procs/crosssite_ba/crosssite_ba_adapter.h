@@ -1,0 +1,62 @@
+#pragma once
+// LCM side of the cross-site bundle adjustment: TIE_POINTS (tie_points_t)
+// and SITE_POSE_DR (site_pose_t) in, SITE_POSE_VISUAL (localization_t) out.
+//
+// The chain of sites: the previous site's pose held fixed is this process's
+// own latest estimate of that site (the BA result, or the chained dead
+// reckoning when the BA failed there) when it has one, else the pose in the
+// tie-point message. The initial value of the current site is that
+// previous pose composed with the dead-reckoning motion between the two
+// sites (from SITE_POSE_DR of both sites when received, else from the
+// message's two poses). On failure the published pose is that chained
+// dead-reckoning pose with the current site's DR covariance.
+
+#include <map>
+#include <memory>
+#include <string>
+
+#include "vloc/ba/crosssite_ba.h"
+#include "vloc/common/camera.h"
+#include "vloc/lcm_io/transport.h"
+#include "vloc/lcm_io/typed.h"
+#include "vloc/localization_t.hpp"
+
+namespace vloc {
+
+struct CrossSiteBaProcOptions {
+  std::string navcam_config = "config/navcam.yaml";     // Navcam calibration (rig + mast)
+  std::string tie_points_channel = "TIE_POINTS";         // tie_points_t in
+  std::string dr_channel = "SITE_POSE_DR";               // site_pose_t in
+  std::string visual_channel = "SITE_POSE_VISUAL";       // localization_t out
+  bool chain_previous = true;                            // hold the previous site at our own estimate (see above)
+  int queue_capacity = 30;                               // messages per subscription queue
+  CrossSiteBaOptions ba;                                 // the adjustment (map `ba`)
+
+  void Visit(OptionsReader& reader);
+  bool Check(std::string* error) const;
+};
+
+// The message for a summary (the conversion lives here: one adapter layer).
+localization_t LocalizationToMessage(const CrossSiteBaSummary& summary, int64_t utime);
+
+class CrossSiteBaAdapter {
+ public:
+  CrossSiteBaAdapter(Transport& transport, const CrossSiteBaProcOptions& options, const NavcamModel& navcam);
+  int64_t solved() const { return solved_; }
+  int64_t failed() const { return failed_; }
+  std::string StatusLine() const;
+
+  // Prepares the set as the chain says, solves it and remembers the result.
+  CrossSiteBaSummary Process(TiePointSet set);
+
+ private:
+  Transport& transport_;
+  CrossSiteBaProcOptions options_;
+  NavcamModel navcam_;
+  std::map<int, PoseWithCovariance> dr_poses_;    // SITE_POSE_DR per site
+  std::map<int, PoseWithCovariance> estimates_;   // our latest estimate per site
+  std::shared_ptr<SubscriptionStats> tie_stats_, dr_stats_;
+  int64_t solved_ = 0, failed_ = 0;
+};
+
+}  // namespace vloc

@@ -1,0 +1,31 @@
+// crosssite_ba: cross-site bundle adjustment of each new site.
+//   crosssite_ba --config config/procs/crosssite_ba.yaml [--lcm-url URL]
+#include <iostream>
+
+#include "crosssite_ba_adapter.h"
+#include "vloc/common/logging.h"
+#include "vloc/common/options.h"
+#include "vloc/lcm_io/process.h"
+
+int main(int argc, char** argv) {
+  vloc::InitLogging(argv[0]);
+  auto setup =
+      vloc::SetupProcess(argc, argv, {"crosssite_ba", {}, false, "[--config config/procs/crosssite_ba.yaml]"});
+  if (!setup) return 1;
+  vloc::CrossSiteBaProcOptions options;
+  vloc::NavcamModel navcam;
+  try {
+    std::string echo, navcam_echo;
+    options = vloc::LoadOptions<vloc::CrossSiteBaProcOptions>(setup->config, setup->config_path, &echo);
+    navcam = vloc::LoadOptionsFile<vloc::NavcamModel>(options.navcam_config, "", &navcam_echo);
+    LOG(INFO) << "crosssite_ba options:\n" << echo << "\nNavcam (" << options.navcam_config << "):\n" << navcam_echo;
+  } catch (const vloc::ConfigError& e) {
+    std::cerr << "crosssite_ba: " << e.what() << "\n";
+    return 1;
+  }
+  vloc::CrossSiteBaAdapter adapter(*setup->transport, options, navcam);
+  LOG(INFO) << "crosssite_ba: waiting for " << options.tie_points_channel;
+  const int rc = vloc::RunUntilSignal(*setup->transport, 200);
+  LOG(INFO) << "crosssite_ba: " << adapter.StatusLine();
+  return rc;
+}
