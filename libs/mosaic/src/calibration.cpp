@@ -34,6 +34,8 @@ void CalibrationOptions::Visit(OptionsReader& r) {
   r.Optional("height", &height, "m, known calibration height; 0 = from GPS");
   r.Optional("focal_known", &focal_known, "false = estimate f by equation 1");
   r.Optional("max_frames", &max_frames, "frames to search for the marker before warning");
+  r.Optional("frames_to_average", &frames_to_average, "marker sightings averaged");
+  r.Optional("use_gps_height", &use_gps_height, "marker: height from GPS (true) or from the known focal (false)");
 }
 
 bool CalibrationOptions::Check(std::string* error) const {
@@ -47,6 +49,9 @@ bool CalibrationOptions::Check(std::string* error) const {
   if (source == "config" && !(height > 0)) return Fail(error, "calibration.source 'config' needs calibration.height > 0");
   if (!focal_known && source != "marker") return Fail(error, "calibration.focal_known: false needs source 'marker'");
   if (max_frames < 1) return Fail(error, "calibration.max_frames must be >= 1");
+  if (frames_to_average < 1) return Fail(error, "calibration.frames_to_average must be >= 1");
+  if (!focal_known && !use_gps_height && !(height > 0))
+    return Fail(error, "calibration.focal_known: false needs a height: use_gps_height: true or calibration.height > 0");
   return true;
 }
 

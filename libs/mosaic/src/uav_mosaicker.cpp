@@ -150,7 +150,6 @@ bool UavMosaicker::TryCalibrate(const cv::Mat& frame, FrameState* state) {
   std::string why;
   Calibration c;
   const double focal = camera_.fx;
-  const double known_height = co.height > 0 ? co.height : last_hag_;
   if (co.source == "config") {
     c.valid = true;
     c.source = "config";
@@ -170,11 +169,28 @@ bool UavMosaicker::TryCalibrate(const cv::Mat& frame, FrameState* state) {
       c.pixels_per_metre = focal / last_hag_;
     }
   } else {
-    const MarkerObservation marker = DetectMarker(frame, co);
-    if (marker.found && !co.focal_known && !(known_height > 0)) {
-      why = "marker seen but no height yet (GPS height_above_ground or calibration.height) for eq. 1";
+    MarkerObservation marker = DetectMarker(frame, co);
+    const double height_for_marker = co.height > 0 ? co.height : (co.use_gps_height ? last_hag_ : std::nan(""));
+    const bool need_height = co.use_gps_height || !co.focal_known;
+    if (marker.found && need_height && !(height_for_marker > 0)) {
+      why = "marker seen but no height yet (GPS height_above_ground or calibration.height)";
+    } else if (marker.found) {
+      marker_sides_.push_back(marker.side_px);
+      marker_heights_.push_back(height_for_marker);
+      if (static_cast<int>(marker_sides_.size()) < co.frames_to_average) {
+        why = "marker seen " + std::to_string(marker_sides_.size()) + " of " + std::to_string(co.frames_to_average) +
+              " times (averaging)";
+      } else {
+        double side = 0, height = 0;
+        for (size_t i = 0; i < marker_sides_.size(); ++i) {
+          side += marker_sides_[i] / marker_sides_.size();
+          height += marker_heights_[i] / marker_heights_.size();
+        }
+        marker.side_px = side;
+        c = CalibrateFromMarker(marker, need_height ? height : std::nan(""), focal, co, &why);
+      }
     } else {
-      c = CalibrateFromMarker(marker, known_height, focal, co, &why);
+      why = marker.why;
     }
   }
   if (!c.valid) {

@@ -20,6 +20,8 @@ struct CalibrationOptions {
   double height = 0.0;                  // m, known height at calibration; 0 = take it from GPS height above ground
   bool focal_known = true;              // false = estimate f with equation 1 (needs a marker and a height)
   int max_frames = 100;                 // frames to search for the marker before reporting the problem (keeps trying)
+  int frames_to_average = 10;           // marker sightings (and GPS heights) averaged before calibrating
+  bool use_gps_height = true;           // marker: true = height from GPS height above ground (sec. 2.1); false = from the known focal (h = f w / p)
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;

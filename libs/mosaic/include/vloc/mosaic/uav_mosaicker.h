@@ -183,6 +183,7 @@ class UavMosaicker {
   // GPS
   std::optional<GpsFix> origin_fix_;
   double last_hag_ = std::numeric_limits<double>::quiet_NaN();
+  std::vector<double> marker_sides_, marker_heights_;       // calibration sightings being averaged
   int64_t last_fix_utime_ = INT64_MIN / 2;
   std::deque<GpsFix> pending_fixes_;
   std::deque<std::pair<int64_t, cv::Point2d>> history_;   // utime, route_px of tracked frames

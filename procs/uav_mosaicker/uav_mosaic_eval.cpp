@@ -1,0 +1,174 @@
+// uav_mosaic_eval: runs the simulated flight (libs/sim/uav) through the
+// mosaicker offline, frame by frame, and prints the figures against ground
+// truth: height error RMS (% of true height), route error (% of distance
+// flown), loss of track, time per frame, mosaic update rate, peak memory.
+//   uav_mosaic_eval [--config config/procs/uav_mosaicker.yaml] [--sim-config config/procs/sim_uav.yaml]
+//                   [--fps F] [--duration S] [--gps-use calibration|fused] [--out out/sim_mosaic.png]
+//                   [--csv out/sim_track.csv] [--no-gps]
+#include <glog/logging.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <numeric>
+
+#include "vloc/common/command_line.h"
+#include "vloc/common/logging.h"
+#include "vloc/common/options.h"
+#include "vloc/mosaic/uav_mosaicker.h"
+#include "vloc/sim/uav_world.h"
+
+namespace {
+
+double PeakRssMb() {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
+  return 0;
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  vloc::InitLogging(argv[0]);
+  vloc::CommandLine args;
+  std::string error;
+  if (!args.Parse(argc, argv, {"config", "sim-config", "fps", "duration", "gps-use", "out", "csv", "no-gps", "help"}, &error) ||
+      args.Has("help")) {
+    std::cerr << (error.empty() ? "" : "uav_mosaic_eval: " + error + "\n")
+              << "usage: uav_mosaic_eval [--config config/procs/uav_mosaicker.yaml] [--sim-config "
+                 "config/procs/sim_uav.yaml] [--fps F] [--duration S] [--gps-use calibration|fused] [--out PNG] "
+                 "[--csv FILE] [--no-gps]\n";
+    return error.empty() ? 0 : 1;
+  }
+  const std::string config = args.Get("config", "config/procs/uav_mosaicker.yaml");
+  const std::string sim_config = args.Get("sim-config", "config/procs/sim_uav.yaml");
+  vloc::mosaic::MosaickerOptions options;
+  vloc::UavWorldOptions world_options;
+  try {
+    options = vloc::LoadOptionsFile<vloc::mosaic::MosaickerOptions>(config, "mosaicker");
+    world_options = vloc::LoadOptionsFile<vloc::UavWorldOptions>(sim_config, "world");
+    if (args.Has("fps")) world_options.fps = args.GetDouble("fps", world_options.fps);
+    if (args.Has("gps-use")) options.height_filter.gps_use = args.Get("gps-use");
+    if (!options.Check(&error) || !world_options.Check(&error)) throw vloc::ConfigError("command line: " + error);
+  } catch (const std::exception& e) {
+    std::cerr << "uav_mosaic_eval: " << e.what() << "\n";
+    return 1;
+  }
+  const bool use_gps = !args.Has("no-gps");
+  vloc::UavWorld world(world_options);
+  const double duration = args.GetDouble("duration", 0.0);
+  int frames = world.NumFrames();
+  if (duration > 0) frames = std::min(frames, static_cast<int>(duration * world_options.fps));
+  vloc::mosaic::UavMosaicker mosaicker(options);
+  std::ofstream csv;
+  if (args.Has("csv")) {
+    csv.open(args.Get("csv"));
+    csv << "t,status,height,true_height,east,north,true_east,true_north,gps_aided,inliers,foreground,track_ms,mosaic_ms\n";
+  }
+  const double lat0 = world_options.gps.origin_latitude, lon0 = world_options.gps.origin_longitude;
+  int gps_index = 0, lost = 0, calibrating = 0, recovered = 0, evaluated = 0, georef = 0;
+  double se_height = 0, max_height = 0, dist = 0, se_route = 0, max_route = 0, max_route_dropout = 0, last_route = 0;
+  double render_s = 0;
+  std::vector<double> track_ms, mosaic_ms;
+  double total_s = 0;
+  int blends = 0;
+  Eigen::Vector3d prev_truth = world.flight().StateAt(0).position;
+  for (int i = 0; i < frames; ++i) {
+    const double t = world.FrameTime(i);
+    while (use_gps && gps_index < world.gps().NumSamples() && world.gps().SampleTime(gps_index) <= t) {
+      const vloc::UavGpsSample& g = world.gps().Sample(gps_index++);
+      vloc::mosaic::GpsFix fix;
+      fix.utime = g.utime;
+      fix.valid = g.has_fix;
+      fix.latitude = g.latitude;
+      fix.longitude = g.longitude;
+      fix.altitude = g.altitude;
+      fix.height_above_ground = g.height_above_ground;
+      fix.horizontal_sigma = g.horizontal_sigma;
+      fix.vertical_sigma = g.vertical_sigma;
+      mosaicker.AddGps(fix);
+    }
+    const auto r0 = std::chrono::steady_clock::now();
+    const cv::Mat frame = world.RenderFrame(t);
+    render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - r0).count();
+    const vloc::mosaic::FrameState s = mosaicker.ProcessFrame(frame, world.FrameUtime(i));
+    const vloc::UavState truth = world.flight().StateAt(t);
+    dist += (truth.position.head<2>() - prev_truth.head<2>()).norm();
+    prev_truth = truth.position;
+    total_s += s.tracking_seconds + s.mosaic_seconds;
+    if (s.status == vloc::mosaic::TrackStatus::kCalibrating) {
+      ++calibrating;
+      continue;
+    }
+    track_ms.push_back(1e3 * s.tracking_seconds);
+    if (s.mosaic_updated) {
+      mosaic_ms.push_back(1e3 * s.mosaic_seconds);
+      ++blends;
+    }
+    if (s.status == vloc::mosaic::TrackStatus::kLost) ++lost;
+    if (s.status == vloc::mosaic::TrackStatus::kRecovered) ++recovered;
+    ++evaluated;
+    const double eh = (s.height - truth.position.z()) / truth.position.z();
+    se_height += eh * eh;
+    max_height = std::max(max_height, std::abs(eh));
+    cv::Point2d est(s.route_local);
+    if (s.georeferenced) {
+      est = vloc::mosaic::LatLonToEnu(s.latitude, s.longitude, lat0, lon0);
+      const double e = std::hypot(est.x - truth.position.x(), est.y - truth.position.y());
+      se_route += e * e;
+      ++georef;
+      max_route = std::max(max_route, e);
+      if (world.gps().InDropout(t)) max_route_dropout = std::max(max_route_dropout, e);
+      last_route = e;
+    }
+    if (csv.is_open())
+      csv << t << "," << vloc::mosaic::ToString(s.status) << "," << s.height << "," << truth.position.z() << ","
+          << est.x << "," << est.y << "," << truth.position.x() << "," << truth.position.y() << "," << s.gps_aided << ","
+          << s.num_inliers << "," << s.num_foreground << "," << 1e3 * s.tracking_seconds << "," << 1e3 * s.mosaic_seconds
+          << "\n";
+    if (i % 300 == 0)
+      LOG(INFO) << "t " << t << " s: height " << s.height << " (true " << truth.position.z() << "), "
+                << vloc::mosaic::ToString(s.status);
+  }
+  const vloc::mosaic::MosaickerSummary summary = mosaicker.summary();
+  std::cout << std::fixed << std::setprecision(3);
+  std::cout << "flight: " << frames << " frames at " << world_options.fps << " fps, " << dist
+            << " m flown horizontally, GPS " << (use_gps ? "on (drop-outs as configured)" : "off")
+            << ", height filter gps_use=" << options.height_filter.gps_use << "\n";
+  std::cout << summary.calibration.Describe() << "\n";
+  std::cout << "frames evaluated " << evaluated << " (calibrating " << calibrating << "), lost " << lost
+            << ", recovered " << recovered << "\n";
+  std::cout << "height error RMS " << 100 * std::sqrt(se_height / std::max(1, evaluated)) << " % of true height, max "
+            << 100 * max_height << " %\n";
+  if (georef > 0)
+    std::cout << "route error (georeferenced frames " << georef << "): RMS " << std::sqrt(se_route / georef) << " m, max "
+              << max_route << " m (" << 100 * max_route / dist << " % of distance), final " << last_route
+              << " m, max in GPS drop-outs " << max_route_dropout << " m (" << 100 * max_route_dropout / dist << " %)\n";
+  std::cout << "time per frame: tracking+height median " << Median(track_ms) << " ms, mosaic blend median "
+            << Median(mosaic_ms) << " ms (" << blends << " blends); throughput " << frames / std::max(1e-9, total_s)
+            << " frames/s, mosaic updates " << blends / std::max(1e-9, total_s) << " /s of processing; render "
+            << 1e3 * render_s / std::max(1, frames) << " ms/frame (not counted)\n";
+  std::cout << "memory: peak RSS " << PeakRssMb() << " MB (process incl. simulator), canvas "
+            << summary.canvas.bytes_in_memory / 1048576.0 << " MB, tiles " << summary.canvas.tiles_total
+            << " (peak in memory " << summary.canvas.peak_tiles_in_memory << ", spilled " << summary.canvas.spills << ")\n";
+  std::cout << summary.BriefReport() << "\n";
+  if (args.Has("out")) {
+    if (!mosaicker.WriteMosaic(args.Get("out"), &error)) {
+      std::cerr << "uav_mosaic_eval: " << error << "\n";
+      return 1;
+    }
+    std::cout << "mosaic: " << args.Get("out") << "\n";
+  }
+  return 0;
+}

@@ -1,0 +1,128 @@
+#include "uav_mosaicker_adapter.h"
+
+#include <glog/logging.h>
+
+#include <cmath>
+
+#include "vloc/common/options.h"
+#include "vloc/image_t.hpp"
+#include "vloc/lcm_io/convert.h"
+#include "vloc/uav_gps_t.hpp"
+
+namespace vloc {
+
+void UavMosaickerProcOptions::Visit(OptionsReader& r) {
+  r.Optional("camera_channel", &camera_channel, "image_t in");
+  r.Optional("gps_channel", &gps_channel, "uav_gps_t in");
+  r.Optional("state_channel", &state_channel, "uav_state_t out");
+  r.Optional("mosaic_channel", &mosaic_channel, "image_t out, JPEG preview");
+  r.Optional("preview_period", &preview_period, "s between previews, 0 = none");
+  r.Optional("preview_max_side", &preview_max_side, "px");
+  r.Optional("preview_jpeg_quality", &preview_jpeg_quality, "1..100");
+  r.Optional("output", &output, "full mosaic PNG path, written on SIGUSR1 and at exit");
+  r.Optional("camera_queue", &camera_queue, "frames queued before the oldest is dropped");
+  r.Optional("report_every_n_frames", &report_every_n_frames, "summary log period");
+  r.Child("mosaicker", [&](OptionsReader& c) { mosaicker.Visit(c); });
+}
+
+bool UavMosaickerProcOptions::Check(std::string* error) const {
+  if (camera_channel.empty() || state_channel.empty()) return Fail(error, "channel names must not be empty");
+  if (!(preview_period >= 0)) return Fail(error, "preview_period must be >= 0 s");
+  if (preview_max_side < 64) return Fail(error, "preview_max_side must be >= 64 px");
+  if (preview_jpeg_quality < 1 || preview_jpeg_quality > 100) return Fail(error, "preview_jpeg_quality must be in 1..100");
+  if (camera_queue < 1) return Fail(error, "camera_queue must be >= 1");
+  if (report_every_n_frames < 1) return Fail(error, "report_every_n_frames must be >= 1");
+  return mosaicker.Check(error);
+}
+
+uav_state_t StateToMessage(const mosaic::FrameState& s) {
+  uav_state_t m;
+  m.utime = s.utime;
+  m.frame_index = s.frame_index;
+  m.status = static_cast<int8_t>(s.status);
+  m.message = s.message;
+  m.height = s.height;
+  m.height_raw = s.height_raw;
+  m.scale = s.scale;
+  m.route_px[0] = s.route_px.x;
+  m.route_px[1] = s.route_px.y;
+  m.route_local[0] = s.route_local.x;
+  m.route_local[1] = s.route_local.y;
+  m.latitude = s.latitude;
+  m.longitude = s.longitude;
+  m.gps_aided = s.gps_aided ? 1 : 0;
+  m.num_matches = s.num_matches;
+  m.num_inliers = s.num_inliers;
+  m.num_foreground = s.num_foreground;
+  m.tracking_seconds = s.tracking_seconds;
+  return m;
+}
+
+mosaic::GpsFix GpsFromMessage(const uav_gps_t& msg) {
+  mosaic::GpsFix f;
+  f.utime = msg.utime;
+  f.valid = msg.fix != uav_gps_t::FIX_NONE && std::isfinite(msg.latitude) && std::isfinite(msg.longitude);
+  f.latitude = msg.latitude;
+  f.longitude = msg.longitude;
+  f.altitude = msg.altitude;
+  f.height_above_ground = msg.height_above_ground;
+  f.horizontal_sigma = msg.horizontal_sigma;
+  f.vertical_sigma = msg.vertical_sigma;
+  return f;
+}
+
+UavMosaickerAdapter::UavMosaickerAdapter(const UavMosaickerProcOptions& options, Transport& transport)
+    : options_(options), transport_(transport), mosaicker_(options.mosaicker) {}
+
+void UavMosaickerAdapter::Subscribe() {
+  camera_stats_ = vloc::Subscribe<image_t>(
+      transport_, options_.camera_channel, [this](const std::string&, const image_t& m) { OnFrame(m); },
+      options_.camera_queue);
+  if (!options_.gps_channel.empty())
+    gps_stats_ = vloc::Subscribe<uav_gps_t>(
+        transport_, options_.gps_channel, [this](const std::string&, const uav_gps_t& m) { OnGps(m); }, 200);
+}
+
+void UavMosaickerAdapter::OnGps(const uav_gps_t& msg) { mosaicker_.AddGps(GpsFromMessage(msg)); }
+
+void UavMosaickerAdapter::OnFrame(const image_t& msg) {
+  cv::Mat image;
+  try {
+    image = ImageFromMessage(msg);
+  } catch (const std::exception& e) {
+    LOG_EVERY_N(ERROR, 30) << "channel " << options_.camera_channel << ": frame not decodable (" << e.what()
+                           << "); counted as a lost frame";
+  }
+  const mosaic::FrameState state = mosaicker_.ProcessFrame(image, msg.utime);
+  Publish(transport_, options_.state_channel, StateToMessage(state));
+  ++frames_;
+  if (state.status == mosaic::TrackStatus::kLost || state.status == mosaic::TrackStatus::kRecovered)
+    LOG(INFO) << "frame " << state.frame_index << " " << mosaic::ToString(state.status) << ": " << state.message;
+  if (frames_ % options_.report_every_n_frames == 0)
+    LOG(INFO) << "uav_mosaicker: height " << state.height << " m, route " << state.route_local.x << ", "
+              << state.route_local.y << " m; " << mosaicker_.summary().BriefReport();
+  if (options_.preview_period > 0 && !options_.mosaic_channel.empty() &&
+      msg.utime - last_preview_utime_ >= static_cast<int64_t>(options_.preview_period * 1e6))
+    PublishPreview(msg.utime);
+}
+
+void UavMosaickerAdapter::PublishPreview(int64_t utime) {
+  const cv::Mat preview = mosaicker_.Preview(options_.preview_max_side);
+  if (preview.empty()) return;
+  last_preview_utime_ = utime;
+  Publish(transport_, options_.mosaic_channel,
+          ImageToMessage(preview, ImageEncoding::kJpeg, utime, "uav_mosaic", options_.preview_jpeg_quality));
+}
+
+bool UavMosaickerAdapter::WriteMosaic() {
+  if (options_.output.empty()) return true;
+  std::string error;
+  if (!mosaicker_.WriteMosaic(options_.output, &error)) {
+    LOG(ERROR) << "uav_mosaicker: mosaic not written: " << error;
+    return false;
+  }
+  LOG(INFO) << "uav_mosaicker: mosaic written to " << options_.output << "; " << mosaicker_.summary().BriefReport();
+  return true;
+}
+
+}  // namespace vloc

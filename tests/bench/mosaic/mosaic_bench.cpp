@@ -1,0 +1,220 @@
+// UAV mosaicker speed and memory (DESIGN.md budgets: tracking + height at
+// 1280 x 720 >= 30 frames/s on 2 cores, mosaic update >= 5 Hz, bounded
+// memory), and in the same run the plain approach: OpenCV A-KAZE on full
+// frames + brute-force matching + RANSAC homography.
+//   build-x/bench/mosaic_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+#include <benchmark/benchmark.h>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/features2d.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <memory>
+
+#include "../../unit/mosaic/synthetic_nadir.h"
+#include "vloc/mosaic/uav_mosaicker.h"
+
+namespace {
+
+using vloc::mosaic::testing::NadirCamera;
+namespace vm = vloc::mosaic;
+
+const NadirCamera kCam{cv::Size(1280, 720), 1000.0};
+
+const vm::testing::SyntheticGround& Ground() {
+  static const auto* ground = new vm::testing::SyntheticGround(vm::testing::MakeGround(4096, 0.05, 17));
+  return *ground;
+}
+
+// 30 frames/s at 8 m/s, height 40 m climbing at 2 m/s, yawing slowly.
+const std::vector<cv::Mat>& Frames() {
+  static const auto* frames = [] {
+    auto* v = new std::vector<cv::Mat>;
+    for (int i = 0; i < 60; ++i) {
+      const double t = i / 30.0;
+      v->push_back(vm::testing::RenderNadir(Ground(), kCam, 8.0 * t - 20, 0.5 * t, 40.0 + 2.0 * t, 0.05 * t, 2.0, i + 1));
+    }
+    return v;
+  }();
+  return *frames;
+}
+
+vm::MosaickerOptions Options() {
+  vm::MosaickerOptions o;
+  o.camera.width = kCam.size.width;
+  o.camera.height = kCam.size.height;
+  o.camera.fx = o.camera.fy = kCam.f;
+  o.camera.cx = kCam.cx();
+  o.camera.cy = kCam.cy();
+  o.calibration.source = "config";
+  o.calibration.height = 40.0;
+  o.canvas.metres_per_pixel = 0.08;
+  return o;
+}
+
+double PeakRssMb() {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
+  return 0;
+}
+
+// Tracking + height: features of the new frame, matching against the
+// previous one, homography, eq. 2 filter, eq. 3 fit (what ProcessFrame does
+// per frame apart from blending).
+void BM_TrackingAndHeight(benchmark::State& state) {
+  const auto& frames = Frames();
+  vm::MatcherOptions options;
+  options.num_threads = static_cast<int>(state.range(0));
+  cv::setNumThreads(options.num_threads);
+  vm::FrameFeatures prev = vm::ExtractFeatures(frames[0], options);
+  size_t i = 1;
+  double h = 40.0;
+  for (auto _ : state) {
+    vm::FrameFeatures cur = vm::ExtractFeatures(frames[i], options);
+    const vm::MotionEstimate m = vm::EstimateMotion(prev, cur, options);
+    if (!m.ok) state.SkipWithError(m.why.c_str());
+    h /= m.lambda;
+    benchmark::DoNotOptimize(h);
+    prev = std::move(cur);
+    if (++i == frames.size()) {
+      i = 1;
+      prev = vm::ExtractFeatures(frames[0], options);
+      h = 40.0;
+    }
+  }
+  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_TrackingAndHeight)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The plain approach: A-KAZE (OpenCV defaults) on full 1280 x 720 frames,
+// brute-force kNN Hamming matching with the ratio test, RANSAC homography.
+void BM_PlainAkazeFullFrameBruteForce(benchmark::State& state) {
+  const auto& frames = Frames();
+  cv::setNumThreads(2);
+  auto akaze = cv::AKAZE::create();
+  cv::BFMatcher matcher(cv::NORM_HAMMING);
+  std::vector<cv::KeyPoint> kp_prev;
+  cv::Mat d_prev;
+  akaze->detectAndCompute(frames[0], cv::noArray(), kp_prev, d_prev);
+  size_t i = 1;
+  for (auto _ : state) {
+    std::vector<cv::KeyPoint> kp;
+    cv::Mat d;
+    akaze->detectAndCompute(frames[i], cv::noArray(), kp, d);
+    std::vector<std::vector<cv::DMatch>> knn;
+    matcher.knnMatch(d_prev, d, knn, 2);
+    std::vector<cv::Point2f> a, b;
+    for (const auto& k : knn)
+      if (k.size() == 2 && k[0].distance < 0.8f * k[1].distance) {
+        a.push_back(kp_prev[k[0].queryIdx].pt);
+        b.push_back(kp[k[0].trainIdx].pt);
+      }
+    if (a.size() >= 4) benchmark::DoNotOptimize(cv::findHomography(a, b, cv::RANSAC, 3.0));
+    state.counters["features"] = static_cast<double>(kp.size());
+    kp_prev = std::move(kp);
+    d_prev = d;
+    if (++i == frames.size()) i = 1;
+  }
+  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_PlainAkazeFullFrameBruteForce)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// One mosaic update: multi-band blend of a 1280 x 720 frame into the tiled
+// canvas at 0.08 m/px, frame height 40 m (arg 0) or 80 m (arg 1).
+void BM_MosaicUpdate(benchmark::State& state) {
+  cv::setNumThreads(2);
+  vm::CanvasOptions options;
+  vm::TiledCanvas canvas(options);
+  const double height = state.range(0) == 0 ? 40.0 : 80.0;
+  const double s = height / kCam.f / 0.08;
+  const auto& frames = Frames();
+  size_t i = 0;
+  double x = 0;
+  for (auto _ : state) {
+    const vm::Similarity2 S{s, 0, x - s * kCam.cx(), -s * kCam.cy()};
+    canvas.Blend(frames[i], S);
+    x += 3.0;  // 8 m/s at 10 updates/s = 0.8 m = 10 px; overlap as in flight
+    if (++i == frames.size()) i = 0;
+  }
+  state.counters["updates_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_MosaicUpdate)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The whole per-frame pipeline (tracking, height, route, blending every 3rd frame).
+void BM_FullPipeline(benchmark::State& state) {
+  const auto& frames = Frames();
+  std::unique_ptr<vm::UavMosaicker> m;
+  size_t i = 0;
+  int64_t blends = 0;
+  double mosaic_s = 0;
+  for (auto _ : state) {
+    if (i == 0) {
+      state.PauseTiming();
+      m = std::make_unique<vm::UavMosaicker>(Options());
+      m->ProcessFrame(frames[0], 0);
+      i = 1;
+      state.ResumeTiming();
+    }
+    const vm::FrameState s = m->ProcessFrame(frames[i], static_cast<int64_t>(i * 33333));
+    blends += s.mosaic_updated;
+    mosaic_s += s.mosaic_seconds;
+    if (++i == frames.size()) i = 0;
+  }
+  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["mosaic_updates_per_s"] = benchmark::Counter(static_cast<double>(blends), benchmark::Counter::kIsRate);
+  state.counters["blend_ms"] = blends ? 1e3 * mosaic_s / blends : 0.0;
+}
+BENCHMARK(BM_FullPipeline)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Memory over a 10-minute flight: 8 m/s lawnmower at 60 m over wrapped
+// synthetic ground, one frame every 2 s of flight (the canvas and its memory
+// depend on the ground covered, not on the frame rate). Reports the canvas
+// tiles and the process's peak RSS.
+void BM_TenMinuteFlightMemory(benchmark::State& state) {
+  for (auto _ : state) {
+    vm::MosaickerOptions o = Options();
+    o.calibration.height = 60.0;
+    o.keyframe_min_overlap = 0.3;
+    o.mosaic_every_n_frames = 1;
+    vm::UavMosaicker m(o);
+    const NadirCamera cam = kCam;
+    int lost = 0;
+    // Legs of 600 m east/west, 60 m apart; image top = direction of travel.
+    double x = 0, y = 0, dir = 1;
+    const double step = 16.0;
+    for (int i = 0; i < 300; ++i) {
+      const double yaw = dir > 0 ? -M_PI / 2 : M_PI / 2;
+      cv::Mat frame;
+      cv::warpAffine(Ground().image, frame, vm::testing::GroundFromView(Ground(), cam, x, y, 60.0, yaw), cam.size,
+                     cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_WRAP);
+      const vm::FrameState s = m.ProcessFrame(frame, static_cast<int64_t>(i) * 2000000);
+      lost += s.status == vm::TrackStatus::kLost;
+      x += dir * step;
+      if (std::abs(x) > 300) {  // turn: move north one leg spacing in 4 steps
+        for (int k = 0; k < 4 && i < 299; ++k) {
+          y += 15.0;
+          ++i;
+          cv::Mat turn;
+          cv::warpAffine(Ground().image, turn, vm::testing::GroundFromView(Ground(), cam, x, y, 60.0, yaw), cam.size,
+                         cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_WRAP);
+          lost += m.ProcessFrame(turn, static_cast<int64_t>(i) * 2000000).status == vm::TrackStatus::kLost;
+        }
+        dir = -dir;
+      }
+    }
+    const vm::MosaickerSummary s = m.summary();
+    state.counters["tiles_total"] = s.canvas.tiles_total;
+    state.counters["tiles_peak_in_memory"] = s.canvas.peak_tiles_in_memory;
+    state.counters["tiles_spilled"] = static_cast<double>(s.canvas.spills);
+    state.counters["canvas_MB"] = s.canvas.bytes_in_memory / 1048576.0;
+    state.counters["peak_rss_MB"] = PeakRssMb();
+    state.counters["lost_frames"] = lost;
+  }
+}
+BENCHMARK(BM_TenMinuteFlightMemory)->Unit(benchmark::kSecond)->Iterations(1);
+
+}  // namespace
+
+BENCHMARK_MAIN();
