@@ -4,6 +4,7 @@
 #include <benchmark/benchmark.h>
 
 #include <memory>
+#include <opencv2/core/utility.hpp>
 
 #include "vloc/sim/uav_world.h"
 
@@ -26,6 +27,21 @@ void BM_RenderFrame(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_RenderFrame)->Unit(benchmark::kMillisecond);
+
+// The same on one thread: CPU time here is the whole work of a frame.
+void BM_RenderFrameOneThread(benchmark::State& state) {
+  const vloc::UavWorld& world = World();
+  const int threads = cv::getNumThreads();
+  cv::setNumThreads(1);
+  int i = 0;
+  for (auto _ : state) {
+    cv::Mat frame = world.RenderFrame(world.FrameTime((i * 97) % world.NumFrames()));
+    benchmark::DoNotOptimize(frame.data);
+    ++i;
+  }
+  cv::setNumThreads(threads);
+}
+BENCHMARK(BM_RenderFrameOneThread)->Unit(benchmark::kMillisecond);
 
 void BM_RenderFrameDistorted(benchmark::State& state) {
   static const auto world = [] {

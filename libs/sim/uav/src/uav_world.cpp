@@ -122,6 +122,23 @@ cv::Matx33d ToCv(const Eigen::Matrix3d& m) {
 
 cv::Matx33d Translation(double dx, double dy) { return cv::Matx33d(1, 0, dx, 0, 1, dy, 0, 0, 1); }
 
+// image += offset - 128 (saturated); `offset` has the type and size of
+// `image`. Integer arithmetic, SIMD, rows in parallel.
+void AddOffset(const cv::Mat& offset, cv::Mat* image) {
+  const int n = image->cols * image->channels();
+  cv::parallel_for_(cv::Range(0, image->rows), [&](const cv::Range& rows) {
+    for (int r = rows.start; r < rows.end; ++r) {
+      uchar* p = image->ptr<uchar>(r);
+      const uchar* o = offset.ptr<uchar>(r);
+#pragma omp simd
+      for (int i = 0; i < n; ++i) {
+        const int v = p[i] + o[i] - 128;
+        p[i] = static_cast<uchar>(v < 0 ? 0 : (v > 255 ? 255 : v));
+      }
+    }
+  });
+}
+
 }  // namespace
 
 struct UavWorld::Impl {
@@ -342,11 +359,11 @@ cv::Mat UavWorld::Render(const Pose3& world_from_camera, double t) const {
   if (map_->NumDetailLevels() > 0) {
     const int dl = std::clamp(static_cast<int>(std::floor(std::log2(gsd / map_->detail_metres_per_pixel()) + 0.3)), 0,
                               map_->NumDetailLevels() - 1);
-    cv::Mat detail, detail3;
+    cv::Mat detail;
     cv::warpPerspective(map_->DetailLevel(dl), detail, hg * map_->DetailPixelFromWorld(dl).inv(), im.canvas,
                         cv::INTER_LINEAR, cv::BORDER_WRAP);
-    cv::cvtColor(detail, detail3, cv::COLOR_GRAY2BGR);
-    cv::addWeighted(canvas, 1.0, detail3, 1.0, -128.0, canvas);
+    cv::cvtColor(detail, detail, cv::COLOR_GRAY2BGR);
+    AddOffset(detail, &canvas);
   }
 
   // Calibration marker (only the part of the canvas it covers).
@@ -414,8 +431,7 @@ cv::Mat UavWorld::Render(const Pose3& world_from_camera, double t) const {
     h *= 0xBF58476D1CE4E5B9ull;
     h ^= h >> 32;
     const int dx = static_cast<int>(h % 256), dy = static_cast<int>((h >> 16) % 256);
-    const cv::Mat window = im.noise_bank(cv::Rect(dx, dy, frame.cols, frame.rows));
-    cv::addWeighted(frame, 1.0, window, 1.0, -128.0, frame);
+    AddOffset(im.noise_bank(cv::Rect(dx, dy, frame.cols, frame.rows)), &frame);
   }
   return frame;
 }
