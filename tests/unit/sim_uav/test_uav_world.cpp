@@ -6,9 +6,14 @@
 #include <opencv2/aruco.hpp>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <unistd.h>
+
 #include <cmath>
+#include <cstring>
+#include <filesystem>
 #include <memory>
 
 #include "vloc/sim/uav_world.h"
@@ -198,6 +203,38 @@ TEST(UavWorld, MovingObjectsMoveAndAreDrawn) {
     if (cv::countNonZero(d.reshape(1)) > 100) ++changed_frames;
   }
   EXPECT_GT(changed_frames, 0);
+}
+
+TEST(UavWorld, UserOrthomapIsSeenAtItsMetresPerPixel) {
+  // A 1000 x 1000 textured image at 5 cm/px centred on the world origin.
+  cv::Mat image(1000, 1000, CV_8UC3);
+  cv::RNG rng(42);
+  rng.fill(image, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(image, image, cv::Size(0, 0), 2.0);
+  const std::string path = ::testing::TempDir() + "/uav_user_map_" + std::to_string(getpid()) + ".png";
+  ASSERT_TRUE(cv::imwrite(path, image));
+  UavWorldOptions o;
+  o.orthomap.image = path;
+  o.orthomap.metres_per_pixel = 0.05;
+  o.orthomap.centre = Eigen::Vector2d(0, 0);
+  o.orthomap.detail_amplitude = 0;
+  const UavWorld world(o);
+  // Nadir at 50 m with image top to the north: one frame pixel = one map pixel (5 cm).
+  const Pose3 world_from_camera =
+      MakePose(RotationFromRollPitchYaw(0, 0, M_PI / 2), Eigen::Vector3d(0, 0, 50)) * UavBodyFromCamera();
+  const cv::Mat frame = world.RenderGroundOnly(world_from_camera);
+  // Frame pixel (u, v) sees map pixel (u - 140, v + 140) (centres 639.5/359.5 vs 499.5).
+  const cv::Mat seen = frame(cv::Rect(140, 0, 1000, 720)), expected = image(cv::Rect(0, 140, 1000, 720));
+  EXPECT_LE(cv::norm(seen, expected, cv::NORM_INF), 1.0);
+  std::filesystem::remove(path);
+
+  o.orthomap.image = "/nonexistent/map.png";
+  try {
+    UavWorld missing(o);
+    FAIL() << "missing orthomap accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/map.png cannot be read"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
