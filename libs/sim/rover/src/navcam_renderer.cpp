@@ -102,7 +102,7 @@ RenderedImage NavcamRenderer::Render(const PinholeCamera& camera, const Pose3& w
         // Pixel footprint on the ground (m): range / f, stretched by obliquity.
         const double footprint = hit->range * ray_norm * inv_f / std::sqrt(cos_view);
         const double albedo = terrain_.Albedo(p.x(), p.y(), footprint);
-        const Eigen::Vector3d shading_normal = terrain_.ShadingNormal(p.x(), p.y(), footprint);
+        const Eigen::Vector3d shading_normal = terrain_.ShadingNormal(p.x(), p.y(), footprint, n);
         const double direct = std::max(0.0, shading_normal.dot(sun)) * terrain_.SunVisibility(p.x(), p.y());
         signal = options_.exposure_gain_dn * albedo * (ambient + (1.0 - ambient) * direct);
         if (depth_row) depth_row[u] = static_cast<float>(hit->range / ray_norm);

@@ -395,7 +395,10 @@ Eigen::Vector3d Terrain::Normal(double x, double y) const {
 }
 
 Eigen::Vector3d Terrain::ShadingNormal(double x, double y, double footprint) const {
-  const Eigen::Vector3d n = Normal(x, y);
+  return ShadingNormal(x, y, footprint, Normal(x, y));
+}
+
+Eigen::Vector3d Terrain::ShadingNormal(double x, double y, double footprint, const Eigen::Vector3d& n) const {
   if (options_.micro_slope <= 0) return n;
   const int octaves =
       1 + static_cast<int>(std::floor(std::log2(options_.micro_wavelength_m / options_.micro_finest_m) + 1e-9));
@@ -486,7 +489,8 @@ std::optional<RayHit> Terrain::Raycast(const Eigen::Vector3d& origin, const Eige
   const int top = static_cast<int>(max_levels_.size()) - 1;
   const double eps = 1e-6;
   double t = t0;
-  int level = top;
+  // Start at ~5 m cells: rays begin near the camera, where coarser levels only cost descents.
+  int level = std::min(top, 7);
   while (t <= t1) {
     const double px = o_x + t * d_x, py = o_y + t * d_y;
     const MaxLevel& lv = max_levels_[level];

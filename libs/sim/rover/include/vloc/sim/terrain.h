@@ -128,6 +128,8 @@ class Terrain {
   Eigen::Vector3d Normal(double x, double y) const;
   // Normal including the sub-grid micro-relief, band-limited to `footprint` (m).
   Eigen::Vector3d ShadingNormal(double x, double y, double footprint = 0.0) const;
+  // The same, given Normal(x, y) already computed.
+  Eigen::Vector3d ShadingNormal(double x, double y, double footprint, const Eigen::Vector3d& normal) const;
   // Regolith albedo at (x, y); `footprint` (m) is the size of the area the
   // sample stands for (texture finer than that fades out; 0 = all detail).
   double Albedo(double x, double y, double footprint = 0.0) const;
