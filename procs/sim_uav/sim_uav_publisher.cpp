@@ -66,6 +66,24 @@ double SimUavPublisher::NextTime() const {
   return std::min(tf, tg);
 }
 
+std::future<SimUavPublisher::PreparedFrame> SimUavPublisher::PrepareFrame(int index) const {
+  return std::async(std::launch::async, [this, index] {
+    PreparedFrame out;
+    const double t = world_.FrameTime(index);
+    out.utime = options_.start_utime + world_.FrameUtime(index);
+    const auto start = std::chrono::steady_clock::now();
+    cv::Mat frame = world_.RenderFrame(t);
+    out.render_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    if (encoding_ == ImageEncoding::kGray8) cv::cvtColor(frame, frame, cv::COLOR_BGR2GRAY);
+    PoseWithCovariance truth;
+    truth.utime = out.utime;
+    truth.pose = world_.flight().WorldFromBody(t);
+    out.truth = Encode(PoseToMessage(truth, "world", "uav_body"));
+    out.image = Encode(ImageToMessage(frame, encoding_, out.utime, options_.frame_id, options_.jpeg_quality));
+    return out;
+  });
+}
+
 void SimUavPublisher::EmitNext(const Sink& sink) {
   const double tf = world_.FrameTime(next_frame_);
   const double tg = next_gps_ < world_.gps().NumSamples() ? world_.gps().SampleTime(next_gps_) : 1e300;
@@ -85,20 +103,16 @@ void SimUavPublisher::EmitNext(const Sink& sink) {
     sink(options_.gps_channel, Encode(msg), msg.utime);
     return;
   }
-  const int64_t utime = options_.start_utime + world_.FrameUtime(next_frame_);
-  const auto start = std::chrono::steady_clock::now();
-  cv::Mat frame = world_.RenderFrame(tf);
-  if (encoding_ == ImageEncoding::kGray8) cv::cvtColor(frame, frame, cv::COLOR_BGR2GRAY);
-  summary_.render_ms_total +=
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  // Frame i was rendered and encoded while frame i-1 was being published;
+  // start frame i+1 now (rendering is a const, thread-safe UavWorld call).
+  if (!pending_.valid()) pending_ = PrepareFrame(next_frame_);
+  PreparedFrame frame = pending_.get();
   ++next_frame_;
+  if (world_.FrameTime(next_frame_) <= end_time_ + 1e-9) pending_ = PrepareFrame(next_frame_);
+  summary_.render_ms_total += frame.render_ms;
   ++summary_.frames;
-  PoseWithCovariance truth;
-  truth.utime = utime;
-  truth.pose = world_.flight().WorldFromBody(tf);
-  sink(options_.gt_channel, Encode(PoseToMessage(truth, "world", "uav_body")), utime);
-  sink(options_.camera_channel,
-       Encode(ImageToMessage(frame, encoding_, utime, options_.frame_id, options_.jpeg_quality)), utime);
+  sink(options_.gt_channel, frame.truth, frame.utime);
+  sink(options_.camera_channel, frame.image, frame.utime);
 }
 
 namespace {

@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <future>
 #include <string>
 #include <vector>
 
@@ -66,8 +67,17 @@ class SimUavPublisher {
   const SimUavSummary& summary() const { return summary_; }
 
  private:
+  // A frame's encoded messages, rendered ahead on a worker thread.
+  struct PreparedFrame {
+    int64_t utime = 0;
+    double render_ms = 0;
+    std::vector<uint8_t> truth, image;
+  };
+  std::future<PreparedFrame> PrepareFrame(int index) const;
+
   SimUavOptions options_;
   const UavWorld& world_;
+  std::future<PreparedFrame> pending_;
   ImageEncoding encoding_;
   double end_time_ = 0;
   int next_frame_ = 0, next_gps_ = 0;
