@@ -226,7 +226,13 @@ void Terrain::PlaceCraters() {
 #pragma omp parallel for schedule(static) num_threads(options_.num_threads)
     for (int j = j0; j <= j1; ++j) {
       const double dy = options_.origin_y_m + j * res - c.centre.y();
-      for (int i = i0; i <= i1; ++i) {
+      // Only the chord of the row inside 3 radii.
+      const double half_chord2 = reach * reach - dy * dy;
+      if (half_chord2 <= 0) continue;
+      const double half_chord = std::sqrt(half_chord2);
+      const int a0 = std::max(i0, static_cast<int>(std::floor((c.centre.x() - half_chord - options_.origin_x_m) * inv_res_)));
+      const int a1 = std::min(i1, static_cast<int>(std::ceil((c.centre.x() + half_chord - options_.origin_x_m) * inv_res_)));
+      for (int i = a0; i <= a1; ++i) {
         const double dx = options_.origin_x_m + i * res - c.centre.x();
         const double rho = std::sqrt(dx * dx + dy * dy) / radius;
         double h;
@@ -239,7 +245,8 @@ void Terrain::PlaceCraters() {
           }
         } else if (rho < 3.0) {
           // Ejecta blanket falling off as rho^-3, reaching 0 at 3 radii.
-          h = c.rim_height * (std::pow(rho, -3.0) - tail) / (1.0 - tail);
+          const double inv = 1.0 / rho;
+          h = c.rim_height * (inv * inv * inv - tail) / (1.0 - tail);
         } else {
           continue;
         }
