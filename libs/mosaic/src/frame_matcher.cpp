@@ -16,6 +16,7 @@ void MatcherOptions::Visit(OptionsReader& r) {
   r.Optional("downscale", &downscale, "A-KAZE runs on the frame resized by this factor");
   r.Optional("akaze_threshold", &akaze_threshold, "A-KAZE detector response threshold");
   r.Optional("akaze_octaves", &akaze_octaves, "A-KAZE octaves");
+  r.Optional("akaze_sublevels", &akaze_sublevels, "A-KAZE sublevels per octave");
   r.Optional("max_features", &max_features, "strongest keypoints kept per frame");
   r.Optional("grid_cells", &grid_cells, "grid cells per side for spreading keypoints");
   r.Optional("ratio", &ratio, "Lowe ratio test");
@@ -32,6 +33,7 @@ bool MatcherOptions::Check(std::string* error) const {
   if (!(downscale >= 0.1 && downscale <= 1.0)) return Fail(error, "matcher.downscale must be in [0.1, 1]");
   if (!(akaze_threshold > 0)) return Fail(error, "matcher.akaze_threshold must be > 0");
   if (akaze_octaves < 1 || akaze_octaves > 8) return Fail(error, "matcher.akaze_octaves must be in [1, 8]");
+  if (akaze_sublevels < 1 || akaze_sublevels > 8) return Fail(error, "matcher.akaze_sublevels must be in [1, 8]");
   if (max_features < 20) return Fail(error, "matcher.max_features must be >= 20");
   if (grid_cells < 1 || grid_cells > 64) return Fail(error, "matcher.grid_cells must be in [1, 64]");
   if (!(ratio > 0 && ratio <= 1)) return Fail(error, "matcher.ratio must be in (0, 1]");
@@ -93,11 +95,18 @@ FrameFeatures ExtractFeatures(const cv::Mat& image, const MatcherOptions& option
     small = gray;
   }
   auto akaze = cv::AKAZE::create(cv::AKAZE::DESCRIPTOR_MLDB, 0, 3, static_cast<float>(options.akaze_threshold),
-                                 options.akaze_octaves, 4, cv::KAZE::DIFF_PM_G2);
-  std::vector<cv::KeyPoint> kps;
-  akaze->detect(small, kps);
-  kps = SpreadKeypoints(std::move(kps), small.size(), options.grid_cells, options.max_features);
-  if (!kps.empty()) akaze->compute(small, kps, f.descriptors);
+                                 options.akaze_octaves, options.akaze_sublevels, cv::KAZE::DIFF_PM_G2);
+  // One call: detect() and compute() separately would build the nonlinear scale space twice.
+  std::vector<cv::KeyPoint> all;
+  cv::Mat all_descriptors;
+  akaze->detectAndCompute(small, cv::noArray(), all, all_descriptors);
+  for (size_t i = 0; i < all.size(); ++i) all[i].class_id = static_cast<int>(i);
+  const std::vector<cv::KeyPoint> kps =
+      SpreadKeypoints(std::move(all), small.size(), options.grid_cells, options.max_features);
+  if (!kps.empty()) {
+    f.descriptors.create(static_cast<int>(kps.size()), all_descriptors.cols, all_descriptors.type());
+    for (size_t i = 0; i < kps.size(); ++i) all_descriptors.row(kps[i].class_id).copyTo(f.descriptors.row(static_cast<int>(i)));
+  }
   // Keypoint coordinates of the resized image -> full resolution (pixel centres).
   const double sx = static_cast<double>(gray.cols) / small.cols;
   const double sy = static_cast<double>(gray.rows) / small.rows;

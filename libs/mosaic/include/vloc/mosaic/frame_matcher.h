@@ -19,6 +19,7 @@ struct MatcherOptions {
   double downscale = 0.5;            // A-KAZE runs on the frame resized by this factor (0.1..1)
   double akaze_threshold = 0.0005;   // A-KAZE detector response threshold
   int akaze_octaves = 3;             // A-KAZE octaves
+  int akaze_sublevels = 2;           // A-KAZE sublevels per octave (OpenCV default 4; 2 halves the scale-space cost)
   int max_features = 1200;           // strongest keypoints kept per frame (spread over a grid)
   int grid_cells = 8;                // grid cells per image side for spreading the kept keypoints
   double ratio = 0.8;                // Lowe ratio test on Hamming distances
