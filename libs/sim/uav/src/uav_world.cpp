@@ -122,6 +122,13 @@ cv::Matx33d ToCv(const Eigen::Matrix3d& m) {
 
 cv::Matx33d Translation(double dx, double dy) { return cv::Matx33d(1, 0, dx, 0, 1, dy, 0, 0, 1); }
 
+// The pyramid level to sample for a ground sample distance `gsd` (m/px)
+// from a texture of `texel` m/px: the finest level that is not minified by
+// more than ~10 % (minifying bilinear sampling aliases; magnifying only blurs).
+int PyramidLevel(double gsd, double texel) {
+  return std::max(0, static_cast<int>(std::ceil(std::log2(gsd / texel) - 0.15)));
+}
+
 // image += offset - 128 (saturated); `offset` has the type and size of
 // `image`. Integer arithmetic, SIMD, rows in parallel.
 void AddOffset(const cv::Mat& offset, cv::Mat* image) {
@@ -337,7 +344,7 @@ cv::Mat UavWorld::RenderGroundOnly(const Pose3& world_from_camera) const {
   const cv::Matx33d hg = ImageFromGround(world_from_camera);
   const double gsd = std::max(world_from_camera.translation().z(), 0.1) / options_.camera.fx;
   const int level =
-      std::clamp(static_cast<int>(std::floor(std::log2(gsd / map_->metres_per_pixel()) + 0.3)), 0, map_->NumLevels() - 1);
+      std::clamp(PyramidLevel(gsd, map_->metres_per_pixel()), 0, map_->NumLevels() - 1);
   cv::Mat frame;
   cv::warpPerspective(map_->Level(level), frame, hg * map_->PixelFromWorld(level).inv(),
                       cv::Size(options_.camera.width, options_.camera.height), cv::INTER_LINEAR, cv::BORDER_REFLECT);
@@ -352,12 +359,12 @@ cv::Mat UavWorld::Render(const Pose3& world_from_camera, double t) const {
 
   // Ground texture at the pyramid level just finer than the ground sample distance.
   const int level =
-      std::clamp(static_cast<int>(std::floor(std::log2(gsd / map_->metres_per_pixel()) + 0.3)), 0, map_->NumLevels() - 1);
+      std::clamp(PyramidLevel(gsd, map_->metres_per_pixel()), 0, map_->NumLevels() - 1);
   cv::Mat canvas;
   cv::warpPerspective(map_->Level(level), canvas, hg * map_->PixelFromWorld(level).inv(), im.canvas, cv::INTER_LINEAR,
                       cv::BORDER_REFLECT);
   if (map_->NumDetailLevels() > 0) {
-    const int dl = std::clamp(static_cast<int>(std::floor(std::log2(gsd / map_->detail_metres_per_pixel()) + 0.3)), 0,
+    const int dl = std::clamp(PyramidLevel(gsd, map_->detail_metres_per_pixel()), 0,
                               map_->NumDetailLevels() - 1);
     cv::Mat detail;
     cv::warpPerspective(map_->DetailLevel(dl), detail, hg * map_->DetailPixelFromWorld(dl).inv(), im.canvas,
