@@ -9,13 +9,9 @@
 // See sim_rover_publisher.h for the channels and frames.
 #include <glog/logging.h>
 
-#include <chrono>
-#include <filesystem>
 #include <iostream>
 #include <memory>
-#include <opencv2/imgcodecs.hpp>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "sim_rover_publisher.h"
@@ -36,64 +32,6 @@ std::vector<char*> WithMemqWhenOffline(int argc, char** argv, std::string* memq)
   }
   if (offline && !has_url) args.push_back(memq->data());
   return args;
-}
-
-int RenderSample(const vloc::sim::RoverWorld& world, const std::string& dir) {
-  const vloc::sim::SimulatedTraverse& traverse = world.traverse();
-  const vloc::sim::Terrain& terrain = world.terrain();
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  const auto& exposures = traverse.sites.front().exposures;
-  const vloc::sim::Exposure& e = exposures[exposures.size() / 2];
-  const auto start = std::chrono::steady_clock::now();
-  const vloc::StereoPair pair = world.RenderExposure(e);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  const Eigen::Vector3d p = e.world_from_body.translation();
-  const cv::Mat ortho = terrain.RenderOrthoimage({p.x() - 10, p.y() - 20, p.x() + 30, p.y() + 20}, 0.04);
-  for (const auto& [name, image] : {std::pair<std::string, cv::Mat>{"navcam_left.png", pair.left},
-                                    {"navcam_right.png", pair.right},
-                                    {"terrain_ortho.png", ortho}}) {
-    const std::string path = dir + "/" + name;
-    if (!cv::imwrite(path, image)) {
-      std::cerr << "sim_rover: cannot write " << path << " (check the folder is writable)\n";
-      return 1;
-    }
-  }
-  std::cout << "sim_rover: wrote " << dir << "/navcam_left.png, navcam_right.png (site 0, pair " << e.pair_index
-            << ", pan " << e.mast_pan * 180 / M_PI << " deg, tilt " << e.mast_tilt * 180 / M_PI << " deg, "
-            << pair.left.cols << "x" << pair.left.rows << ", pair rendered in " << seconds
-            << " s) and terrain_ortho.png (40 m x 40 m, 4 cm/px)\n";
-  return 0;
-}
-
-// Publishes each message when the wall clock reaches its (scaled) time.
-int PublishRealTime(vloc::Transport& transport, double speed, vloc::SimRoverPublisher* publisher) {
-  const auto wall_start = std::chrono::steady_clock::now();
-  const int64_t sim_start = publisher->NextUtime();
-  const vloc::SimRoverPublisher::Sink sink = [&](const std::string& channel, const std::vector<uint8_t>& bytes, int64_t) {
-    if (!transport.Publish(channel, bytes.data(), bytes.size()))
-      LOG(ERROR) << "channel " << channel << ": publish of " << bytes.size() << " bytes failed";
-  };
-  while (!publisher->Done()) {
-    if (vloc::StopSignalPending()) {
-      LOG(INFO) << "stop signal received, shutting down";
-      return 0;
-    }
-    if (speed > 0) {
-      const auto due = wall_start + std::chrono::microseconds(
-                                        static_cast<int64_t>((publisher->NextUtime() - sim_start) / speed));
-      // Sleep in short slices so a stop signal is seen promptly.
-      while (std::chrono::steady_clock::now() < due) {
-        if (vloc::StopSignalPending()) return 0;
-        std::this_thread::sleep_for(std::min<std::chrono::steady_clock::duration>(
-            due - std::chrono::steady_clock::now(), std::chrono::milliseconds(50)));
-      }
-    }
-    publisher->EmitNext(sink);
-    transport.Handle(0);
-  }
-  LOG(INFO) << "traverse finished";
-  return 0;
 }
 
 }  // namespace
@@ -145,7 +83,7 @@ int main(int argc, char** argv) {
   const auto& traverse = world->traverse();
   LOG(INFO) << "traverse: " << traverse.sites.size() << " sites, " << traverse.path_length_m << " m driven in "
             << traverse.duration_s << " s, " << traverse.exposures.size() << " stereo pairs";
-  if (setup->args.Has("render-sample")) return RenderSample(*world, setup->args.Get("render-sample"));
+  if (setup->args.Has("render-sample")) return vloc::WriteSimRoverSample(*world, setup->args.Get("render-sample"));
 
   vloc::SimRoverPublisher publisher(options, *world);
   if (setup->args.Has("log")) {
@@ -162,5 +100,5 @@ int main(int argc, char** argv) {
               << summary.render_seconds_total << " s";
     return 0;
   }
-  return PublishRealTime(*setup->transport, options.speed, &publisher);
+  return vloc::PublishSimRoverRealTime(*setup->transport, options.speed, &publisher);
 }

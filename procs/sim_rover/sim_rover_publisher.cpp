@@ -5,10 +5,15 @@
 
 #include <chrono>
 #include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <opencv2/imgcodecs.hpp>
+#include <thread>
 
 #include "vloc/common/options.h"
 #include "vloc/lcm_io/convert.h"
 #include "vloc/lcm_io/convert_rover.h"
+#include "vloc/lcm_io/process.h"
 
 namespace vloc {
 namespace {
@@ -115,6 +120,63 @@ bool WriteSimRoverLog(const std::string& path, SimRoverPublisher* publisher, std
   while (!publisher->Done() && ok) publisher->EmitNext(sink);
   if (!ok) return Fail(error, "writing LCM log " + path + " failed (disk full?)");
   return true;
+}
+
+int WriteSimRoverSample(const sim::RoverWorld& world, const std::string& dir) {
+  const sim::SimulatedTraverse& traverse = world.traverse();
+  const sim::Terrain& terrain = world.terrain();
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  const auto& exposures = traverse.sites.front().exposures;
+  const sim::Exposure& e = exposures[exposures.size() / 2];
+  const auto start = std::chrono::steady_clock::now();
+  const StereoPair pair = world.RenderExposure(e);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const Eigen::Vector3d p = e.world_from_body.translation();
+  const cv::Mat ortho = terrain.RenderOrthoimage({p.x() - 10, p.y() - 20, p.x() + 30, p.y() + 20}, 0.04);
+  for (const auto& [name, image] : {std::pair<std::string, cv::Mat>{"navcam_left.png", pair.left},
+                                    {"navcam_right.png", pair.right},
+                                    {"terrain_ortho.png", ortho}}) {
+    const std::string path = dir + "/" + name;
+    if (!cv::imwrite(path, image)) {
+      std::cerr << "sim_rover: cannot write " << path << " (check the folder is writable)\n";
+      return 1;
+    }
+  }
+  std::cout << "sim_rover: wrote " << dir << "/navcam_left.png, navcam_right.png (site 0, pair " << e.pair_index
+            << ", pan " << e.mast_pan * 180 / M_PI << " deg, tilt " << e.mast_tilt * 180 / M_PI << " deg, "
+            << pair.left.cols << "x" << pair.left.rows << ", pair rendered in " << seconds
+            << " s) and terrain_ortho.png (40 m x 40 m, 4 cm/px)\n";
+  return 0;
+}
+
+int PublishSimRoverRealTime(Transport& transport, double speed, SimRoverPublisher* publisher) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  const int64_t sim_start = publisher->NextUtime();
+  const SimRoverPublisher::Sink sink = [&](const std::string& channel, const std::vector<uint8_t>& bytes, int64_t) {
+    if (!transport.Publish(channel, bytes.data(), bytes.size()))
+      LOG(ERROR) << "channel " << channel << ": publish of " << bytes.size() << " bytes failed";
+  };
+  while (!publisher->Done()) {
+    if (StopSignalPending()) {
+      LOG(INFO) << "stop signal received, shutting down";
+      return 0;
+    }
+    if (speed > 0) {
+      const auto due = wall_start + std::chrono::microseconds(
+                                        static_cast<int64_t>((publisher->NextUtime() - sim_start) / speed));
+      // Sleep in short slices so a stop signal is seen promptly.
+      while (std::chrono::steady_clock::now() < due) {
+        if (StopSignalPending()) return 0;
+        std::this_thread::sleep_for(std::min<std::chrono::steady_clock::duration>(
+            due - std::chrono::steady_clock::now(), std::chrono::milliseconds(50)));
+      }
+    }
+    publisher->EmitNext(sink);
+    transport.Handle(0);
+  }
+  LOG(INFO) << "traverse finished";
+  return 0;
 }
 
 }  // namespace vloc

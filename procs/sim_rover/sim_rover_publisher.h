@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "vloc/lcm_io/transport.h"
 #include "vloc/sim/rover_world.h"
 
 namespace vloc {
@@ -73,6 +74,16 @@ class SimRoverPublisher {
   int gt_every_ = 10;
   SimRoverSummary summary_;
 };
+
+// Publishes every message on `transport` when the wall clock reaches its
+// time / speed (speed 0: as fast as possible); stops early on SIGINT/SIGTERM.
+// Returns the process exit code.
+int PublishSimRoverRealTime(Transport& transport, double speed, SimRoverPublisher* publisher);
+
+// Saves the middle pair of site 0 as DIR/navcam_left.png, DIR/navcam_right.png
+// and a 40 m x 40 m orthoimage around it as DIR/terrain_ortho.png. Returns
+// the process exit code (1 with one error line when a file cannot be written).
+int WriteSimRoverSample(const sim::RoverWorld& world, const std::string& dir);
 
 // Writes the whole traverse to an LCM log (event timestamps = message
 // utimes). Returns false with one error line when the file cannot be written.

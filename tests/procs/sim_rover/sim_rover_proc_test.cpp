@@ -10,6 +10,7 @@
 #include <fstream>
 #include <lcm/lcm-cpp.hpp>
 #include <map>
+#include <opencv2/imgcodecs.hpp>
 #include <vector>
 
 #include "vloc/imu_t.hpp"
@@ -164,6 +165,22 @@ TEST(SimRoverProcess, PublishesOverRealLcmInRealTime) {
   EXPECT_GT(imu, 500);
   EXPECT_GT(wheel, 100);
   EXPECT_GT(gt, 50);
+  std::filesystem::remove(config);
+}
+
+TEST(SimRoverProcess, RenderSampleWritesTheNavcamPairAsPng) {
+  const std::string config = WriteSmallConfig();
+  const std::string dir = TempPath("samples");
+  Subprocess sim({BinPath("sim_rover"), "--config", config, "--render-sample", dir});
+  ASSERT_EQ(sim.WaitExit(120), 0) << sim.output();
+  for (const std::string name : {"navcam_left.png", "navcam_right.png"}) {
+    const cv::Mat image = cv::imread(dir + "/" + name, cv::IMREAD_UNCHANGED);
+    ASSERT_FALSE(image.empty()) << name;
+    EXPECT_EQ(image.type(), CV_8UC1);
+    EXPECT_EQ(image.size(), cv::Size(256, 256));
+  }
+  EXPECT_FALSE(cv::imread(dir + "/terrain_ortho.png").empty());
+  std::filesystem::remove_all(dir);
   std::filesystem::remove(config);
 }
 
