@@ -337,8 +337,14 @@ bool TiledCanvas::Export(cv::Mat* bgra, double* scale, cv::Point2d* origin, std:
     }
     EvictIfNeeded();
   }
-  if (scale) *scale = static_cast<double>(out_w) / b.width;
-  if (origin) *origin = cv::Point2d(b.x, b.y);
+  // Crop to the painted pixels (tiles are only partly covered at the edges).
+  std::vector<cv::Mat> channels;
+  cv::split(*bgra, channels);
+  const cv::Rect painted = cv::boundingRect(channels[3]);
+  const double s = static_cast<double>(out_w) / b.width;
+  if (!painted.empty()) *bgra = (*bgra)(painted).clone();
+  if (scale) *scale = s;
+  if (origin) *origin = cv::Point2d(b.x + painted.x / s, b.y + painted.y / s);
   return true;
 }
 
