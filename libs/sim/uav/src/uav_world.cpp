@@ -157,6 +157,8 @@ struct UavWorld::Impl {
   cv::Size canvas;
   double margin_x = 0, margin_y = 0;
   cv::Mat map_x, map_y;
+  // Per detail level: the periodic tile repeated to cover a whole frame footprint.
+  std::vector<cv::Mat> detail_tiled;
 };
 
 UavWorld::UavWorld(const UavWorldOptions& options)
@@ -271,6 +273,18 @@ UavWorld::UavWorld(const UavWorldOptions& options)
     im.map_y += static_cast<float>(im.margin_y);
   }
 
+  // Detail tiles repeated to cover a frame: the chosen level's texel is at
+  // least 0.9 ground sample distance, so a footprint spans at most ~1.2 canvas
+  // diagonals of texels.
+  const double diagonal = std::hypot(im.canvas.width, im.canvas.height) * 1.2;
+  for (int l = 0; l < map_->NumDetailLevels(); ++l) {
+    const cv::Mat& tile = map_->DetailLevel(l);
+    const int n = static_cast<int>(std::ceil((diagonal + tile.cols) / tile.cols));
+    cv::Mat tiled;
+    cv::repeat(tile, n, n, tiled);
+    im.detail_tiled.push_back(tiled);
+  }
+
   // Sensor noise bank (a frame uses a pseudo-random window of it).
   if (options_.render.noise_sigma > 0) {
     cv::RNG noise_rng(static_cast<uint64_t>(options_.render.seed) * 40503u + 1u);
@@ -366,9 +380,29 @@ cv::Mat UavWorld::Render(const Pose3& world_from_camera, double t) const {
   if (map_->NumDetailLevels() > 0) {
     const int dl = std::clamp(PyramidLevel(gsd, map_->detail_metres_per_pixel()), 0,
                               map_->NumDetailLevels() - 1);
+    // Sample the pre-tiled copy, shifted by whole tiles so the frame falls
+    // inside it (BORDER_WRAP is the slow per-pixel path of cv::remap); wrap
+    // only when the footprint is larger than the copy.
+    const cv::Matx33d detail_from_canvas = map_->DetailPixelFromWorld(dl) * hg.inv();
+    double min_x = 1e300, min_y = 1e300, max_x = -1e300, max_y = -1e300;
+    for (const cv::Vec3d& c : {cv::Vec3d(0, 0, 1), cv::Vec3d(im.canvas.width, 0, 1),
+                               cv::Vec3d(0, im.canvas.height, 1), cv::Vec3d(im.canvas.width, im.canvas.height, 1)}) {
+      const cv::Vec3d p = detail_from_canvas * c;
+      min_x = std::min(min_x, p[0] / p[2]);
+      min_y = std::min(min_y, p[1] / p[2]);
+      max_x = std::max(max_x, p[0] / p[2]);
+      max_y = std::max(max_y, p[1] / p[2]);
+    }
+    const cv::Mat& tiled = im.detail_tiled[static_cast<size_t>(dl)];
+    const double tile = map_->DetailLevel(dl).cols;
+    const double sx = -std::floor(min_x / tile) * tile, sy = -std::floor(min_y / tile) * tile;
     cv::Mat detail;
-    cv::warpPerspective(map_->DetailLevel(dl), detail, hg * map_->DetailPixelFromWorld(dl).inv(), im.canvas,
-                        cv::INTER_LINEAR, cv::BORDER_WRAP);
+    if (max_x + sx < tiled.cols - 2 && max_y + sy < tiled.rows - 2)
+      cv::warpPerspective(tiled, detail, Translation(sx, sy) * detail_from_canvas, im.canvas,
+                          cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
+    else
+      cv::warpPerspective(map_->DetailLevel(dl), detail, detail_from_canvas, im.canvas,
+                          cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_WRAP);
     cv::cvtColor(detail, detail, cv::COLOR_GRAY2BGR);
     AddOffset(detail, &canvas);
   }
