@@ -13,11 +13,12 @@ if [ ! -f "$build/CMakeCache.txt" ]; then
 fi
 build_target() { cmake --build "$build" --target "$1" -j "$(nproc)" >/dev/null; }
 
-# --- simulated UAV: one nadir frame (calibration hover over the ArUco marker at 15 m
-# is t = 1 s; t = 12 s is the climb towards 40 m over fields and a road).
+# --- simulated UAV: a nadir frame at t = 30 s (about 60 m up: fields, trees, a road
+# with cars), and the calibration hover over the 1 m ArUco marker at 15 m (t = 1 s).
 build_target sim_uav
-"$build/bin/sim_uav" --config config/procs/sim_uav.yaml --snapshot "$out/uav_frame.png" --at 12
-echo "wrote $out/uav_frame.png"
+"$build/bin/sim_uav" --config config/procs/sim_uav.yaml --snapshot "$out/uav_frame.png" --at 30
+"$build/bin/sim_uav" --config config/procs/sim_uav.yaml --snapshot "$out/uav_calibration.png" --at 1
+echo "wrote $out/uav_frame.png $out/uav_calibration.png"
 
 # --- simulated rover: the middle Navcam pair of site 0 (pan 0, tilt 25 deg, 1024 x 1024)
 # -> navcam_left.png, navcam_right.png, plus terrain_ortho.png (40 m x 40 m around it).

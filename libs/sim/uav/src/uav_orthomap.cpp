@@ -222,6 +222,15 @@ void Orthomap::BuildProcedural() {
   for (int b = 0; b < options_.num_buildings; ++b) {
     const Eigen::Vector2d c = min_ + Eigen::Vector2d(u01(rng), u01(rng)) * side;
     const double w = 6 + u01(rng) * 14, l = 8 + u01(rng) * 22, a = u01(rng) * M_PI;
+    // Keep roofs (and their shadows) off the roads.
+    double clearance = 1e300;
+    for (const GroundPath& road : roads_)
+      for (size_t k = 0; k + 1 < road.size(); ++k) {
+        const Eigen::Vector2d d = road[k + 1] - road[k];
+        const double f = std::clamp((c - road[k]).dot(d) / std::max(d.squaredNorm(), 1e-9), 0.0, 1.0);
+        clearance = std::min(clearance, (c - road[k] - f * d).norm());
+      }
+    if (clearance < 0.5 * std::hypot(w, l) + 8.0) continue;
     const cv::RotatedRect roof(px(c), cv::Size2f(static_cast<float>(l * m), static_cast<float>(w * m)),
                                static_cast<float>(a * 180 / M_PI));
     cv::Point2f corners[4];
