@@ -18,11 +18,13 @@
 // people) break it locally, as in real data. Pixels are "ideal" (pinhole,
 // undistorted) in the homographies; when the camera has distortion the
 // rendered frame is distorted with camera.k1.. (PinholeCamera::Distort).
-// Rendering: the orthomap level whose pixel is just finer than the ground
-// sample distance is warped with cv::warpPerspective by the ground-to-image
-// homography, the periodic detail texture is added, then the ArUco marker,
-// moving objects, optional distortion and sensor noise. Deterministic: the
-// same options give the same bytes for the same t.
+// Rendering: the finest orthomap pyramid level that the ground sample
+// distance does not minify by more than ~10 % (no aliasing) is warped with
+// cv::warpPerspective by the ground-to-image homography, the periodic detail
+// texture is added the same way, then the ArUco marker, moving objects,
+// optional distortion and sensor noise. Deterministic: the same options give
+// the same bytes for the same t. RenderFrame/Render are const and may run on
+// several threads at once.
 
 #include <opencv2/core.hpp>
 #include <memory>
