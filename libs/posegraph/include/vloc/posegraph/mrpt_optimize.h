@@ -1,0 +1,88 @@
+#pragma once
+// vloc's use of MRPT's sparse Levenberg-Marquardt pose-graph optimiser
+// (mrpt::graphslam::optimize_graph_spa_levmarq) and the conversions between
+// vloc's pose/covariance convention and MRPT's.
+//
+// MRPT conventions used by the optimiser (MRPT 2.5):
+//  - a node pose P is perturbed on the right: P' = P (+) exp(d), d = [t r] with
+//    the translation t in the node's own frame and the rotation vector r in
+//    the node's frame (SE(3) pseudo-exponential: translation not coupled);
+//  - an edge i->j holds Z = measured i_from_j; its residual is
+//    e = pseudo-log(Z^-1 P_i^-1 P_j) = [t r] in the frame of Z's target;
+//  - CPose3DPDFGaussianInf::cov_inv of an edge is used as the information
+//    matrix of e, ordered [x y z rx ry rz] (the optimiser's tangent order,
+//    not the yaw-pitch-roll order of CPose3DPDF's other methods). The text
+//    format (saveToTextFile / writeAsText) stores that matrix unchanged
+//    (it swaps indices 3 and 5 on write and back on read).
+// vloc's convention (vloc/common/pose.h): covariance over [x y z rx ry rz] of
+// a_from_b with the position error and a left rotation vector, both in frame
+// a. For a relative pose with rotation R the two are related by
+// J = blockdiag(R^T, R^T): cov_local = J cov_vloc J^T.
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <map>
+#include <mrpt/graphs/CNetworkOfPoses.h>
+#include <mrpt/poses/CPose3D.h>
+#include <string>
+#include <vector>
+
+#include "vloc/common/options.h"
+#include "vloc/common/pose.h"
+
+namespace vloc::posegraph {
+
+// Settings of optimize_graph_spa_levmarq.
+struct OptimizerOptions {
+  int max_iterations = 100;          // Levenberg-Marquardt iterations per update (MRPT "max_iterations")
+  double gradient_tolerance = 1e-9;  // stop when |J^T W e|_inf <= this (MRPT "e1"), information-weighted
+  double step_tolerance = 1e-12;     // stop when |step| < this * (|x| + this) (MRPT "e2"); MRPT's
+                                     // default 1e-6 is loose on long traverses (|x| grows with the distance)
+  double tau = 1e-3;                 // initial damping = tau * max diagonal of the Hessian (MRPT "tau")
+  bool verbose = false;              // MRPT prints every iteration to stdout
+
+  void Visit(OptionsReader& r);
+  bool Check(std::string* error) const;
+};
+
+struct OptimizerResult {
+  int iterations = 0;         // LM iterations MRPT reports
+  double initial_chi2 = 0.0;  // sum of e^T W e before
+  double final_chi2 = 0.0;    // and after
+  double seconds = 0.0;       // wall time of the optimiser call
+};
+
+// Optimises every node but graph.root. A graph with no free node or no edge
+// is left unchanged. Throws std::runtime_error when MRPT fails.
+OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOptions& options);
+OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses2DInf& graph, const OptimizerOptions& options);
+
+// Information-weighted squared error sum_e e^T W e with MRPT's residual.
+double Chi2(const mrpt::graphs::CNetworkOfPoses3DInf& graph);
+double Chi2(const mrpt::graphs::CNetworkOfPoses2DInf& graph);
+
+mrpt::poses::CPose3D ToMrpt(const Pose3& pose);
+Pose3 FromMrpt(const mrpt::poses::CPose3D& pose);
+
+// Covariance of a_from_b in vloc's convention -> covariance of MRPT's local
+// residual (and back). `a_from_b` gives the rotation R.
+Matrix6d LocalFromVlocCovariance(const Pose3& a_from_b, const Matrix6d& covariance);
+Matrix6d VlocFromLocalCovariance(const Pose3& a_from_b, const Matrix6d& covariance);
+
+// Marginal covariance of every free node (all but graph.root), in MRPT's
+// local tangent coordinates of the node, from the Gauss-Newton Hessian
+// H = sum J^T W J at the current estimate: the 6x6 diagonal blocks of H^-1,
+// by sparse Cholesky (Eigen SimplicialLLT, AMD ordering) and the Takahashi
+// selected-inversion recurrence over the factor's pattern (exact, and about
+// linear in the number of sites for a traverse with few loops). Returns
+// false (with *error) when H is singular, e.g. a node not linked to the root.
+bool LocalMarginals(const mrpt::graphs::CNetworkOfPoses3DInf& graph,
+                    std::map<mrpt::graphs::TNodeID, Matrix6d>* marginals, std::string* error);
+
+// Diagonal blocks (block_size x block_size) of the inverse of a symmetric
+// positive-definite sparse matrix (the lower triangle is read). Exposed for
+// tests. Returns false when the matrix is not positive definite.
+bool BlockDiagonalOfInverse(const Eigen::SparseMatrix<double>& matrix, int block_size,
+                            std::vector<Eigen::MatrixXd>* blocks);
+
+}  // namespace vloc::posegraph

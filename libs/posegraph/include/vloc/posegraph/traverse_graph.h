@@ -1,0 +1,175 @@
+#pragma once
+// The traverse pose graph: one MRPT node per rover site, optimised with
+// MRPT's sparse Levenberg-Marquardt after every change.
+//
+//   TraverseGraph graph(options);
+//   graph.AddDeadReckoning(site, utime, world_from_body_dr);      // node + DR edge
+//   graph.AddRelative(reference, site, reference_from_current);   // BA edge
+//   graph.AddAbsoluteFix(site, world_from_body_fix);              // optional
+//   PoseGraphSummary s = graph.Optimize();
+//   for (const SiteEstimate& e : graph.Sites()) ...               // poses + marginals
+//   graph.Save(path); TraverseGraph::Load(path, options, &graph, &error);
+//
+// Edges:
+//  - dead reckoning between consecutive sites that have a DR pose (by id):
+//    Z = DR_prev^-1 DR_site; covariance either from the growth of the DR
+//    covariance between the two sites ("difference": the relative covariance
+//    that, composed on the earlier site's, gives the later one's) or from a
+//    per-metre model ("per_metre"); "difference" falls back to "per_metre"
+//    when the growth is not positive definite or the DR covariance unknown;
+//  - visual (BA) between reference and current site, kind kVisual when the
+//    reference is site - 1 and kLoop otherwise (a revisit);
+//  - absolute fix: an edge from the root site (fixed, defines the world frame)
+//    to the site, world_from_body with its covariance.
+// Site poses are initialised from dead reckoning relative to the previous
+// site's current estimate; the first site added is the root (normally site 0).
+//
+// Persistence: MRPT's text graph format (VERTEX3 / FIX / EDGE3 lines,
+// written with 17 significant digits) plus vloc's metadata as comment lines
+// that MRPT's reader skips ("# VLOC_SITE ...", "# VLOC_EDGE ...").
+
+#include <map>
+#include <mrpt/graphs/CNetworkOfPoses.h>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "vloc/common/options.h"
+#include "vloc/common/pose.h"
+#include "vloc/posegraph/mrpt_optimize.h"
+
+namespace vloc::posegraph {
+
+enum class EdgeKind : int { kDeadReckoning = 0, kVisual = 1, kLoop = 2, kAbsoluteFix = 3 };
+const char* EdgeKindName(EdgeKind kind);
+
+struct PoseGraphOptions {
+  OptimizerOptions optimizer;                     // MRPT Levenberg-Marquardt settings
+  std::string dr_covariance = "difference";       // "difference" (from the DR covariance growth) or "per_metre"
+  double dr_position_sigma_per_metre = 0.05;      // m/m, horizontal 1-sigma of a DR edge per metre driven
+  double dr_vertical_sigma_per_metre = 0.02;      // m/m, vertical 1-sigma per metre driven
+  double dr_heading_sigma_per_metre = 0.002;      // rad/m, heading 1-sigma per metre driven
+  double dr_tilt_sigma = 0.005;                   // rad, roll and pitch 1-sigma of a DR edge
+  double visual_covariance_scale = 1.0;           // multiplies the BA's relative-pose covariance
+  double visual_default_position_sigma = 0.05;    // m, when a BA result carries no covariance
+  double visual_default_rotation_sigma = 0.002;   // rad, when a BA result carries no covariance
+  double fix_default_position_sigma = 1.0;        // m, when an absolute fix carries no covariance
+  double fix_default_rotation_sigma = 3.0;        // rad, ditto (large: a position-only fix)
+  double min_position_sigma = 1e-3;               // m, added in quadrature to every edge (keeps W finite)
+  double min_rotation_sigma = 1e-5;               // rad, ditto
+  bool compute_marginals = true;                  // marginal covariance of every site after each update
+
+  void Visit(OptionsReader& r);
+  bool Check(std::string* error) const;
+};
+
+// What one update did.
+struct PoseGraphSummary {
+  bool usable = false;           // the estimate may be used
+  std::string message;           // why not, or a one-line report
+  int num_sites = 0;
+  int num_edges = 0;
+  int num_dr_edges = 0;
+  int num_visual_edges = 0;      // BA edges (adjacent and revisits)
+  int num_loop_edges = 0;        // revisits (non-adjacent BA edges) and absolute fixes
+  int num_fix_edges = 0;
+  int num_pending = 0;           // measurements waiting for their sites
+  int num_dr_fallbacks = 0;      // DR edges that used the per-metre model in "difference" mode
+  double initial_chi2 = 0.0;
+  double final_chi2 = 0.0;
+  int iterations = 0;
+  bool marginals_valid = false;
+  double optimize_seconds = 0.0; // MRPT optimiser
+  double marginal_seconds = 0.0; // marginal covariances
+  double total_seconds = 0.0;
+
+  std::string BriefReport() const;
+};
+
+// A site's optimised pose and marginal covariance (vloc convention, world
+// frame; all zero for the root site, which is fixed).
+struct SiteEstimate {
+  int site_id = 0;
+  int64_t utime = 0;
+  PoseWithCovariance world_from_body;
+  bool is_root = false;
+};
+
+// Result of adding a measurement.
+struct AddResult {
+  bool accepted = false;    // stored (maybe pending)
+  bool changed = false;     // the graph changed: optimise
+  bool pending = false;     // waiting for a site that is not in the graph yet
+  std::string message;      // why rejected, or what happened
+};
+
+class TraverseGraph {
+ public:
+  explicit TraverseGraph(PoseGraphOptions options = {});
+
+  AddResult AddDeadReckoning(int site_id, const PoseWithCovariance& world_from_body);
+  // `reference_from_current` is reference_from_body(site) with covariance in
+  // vloc's convention (frame: the reference body). A new result for the same
+  // (reference, site) pair replaces the earlier one.
+  AddResult AddRelative(int reference_site_id, int site_id, const PoseWithCovariance& reference_from_current);
+  AddResult AddAbsoluteFix(int site_id, const PoseWithCovariance& world_from_body);
+
+  PoseGraphSummary Optimize();
+  const PoseGraphSummary& last_summary() const { return summary_; }
+
+  std::vector<SiteEstimate> Sites() const;
+  std::optional<SiteEstimate> Site(int site_id) const;
+  int num_sites() const { return static_cast<int>(graph_.nodes.size()); }
+  int64_t newest_utime() const;
+  const mrpt::graphs::CNetworkOfPoses3DInf& graph() const { return graph_; }
+  const PoseGraphOptions& options() const { return options_; }
+
+  // Writes atomically (temporary file + rename). False with *error on failure.
+  bool Save(const std::string& path, std::string* error) const;
+  // Reads a graph saved by Save (or any MRPT 3D text graph; its edges are
+  // then classified by adjacency). False with *error (the graph unchanged).
+  bool Load(const std::string& path, std::string* error);
+
+ private:
+  struct EdgeKey {
+    int from;
+    int to;
+    EdgeKind kind;
+    bool operator<(const EdgeKey& o) const {
+      return std::tie(from, to, kind) < std::tie(o.from, o.to, o.kind);
+    }
+  };
+  struct SiteRecord {
+    int64_t utime = 0;
+    bool has_dr = false;
+    PoseWithCovariance dr;  // world_from_body from dead reckoning
+  };
+  struct Pending {
+    int from;
+    int to;
+    EdgeKind kind;
+    PoseWithCovariance measurement;
+  };
+
+  AddResult AddEdge(int from, int to, EdgeKind kind, const PoseWithCovariance& measurement);
+  bool MakeEdge(const Pose3& from_T_to, const Matrix6d& covariance_vloc, mrpt::poses::CPose3DPDFGaussianInf* edge,
+                std::string* error) const;
+  Matrix6d DrEdgeCovariance(int from, int to, const Pose3& relative, bool* fallback) const;
+  void AddNode(int site_id, const Pose3& world_from_body);
+  void RebuildEdges();
+  void RetryPending();
+  std::string Serialize() const;
+  bool Deserialize(const std::string& text, std::string* error);
+
+  PoseGraphOptions options_;
+  mrpt::graphs::CNetworkOfPoses3DInf graph_;
+  std::map<EdgeKey, mrpt::poses::CPose3DPDFGaussianInf> edges_;  // authoritative edge list
+  std::map<int, SiteRecord> sites_;
+  std::vector<Pending> pending_;
+  std::map<mrpt::graphs::TNodeID, Matrix6d> marginals_;  // MRPT local tangent
+  bool have_root_ = false;
+  int num_dr_fallbacks_ = 0;
+  PoseGraphSummary summary_;
+};
+
+}  // namespace vloc::posegraph

@@ -1,0 +1,215 @@
+#include "vloc/posegraph/mrpt_optimize.h"
+
+#include <chrono>
+#include <cmath>
+#include <Eigen/SparseCholesky>
+#include <mrpt/graphslam/levmarq.h>
+#include <mrpt/poses/Lie/SE.h>
+#include <stdexcept>
+
+namespace vloc::posegraph {
+
+void OptimizerOptions::Visit(OptionsReader& r) {
+  r.Optional("max_iterations", &max_iterations, "Levenberg-Marquardt iterations per update");
+  r.Optional("gradient_tolerance", &gradient_tolerance, "stop when the weighted gradient inf-norm is below");
+  r.Optional("step_tolerance", &step_tolerance, "stop when |step| < tol * (|x| + tol)");
+  r.Optional("tau", &tau, "initial damping factor relative to the Hessian diagonal");
+  r.Optional("verbose", &verbose, "print MRPT's iterations");
+}
+
+bool OptimizerOptions::Check(std::string* error) const {
+  if (max_iterations < 1) return Fail(error, "max_iterations must be >= 1");
+  if (!(gradient_tolerance > 0.0)) return Fail(error, "gradient_tolerance must be > 0");
+  if (!(step_tolerance > 0.0)) return Fail(error, "step_tolerance must be > 0");
+  if (!(tau > 0.0)) return Fail(error, "tau must be > 0");
+  return true;
+}
+
+namespace {
+
+template <class Graph>
+double Chi2Impl(const Graph& graph) {
+  using gst = mrpt::graphslam::graphslam_traits<Graph>;
+  double chi2 = 0.0;
+  for (const auto& [ids, edge] : graph.edges) {
+    const auto it1 = graph.nodes.find(ids.first);
+    const auto it2 = graph.nodes.find(ids.second);
+    if (it1 == graph.nodes.end() || it2 == graph.nodes.end())
+      throw std::runtime_error("pose graph edge " + std::to_string(ids.first) + "->" +
+                               std::to_string(ids.second) + " refers to a missing node");
+    const typename gst::edge_poses_type p1 = it1->second;
+    const typename gst::edge_poses_type p2 = it2->second;
+    const auto residual = gst::SE_TYPE::log((p2 - p1) - edge.getPoseMean());
+    const auto e = residual.asEigen();
+    chi2 += e.dot(edge.cov_inv.asEigen() * e);
+  }
+  return chi2;
+}
+
+template <class Graph>
+OptimizerResult OptimizeImpl(Graph& graph, const OptimizerOptions& options) {
+  OptimizerResult result;
+  const auto start = std::chrono::steady_clock::now();
+  result.initial_chi2 = Chi2Impl(graph);
+  bool has_free = false;
+  for (const auto& n : graph.nodes) has_free |= n.first != graph.root;
+  if (!has_free || graph.edges.empty()) {
+    result.final_chi2 = result.initial_chi2;
+    return result;
+  }
+  mrpt::containers::yaml params = mrpt::containers::yaml::Map();
+  params["max_iterations"] = static_cast<uint64_t>(options.max_iterations);
+  params["e1"] = options.gradient_tolerance;
+  params["e2"] = options.step_tolerance;
+  params["tau"] = options.tau;
+  params["verbose"] = options.verbose;
+  mrpt::graphslam::TResultInfoSpaLevMarq info{};
+  try {
+    mrpt::graphslam::optimize_graph_spa_levmarq(graph, info, nullptr, params);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(std::string("MRPT optimize_graph_spa_levmarq failed: ") + e.what());
+  }
+  result.iterations = static_cast<int>(info.num_iters);
+  result.final_chi2 = Chi2Impl(graph);
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+Eigen::Matrix<double, 6, 6> RotationBlocks(const Eigen::Matrix3d& R) {
+  Eigen::Matrix<double, 6, 6> J = Eigen::Matrix<double, 6, 6>::Zero();
+  J.block<3, 3>(0, 0) = R;
+  J.block<3, 3>(3, 3) = R;
+  return J;
+}
+
+// Levenberg-Marquardt on the information-weighted chi2 with MRPT's residual,
+// Jacobians and retraction (P <- P (+) exp(-delta)), continuing from where
+// MRPT's optimize_graph_spa_levmarq stops. Needed with MRPT 2.5.8, whose LM
+// accepts a step only when the *unweighted* squared error drops and, after one
+// rejected step, rebuilds its Hessian from an empty map and cannot recover
+// (every later Cholesky fails): with edges of different precision (DR vs
+// visual) it stops far from the optimum.
+int RefineWeighted(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOptions& options) {
+  using SE3 = mrpt::poses::Lie::SE<3>;
+  std::map<mrpt::graphs::TNodeID, int> index;
+  for (const auto& n : graph.nodes)
+    if (n.first != graph.root) index.emplace(n.first, static_cast<int>(index.size()));
+  if (index.empty() || graph.edges.empty()) return 0;
+  const int n = 6 * static_cast<int>(index.size());
+  double chi2 = Chi2Impl(graph);
+  double lambda = -1.0;
+  int iterations = 0;
+  bool rebuild = true;
+  Eigen::SparseMatrix<double> H(n, n);
+  Eigen::VectorXd g(n);
+  for (int iter = 0; iter < options.max_iterations; ++iter) {
+    if (rebuild) {
+      std::vector<Eigen::Triplet<double>> triplets;
+      triplets.reserve(graph.edges.size() * 4 * 36);
+      g.setZero();
+      for (const auto& [key, edge] : graph.edges) {
+        const mrpt::poses::CPose3D p1 = graph.nodes.at(key.first);
+        const mrpt::poses::CPose3D p2 = graph.nodes.at(key.second);
+        SE3::matrix_TxT J1, J2;
+        SE3::jacob_dDinvP1invP2_de1e2(-edge.mean, p1, p2, J1, J2);
+        const auto residual = SE3::log((p2 - p1) - edge.mean);
+        const Vector6d e = residual.asEigen();
+        const Matrix6d W = edge.cov_inv.asEigen();
+        const Matrix6d J[2] = {J1.asEigen(), J2.asEigen()};
+        int idx[2] = {-1, -1};
+        const auto f1 = index.find(key.first), f2 = index.find(key.second);
+        if (f1 != index.end()) idx[0] = f1->second;
+        if (f2 != index.end()) idx[1] = f2->second;
+        for (int a = 0; a < 2; ++a) {
+          if (idx[a] < 0) continue;
+          g.segment<6>(6 * idx[a]) += J[a].transpose() * W * e;
+          for (int b = 0; b < 2; ++b) {
+            if (idx[b] < 0) continue;
+            const Matrix6d block = J[a].transpose() * W * J[b];
+            for (int r = 0; r < 6; ++r)
+              for (int c = 0; c < 6; ++c) triplets.emplace_back(6 * idx[a] + r, 6 * idx[b] + c, block(r, c));
+          }
+        }
+      }
+      H.setFromTriplets(triplets.begin(), triplets.end());
+      if (g.lpNorm<Eigen::Infinity>() <= options.gradient_tolerance) break;
+      if (lambda < 0) lambda = 1e-6 * H.diagonal().maxCoeff();
+      rebuild = false;
+    }
+    ++iterations;
+    Eigen::SparseMatrix<double> A = H;
+    for (int i = 0; i < n; ++i) A.coeffRef(i, i) += lambda * std::max(H.coeff(i, i), 1e-12);
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(A);
+    if (solver.info() != Eigen::Success) {
+      lambda *= 10.0;
+      continue;
+    }
+    const Eigen::VectorXd delta = solver.solve(g);
+    double x_norm = 0.0;
+    for (const auto& [id, i] : index) {
+      const auto& p = graph.nodes.at(id);
+      x_norm += p.x() * p.x() + p.y() * p.y() + p.z() * p.z();
+    }
+    if (delta.norm() < options.step_tolerance * (std::sqrt(x_norm) + options.step_tolerance)) break;
+    auto backup = graph.nodes;
+    for (const auto& [id, i] : index) {
+      SE3::tangent_vector step;
+      for (int k = 0; k < 6; ++k) step[k] = -delta[6 * i + k];
+      auto& node = graph.nodes.at(id);
+      node = mrpt::poses::CPose3D(node) + SE3::exp(step);
+    }
+    const double new_chi2 = Chi2Impl(graph);
+    if (new_chi2 < chi2) {
+      const bool converged = chi2 - new_chi2 < 1e-12 * (1.0 + chi2);
+      chi2 = new_chi2;
+      lambda = std::max(lambda * 0.1, 1e-12);
+      rebuild = true;
+      if (converged) break;
+    } else {
+      graph.nodes = std::move(backup);
+      lambda *= 10.0;
+      if (lambda > 1e12) break;
+    }
+  }
+  return iterations;
+}
+
+}  // namespace
+
+OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOptions& options) {
+  OptimizerResult result = OptimizeImpl(graph, options);
+  const auto start = std::chrono::steady_clock::now();
+  result.iterations += RefineWeighted(graph, options);
+  result.final_chi2 = Chi2Impl(graph);
+  result.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses2DInf& graph, const OptimizerOptions& options) {
+  return OptimizeImpl(graph, options);
+}
+double Chi2(const mrpt::graphs::CNetworkOfPoses3DInf& graph) { return Chi2Impl(graph); }
+double Chi2(const mrpt::graphs::CNetworkOfPoses2DInf& graph) { return Chi2Impl(graph); }
+
+mrpt::poses::CPose3D ToMrpt(const Pose3& pose) {
+  mrpt::math::CMatrixDouble44 m(pose.matrix());
+  return mrpt::poses::CPose3D(m);
+}
+
+Pose3 FromMrpt(const mrpt::poses::CPose3D& pose) {
+  Pose3 out = Pose3::Identity();
+  out.linear() = pose.getRotationMatrix().asEigen();
+  out.translation() = Eigen::Vector3d(pose.x(), pose.y(), pose.z());
+  return out;
+}
+
+Matrix6d LocalFromVlocCovariance(const Pose3& a_from_b, const Matrix6d& covariance) {
+  const Matrix6d J = RotationBlocks(a_from_b.linear().transpose());
+  return J * covariance * J.transpose();
+}
+
+Matrix6d VlocFromLocalCovariance(const Pose3& a_from_b, const Matrix6d& covariance) {
+  const Matrix6d J = RotationBlocks(a_from_b.linear());
+  return J * covariance * J.transpose();
+}
+
+}  // namespace vloc::posegraph

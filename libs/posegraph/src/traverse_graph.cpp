@@ -1,0 +1,531 @@
+#include "vloc/posegraph/traverse_graph.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iomanip>
+#include <mrpt/poses/CPose3DPDFGaussianInf.h>
+#include <sstream>
+
+namespace vloc::posegraph {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double Since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+bool IsZero(const Matrix6d& m) { return (m.array() == 0.0).all(); }
+
+bool IsFinitePose(const PoseWithCovariance& p) {
+  return p.pose.matrix().allFinite() && p.covariance.allFinite();
+}
+
+Matrix6d Diagonal(double sx, double sy, double sz, double srx, double sry, double srz) {
+  Vector6d d;
+  d << sx * sx, sy * sy, sz * sz, srx * srx, sry * sry, srz * srz;
+  return d.asDiagonal();
+}
+
+Matrix6d RotateBlocks(const Eigen::Matrix3d& R, const Matrix6d& covariance) {
+  Matrix6d J = Matrix6d::Zero();
+  J.block<3, 3>(0, 0) = R;
+  J.block<3, 3>(3, 3) = R;
+  return J * covariance * J.transpose();
+}
+
+void WritePose(std::ostream& os, const PoseWithCovariance& p) {
+  const Eigen::Quaterniond q(p.pose.linear());
+  const Eigen::Vector3d t = p.pose.translation();
+  os << p.utime << ' ' << t.x() << ' ' << t.y() << ' ' << t.z() << ' ' << q.w() << ' ' << q.x() << ' ' << q.y()
+     << ' ' << q.z();
+  for (int i = 0; i < 36; ++i) os << ' ' << p.covariance(i / 6, i % 6);
+}
+
+bool ReadPose(std::istream& is, PoseWithCovariance* p) {
+  double x, y, z, qw, qx, qy, qz;
+  if (!(is >> p->utime >> x >> y >> z >> qw >> qx >> qy >> qz)) return false;
+  for (int i = 0; i < 36; ++i)
+    if (!(is >> p->covariance(i / 6, i % 6))) return false;
+  const Eigen::Quaterniond q = Eigen::Quaterniond(qw, qx, qy, qz).normalized();
+  p->pose = MakePose(q.toRotationMatrix(), Eigen::Vector3d(x, y, z));
+  return true;
+}
+
+}  // namespace
+
+const char* EdgeKindName(EdgeKind kind) {
+  switch (kind) {
+    case EdgeKind::kDeadReckoning: return "dead_reckoning";
+    case EdgeKind::kVisual: return "visual";
+    case EdgeKind::kLoop: return "loop";
+    case EdgeKind::kAbsoluteFix: return "absolute_fix";
+  }
+  return "unknown";
+}
+
+void PoseGraphOptions::Visit(OptionsReader& r) {
+  r.Child("optimizer", [this](OptionsReader& c) { optimizer.Visit(c); });
+  r.Optional("dr_covariance", &dr_covariance, "difference | per_metre: how DR edge covariances are made");
+  r.Optional("dr_position_sigma_per_metre", &dr_position_sigma_per_metre, "m/m, horizontal DR 1-sigma");
+  r.Optional("dr_vertical_sigma_per_metre", &dr_vertical_sigma_per_metre, "m/m, vertical DR 1-sigma");
+  r.Optional("dr_heading_sigma_per_metre", &dr_heading_sigma_per_metre, "rad/m, DR heading 1-sigma");
+  r.Optional("dr_tilt_sigma", &dr_tilt_sigma, "rad, DR roll/pitch 1-sigma per edge");
+  r.Optional("visual_covariance_scale", &visual_covariance_scale, "multiplies BA covariances");
+  r.Optional("visual_default_position_sigma", &visual_default_position_sigma, "m, BA result without covariance");
+  r.Optional("visual_default_rotation_sigma", &visual_default_rotation_sigma, "rad, BA result without covariance");
+  r.Optional("fix_default_position_sigma", &fix_default_position_sigma, "m, absolute fix without covariance");
+  r.Optional("fix_default_rotation_sigma", &fix_default_rotation_sigma, "rad, absolute fix without covariance");
+  r.Optional("min_position_sigma", &min_position_sigma, "m, floor added to every edge");
+  r.Optional("min_rotation_sigma", &min_rotation_sigma, "rad, floor added to every edge");
+  r.Optional("compute_marginals", &compute_marginals, "marginal covariances after each update");
+}
+
+bool PoseGraphOptions::Check(std::string* error) const {
+  std::string sub;
+  if (!optimizer.Check(&sub)) return Fail(error, "optimizer." + sub);
+  if (dr_covariance != "difference" && dr_covariance != "per_metre")
+    return Fail(error, "dr_covariance must be 'difference' or 'per_metre', got '" + dr_covariance + "'");
+  const std::pair<const char*, double> positive[] = {
+      {"dr_position_sigma_per_metre", dr_position_sigma_per_metre},
+      {"dr_vertical_sigma_per_metre", dr_vertical_sigma_per_metre},
+      {"dr_heading_sigma_per_metre", dr_heading_sigma_per_metre},
+      {"dr_tilt_sigma", dr_tilt_sigma},
+      {"visual_covariance_scale", visual_covariance_scale},
+      {"visual_default_position_sigma", visual_default_position_sigma},
+      {"visual_default_rotation_sigma", visual_default_rotation_sigma},
+      {"fix_default_position_sigma", fix_default_position_sigma},
+      {"fix_default_rotation_sigma", fix_default_rotation_sigma},
+      {"min_position_sigma", min_position_sigma},
+      {"min_rotation_sigma", min_rotation_sigma}};
+  for (const auto& [name, value] : positive)
+    if (!(value > 0.0) || !std::isfinite(value)) return Fail(error, std::string(name) + " must be > 0");
+  return true;
+}
+
+std::string PoseGraphSummary::BriefReport() const {
+  std::ostringstream os;
+  os << (usable ? "usable" : "NOT usable") << ": " << num_sites << " sites, " << num_edges << " edges ("
+     << num_dr_edges << " DR, " << num_visual_edges << " visual, " << num_loop_edges << " loop/fix), chi2 "
+     << initial_chi2 << " -> " << final_chi2 << " in " << iterations << " iterations, " << total_seconds << " s";
+  if (num_pending) os << ", " << num_pending << " pending";
+  if (!message.empty()) os << "; " << message;
+  return os.str();
+}
+
+TraverseGraph::TraverseGraph(PoseGraphOptions options) : options_(std::move(options)) {}
+
+void TraverseGraph::AddNode(int site_id, const Pose3& world_from_body) {
+  graph_.nodes[static_cast<mrpt::graphs::TNodeID>(site_id)] = ToMrpt(world_from_body);
+  if (!have_root_) {
+    graph_.root = static_cast<mrpt::graphs::TNodeID>(site_id);
+    have_root_ = true;
+  }
+}
+
+bool TraverseGraph::MakeEdge(const Pose3& from_T_to, const Matrix6d& covariance_vloc,
+                             mrpt::poses::CPose3DPDFGaussianInf* edge, std::string* error) const {
+  Matrix6d local = LocalFromVlocCovariance(from_T_to, covariance_vloc);
+  local = 0.5 * (local + local.transpose());
+  const double p2 = options_.min_position_sigma * options_.min_position_sigma;
+  const double r2 = options_.min_rotation_sigma * options_.min_rotation_sigma;
+  for (int i = 0; i < 3; ++i) local(i, i) += p2;
+  for (int i = 3; i < 6; ++i) local(i, i) += r2;
+  if (!local.allFinite()) return Fail(error, "covariance is not finite");
+  Eigen::LLT<Matrix6d> llt(local);
+  if (llt.info() != Eigen::Success) return Fail(error, "covariance is not positive definite");
+  const Matrix6d information = llt.solve(Matrix6d::Identity());
+  edge->mean = ToMrpt(from_T_to);
+  edge->cov_inv = mrpt::math::CMatrixDouble66(0.5 * (information + information.transpose()));
+  return true;
+}
+
+Matrix6d TraverseGraph::DrEdgeCovariance(int from, int to, const Pose3& relative, bool* fallback) const {
+  const SiteRecord& a = sites_.at(from);
+  const SiteRecord& b = sites_.at(to);
+  *fallback = false;
+  if (options_.dr_covariance == "difference") {
+    if (!IsZero(a.dr.covariance) || !IsZero(b.dr.covariance)) {
+      // cov_b = J1 cov_a J1^T + J2 cov_rel J2^T (ComposeCovariance), J2 = blockdiag(R_a, R_a).
+      const Matrix6d predicted = ComposeCovariance(a.dr.pose, a.dr.covariance, relative, Matrix6d::Zero());
+      Matrix6d growth = RotateBlocks(a.dr.pose.linear().transpose(), b.dr.covariance - predicted);
+      growth = 0.5 * (growth + growth.transpose());
+      Eigen::SelfAdjointEigenSolver<Matrix6d> eig(growth);
+      if (eig.info() == Eigen::Success && eig.eigenvalues().minCoeff() > 0.0) return growth;
+    }
+    *fallback = true;
+  }
+  const double d = relative.translation().norm();
+  return Diagonal(options_.dr_position_sigma_per_metre * d, options_.dr_position_sigma_per_metre * d,
+                  options_.dr_vertical_sigma_per_metre * d, options_.dr_tilt_sigma, options_.dr_tilt_sigma,
+                  options_.dr_heading_sigma_per_metre * d);
+}
+
+AddResult TraverseGraph::AddDeadReckoning(int site_id, const PoseWithCovariance& world_from_body) {
+  AddResult result;
+  if (site_id < 0) {
+    result.message = "site id " + std::to_string(site_id) + " is negative; dead-reckoning pose ignored";
+    return result;
+  }
+  if (!IsFinitePose(world_from_body)) {
+    result.message = "site " + std::to_string(site_id) + ": dead-reckoning pose is not finite; ignored";
+    return result;
+  }
+  SiteRecord& record = sites_[site_id];
+  record.has_dr = true;
+  record.dr = world_from_body;
+  record.utime = world_from_body.utime;
+
+  // Neighbouring sites with dead reckoning.
+  std::optional<int> prev, next;
+  for (const auto& [id, rec] : sites_) {
+    if (!rec.has_dr || id == site_id) continue;
+    if (id < site_id) prev = id;
+    if (id > site_id && !next) next = id;
+  }
+  const auto key = static_cast<mrpt::graphs::TNodeID>(site_id);
+  if (!graph_.nodes.count(key)) {
+    std::optional<int> anchor = prev ? prev : next;
+    if (anchor && graph_.nodes.count(static_cast<mrpt::graphs::TNodeID>(*anchor))) {
+      const Pose3 world_from_anchor = FromMrpt(graph_.nodes.at(static_cast<mrpt::graphs::TNodeID>(*anchor)));
+      const Pose3 anchor_from_site = sites_.at(*anchor).dr.pose.inverse() * world_from_body.pose;
+      AddNode(site_id, world_from_anchor * anchor_from_site);
+    } else {
+      AddNode(site_id, world_from_body.pose);
+    }
+  }
+  // Dead-reckoning edges to the neighbours (replacing a prev -> next edge).
+  if (prev && next) edges_.erase(EdgeKey{*prev, *next, EdgeKind::kDeadReckoning});
+  std::string error;
+  for (const auto& [from, to] : {std::make_pair(prev, std::optional<int>(site_id)),
+                                 std::make_pair(std::optional<int>(site_id), next)}) {
+    if (!from || !to) continue;
+    const Pose3 relative = sites_.at(*from).dr.pose.inverse() * sites_.at(*to).dr.pose;
+    bool fallback = false;
+    const Matrix6d covariance = DrEdgeCovariance(*from, *to, relative, &fallback);
+    mrpt::poses::CPose3DPDFGaussianInf edge;
+    if (!MakeEdge(relative, covariance, &edge, &error)) {
+      result.message = "dead-reckoning edge " + std::to_string(*from) + "->" + std::to_string(*to) + ": " + error +
+                       "; edge skipped";
+      continue;
+    }
+    if (fallback) ++num_dr_fallbacks_;
+    edges_[EdgeKey{*from, *to, EdgeKind::kDeadReckoning}] = edge;
+  }
+  RebuildEdges();
+  RetryPending();
+  result.accepted = true;
+  result.changed = true;
+  return result;
+}
+
+AddResult TraverseGraph::AddRelative(int reference_site_id, int site_id,
+                                     const PoseWithCovariance& reference_from_current) {
+  AddResult result;
+  if (reference_site_id == site_id || reference_site_id < 0 || site_id < 0) {
+    result.message = "visual edge " + std::to_string(reference_site_id) + "->" + std::to_string(site_id) +
+                     ": needs two different non-negative site ids; ignored";
+    return result;
+  }
+  if (!IsFinitePose(reference_from_current)) {
+    result.message = "visual edge " + std::to_string(reference_site_id) + "->" + std::to_string(site_id) +
+                     ": pose or covariance not finite; ignored";
+    return result;
+  }
+  PoseWithCovariance measurement = reference_from_current;
+  if (IsZero(measurement.covariance)) {
+    const double p = options_.visual_default_position_sigma;
+    const double r = options_.visual_default_rotation_sigma;
+    measurement.covariance = Diagonal(p, p, p, r, r, r);
+  } else {
+    measurement.covariance *= options_.visual_covariance_scale;
+  }
+  const EdgeKind kind = reference_site_id == site_id - 1 ? EdgeKind::kVisual : EdgeKind::kLoop;
+  return AddEdge(reference_site_id, site_id, kind, measurement);
+}
+
+AddResult TraverseGraph::AddAbsoluteFix(int site_id, const PoseWithCovariance& world_from_body) {
+  AddResult result;
+  if (site_id < 0 || !IsFinitePose(world_from_body)) {
+    result.message = "absolute fix for site " + std::to_string(site_id) + ": bad site id or pose; ignored";
+    return result;
+  }
+  PoseWithCovariance measurement = world_from_body;
+  if (IsZero(measurement.covariance)) {
+    const double p = options_.fix_default_position_sigma;
+    const double r = options_.fix_default_rotation_sigma;
+    measurement.covariance = Diagonal(p, p, p, r, r, r);
+  }
+  return AddEdge(-1, site_id, EdgeKind::kAbsoluteFix, measurement);
+}
+
+AddResult TraverseGraph::AddEdge(int from, int to, EdgeKind kind, const PoseWithCovariance& measurement) {
+  AddResult result;
+  const std::string name = std::string(EdgeKindName(kind)) + " edge " +
+                           (kind == EdgeKind::kAbsoluteFix ? std::string("root") : std::to_string(from)) + "->" +
+                           std::to_string(to);
+  const auto has = [this](int id) { return id >= 0 && graph_.nodes.count(static_cast<mrpt::graphs::TNodeID>(id)); };
+  Pose3 relative = measurement.pose;
+  Matrix6d covariance = measurement.covariance;
+  if (kind == EdgeKind::kAbsoluteFix) {
+    if (!have_root_ || !has(to)) {
+      pending_.push_back({from, to, kind, measurement});
+      result.accepted = result.pending = true;
+      result.message = name + ": site not in the graph yet; pending";
+      return result;
+    }
+    from = static_cast<int>(graph_.root);
+    if (to == from) {
+      result.message = name + ": site " + std::to_string(to) + " is the fixed root (it defines the world frame); ignored";
+      return result;
+    }
+    // The root's pose is exact: the fix relative to it has the fix's
+    // covariance rotated into the root frame.
+    const Pose3 world_from_root = FromMrpt(graph_.nodes.at(graph_.root));
+    relative = world_from_root.inverse() * measurement.pose;
+    covariance = RotateBlocks(world_from_root.linear().transpose(), measurement.covariance);
+  } else if (!has(from)) {
+    for (auto it = pending_.begin(); it != pending_.end(); ++it)
+      if (it->from == from && it->to == to && it->kind == kind) {
+        pending_.erase(it);
+        break;
+      }
+    pending_.push_back({from, to, kind, measurement});
+    result.accepted = result.pending = true;
+    result.message = name + ": reference site " + std::to_string(from) + " not in the graph yet; pending";
+    return result;
+  } else if (!has(to)) {
+    // A site seen by the BA before its dead reckoning: place it from the reference.
+    AddNode(to, FromMrpt(graph_.nodes.at(static_cast<mrpt::graphs::TNodeID>(from))) * measurement.pose);
+    sites_[to].utime = measurement.utime;
+  }
+  mrpt::poses::CPose3DPDFGaussianInf edge;
+  std::string error;
+  if (!MakeEdge(relative, covariance, &edge, &error)) {
+    result.message = name + ": " + error + "; ignored";
+    return result;
+  }
+  edges_[EdgeKey{from, to, kind}] = edge;
+  if (!sites_.count(to)) sites_[to].utime = measurement.utime;
+  RebuildEdges();
+  result.accepted = result.changed = true;
+  return result;
+}
+
+void TraverseGraph::RetryPending() {
+  std::vector<Pending> waiting;
+  waiting.swap(pending_);
+  for (const Pending& p : waiting) AddEdge(p.from, p.to, p.kind, p.measurement);
+}
+
+void TraverseGraph::RebuildEdges() {
+  graph_.edges.clear();
+  for (const auto& [key, edge] : edges_)
+    graph_.insertEdge(static_cast<mrpt::graphs::TNodeID>(key.from), static_cast<mrpt::graphs::TNodeID>(key.to),
+                      edge);
+}
+
+PoseGraphSummary TraverseGraph::Optimize() {
+  const auto start = Clock::now();
+  PoseGraphSummary s;
+  s.num_sites = num_sites();
+  s.num_edges = static_cast<int>(edges_.size());
+  for (const auto& [key, edge] : edges_) {
+    if (key.kind == EdgeKind::kDeadReckoning) ++s.num_dr_edges;
+    if (key.kind == EdgeKind::kVisual || key.kind == EdgeKind::kLoop) ++s.num_visual_edges;
+    if (key.kind == EdgeKind::kLoop || key.kind == EdgeKind::kAbsoluteFix) ++s.num_loop_edges;
+    if (key.kind == EdgeKind::kAbsoluteFix) ++s.num_fix_edges;
+  }
+  s.num_pending = static_cast<int>(pending_.size());
+  s.num_dr_fallbacks = num_dr_fallbacks_;
+  if (graph_.nodes.empty()) {
+    s.message = "no sites yet";
+    summary_ = s;
+    return s;
+  }
+  try {
+    const OptimizerResult r = OptimizeGraph(graph_, options_.optimizer);
+    s.initial_chi2 = r.initial_chi2;
+    s.final_chi2 = r.final_chi2;
+    s.iterations = r.iterations;
+    s.optimize_seconds = r.seconds;
+  } catch (const std::exception& e) {
+    s.message = e.what();
+    s.total_seconds = Since(start);
+    summary_ = s;
+    return s;
+  }
+  marginals_.clear();
+  if (options_.compute_marginals) {
+    const auto m_start = Clock::now();
+    std::string error;
+    s.marginals_valid = LocalMarginals(graph_, &marginals_, &error);
+    if (!s.marginals_valid) s.message = error;
+    s.marginal_seconds = Since(m_start);
+  }
+  s.usable = std::isfinite(s.final_chi2);
+  if (!s.usable) s.message = "chi2 is not finite";
+  s.total_seconds = Since(start);
+  summary_ = s;
+  return s;
+}
+
+std::optional<SiteEstimate> TraverseGraph::Site(int site_id) const {
+  const auto it = graph_.nodes.find(static_cast<mrpt::graphs::TNodeID>(site_id));
+  if (site_id < 0 || it == graph_.nodes.end()) return std::nullopt;
+  SiteEstimate e;
+  e.site_id = site_id;
+  const auto rec = sites_.find(site_id);
+  e.utime = rec != sites_.end() ? rec->second.utime : 0;
+  e.world_from_body.utime = e.utime;
+  e.world_from_body.pose = FromMrpt(it->second);
+  e.is_root = it->first == graph_.root;
+  const auto m = marginals_.find(it->first);
+  if (!e.is_root && m != marginals_.end())
+    e.world_from_body.covariance = VlocFromLocalCovariance(e.world_from_body.pose, m->second);
+  return e;
+}
+
+std::vector<SiteEstimate> TraverseGraph::Sites() const {
+  std::vector<SiteEstimate> out;
+  out.reserve(graph_.nodes.size());
+  for (const auto& n : graph_.nodes) out.push_back(*Site(static_cast<int>(n.first)));
+  return out;
+}
+
+int64_t TraverseGraph::newest_utime() const {
+  int64_t newest = 0;
+  for (const auto& [id, rec] : sites_) newest = std::max(newest, rec.utime);
+  return newest;
+}
+
+std::string TraverseGraph::Serialize() const {
+  std::ostringstream os;
+  os.precision(17);
+  os << "# vloc traverse graph: MRPT text graph format; '# VLOC_' lines are vloc metadata\n";
+  os << "# VLOC_VERSION 1\n";
+  for (const auto& [id, rec] : sites_) {
+    os << "# VLOC_SITE " << id << ' ' << rec.utime << ' ' << (rec.has_dr ? 1 : 0) << ' ';
+    WritePose(os, rec.dr);
+    os << '\n';
+  }
+  // The exact information matrix (upper triangle, optimiser order x y z rx ry
+  // rz): MRPT 2.5's EDGE3 reader drops the rotation cross terms.
+  for (const auto& [key, edge] : edges_) {
+    os << "# VLOC_EDGE " << key.from << ' ' << key.to << ' ' << static_cast<int>(key.kind);
+    for (int r = 0; r < 6; ++r)
+      for (int c = r; c < 6; ++c) os << ' ' << edge.cov_inv(r, c);
+    os << '\n';
+  }
+  for (const Pending& p : pending_) {
+    os << "# VLOC_PENDING " << p.from << ' ' << p.to << ' ' << static_cast<int>(p.kind) << ' ';
+    WritePose(os, p.measurement);
+    os << '\n';
+  }
+  graph_.writeAsText(os);
+  return os.str();
+}
+
+bool TraverseGraph::Save(const std::string& path, std::string* error) const {
+  const std::string text = Serialize();
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp);
+    if (!f) return Fail(error, "cannot write pose graph file " + tmp + " (check the directory exists and is writable)");
+    f << text;
+    f.flush();
+    if (!f) return Fail(error, "writing pose graph file " + tmp + " failed (disk full?)");
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0)
+    return Fail(error, "cannot rename " + tmp + " to " + path);
+  return true;
+}
+
+bool TraverseGraph::Load(const std::string& path, std::string* error) {
+  std::ifstream f(path);
+  if (!f) return Fail(error, "cannot read pose graph file " + path);
+  std::stringstream buffer;
+  buffer << f.rdbuf();
+  std::string sub;
+  if (!Deserialize(buffer.str(), &sub)) return Fail(error, "pose graph file " + path + ": " + sub);
+  return true;
+}
+
+bool TraverseGraph::Deserialize(const std::string& text, std::string* error) {
+  TraverseGraph loaded(options_);
+  try {
+    std::istringstream is(text);
+    loaded.graph_.readAsText(is);
+  } catch (const std::exception& e) {
+    return Fail(error, std::string("not a valid MRPT 3D graph: ") + e.what());
+  }
+  std::vector<EdgeKey> kinds;
+  std::vector<Matrix6d> informations;
+  std::istringstream lines(text);
+  std::string line;
+  while (std::getline(lines, line)) {
+    if (line.rfind("# VLOC_", 0) != 0) continue;
+    std::istringstream ls(line.substr(2));
+    std::string tag;
+    ls >> tag;
+    if (tag == "VLOC_SITE") {
+      int id, has_dr;
+      SiteRecord rec;
+      if (!(ls >> id >> rec.utime >> has_dr) || !ReadPose(ls, &rec.dr)) return Fail(error, "bad line: " + line);
+      rec.has_dr = has_dr != 0;
+      loaded.sites_[id] = rec;
+    } else if (tag == "VLOC_EDGE") {
+      int from, to, kind;
+      if (!(ls >> from >> to >> kind) || kind < 0 || kind > 3) return Fail(error, "bad line: " + line);
+      kinds.push_back({from, to, static_cast<EdgeKind>(kind)});
+      Matrix6d info;
+      for (int r = 0; r < 6; ++r)
+        for (int c = r; c < 6; ++c) {
+          if (!(ls >> info(r, c))) return Fail(error, "bad line: " + line);
+          info(c, r) = info(r, c);
+        }
+      informations.push_back(info);
+    } else if (tag == "VLOC_PENDING") {
+      Pending p;
+      int kind;
+      if (!(ls >> p.from >> p.to >> kind) || kind < 0 || kind > 3 || !ReadPose(ls, &p.measurement))
+        return Fail(error, "bad line: " + line);
+      p.kind = static_cast<EdgeKind>(kind);
+      loaded.pending_.push_back(p);
+    }
+  }
+  const auto& g = loaded.graph_;
+  if (!kinds.empty() && kinds.size() != g.edges.size())
+    return Fail(error, std::to_string(kinds.size()) + " VLOC_EDGE lines for " + std::to_string(g.edges.size()) +
+                           " edges; the file is inconsistent");
+  size_t i = 0;
+  std::map<std::pair<int, int>, int> seen;
+  for (const auto& [ids, edge] : g.edges) {
+    const int from = static_cast<int>(ids.first);
+    const int to = static_cast<int>(ids.second);
+    EdgeKey key{from, to, EdgeKind::kLoop};
+    mrpt::poses::CPose3DPDFGaussianInf exact = edge;
+    if (!kinds.empty()) {
+      key = kinds[i];
+      exact.cov_inv = mrpt::math::CMatrixDouble66(informations[i]);
+      ++i;
+      if (key.from != from || key.to != to) return Fail(error, "VLOC_EDGE lines do not match the EDGE3 lines");
+    } else if (std::abs(to - from) == 1) {
+      // A plain MRPT graph: first edge of an adjacent pair = DR, then visual.
+      key.kind = seen[{from, to}]++ == 0 ? EdgeKind::kDeadReckoning : EdgeKind::kVisual;
+    }
+    loaded.edges_[key] = exact;
+  }
+  for (const auto& n : g.nodes) {
+    const int id = static_cast<int>(n.first);
+    if (!loaded.sites_.count(id)) loaded.sites_[id] = SiteRecord{};
+  }
+  loaded.have_root_ = !g.nodes.empty();
+  loaded.RebuildEdges();
+  *this = std::move(loaded);
+  return true;
+}
+
+}  // namespace vloc::posegraph
