@@ -495,31 +495,36 @@ std::optional<RayHit> Terrain::Raycast(const Eigen::Vector3d& origin, const Eige
 
   const int top = static_cast<int>(max_levels_.size()) - 1;
   const double eps = 1e-6;
+  // Reciprocals once per ray (multiplications in the loop, not divisions).
+  const double inv_d_x = d_x != 0 ? 1.0 / d_x : 0.0, inv_d_y = d_y != 0 ? 1.0 / d_y : 0.0;
+  const bool pos_x = d_x > 0, pos_y = d_y > 0;
   double t = t0;
   // Start at ~5 m cells: rays begin near the camera, where coarser levels only cost descents.
   int level = std::min(top, 7);
   while (t <= t1) {
     const double px = o_x + t * d_x, py = o_y + t * d_y;
     const MaxLevel& lv = max_levels_[level];
-    const int s = 1 << level;
-    const int ci = std::clamp(static_cast<int>(std::floor(px / s)), 0, lv.width - 1);
-    const int cj = std::clamp(static_cast<int>(std::floor(py / s)), 0, lv.width - 1);
-    const double bx0 = static_cast<double>(ci) * s, bx1 = std::min(bx0 + s, size);
-    const double by0 = static_cast<double>(cj) * s, by1 = std::min(by0 + s, size);
+    const double s = std::ldexp(1.0, level), inv_s = std::ldexp(1.0, -level);
+    const int ci = std::clamp(static_cast<int>(std::floor(px * inv_s)), 0, lv.width - 1);
+    const int cj = std::clamp(static_cast<int>(std::floor(py * inv_s)), 0, lv.width - 1);
     double te = t1;
-    if (d_x > 0) te = std::min(te, (bx1 - o_x) / d_x);
-    else if (d_x < 0) te = std::min(te, (bx0 - o_x) / d_x);
-    if (d_y > 0) te = std::min(te, (by1 - o_y) / d_y);
-    else if (d_y < 0) te = std::min(te, (by0 - o_y) / d_y);
+    if (d_x != 0) {
+      const double bx = pos_x ? std::min((ci + 1) * s, size) : ci * s;
+      te = std::min(te, (bx - o_x) * inv_d_x);
+    }
+    if (d_y != 0) {
+      const double by = pos_y ? std::min((cj + 1) * s, size) : cj * s;
+      te = std::min(te, (by - o_y) * inv_d_y);
+    }
     te = std::max(te, t);
     const double z_low = o_z + (d_z < 0 ? te : t) * d_z;
     if (z_low > lv.max_height[static_cast<size_t>(cj) * lv.width + ci]) {
       const double t_next = te + eps;
       if (level < top) {
         // Go up a level when the ray leaves the parent cell.
-        const int s2 = s * 2;
-        const int pi = static_cast<int>(std::floor((o_x + t_next * d_x) / s2));
-        const int pj = static_cast<int>(std::floor((o_y + t_next * d_y) / s2));
+        const double inv_s2 = 0.5 * inv_s;
+        const int pi = static_cast<int>(std::floor((o_x + t_next * d_x) * inv_s2));
+        const int pj = static_cast<int>(std::floor((o_y + t_next * d_y) * inv_s2));
         if (pi != ci / 2 || pj != cj / 2) ++level;
       }
       t = t_next;
@@ -537,8 +542,8 @@ std::optional<RayHit> Terrain::Raycast(const Eigen::Vector3d& origin, const Eige
       return hit;
     }
     const double t_next = te + eps;
-    const int pi = static_cast<int>(std::floor((o_x + t_next * d_x) / 2));
-    const int pj = static_cast<int>(std::floor((o_y + t_next * d_y) / 2));
+    const int pi = static_cast<int>(std::floor((o_x + t_next * d_x) * 0.5));
+    const int pj = static_cast<int>(std::floor((o_y + t_next * d_y) * 0.5));
     if (top > 0 && (pi != ci / 2 || pj != cj / 2)) level = 1;
     t = t_next;
   }
