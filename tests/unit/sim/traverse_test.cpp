@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 
@@ -157,6 +158,33 @@ TEST(SimTraverse, AccelerometerReadsGravityAtRestAndFollowsSlope) {
   }
   EXPECT_GT(max_tilt, 0.2 * M_PI / 180);
   EXPECT_LT(max_tilt, 25 * M_PI / 180);
+}
+
+// The body origin (centre of the wheel contacts) stays on the ground: its
+// height follows the mean terrain height under the rover.
+TEST(SimTraverse, RoverFollowsTheTerrain) {
+  TraverseOptions options;
+  options.plan.num_sites = 6;
+  const SimulatedTraverse traverse = SimulateTraverse(TestTerrain(), options);
+  std::vector<double> gaps;
+  for (size_t k = 0; k < traverse.ground_truth.size(); k += 50) {
+    const Pose3& pose = traverse.ground_truth[k].world_from_body;
+    double ground = 0;
+    int n = 0;
+    for (double fx : {-0.6, 0.0, 0.6}) {
+      for (double fy : {-0.5, 0.5}) {
+        const Eigen::Vector3d contact = pose * Eigen::Vector3d(fx, fy, 0);
+        ground += TestTerrain().Height(contact.x(), contact.y());
+        ++n;
+      }
+    }
+    gaps.push_back(std::abs(pose.translation().z() - ground / n));
+  }
+  std::sort(gaps.begin(), gaps.end());
+  std::printf("body height above the mean contact height: median %.3f m, max %.3f m\n", gaps[gaps.size() / 2],
+              gaps.back());
+  EXPECT_LT(gaps[gaps.size() / 2], 0.03);
+  EXPECT_LT(gaps.back(), 0.15);
 }
 
 TEST(SimTraverse, RevisitReturnsToTheEarlierSite) {
