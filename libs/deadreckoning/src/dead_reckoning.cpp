@@ -33,6 +33,7 @@ void DeadReckoningOptions::Visit(OptionsReader& r) {
   r.Optional("still_gyro_threshold", &still_gyro_threshold, "rad/s");
   r.Optional("still_accel_tolerance", &still_accel_tolerance, "m/s^2");
   r.Optional("still_speed_threshold", &still_speed_threshold, "m/s");
+  r.Optional("still_settle_s", &still_settle_s, "s of stillness ignored before averaging");
   r.Optional("still_duration_s", &still_duration_s, "s averaged per gravity update");
   r.Optional("max_imu_gap_s", &max_imu_gap_s, "s, longer IMU gaps are bridged");
   r.Optional("gap_attitude_sigma_rate", &gap_attitude_sigma_rate, "rad/s added over a bridged gap");
@@ -53,7 +54,8 @@ bool DeadReckoningOptions::Check(std::string* error) const {
     return Fail(error, "noise and drift sigmas must be >= 0");
   if (!(still_gyro_threshold > 0) || !(still_accel_tolerance > 0) || !(still_speed_threshold > 0))
     return Fail(error, "still_* thresholds must be positive");
-  if (!(still_duration_s > 0)) return Fail(error, "still_duration_s must be positive");
+  if (!(still_duration_s > 0) || still_settle_s < 0)
+    return Fail(error, "still_duration_s must be positive and still_settle_s >= 0");
   if (!(max_imu_gap_s > 0) || !(max_speed_mps > 0) || !(wheel_wait_s >= 0) || !(reset_backward_jump_s > 0))
     return Fail(error, "max_imu_gap_s, max_speed_mps, reset_backward_jump_s must be positive, wheel_wait_s >= 0");
   return true;
@@ -96,7 +98,7 @@ void DeadReckoning::Initialize(const ImuSample& first) {
   gyro_bias_.setZero();
   P_.setZero();
   P_.block<3, 3>(kP, kP) = Eigen::Matrix3d::Identity() * std::pow(options_.initial_position_sigma_m, 2);
-  const double tilt = gravity_like ? options_.tilt_sigma_rad : 0.1;
+  const double tilt = gravity_like ? 0.02 : 0.1;  // until the alignment
   P_.block<3, 3>(kR, kR) =
       Eigen::Vector3d(tilt * tilt, tilt * tilt, std::pow(options_.initial_yaw_sigma_rad, 2)).asDiagonal();
   P_(kS, kS) = std::pow(options_.along_track_sigma_per_m, 2);
@@ -107,7 +109,21 @@ void DeadReckoning::Initialize(const ImuSample& first) {
   attitude_history_.clear();
   attitude_history_.emplace_back(first.utime, R_);
   initialized_ = true;
-  stop_updated_ = gravity_like;  // the start counts as this stop's gravity alignment
+  aligned_ = false;
+  stop_updated_ = false;
+}
+
+void DeadReckoning::Align(const Eigen::Vector3d& f) {
+  const Eigen::Vector3d rpy = RollPitchYawFromRotation(R_);
+  R_ = RotationFromRollPitchYaw(std::atan2(f.y(), f.z()), std::atan2(-f.x(), std::hypot(f.y(), f.z())), rpy.z());
+  for (int i : {kR, kR + 1}) {
+    P_.row(i).setZero();
+    P_.col(i).setZero();
+    P_(i, i) = options_.tilt_sigma_rad * options_.tilt_sigma_rad;
+  }
+  if (!attitude_history_.empty()) attitude_history_.back().second = R_;
+  aligned_ = true;
+  ++stats_.gravity_updates;
   EmitPendingArrivals();
 }
 
@@ -172,16 +188,29 @@ void DeadReckoning::AddImu(const ImuSample& s) {
                      std::abs(s.linear_acceleration.norm() - options_.gravity_mps2) < options_.still_accel_tolerance &&
                      std::abs(last_speed_) < options_.still_speed_threshold;
   if (!still) {
+    if (!aligned_) {
+      LOG(WARNING) << "dead reckoning: moving before " << options_.still_duration_s
+                   << " s of standing still; roll/pitch start from the first IMU sample";
+      aligned_ = true;
+      EmitPendingArrivals();
+    }
     still_seconds_ = 0;
     still_force_sum_.setZero();
     still_count_ = 0;
     stop_updated_ = false;
   } else if (!stop_updated_) {
     still_seconds_ += dt;
-    still_force_sum_ += s.linear_acceleration;
-    ++still_count_;
-    if (still_seconds_ >= options_.still_duration_s) {
-      GravityUpdate(still_force_sum_ / still_count_);
+    if (still_seconds_ > options_.still_settle_s) {
+      still_force_sum_ += R_ * s.linear_acceleration;  // world frame: gyro-compensated while settling
+      ++still_count_;
+    }
+    if (still_seconds_ >= options_.still_settle_s + options_.still_duration_s && still_count_ > 0) {
+      const Eigen::Vector3d mean_force_body = R_.transpose() * (still_force_sum_ / still_count_);
+      if (aligned_) {
+        GravityUpdate(mean_force_body);
+      } else {
+        Align(mean_force_body);
+      }
       stop_updated_ = true;
     }
   }
@@ -197,11 +226,16 @@ void DeadReckoning::GravityUpdate(const Eigen::Vector3d& f) {
   H(0, kR) = 1;
   H(1, kR + 1) = 1;
   const Eigen::Matrix2d S = H * P_ * H.transpose() + Eigen::Matrix2d::Identity() * std::pow(options_.tilt_sigma_rad, 2);
-  const Eigen::Matrix<double, kN, 2> K = P_ * H.transpose() * S.inverse();
+  Eigen::Matrix<double, kN, 2> K = P_ * H.transpose() * S.inverse();
+  // Attitude only: neither the position nor the gyro bias is corrected
+  // through its correlation with the tilt (one gravity vector per stop,
+  // with the accelerometer bias in it, does not pin them down reliably).
+  // The Joseph form below keeps the covariance right for this gain.
+  K.block<3, 2>(kP, 0).setZero();
+  K.block<2, 2>(kS, 0).setZero();
+  K.block<3, 2>(kB, 0).setZero();
   const Eigen::Matrix<double, kN, 1> dx = K * y;
-  p_ += dx.segment<3>(kP);
   R_ = ExpSO3(dx.segment<3>(kR)) * R_;
-  gyro_bias_ -= dx.segment<3>(kB);  // error = true - estimate, and true rate = measured - bias
   const StateMatrix IKH = StateMatrix::Identity() - K * H;
   P_ = IKH * P_ * IKH.transpose() + K * Eigen::Matrix2d::Identity() * std::pow(options_.tilt_sigma_rad, 2) * K.transpose();
   if (!attitude_history_.empty()) attitude_history_.back().second = R_;
@@ -319,7 +353,7 @@ void DeadReckoning::AddSiteEvent(const SiteEvent& event) {
 }
 
 void DeadReckoning::EmitPendingArrivals() {
-  if (!initialized_) return;
+  if (!initialized_ || !aligned_) return;
   for (const SiteEvent& event : pending_arrivals_) {
     // Integrate what the wheels reported up to the arrival.
     while (!wheel_queue_.empty() && wheel_queue_.front().utime <= event.utime) {

@@ -183,11 +183,11 @@ TEST(DeadReckoning, CovarianceGrowsWithDistanceAndTime) {
     last_pos = pos;
     last_yaw = yaw;
   }
-  // Along-track sigma ~ 8 % of 10 m after the first leg (plus heading and noise terms).
+  // Along-track sigma ~ 12 % of 10 m after the first leg (plus heading and noise terms).
   const double first_leg = std::sqrt(run.sites[1].covariance.block<3, 3>(0, 0).trace());
   std::printf("site 1 position sigma %.3f m, yaw sigma %.5f rad\n", first_leg, std::sqrt(run.sites[1].covariance(5, 5)));
-  EXPECT_GT(first_leg, 0.08 * 10.0);
-  EXPECT_LT(first_leg, 0.15 * 10.0);
+  EXPECT_GT(first_leg, 0.12 * 10.0);
+  EXPECT_LT(first_leg, 0.16 * 10.0);
 }
 
 TEST(DeadReckoning, NoisySensorsDriftWithinCovariance) {

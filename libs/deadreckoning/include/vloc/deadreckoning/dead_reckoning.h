@@ -11,6 +11,10 @@
 // x forward, y left, z up. The output pose is world_from_body with the 6x6
 // covariance of vloc/common/pose.h.
 //
+// Start: the first still_duration_s of standing still sets roll/pitch from
+// the averaged accelerometer (coarse alignment); site arrivals wait for it.
+// If the rover moves first, it starts from the first sample's tilt.
+//
 // Input may come from replayed logs: samples out of order, duplicated,
 // missing, or jumping in time. Each is handled (dropped, bridged or reset)
 // and counted in DeadReckoningStats, and logged.
@@ -37,7 +41,7 @@ struct DeadReckoningOptions {
   double initial_yaw_sigma_rad = 0.001;    // rad, 1-sigma of the start heading
   double tilt_sigma_rad = 0.004;           // rad, 1-sigma of gravity-derived roll/pitch (accelerometer bias / g)
   double odometry_scale = 1.0;             // distance per odometer metre (e.g. 1 - nominal slip)
-  double along_track_sigma_per_m = 0.08;   // 1-sigma odometer scale error: along-track sigma per metre driven
+  double along_track_sigma_per_m = 0.12;   // 1-sigma odometer scale error (uncompensated slip): along-track sigma per metre
   double cross_track_sigma_per_m = 0.03;   // 1-sigma lateral slip: cross-track sigma per metre driven
   double distance_noise_m_per_sqrt_m = 0.005;  // m/sqrt(m), random position noise per distance
   double gyro_noise_density = 4.4e-5;      // rad/s/sqrt(Hz), angle random walk
@@ -46,7 +50,8 @@ struct DeadReckoningOptions {
   double still_gyro_threshold = 0.002;     // rad/s, |rate| below this may be still
   double still_accel_tolerance = 0.05;     // m/s^2, | |f| - g | below this may be still
   double still_speed_threshold = 1e-3;     // m/s, wheel speed below this may be still
-  double still_duration_s = 1.0;           // s of stillness averaged for one gravity update per stop
+  double still_settle_s = 0.5;             // s of stillness ignored first (the last of the braking)
+  double still_duration_s = 1.0;           // s of stillness then averaged for one gravity update per stop
   double max_imu_gap_s = 0.5;              // s, a longer IMU gap is bridged without rotation and inflates attitude
   double gap_attitude_sigma_rate = 0.01;   // rad/s, attitude sigma added per second of a bridged gap
   double max_speed_mps = 1.0;              // m/s, faster odometer increments are dropped as implausible
@@ -101,12 +106,14 @@ class DeadReckoning {
   void IntegrateWheel(const WheelOdometrySample& sample);
   void FlushWheel(bool force_all);
   void GravityUpdate(const Eigen::Vector3d& mean_specific_force);
+  void Align(const Eigen::Vector3d& mean_specific_force);
   Eigen::Matrix3d AttitudeAt(int64_t utime) const;
   bool TimeWentBack(int64_t utime, int64_t last, const char* what);
 
   DeadReckoningOptions options_;
   DeadReckoningStats stats_;
   bool initialized_ = false;
+  bool aligned_ = false;  // roll/pitch set from gravity (or given up on: moved first)
   int64_t imu_utime_ = 0;
   int64_t state_utime_ = 0;
   Eigen::Matrix3d R_ = Eigen::Matrix3d::Identity();  // world_from_body rotation
