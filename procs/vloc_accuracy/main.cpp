@@ -1,7 +1,7 @@
 // vloc_accuracy: theoretical cross-site localization accuracy (Wan et al.,
 // section 3) for a mission planner, with an optional Monte Carlo check.
 //   vloc_accuracy --config config/accuracy/forward_forward.yaml [--monte-carlo N --seed S]
-//     [--error-model previous|current|both] [--current-frame world|site]
+//     [--error-model previous|current|both] [--current-frame world|site] [--paper-eq8]
 #include <cstdio>
 #include <iostream>
 
@@ -16,8 +16,8 @@ int main(int argc, char** argv) {
   std::string error;
   const char* usage =
       "usage: vloc_accuracy --config FILE [--monte-carlo N] [--seed S] [--error-model previous|current|both] "
-      "[--current-frame world|site]";
-  if (!args.Parse(argc, argv, {"config", "monte-carlo", "seed", "error-model", "current-frame", "help"}, &error)) {
+      "[--current-frame world|site] [--paper-eq8]";
+  if (!args.Parse(argc, argv, {"config", "monte-carlo", "seed", "error-model", "current-frame", "paper-eq8", "help"}, &error)) {
     std::fprintf(stderr, "vloc_accuracy: %s\n%s\n", error.c_str(), usage);
     return 1;
   }
@@ -30,6 +30,7 @@ int main(int argc, char** argv) {
     YAML::Node root = vloc::LoadYamlFile(args.Get("config"));
     if (args.Has("error-model")) root["error_model"] = args.Get("error-model");
     if (args.Has("current-frame")) root["current_frame"] = args.Get("current-frame");
+    if (args.Has("paper-eq8")) root["paper_eq8_offdiagonal"] = true;
     std::string echo;
     options = vloc::LoadOptions<vloc::AccuracyOptions>(root, args.Get("config"), &echo);
     LOG(INFO) << "effective options:\n" << echo;

@@ -20,6 +20,7 @@ void AccuracyOptions::Visit(OptionsReader& r) {
   r.Optional("landmarks_xy", &landmarks_xy, "m, landmark positions x0 y0 x1 y1 ...");
   r.Optional("error_model", &error_model, "previous | current | both: covariances in M_c^p");
   r.Optional("current_frame", &current_frame, "world | site: frame of the current-site coordinates");
+  r.Optional("paper_eq8_offdiagonal", &paper_eq8_offdiagonal, "use eq. 8's off-diagonal as printed");
 }
 
 bool AccuracyOptions::Check(std::string* error) const {
@@ -74,9 +75,15 @@ Eigen::Matrix2d StereoPointCovariance(const Eigen::Vector2d& site, const Eigen::
                                       const AccuracyOptions& o) {
   const Eigen::Vector2d d = landmark - site;
   const double r = d.norm();
-  return PolarPointCovariance(r, std::atan2(d.y(), d.x()),
-                              StereoRangeSigma(r, o.baseline_m, o.focal_px, o.sigma_parallax_px),
-                              o.SigmaAzimuthRad());
+  const double theta = std::atan2(d.y(), d.x());
+  const double sr = StereoRangeSigma(r, o.baseline_m, o.focal_px, o.sigma_parallax_px);
+  const double st = o.SigmaAzimuthRad();
+  Eigen::Matrix2d cov = PolarPointCovariance(r, theta, sr, st);
+  if (o.paper_eq8_offdiagonal) {
+    const double sc = std::sin(theta) * std::cos(theta);
+    cov(0, 1) = cov(1, 0) = sc * sr * sr - r * r * sc * sc * st * st;
+  }
+  return cov;
 }
 
 namespace {
@@ -203,7 +210,8 @@ std::string FormatAccuracyReport(const AccuracyOptions& o, const AccuracyResult&
     << " px, sigma_theta = " << o.SigmaAzimuthRad() << " rad (" << o.sigma_azimuth_px << " px)\n";
   s << "sites: previous (" << o.previous_site.x() << ", " << o.previous_site.y() << "), current ("
     << o.current_site.x() << ", " << o.current_site.y() << "); error model " << o.error_model
-    << ", current frame " << o.current_frame << "\n";
+    << ", current frame " << o.current_frame << (o.paper_eq8_offdiagonal ? ", eq. 8 off-diagonal as printed" : "")
+    << "\n";
   if (!r.usable) {
     s << "not computable: " << r.message << "\n";
     return s.str();

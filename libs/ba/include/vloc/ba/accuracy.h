@@ -31,6 +31,7 @@ struct AccuracyOptions {
   std::vector<double> landmarks_xy = {13, 1.5, 13, -1.5, 16, 1.5, 16, -1.5};  // m, x0 y0 x1 y1 ...
   std::string error_model = "previous";  // previous | current | both: covariances in M_c^p
   std::string current_frame = "world";   // world | site: frame of (x, y) and (x_p, y_p) in eqs. 9, 12
+  bool paper_eq8_offdiagonal = false;    // true: eq. 8's off-diagonal as printed, sc sr^2 - r^2 (sc)^2 st^2 (reproduces the paper's figures)
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
@@ -49,6 +50,7 @@ Eigen::Matrix2d PolarPointCovariance(double range_m, double azimuth_rad, double 
                                      double sigma_azimuth_rad);
 
 // Covariance of a landmark as measured by stereo from `site` (eqs. 7-8).
+// With options.paper_eq8_offdiagonal the off-diagonal is the paper's printed one.
 Eigen::Matrix2d StereoPointCovariance(const Eigen::Vector2d& site, const Eigen::Vector2d& landmark,
                                       const AccuracyOptions& options);
 
