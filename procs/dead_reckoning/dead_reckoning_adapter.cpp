@@ -14,6 +14,7 @@ void DeadReckoningProcOptions::Visit(OptionsReader& r) {
   r.Optional("site_channel", &site_channel, "site_event_t in");
   r.Optional("pose_channel", &pose_channel, "pose_t out, periodic");
   r.Optional("site_pose_channel", &site_pose_channel, "site_pose_t out, per site");
+  r.Optional("start_pose_channel", &start_pose_channel, "site_pose_t in: site 0 sets the start; empty = off");
   r.Optional("queue_capacity", &queue_capacity, "messages per subscription queue");
   r.Child("dead_reckoning", [&](OptionsReader& c) { dead_reckoning.Visit(c); });
 }
@@ -49,6 +50,16 @@ DeadReckoningAdapter::DeadReckoningAdapter(Transport& transport, const DeadRecko
         PublishReady();
       },
       options_.queue_capacity);
+  if (!options_.start_pose_channel.empty()) {
+    start_stats_ = Subscribe<site_pose_t>(
+        transport_, options_.start_pose_channel,
+        [this](const std::string&, const site_pose_t& msg) {
+          if (msg.site_id != 0 || start_pose_set_) return;
+          start_pose_set_ = estimator_.SetStartPose(PoseFromMessage(msg.pose).pose);
+          if (!start_pose_set_) start_pose_set_ = true;  // too late: do not try again
+        },
+        options_.queue_capacity);
+  }
 }
 
 void DeadReckoningAdapter::PublishReady() {

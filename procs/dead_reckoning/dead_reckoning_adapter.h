@@ -1,7 +1,9 @@
 #pragma once
 // LCM side of dead reckoning: IMU, WHEEL_ODOM and ROVER_SITE in; DR_POSE
 // (pose_t, every publish_period_s of message time) and SITE_POSE_DR
-// (site_pose_t, source DEAD_RECKONING, at every ARRIVED) out.
+// (site_pose_t, source DEAD_RECKONING, at every ARRIVED) out. Optionally
+// the start position and heading from site 0's pose on start_pose_channel
+// (e.g. SITE_POSE_GT in simulation, the lander's estimate on a mission).
 
 #include <memory>
 #include <string>
@@ -18,6 +20,7 @@ struct DeadReckoningProcOptions {
   std::string site_channel = "ROVER_SITE";         // site_event_t in
   std::string pose_channel = "DR_POSE";            // pose_t out, periodic
   std::string site_pose_channel = "SITE_POSE_DR";  // site_pose_t out, per site
+  std::string start_pose_channel = "";             // site_pose_t in: site 0's pose sets the start (empty = off)
   int queue_capacity = 1000;                       // messages a subscription may hold (IMU at 100 Hz)
   DeadReckoningOptions dead_reckoning;             // the estimator (map `dead_reckoning`)
 
@@ -40,7 +43,8 @@ class DeadReckoningAdapter {
   Transport& transport_;
   DeadReckoningProcOptions options_;
   DeadReckoning estimator_;
-  std::shared_ptr<SubscriptionStats> imu_stats_, wheel_stats_, site_stats_;
+  std::shared_ptr<SubscriptionStats> imu_stats_, wheel_stats_, site_stats_, start_stats_;
+  bool start_pose_set_ = false;
   int64_t published_poses_ = 0;
   int64_t published_sites_ = 0;
 };

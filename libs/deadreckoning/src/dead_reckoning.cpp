@@ -332,6 +332,27 @@ void DeadReckoning::IntegrateWheel(const WheelOdometrySample& s) {
   ++stats_.wheel_used;
 }
 
+bool DeadReckoning::SetStartPose(const Pose3& world_from_body) {
+  if (!world_from_body.matrix().allFinite()) return false;
+  if (stats_.distance_m > 0) {
+    LOG(WARNING) << "dead reckoning: start pose arrived after " << stats_.distance_m << " m of driving; ignored";
+    return false;
+  }
+  options_.initial_position = world_from_body.translation();
+  options_.initial_yaw_rad = Heading(world_from_body);
+  if (initialized_) {
+    const Eigen::Vector3d rpy = RollPitchYawFromRotation(R_);
+    R_ = RotationFromRollPitchYaw(rpy.x(), rpy.y(), options_.initial_yaw_rad);
+    p_ = options_.initial_position;
+    for (auto& entry : attitude_history_) entry.second = R_;
+    if (!ready_sites_.empty() || sites_seen_.size() > pending_arrivals_.size())
+      LOG(WARNING) << "dead reckoning: start pose set after a site pose was reported; that one used the old start";
+  }
+  LOG(INFO) << "dead reckoning: start position (" << p_.transpose() << ") m, heading " << options_.initial_yaw_rad
+            << " rad";
+  return true;
+}
+
 PoseWithCovariance DeadReckoning::Current() const {
   PoseWithCovariance out;
   out.utime = state_utime_;

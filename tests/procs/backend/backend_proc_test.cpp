@@ -135,7 +135,7 @@ TEST(DeadReckoningProcess, PublishesPeriodicAndSitePoses) {
   ASSERT_TRUE(PumpUntil(
       *transport, 30,
       [&] {
-        send_imu(20, 0.0);
+        send_imu(100, 0.0);
         Publish(*transport, "ROVER_SITE", SiteEventToMessage({t, 0, SiteEventType::kArrived, 7}));
       },
       [&] { return !sites.empty(); }))

@@ -284,6 +284,20 @@ TEST(DeadReckoning, BackwardTimeJumpRestarts) {
   EXPECT_LT((run.final_pose.pose.translation() - tr.site_truth.back().translation()).norm(), 1e-3);
 }
 
+TEST(DeadReckoning, StartPoseIsTakenOnlyBeforeMoving) {
+  const Traverse tr = MakeTraverse({});
+  DeadReckoningOptions o = Options();
+  o.initial_yaw_rad = 0.0;  // wrong: the traverse starts at 0.3 rad
+  DeadReckoning dr(o);
+  dr.AddImu(tr.imu[0]);
+  EXPECT_TRUE(dr.SetStartPose(MakePose(0, 0, 0, 0, 0, 0.3)));
+  // Feed everything but the first IMU sample again (it is dropped as a duplicate).
+  const FeedResult run = Feed(dr, tr);
+  ASSERT_EQ(run.sites.size(), 4u);
+  EXPECT_LT((run.sites.back().pose.translation() - tr.site_truth.back().translation()).norm(), 1e-3);
+  EXPECT_FALSE(dr.SetStartPose(MakePose(1, 0, 0, 0, 0, 0)));
+}
+
 TEST(DeadReckoning, GravityUpdateCorrectsTilt) {
   // Start tilted wrongly (first sample not at rest), then stand still: roll/pitch converge to truth.
   DeadReckoning dr(Options());

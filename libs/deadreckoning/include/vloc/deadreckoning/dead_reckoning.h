@@ -88,6 +88,10 @@ class DeadReckoning {
   void AddSiteEvent(const SiteEvent& event);
   // Site poses ready since the last call: (site id, world_from_body at arrival).
   std::vector<std::pair<int, PoseWithCovariance>> PopSitePoses();
+  // Sets the start position and heading (roll/pitch stay gravity's) while
+  // the rover has not moved yet, e.g. from the lander or a ground-truth
+  // site-0 pose; returns false (and logs) once it has moved.
+  bool SetStartPose(const Pose3& world_from_body);
   // The next periodic pose once message time has passed it (call after every sample).
   std::optional<PoseWithCovariance> PopPeriodicPose();
 
