@@ -60,6 +60,7 @@ int main(int argc, char** argv) {
     world_options = vloc::LoadOptionsFile<vloc::UavWorldOptions>(sim_config, "world");
     if (args.Has("fps")) world_options.fps = args.GetDouble("fps", world_options.fps);
     if (args.Has("gps-use")) options.height_filter.gps_use = args.Get("gps-use");
+    options.async_mosaic = false;  // blend inside ProcessFrame so each frame's mosaic time is measured
     if (!options.Check(&error) || !world_options.Check(&error)) throw vloc::ConfigError("command line: " + error);
   } catch (const std::exception& e) {
     std::cerr << "uav_mosaic_eval: " << e.what() << "\n";

@@ -74,6 +74,7 @@ void MosaickerOptions::Visit(OptionsReader& r) {
   r.Optional("recovery_view_scale", &recovery_view_scale, "frame sizes searched in the mosaic when lost");
   r.Optional("recovery_min_painted", &recovery_min_painted, "covered fraction needed for recovery");
   r.Optional("num_threads", &num_threads, "OpenCV threads");
+  r.Optional("async_mosaic", &async_mosaic, "blend on a worker thread");
 }
 
 bool MosaickerOptions::Check(std::string* error) const {
@@ -106,9 +107,78 @@ std::string MosaickerSummary::BriefReport() const {
 UavMosaicker::UavMosaicker(const MosaickerOptions& options)
     : options_(options), height_filter_(options.height_filter), camera_(options.camera) {
   cv::setNumThreads(options_.num_threads);
+  if (options_.async_mosaic) worker_ = std::thread([this] { WorkerLoop(); });
 }
 
-UavMosaicker::~UavMosaicker() = default;
+UavMosaicker::~UavMosaicker() {
+  if (worker_.joinable()) {
+    {
+      std::lock_guard<std::mutex> lock(job_mutex_);
+      stop_worker_ = true;
+    }
+    job_cv_.notify_all();
+    worker_.join();
+  }
+}
+
+void UavMosaicker::WorkerLoop() {
+  std::unique_lock<std::mutex> lock(job_mutex_);
+  while (true) {
+    job_cv_.wait(lock, [this] { return stop_worker_ || job_.has_value(); });
+    if (stop_worker_ && !job_) return;
+    BlendJob job = std::move(*job_);
+    job_.reset();
+    worker_busy_ = true;
+    lock.unlock();
+    std::string why;
+    bool ok = false;
+    {
+      std::lock_guard<std::mutex> canvas_lock(canvas_mutex_);
+      ok = canvas_->Blend(job.frame, job.mosaic_from_frame, &why);
+    }
+    if (!ok) {
+      LOG_EVERY_N(WARNING, 50) << "mosaic: frame not blended: " << why;
+    }
+    lock.lock();
+    worker_busy_ = false;
+    if (ok) ++async_blends_;
+    job_cv_.notify_all();
+  }
+}
+
+void UavMosaicker::FlushMosaic() {
+  if (!worker_.joinable()) return;
+  std::unique_lock<std::mutex> lock(job_mutex_);
+  job_cv_.wait(lock, [this] { return !job_.has_value() && !worker_busy_; });
+}
+
+bool UavMosaicker::BlendOrQueue(const cv::Mat& frame, const Similarity2& S, FrameState* state) {
+  if (options_.async_mosaic) {
+    {
+      std::lock_guard<std::mutex> lock(job_mutex_);
+      if (job_) ++async_dropped_;  // the worker fell behind: the newer frame replaces the queued one
+      job_ = BlendJob{frame.clone(), S};
+    }
+    job_cv_.notify_all();
+    state->mosaic_updated = true;
+    return true;
+  }
+  const auto t1 = std::chrono::steady_clock::now();
+  std::string why;
+  bool ok = false;
+  {
+    std::lock_guard<std::mutex> lock(canvas_mutex_);
+    ok = canvas_->Blend(frame, S, &why);
+  }
+  state->mosaic_seconds = Seconds(t1);
+  if (!ok) {
+    LOG_EVERY_N(WARNING, 50) << "mosaic: frame not blended: " << why;
+    return false;
+  }
+  state->mosaic_updated = true;
+  ++summary_.blends;
+  return true;
+}
 
 cv::Mat UavMosaicker::Undistort(const cv::Mat& image) {
   if (image.cols != camera_.width || image.rows != camera_.height) {
@@ -219,13 +289,7 @@ void UavMosaicker::StartMosaic(const cv::Mat& frame, const FrameFeatures& featur
   last_good_ = S;
   last_scale_ = s;
   height_filter_.Reset(calibration_.height, utime);
-  const auto t0 = std::chrono::steady_clock::now();
-  std::string why;
-  if (canvas_->Blend(frame, S, &why)) {
-    state->mosaic_updated = true;
-    ++summary_.blends;
-  }
-  state->mosaic_seconds = Seconds(t0);
+  BlendOrQueue(frame, S, state);
   frames_since_blend_ = 0;
   state->status = TrackStatus::kTracking;
   state->keyframe = true;
@@ -254,7 +318,11 @@ bool UavMosaicker::RegisterToMosaic(const cv::Mat& frame, const FrameFeatures& f
   // view px v -> frame px v - offset -> mosaic via the last good pose.
   const Similarity2 mosaic_from_view = last_good_ * Similarity2{1, 0, -offset.x, -offset.y};
   cv::Mat view, mask;
-  const double painted = canvas_->Render(mosaic_from_view, view_size, &view, &mask);
+  double painted = 0;
+  {
+    std::lock_guard<std::mutex> lock(canvas_mutex_);
+    painted = canvas_->Render(mosaic_from_view, view_size, &view, &mask);
+  }
   if (painted < options_.recovery_min_painted) {
     *why += "; mosaic covers only " + std::to_string(painted) + " of the search area";
     return false;
@@ -390,16 +458,7 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
   // Mosaic.
   ++frames_since_blend_;
   if (new_key || frames_since_blend_ >= options_.mosaic_every_n_frames) {
-    const auto t1 = std::chrono::steady_clock::now();
-    std::string blend_why;
-    if (canvas_->Blend(frame, S, &blend_why)) {
-      state.mosaic_updated = true;
-      ++summary_.blends;
-      frames_since_blend_ = 0;
-    } else {
-      LOG_EVERY_N(WARNING, 50) << "mosaic: frame not blended: " << blend_why;
-    }
-    state.mosaic_seconds = Seconds(t1);
+    if (BlendOrQueue(frame, S, &state)) frames_since_blend_ = 0;
   }
   last_state_ = state;
   return state;
@@ -500,7 +559,11 @@ cv::Mat UavMosaicker::Preview(int max_side, bool draw_route) const {
   if (!canvas_) return {};
   double scale = 1;
   cv::Point2d origin;
-  cv::Mat preview = canvas_->Preview(max_side, &scale, &origin);
+  cv::Mat preview;
+  {
+    std::lock_guard<std::mutex> lock(canvas_mutex_);
+    preview = canvas_->Preview(max_side, &scale, &origin);
+  }
   if (preview.empty() || !draw_route || route_.size() < 2) return preview;
   preview = preview.clone();
   const size_t step = std::max<size_t>(1, route_.size() / 2000);
@@ -520,7 +583,11 @@ bool UavMosaicker::WriteMosaic(const std::string& png_path, std::string* error) 
   cv::Mat bgra;
   double scale = 1;
   cv::Point2d origin;
-  if (!canvas_->Export(&bgra, &scale, &origin, error)) return false;
+  FlushMosaic();
+  {
+    std::lock_guard<std::mutex> lock(canvas_mutex_);
+    if (!canvas_->Export(&bgra, &scale, &origin, error)) return false;
+  }
   std::error_code ec;
   const std::filesystem::path path(png_path);
   if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path(), ec);
@@ -566,7 +633,14 @@ MosaickerSummary UavMosaicker::summary() const {
   s.georeferenced = enu_from_flipped_.has_value();
   s.tie_rms = tie_rms_;
   s.tie_pairs = static_cast<int>(pairs_.size());
-  if (canvas_) s.canvas = canvas_->stats();
+  if (canvas_) {
+    std::lock_guard<std::mutex> lock(canvas_mutex_);
+    s.canvas = canvas_->stats();
+  }
+  if (options_.async_mosaic) {
+    std::lock_guard<std::mutex> lock(job_mutex_);
+    s.blends = static_cast<int>(async_blends_);
+  }
   return s;
 }
 

@@ -104,9 +104,13 @@ TEST(UavMosaickerProcess, TracksSimulatedFlightOverRealLcm) {
   std::filesystem::remove(mosaic);
   mosaicker.Signal(SIGUSR1);
   const auto wait_file = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  while (!std::filesystem::exists(mosaic) && std::chrono::steady_clock::now() < wait_file) transport->Handle(100);
+  const auto world_file = std::filesystem::path(mosaic).replace_extension(".pgw");
+  // The PNG is written first, then the world file: wait for both.
+  while (!(std::filesystem::exists(mosaic) && std::filesystem::exists(world_file)) &&
+         std::chrono::steady_clock::now() < wait_file)
+    transport->Handle(100);
   EXPECT_TRUE(std::filesystem::exists(mosaic)) << mosaicker.output();
-  EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(mosaic).replace_extension(".pgw")))
+  EXPECT_TRUE(std::filesystem::exists(world_file))
       << "tied to GPS: world file expected";
   mosaicker.Signal(SIGTERM);
   const auto code = mosaicker.WaitExit(60);

@@ -226,3 +226,32 @@ TEST_F(MosaickerFlight, CanvasMemoryIsBoundedAndSpillsLoseNothing) {
 
 }  // namespace
 }  // namespace vloc::mosaic
+
+namespace vloc::mosaic {
+namespace {
+
+TEST_F(MosaickerFlight, AsyncMosaicTracksIdenticallyAndBuildsTheMosaic) {
+  const NadirCamera cam;
+  MosaickerOptions sync_options = TestOptions(cam, Truth(0).height);
+  MosaickerOptions async_options = sync_options;
+  async_options.async_mosaic = true;
+  UavMosaicker a(sync_options), b(async_options);
+  for (int i = 0; i < 40; ++i) {
+    const double t = i / 10.0;
+    const cv::Mat frame = Frame(cam, t, i + 1);
+    const FrameState sa = a.ProcessFrame(frame, static_cast<int64_t>(t * 1e6));
+    const FrameState sb = b.ProcessFrame(frame, static_cast<int64_t>(t * 1e6));
+    ASSERT_EQ(sb.status, TrackStatus::kTracking) << sb.message;
+    EXPECT_DOUBLE_EQ(sa.height, sb.height);  // tracking does not depend on the canvas
+    EXPECT_DOUBLE_EQ(sa.route_px.x, sb.route_px.x);
+  }
+  std::string error;
+  const std::string png = ::testing::TempDir() + "/async.png";
+  ASSERT_TRUE(b.WriteMosaic(png, &error)) << error;  // waits for the queued blend
+  EXPECT_GT(b.summary().blends, 3);
+  EXPECT_LE(b.summary().blends, a.summary().blends);
+  EXPECT_FALSE(cv::imread(png, cv::IMREAD_UNCHANGED).empty());
+}
+
+}  // namespace
+}  // namespace vloc::mosaic

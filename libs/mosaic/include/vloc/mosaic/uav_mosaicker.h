@@ -18,9 +18,12 @@
 
 #include <opencv2/core.hpp>
 #include <cstdint>
+#include <condition_variable>
 #include <deque>
 #include <limits>
 #include <memory>
+#include <mutex>
+#include <thread>
 #include <optional>
 #include <string>
 #include <vector>
@@ -63,6 +66,8 @@ struct MosaickerOptions {
   double recovery_view_scale = 1.6;     // when lost, the mosaic is searched over this many frame sizes around the last pose
   double recovery_min_painted = 0.25;   // fraction of that view the mosaic must cover to try
   int num_threads = 2;                  // OpenCV threads (A-KAZE, matching, warping)
+  bool async_mosaic = false;            // blend on a worker thread (real time: tracking never waits; a frame due while
+                                        // the worker is busy replaces the queued one). false = blend inside ProcessFrame
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
@@ -98,9 +103,9 @@ struct FrameState {
   bool georeferenced = false;           // a mosaic -> ENU tie exists
   int num_matches = 0, num_inliers = 0, num_foreground = 0;
   bool keyframe = false;                // this frame became the keyframe
-  bool mosaic_updated = false;          // blended into the mosaic
+  bool mosaic_updated = false;          // blended into the mosaic (async_mosaic: queued for blending)
   double tracking_seconds = 0;          // s, features + matching + height
-  double mosaic_seconds = 0;            // s, blending (0 when not blended)
+  double mosaic_seconds = 0;            // s, blending (0 when not blended or async_mosaic)
 };
 
 struct MosaickerSummary {
@@ -158,6 +163,10 @@ class UavMosaicker {
   void PairPendingFixes();
   void RefitTie();
   void FillRoute(FrameState* state);
+  // Blends now, or queues for the worker (async_mosaic). Returns false when not done/queued.
+  bool BlendOrQueue(const cv::Mat& frame, const Similarity2& S, FrameState* state);
+  void WorkerLoop();
+  void FlushMosaic();  // waits until the worker has blended what is queued
 
   MosaickerOptions options_;
   Calibration calibration_;
@@ -191,6 +200,19 @@ class UavMosaicker {
   std::optional<Similarity2> enu_from_flipped_;           // (x, -y) mosaic px -> ENU m
   double tie_rms_ = 0;
   std::vector<cv::Point2d> route_;                        // for the preview
+
+  // async_mosaic: one queued job, a worker thread, the canvas behind a mutex.
+  struct BlendJob {
+    cv::Mat frame;
+    Similarity2 mosaic_from_frame;
+  };
+  mutable std::mutex canvas_mutex_;     // guards canvas_ content
+  mutable std::mutex job_mutex_;
+  std::condition_variable job_cv_;
+  std::optional<BlendJob> job_;
+  bool worker_busy_ = false, stop_worker_ = false;
+  int64_t async_blends_ = 0, async_dropped_ = 0;  // guarded by job_mutex_
+  std::thread worker_;
 };
 
 // Local east/north (m) of a lat/lon relative to an origin (flat earth).
