@@ -49,6 +49,7 @@ vm::MosaickerOptions Options() {
   o.calibration.source = "config";
   o.calibration.height = 40.0;
   o.canvas.metres_per_pixel = 0.08;
+  o.matcher.downscale = 0.4;  // as config/procs/uav_mosaicker.yaml
   return o;
 }
 
@@ -65,7 +66,7 @@ double PeakRssMb() {
 // per frame apart from blending).
 void BM_TrackingAndHeight(benchmark::State& state) {
   const auto& frames = Frames();
-  vm::MatcherOptions options;
+  vm::MatcherOptions options = Options().matcher;
   options.num_threads = static_cast<int>(state.range(0));
   cv::setNumThreads(options.num_threads);
   vm::FrameFeatures prev = vm::ExtractFeatures(frames[0], options);
