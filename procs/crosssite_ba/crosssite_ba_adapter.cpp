@@ -57,7 +57,17 @@ CrossSiteBaAdapter::CrossSiteBaAdapter(Transport& transport, const CrossSiteBaPr
   tie_stats_ = Subscribe<tie_points_t>(
       transport_, options_.tie_points_channel,
       [this](const std::string&, const tie_points_t& msg) {
-        const CrossSiteBaSummary s = Process(TiePointsFromMessage(msg));
+        TiePointSet set;
+        try {
+          set = TiePointsFromMessage(msg);
+        } catch (const std::exception& e) {
+          // Still answer for the site, so the traverse keeps its dead-reckoning pose.
+          const CrossSiteBaSummary s = BadMessage(msg, e.what());
+          LOG(ERROR) << s.BriefReport() << "; fix the front end's output";
+          Publish(transport_, options_.visual_channel, LocalizationToMessage(s, msg.utime));
+          return;
+        }
+        const CrossSiteBaSummary s = Process(std::move(set));
         Publish(transport_, options_.visual_channel, LocalizationToMessage(s, msg.utime));
       },
       options_.queue_capacity);
@@ -89,6 +99,29 @@ CrossSiteBaSummary CrossSiteBaAdapter::Process(TiePointSet set) {
     LOG(WARNING) << s.BriefReport() << " [dead reckoning stands; previous site from " << previous_source
                  << ", motion from " << motion_source << "]";
   }
+  return s;
+}
+
+CrossSiteBaSummary CrossSiteBaAdapter::BadMessage(const tie_points_t& msg, const std::string& why) {
+  CrossSiteBaSummary s;
+  s.status = CrossSiteBaStatus::kBadInput;
+  s.usable = false;
+  s.previous_site_id = msg.previous_site_id;
+  s.current_site_id = msg.current_site_id;
+  s.num_tie_points_in = msg.num_points;
+  s.message = "tie-point message unusable: " + why;
+  if (dr_poses_.count(msg.current_site_id)) {
+    s.world_from_current = dr_poses_[msg.current_site_id];
+  } else {
+    try {
+      s.world_from_current = PoseFromMessage(msg.current_site_pose_dr.pose);
+    } catch (const std::exception&) {
+      s.message += "; no dead-reckoning pose either (identity sent)";
+    }
+  }
+  s.previous_from_current.pose = s.world_from_current.pose;
+  s.previous_from_current.covariance = s.world_from_current.covariance;
+  ++failed_;
   return s;
 }
 

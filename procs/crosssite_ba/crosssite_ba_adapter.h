@@ -20,6 +20,7 @@
 #include "vloc/lcm_io/transport.h"
 #include "vloc/lcm_io/typed.h"
 #include "vloc/localization_t.hpp"
+#include "vloc/tie_points_t.hpp"
 
 namespace vloc {
 
@@ -50,6 +51,9 @@ class CrossSiteBaAdapter {
   CrossSiteBaSummary Process(TiePointSet set);
 
  private:
+  // The answer to a message that cannot be converted: BAD_INPUT with the DR pose.
+  CrossSiteBaSummary BadMessage(const tie_points_t& msg, const std::string& why);
+
   Transport& transport_;
   CrossSiteBaProcOptions options_;
   NavcamModel navcam_;

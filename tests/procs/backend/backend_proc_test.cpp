@@ -97,6 +97,17 @@ TEST(CrossSiteBaProcess, LocalizesSyntheticSiteAndReportsFailures) {
       << proc.output();
   EXPECT_EQ(int(received.back().status), int(localization_t::STATUS_TOO_FEW_POINTS)) << received.back().message;
   EXPECT_FALSE(received.back().message.empty());
+
+  // A corrupt message (an observation naming a pair that does not exist): BAD_INPUT, DR pose stands.
+  tie_points_t corrupt = TiePointsToMessage(syn.set);
+  corrupt.current_site_id = 4;
+  corrupt.points[0].observations[0].pair_index = 99;
+  ASSERT_TRUE(PumpUntil(
+      *transport, 30, [&] { Publish(*transport, "TIE_POINTS", corrupt); },
+      [&] { return received.back().site_id == 4; }))
+      << proc.output();
+  EXPECT_EQ(int(received.back().status), int(localization_t::STATUS_BAD_INPUT)) << received.back().message;
+  EXPECT_LT((PoseFromMessage(received.back().pose).pose.translation() - current_dr.translation()).norm(), 1e-9);
   proc.Signal(SIGTERM);
   EXPECT_EQ(proc.WaitExit(20), 0) << proc.output();
 }
