@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <cmath>
@@ -251,6 +252,47 @@ TEST_F(MosaickerFlight, AsyncMosaicTracksIdenticallyAndBuildsTheMosaic) {
   EXPECT_GT(b.summary().blends, 3);
   EXPECT_LE(b.summary().blends, a.summary().blends);
   EXPECT_FALSE(cv::imread(png, cv::IMREAD_UNCHANGED).empty());
+}
+
+}  // namespace
+}  // namespace vloc::mosaic
+
+namespace vloc::mosaic {
+namespace {
+
+// Frames with strong barrel distortion: undistorted with the configured
+// camera, the height stays within 1 %; ignoring the distortion costs more.
+TEST_F(MosaickerFlight, DistortedFramesAreCorrectedWithTheCameraModel) {
+  const NadirCamera cam;
+  MosaickerOptions o = TestOptions(cam, Truth(0).height);
+  o.camera.k1 = -0.12;
+  o.camera.k2 = 0.03;
+  // Distorted pixel -> ideal pixel map, to render what a distorting lens sees.
+  std::vector<cv::Point2f> grid, ideal;
+  for (int v = 0; v < cam.size.height; ++v)
+    for (int u = 0; u < cam.size.width; ++u) grid.emplace_back(static_cast<float>(u), static_cast<float>(v));
+  cv::undistortPoints(grid, ideal, cv::Mat(o.camera.K()), o.camera.DistortionCoeffs(), cv::noArray(), cv::Mat(o.camera.K()));
+  cv::Mat map(cam.size, CV_32FC2, ideal.data());
+  map = map.clone();
+  MosaickerOptions ignoring = o;
+  ignoring.camera.k1 = ignoring.camera.k2 = 0.0;
+  UavMosaicker corrected(o), uncorrected(ignoring);
+  double worst_corrected = 0, worst_uncorrected = 0;
+  for (int i = 0; i < 50; ++i) {
+    const double t = i / 10.0;
+    cv::Mat distorted;
+    cv::remap(Frame(cam, t, i + 1), distorted, map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    const FrameState a = corrected.ProcessFrame(distorted, static_cast<int64_t>(t * 1e6));
+    const FrameState b = uncorrected.ProcessFrame(distorted, static_cast<int64_t>(t * 1e6));
+    ASSERT_EQ(a.status, TrackStatus::kTracking) << a.message;
+    const double h = Truth(t).height;
+    worst_corrected = std::max(worst_corrected, std::abs(a.height - h) / h);
+    if (b.status == TrackStatus::kTracking) worst_uncorrected = std::max(worst_uncorrected, std::abs(b.height - h) / h);
+  }
+  std::cout << "worst height error with the distortion model " << 100 * worst_corrected << " %, without "
+            << 100 * worst_uncorrected << " %\n";
+  EXPECT_LT(worst_corrected, 0.01);
+  EXPECT_GT(worst_uncorrected, worst_corrected);
 }
 
 }  // namespace
