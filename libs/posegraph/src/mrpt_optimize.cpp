@@ -1,6 +1,7 @@
 #include "vloc/posegraph/mrpt_optimize.h"
 
 #include <chrono>
+#include <cstdio>
 #include <cmath>
 #include <Eigen/SparseCholesky>
 #include <mrpt/graphslam/levmarq.h>
@@ -10,7 +11,9 @@
 namespace vloc::posegraph {
 
 void OptimizerOptions::Visit(OptionsReader& r) {
-  r.Optional("max_iterations", &max_iterations, "Levenberg-Marquardt iterations per update");
+  r.Optional("mrpt_max_iterations", &mrpt_max_iterations, "MRPT optimize_graph_spa_levmarq iterations per update");
+  r.Optional("max_iterations", &max_iterations, "weighted Levenberg-Marquardt iterations per update");
+  r.Optional("relative_chi2_tolerance", &relative_chi2_tolerance, "stop when chi2 drops by less than this fraction");
   r.Optional("gradient_tolerance", &gradient_tolerance, "stop when the weighted gradient inf-norm is below");
   r.Optional("step_tolerance", &step_tolerance, "stop when |step| < tol * (|x| + tol)");
   r.Optional("tau", &tau, "initial damping factor relative to the Hessian diagonal");
@@ -18,7 +21,8 @@ void OptimizerOptions::Visit(OptionsReader& r) {
 }
 
 bool OptimizerOptions::Check(std::string* error) const {
-  if (max_iterations < 1) return Fail(error, "max_iterations must be >= 1");
+  if (max_iterations < 1 || mrpt_max_iterations < 1) return Fail(error, "max_iterations and mrpt_max_iterations must be >= 1");
+  if (!(relative_chi2_tolerance >= 0.0)) return Fail(error, "relative_chi2_tolerance must be >= 0");
   if (!(gradient_tolerance > 0.0)) return Fail(error, "gradient_tolerance must be > 0");
   if (!(step_tolerance > 0.0)) return Fail(error, "step_tolerance must be > 0");
   if (!(tau > 0.0)) return Fail(error, "tau must be > 0");
@@ -47,7 +51,7 @@ double Chi2Impl(const Graph& graph) {
 }
 
 template <class Graph>
-OptimizerResult OptimizeImpl(Graph& graph, const OptimizerOptions& options) {
+OptimizerResult OptimizeImpl(Graph& graph, const OptimizerOptions& options, int mrpt_iterations) {
   OptimizerResult result;
   const auto start = std::chrono::steady_clock::now();
   result.initial_chi2 = Chi2Impl(graph);
@@ -58,7 +62,7 @@ OptimizerResult OptimizeImpl(Graph& graph, const OptimizerOptions& options) {
     return result;
   }
   mrpt::containers::yaml params = mrpt::containers::yaml::Map();
-  params["max_iterations"] = static_cast<uint64_t>(options.max_iterations);
+  params["max_iterations"] = static_cast<uint64_t>(mrpt_iterations);
   params["e1"] = options.gradient_tolerance;
   params["e2"] = options.step_tolerance;
   params["tau"] = options.tau;
@@ -102,6 +106,8 @@ int RefineWeighted(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOpt
   bool rebuild = true;
   Eigen::SparseMatrix<double> H(n, n);
   Eigen::VectorXd g(n);
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+  bool analysed = false;
   for (int iter = 0; iter < options.max_iterations; ++iter) {
     if (rebuild) {
       std::vector<Eigen::Triplet<double>> triplets;
@@ -133,13 +139,17 @@ int RefineWeighted(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOpt
       }
       H.setFromTriplets(triplets.begin(), triplets.end());
       if (g.lpNorm<Eigen::Infinity>() <= options.gradient_tolerance) break;
-      if (lambda < 0) lambda = 1e-6 * H.diagonal().maxCoeff();
+      if (lambda < 0) lambda = 1e-5;  // Marquardt: relative to each diagonal entry
       rebuild = false;
     }
     ++iterations;
     Eigen::SparseMatrix<double> A = H;
     for (int i = 0; i < n; ++i) A.coeffRef(i, i) += lambda * std::max(H.coeff(i, i), 1e-12);
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(A);
+    if (!analysed) {
+      solver.analyzePattern(A);
+      analysed = true;
+    }
+    solver.factorize(A);
     if (solver.info() != Eigen::Success) {
       lambda *= 10.0;
       continue;
@@ -159,8 +169,11 @@ int RefineWeighted(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOpt
       node = mrpt::poses::CPose3D(node) + SE3::exp(step);
     }
     const double new_chi2 = Chi2Impl(graph);
+    if (options.verbose)
+      std::printf("[vloc refine] iter %d chi2 %.6f -> %.6f lambda %.3g |delta| %.3g\n", iter, chi2, new_chi2, lambda,
+                  delta.norm());
     if (new_chi2 < chi2) {
-      const bool converged = chi2 - new_chi2 < 1e-12 * (1.0 + chi2);
+      const bool converged = chi2 - new_chi2 < options.relative_chi2_tolerance * (1.0 + chi2);
       chi2 = new_chi2;
       lambda = std::max(lambda * 0.1, 1e-12);
       rebuild = true;
@@ -177,15 +190,17 @@ int RefineWeighted(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOpt
 }  // namespace
 
 OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOptions& options) {
-  OptimizerResult result = OptimizeImpl(graph, options);
+  OptimizerResult result = OptimizeImpl(graph, options, options.mrpt_max_iterations);
   const auto start = std::chrono::steady_clock::now();
+  if (options.verbose) std::printf("[vloc] MRPT stage %.3f s\n", result.seconds);
   result.iterations += RefineWeighted(graph, options);
   result.final_chi2 = Chi2Impl(graph);
   result.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }
 OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses2DInf& graph, const OptimizerOptions& options) {
-  return OptimizeImpl(graph, options);
+  // 2D: MRPT alone (no weighted polish), max_iterations iterations.
+  return OptimizeImpl(graph, options, options.max_iterations);
 }
 double Chi2(const mrpt::graphs::CNetworkOfPoses3DInf& graph) { return Chi2Impl(graph); }
 double Chi2(const mrpt::graphs::CNetworkOfPoses2DInf& graph) { return Chi2Impl(graph); }

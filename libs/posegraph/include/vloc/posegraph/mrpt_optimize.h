@@ -34,7 +34,9 @@ namespace vloc::posegraph {
 
 // Settings of optimize_graph_spa_levmarq.
 struct OptimizerOptions {
-  int max_iterations = 100;          // Levenberg-Marquardt iterations per update (MRPT "max_iterations")
+  int mrpt_max_iterations = 1;       // iterations of MRPT's optimize_graph_spa_levmarq per update (see RefineWeighted)
+  int max_iterations = 100;          // iterations of the weighted Levenberg-Marquardt that follows
+  double relative_chi2_tolerance = 1e-5;  // stop when an accepted step lowers chi2 by less than this fraction
   double gradient_tolerance = 1e-9;  // stop when |J^T W e|_inf <= this (MRPT "e1"), information-weighted
   double step_tolerance = 1e-12;     // stop when |step| < this * (|x| + this) (MRPT "e2"); MRPT's
                                      // default 1e-6 is loose on long traverses (|x| grows with the distance)
@@ -54,6 +56,13 @@ struct OptimizerResult {
 
 // Optimises every node but graph.root. A graph with no free node or no edge
 // is left unchanged. Throws std::runtime_error when MRPT fails.
+// 3D: mrpt_max_iterations of MRPT's optimize_graph_spa_levmarq, then a
+// Levenberg-Marquardt on the information-weighted chi2 with MRPT's residual,
+// Jacobians and retraction (up to max_iterations). MRPT 2.5.8's LM accepts a
+// step only when the UNWEIGHTED squared error drops and, after one rejected
+// step, rebuilds its Hessian from an empty map so every later Cholesky fails:
+// with edges of different precision (DR vs visual) it stops far from the
+// optimum. 2D: MRPT alone with max_iterations.
 OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOptions& options);
 OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses2DInf& graph, const OptimizerOptions& options);
 

@@ -1,0 +1,124 @@
+#include "traverse_graph_adapter.h"
+
+#include <glog/logging.h>
+
+#include <filesystem>
+
+#include "vloc/lcm_io/convert.h"
+
+namespace vloc {
+
+void TraverseGraphProcOptions::Visit(OptionsReader& r) {
+  r.Optional("dr_channel", &dr_channel, "site_pose_t in: dead reckoning per site");
+  r.Optional("visual_channel", &visual_channel, "localization_t in: BA results");
+  r.Optional("fix_channel", &fix_channel, "site_pose_t in: absolute fixes, empty = none");
+  r.Optional("traverse_channel", &traverse_channel, "traverse_t out");
+  r.Optional("graph_path", &graph_path, "graph file saved after each update, reloaded on start");
+  r.Optional("load_on_start", &load_on_start, "reload graph_path when it exists");
+  r.Optional("queue_capacity", &queue_capacity, "messages per subscription queue");
+  r.Child("graph", [this](OptionsReader& c) { graph.Visit(c); });
+}
+
+bool TraverseGraphProcOptions::Check(std::string* error) const {
+  if (dr_channel.empty() || visual_channel.empty() || traverse_channel.empty())
+    return Fail(error, "dr_channel, visual_channel and traverse_channel must not be empty");
+  if (queue_capacity < 1) return Fail(error, "queue_capacity must be >= 1");
+  std::string sub;
+  if (!graph.Check(&sub)) return Fail(error, "graph." + sub);
+  return true;
+}
+
+traverse_t TraverseToMessage(const posegraph::TraverseGraph& graph, const posegraph::PoseGraphSummary& summary) {
+  traverse_t msg;
+  msg.utime = graph.newest_utime();
+  for (const auto& site : graph.Sites()) {
+    msg.site_ids.push_back(site.site_id);
+    pose_t pose = PoseToMessage(site.world_from_body, "world", "body");
+    msg.poses.push_back(pose);
+  }
+  msg.num_sites = static_cast<int32_t>(msg.site_ids.size());
+  msg.num_edges = summary.num_edges;
+  msg.num_visual_edges = summary.num_visual_edges;
+  msg.num_loop_edges = summary.num_loop_edges;
+  msg.initial_chi2 = summary.initial_chi2;
+  msg.final_chi2 = summary.final_chi2;
+  msg.iterations = summary.iterations;
+  msg.solve_seconds = summary.total_seconds;
+  return msg;
+}
+
+TraverseGraphAdapter::TraverseGraphAdapter(Transport& transport, const TraverseGraphProcOptions& options)
+    : transport_(transport), options_(options), graph_(options.graph) {
+  dr_stats_ = Subscribe<site_pose_t>(
+      transport_, options_.dr_channel,
+      [this](const std::string&, const site_pose_t& m) {
+        const auto added = graph_.AddDeadReckoning(m.site_id, PoseFromMessage(m.pose));
+        Update(added, "dead reckoning of site " + std::to_string(m.site_id));
+      },
+      options_.queue_capacity);
+  visual_stats_ = Subscribe<localization_t>(
+      transport_, options_.visual_channel,
+      [this](const std::string&, const localization_t& m) {
+        if (m.status != localization_t::STATUS_OK) {
+          ++visual_skipped_;
+          LOG(INFO) << "site " << m.site_id << ": BA status " << int(m.status) << " (" << m.message
+                    << "); no visual edge, dead reckoning stands";
+          return;
+        }
+        PoseWithCovariance relative = PoseFromMessage(m.relative_pose);
+        relative.utime = m.utime;
+        const auto added = graph_.AddRelative(m.reference_site_id, m.site_id, relative);
+        Update(added, "visual edge " + std::to_string(m.reference_site_id) + "->" + std::to_string(m.site_id));
+      },
+      options_.queue_capacity);
+  if (!options_.fix_channel.empty())
+    fix_stats_ = Subscribe<site_pose_t>(
+        transport_, options_.fix_channel,
+        [this](const std::string&, const site_pose_t& m) {
+          const auto added = graph_.AddAbsoluteFix(m.site_id, PoseFromMessage(m.pose));
+          Update(added, "absolute fix of site " + std::to_string(m.site_id));
+        },
+        options_.queue_capacity);
+}
+
+bool TraverseGraphAdapter::Restore(std::string* error) {
+  if (options_.graph_path.empty() || !options_.load_on_start) return true;
+  if (!std::filesystem::exists(options_.graph_path)) {
+    LOG(INFO) << "no saved graph at " << options_.graph_path << "; starting a new traverse";
+    return true;
+  }
+  if (!graph_.Load(options_.graph_path, error)) {
+    if (error) *error += " (move or delete the file to start a new traverse)";
+    return false;
+  }
+  const auto summary = graph_.Optimize();
+  LOG(INFO) << "reloaded " << options_.graph_path << ": " << summary.BriefReport();
+  Publish(transport_, options_.traverse_channel, TraverseToMessage(graph_, summary));
+  return true;
+}
+
+void TraverseGraphAdapter::Update(const posegraph::AddResult& added, const std::string& what) {
+  if (!added.accepted) {
+    ++rejected_;
+    LOG(WARNING) << what << ": " << added.message;
+    return;
+  }
+  if (added.pending) LOG(INFO) << what << ": " << added.message;
+  if (!added.changed) return;
+  const auto summary = graph_.Optimize();
+  ++updates_;
+  LOG(INFO) << what << ": " << summary.BriefReport();
+  Publish(transport_, options_.traverse_channel, TraverseToMessage(graph_, summary));
+  if (!options_.graph_path.empty()) {
+    std::string error;
+    if (!graph_.Save(options_.graph_path, &error)) LOG(ERROR) << error;
+  }
+}
+
+std::string TraverseGraphAdapter::StatusLine() const {
+  return std::to_string(updates_) + " updates, " + std::to_string(graph_.num_sites()) + " sites, " +
+         std::to_string(visual_skipped_) + " failed BA results skipped, " + std::to_string(rejected_) +
+         " measurements rejected; last: " + graph_.last_summary().BriefReport();
+}
+
+}  // namespace vloc
