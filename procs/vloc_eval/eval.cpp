@@ -1,0 +1,311 @@
+#include "eval.h"
+
+#include <lcm/lcm-cpp.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+#include <stdexcept>
+
+#include "vloc/lcm_io/convert.h"
+#include "vloc/localization_t.hpp"
+#include "vloc/site_pose_t.hpp"
+#include "vloc/traverse_t.hpp"
+#include "vloc/uav_state_t.hpp"
+
+namespace vloc::eval {
+
+namespace {
+
+template <class Msg>
+bool DecodeEvent(const lcm::LogEvent& ev, Msg* msg) {
+  return msg->decode(ev.data, 0, ev.datalen) == ev.datalen;
+}
+
+double Deg(double rad) { return rad * 180.0 / M_PI; }
+
+double HeadingError(const Pose3& est, const Pose3& truth) { return Deg(std::abs(WrapAngle(Heading(est) - Heading(truth)))); }
+
+double Pct(double err, double dist) { return dist > 0 ? 100.0 * err / dist : NAN; }
+
+std::string F(double v, int prec = 3) {
+  if (!std::isfinite(v)) return "-";
+  std::ostringstream os;
+  os << std::fixed << std::setprecision(prec) << v;
+  return os.str();
+}
+
+}  // namespace
+
+LogData ReadLog(const std::string& path, bool progress) {
+  lcm::LogFile log(path, "r");
+  if (!log.good()) throw std::runtime_error("cannot read LCM log " + path + " (check the path)");
+  LogData d;
+  const double size = static_cast<double>(std::filesystem::file_size(path));
+  int last_pct = -1;
+  while (const lcm::LogEvent* ev = log.readNextEvent()) {
+    ++d.messages;
+    if (progress && size > 0) {
+      const int pct = static_cast<int>(100.0 * static_cast<double>(std::ftell(log.getFilePtr())) / size);
+      if (pct / 5 != last_pct / 5) {
+        std::fprintf(stderr, "\rvloc_eval: reading %s: %3d %%", path.c_str(), pct);
+        last_pct = pct;
+      }
+    }
+    const std::string& ch = ev->channel;
+    try {
+      if (ch == "SITE_POSE_GT" || ch == "SITE_POSE_DR") {
+        site_pose_t m;
+        if (!DecodeEvent(*ev, &m)) throw std::invalid_argument("decode");
+        (ch == "SITE_POSE_GT" ? d.gt : d.dr)[m.site_id] = PoseFromMessage(m.pose);
+      } else if (ch == "SITE_POSE_VISUAL") {
+        localization_t m;
+        if (!DecodeEvent(*ev, &m)) throw std::invalid_argument("decode");
+        VisualPair p;
+        p.reference = m.reference_site_id;
+        p.site = m.site_id;
+        p.status = m.status;
+        p.relative = PoseFromMessage(m.relative_pose);
+        p.pose = PoseFromMessage(m.pose);
+        d.visual.push_back(p);
+      } else if (ch == "TRAVERSE") {
+        traverse_t m;
+        if (!DecodeEvent(*ev, &m)) throw std::invalid_argument("decode");
+        d.traverse.clear();
+        for (int i = 0; i < m.num_sites; ++i) d.traverse[m.site_ids[i]] = PoseFromMessage(m.poses[i]);
+      } else if (ch == "UAV_GT") {
+        pose_t m;
+        if (!DecodeEvent(*ev, &m)) throw std::invalid_argument("decode");
+        d.uav_gt.emplace_back(m.utime, PoseFromMessage(m).pose);
+      } else if (ch == "UAV_STATE") {
+        uav_state_t m;
+        if (!DecodeEvent(*ev, &m)) throw std::invalid_argument("decode");
+        d.uav_state.push_back({m.utime, m.height, m.route_local[0], m.route_local[1], m.status});
+      }
+    } catch (const std::exception&) {
+      ++d.decode_failures;
+    }
+  }
+  if (progress) std::fprintf(stderr, "\rvloc_eval: reading %s: 100 %%\n", path.c_str());
+  return d;
+}
+
+Summary Evaluate(const LogData& d) {
+  Summary s;
+  // Sites with ground truth, in id order; distance driven along them.
+  double dist = 0;
+  const Pose3* prev = nullptr;
+  for (const auto& [id, gt] : d.gt) {
+    if (prev) dist += (gt.pose.translation() - prev->translation()).norm();
+    prev = &gt.pose;
+    SiteRow r;
+    r.site = id;
+    r.distance = dist;
+    r.gt = gt.pose;
+    if (auto it = d.dr.find(id); it != d.dr.end()) {
+      r.has_dr = true;
+      r.dr = it->second.pose;
+      r.dr_err = (r.dr.translation() - r.gt.translation()).norm();
+      r.dr_heading_err = HeadingError(r.dr, r.gt);
+    }
+    if (auto it = d.traverse.find(id); it != d.traverse.end()) {
+      r.has_opt = true;
+      r.opt = it->second.pose;
+      r.opt_cov = it->second.covariance;
+      r.opt_err = (r.opt.translation() - r.gt.translation()).norm();
+      r.opt_heading_err = HeadingError(r.opt, r.gt);
+    }
+    s.sites.push_back(r);
+  }
+  // Visual: the BA's own world pose per site (last OK result), and per pair.
+  std::vector<double> pcts;
+  double nees_sum = 0;
+  int nees_n = 0;
+  for (const VisualPair& p : d.visual) {
+    PairRow row;
+    row.reference = p.reference;
+    row.site = p.site;
+    row.status = p.status;
+    const auto ref = d.gt.find(p.reference), cur = d.gt.find(p.site);
+    if (ref != d.gt.end() && cur != d.gt.end()) {
+      const Pose3 true_rel = ref->second.pose.inverse() * cur->second.pose;
+      row.spacing = true_rel.translation().norm();
+      if (p.status == 0) {
+        const Eigen::Vector3d e = p.relative.pose.translation() - true_rel.translation();  // reference frame
+        row.err = e.norm();
+        row.err_pct = Pct(row.err, row.spacing);
+        pcts.push_back(row.err_pct);
+        const Eigen::Matrix3d cov = p.relative.covariance.topLeftCorner<3, 3>();
+        if (cov.determinant() > 0) {
+          row.nees = e.dot(cov.ldlt().solve(e));
+          nees_sum += row.nees;
+          ++nees_n;
+        }
+        ++s.pairs_ok;
+      }
+    }
+    s.pairs.push_back(row);
+    if (p.status == 0)
+      for (SiteRow& r : s.sites)
+        if (r.site == p.site) {
+          r.has_visual = true;
+          r.visual = p.pose.pose;
+          r.vis_err = (r.visual.translation() - r.gt.translation()).norm();
+          r.vis_heading_err = HeadingError(r.visual, r.gt);
+        }
+  }
+  if (!pcts.empty()) {
+    std::sort(pcts.begin(), pcts.end());
+    s.pair_median_pct = pcts[pcts.size() / 2];
+    if (pcts.size() % 2 == 0) s.pair_median_pct = 0.5 * (pcts[pcts.size() / 2 - 1] + pcts[pcts.size() / 2]);
+  }
+  if (nees_n) s.pair_mean_nees = nees_sum / nees_n;
+  if (!s.sites.empty()) {
+    const SiteRow& last = s.sites.back();
+    s.distance = last.distance;
+    s.dr_end = last.dr_err;
+    s.vis_end = last.vis_err;
+    s.opt_end = last.opt_err;
+    s.dr_end_heading = last.dr_heading_err;
+    s.vis_end_heading = last.vis_heading_err;
+    s.opt_end_heading = last.opt_heading_err;
+  }
+  // UAV: each state matched to the ground truth nearest in time.
+  if (!d.uav_gt.empty() && !d.uav_state.empty()) {
+    std::vector<double> flown(d.uav_gt.size(), 0.0);
+    for (size_t i = 1; i < d.uav_gt.size(); ++i)
+      flown[i] = flown[i - 1] + (d.uav_gt[i].second.translation() - d.uav_gt[i - 1].second.translation()).head<2>().norm();
+    const Eigen::Vector2d takeoff = d.uav_gt.front().second.translation().head<2>();
+    const int64_t t0 = d.uav_gt.front().first;
+    double sq = 0, sq_pct = 0;
+    for (const UavSample& u : d.uav_state) {
+      auto it = std::lower_bound(d.uav_gt.begin(), d.uav_gt.end(), u.utime,
+                                 [](const auto& a, int64_t t) { return a.first < t; });
+      if (it == d.uav_gt.end()) --it;
+      if (it != d.uav_gt.begin() && std::llabs(std::prev(it)->first - u.utime) < std::llabs(it->first - u.utime)) --it;
+      if (std::llabs(it->first - u.utime) > 100000) continue;  // no truth within 0.1 s
+      UavRow r;
+      r.utime = u.utime;
+      r.t = 1e-6 * static_cast<double>(u.utime - t0);
+      r.height = u.height;
+      r.gt_height = it->second.translation().z();
+      r.east = u.east;
+      r.north = u.north;
+      r.gt_east = it->second.translation().x() - takeoff.x();
+      r.gt_north = it->second.translation().y() - takeoff.y();
+      r.flown = flown[static_cast<size_t>(it - d.uav_gt.begin())];
+      if (std::isfinite(r.height) && r.gt_height > 0) {
+        sq += (r.height - r.gt_height) * (r.height - r.gt_height);
+        sq_pct += std::pow(100.0 * (r.height - r.gt_height) / r.gt_height, 2);
+      }
+      s.uav.push_back(r);
+    }
+    if (!s.uav.empty()) {
+      s.uav_height_rms = std::sqrt(sq / s.uav.size());
+      s.uav_height_rms_pct = std::sqrt(sq_pct / s.uav.size());
+      const UavRow& e = s.uav.back();
+      s.uav_flown = e.flown;
+      s.uav_route_end = std::hypot(e.east - e.gt_east, e.north - e.gt_north);
+      s.uav_route_end_pct = Pct(s.uav_route_end, e.flown);
+    }
+  }
+  return s;
+}
+
+void WriteOutputs(const Summary& s, const std::string& dir) {
+  std::filesystem::create_directories(dir);
+  auto open = [&](const std::string& name) {
+    std::ofstream f(dir + "/" + name);
+    if (!f) throw std::runtime_error("cannot write " + dir + "/" + name);
+    f << std::setprecision(10);
+    return f;
+  };
+  {
+    auto f = open("sites.csv");
+    f << "site,distance_m,gt_x,gt_y,gt_z,gt_heading_deg,dr_x,dr_y,dr_err_m,dr_err_pct,dr_heading_err_deg,"
+         "vis_x,vis_y,vis_err_m,vis_err_pct,vis_heading_err_deg,opt_x,opt_y,opt_err_m,opt_err_pct,"
+         "opt_heading_err_deg,opt_cov_xx,opt_cov_xy,opt_cov_yy\n";
+    for (const SiteRow& r : s.sites) {
+      auto xy = [&](bool has, const Pose3& p) {
+        return has ? std::to_string(p.translation().x()) + "," + std::to_string(p.translation().y()) : ",";
+      };
+      auto num = [](double v) { return std::isfinite(v) ? std::to_string(v) : std::string(); };
+      f << r.site << ',' << r.distance << ',' << r.gt.translation().x() << ',' << r.gt.translation().y() << ','
+        << r.gt.translation().z() << ',' << Deg(Heading(r.gt)) << ',' << xy(r.has_dr, r.dr) << ',' << num(r.dr_err)
+        << ',' << num(Pct(r.dr_err, r.distance)) << ',' << num(r.dr_heading_err) << ',' << xy(r.has_visual, r.visual)
+        << ',' << num(r.vis_err) << ',' << num(Pct(r.vis_err, r.distance)) << ',' << num(r.vis_heading_err) << ','
+        << xy(r.has_opt, r.opt) << ',' << num(r.opt_err) << ',' << num(Pct(r.opt_err, r.distance)) << ','
+        << num(r.opt_heading_err) << ',' << r.opt_cov(0, 0) << ',' << r.opt_cov(0, 1) << ',' << r.opt_cov(1, 1)
+        << '\n';
+    }
+  }
+  {
+    auto f = open("pairs.csv");
+    f << "reference,site,status,spacing_m,err_m,err_pct,nees\n";
+    for (const PairRow& p : s.pairs)
+      f << p.reference << ',' << p.site << ',' << p.status << ',' << p.spacing << ',' << F(p.err, 6) << ','
+        << F(p.err_pct, 6) << ',' << F(p.nees, 6) << '\n';
+  }
+  {
+    auto f = open("uav.csv");
+    f << "utime,t_s,height_m,gt_height_m,height_err_m,east_m,north_m,gt_east_m,gt_north_m,route_err_m,flown_m\n";
+    for (const UavRow& u : s.uav)
+      f << u.utime << ',' << u.t << ',' << u.height << ',' << u.gt_height << ',' << u.height - u.gt_height << ','
+        << u.east << ',' << u.north << ',' << u.gt_east << ',' << u.gt_north << ','
+        << std::hypot(u.east - u.gt_east, u.north - u.gt_north) << ',' << u.flown << '\n';
+  }
+  {
+    auto f = open("report.md");
+    f << "# vloc evaluation\n\n" << ShortTable(s) << "\n";
+    if (!s.sites.empty()) {
+      f << "## Per site\n\n| site | distance m | DR err m | DR % | DR heading deg | visual err m | visual % | "
+           "optimised err m | optimised % | optimised heading deg |\n|---|---|---|---|---|---|---|---|---|---|\n";
+      for (const SiteRow& r : s.sites)
+        f << "| " << r.site << " | " << F(r.distance, 1) << " | " << F(r.dr_err) << " | "
+          << F(Pct(r.dr_err, r.distance), 2) << " | " << F(r.dr_heading_err, 2) << " | " << F(r.vis_err) << " | "
+          << F(Pct(r.vis_err, r.distance), 2) << " | " << F(r.opt_err) << " | " << F(Pct(r.opt_err, r.distance), 2)
+          << " | " << F(r.opt_heading_err, 2) << " |\n";
+      f << "\n";
+    }
+    if (!s.pairs.empty()) {
+      f << "## Visual localization per pair\n\n| reference | site | status | spacing m | error m | error % of "
+           "spacing | NEES (3 dof) |\n|---|---|---|---|---|---|---|\n";
+      for (const PairRow& p : s.pairs)
+        f << "| " << p.reference << " | " << p.site << " | " << p.status << " | " << F(p.spacing, 2) << " | "
+          << F(p.err, 4) << " | " << F(p.err_pct, 3) << " | " << F(p.nees, 2) << " |\n";
+      f << "\n";
+    }
+  }
+}
+
+std::string ShortTable(const Summary& s) {
+  std::ostringstream os;
+  if (!s.sites.empty()) {
+    os << "| rover, end of traverse (" << s.sites.size() << " sites, " << F(s.distance, 1)
+       << " m) | position error m | % of distance | heading error deg |\n|---|---|---|---|\n";
+    os << "| dead reckoning | " << F(s.dr_end) << " | " << F(Pct(s.dr_end, s.distance), 2) << " | "
+       << F(s.dr_end_heading, 2) << " |\n";
+    os << "| chained visual | " << F(s.vis_end) << " | " << F(Pct(s.vis_end, s.distance), 2) << " | "
+       << F(s.vis_end_heading, 2) << " |\n";
+    os << "| optimised graph | " << F(s.opt_end) << " | " << F(Pct(s.opt_end, s.distance), 2) << " | "
+       << F(s.opt_end_heading, 2) << " |\n\n";
+    os << "visual pairs OK: " << s.pairs_ok << " of " << s.pairs.size() << "; median new-site error "
+       << F(s.pair_median_pct, 3) << " % of spacing; mean NEES " << F(s.pair_mean_nees, 2) << " (3 expected)\n";
+  }
+  if (!s.uav.empty()) {
+    os << "\n| UAV (" << s.uav.size() << " frames, " << F(s.uav_flown, 1) << " m flown) | value |\n|---|---|\n";
+    os << "| height error RMS m | " << F(s.uav_height_rms) << " |\n";
+    os << "| height error RMS % of true height | " << F(s.uav_height_rms_pct, 2) << " |\n";
+    os << "| route error at end m | " << F(s.uav_route_end) << " |\n";
+    os << "| route error % of distance flown | " << F(s.uav_route_end_pct, 2) << " |\n";
+  }
+  if (s.sites.empty() && s.uav.empty()) os << "no ground truth (SITE_POSE_GT or UAV_GT) in the log\n";
+  return os.str();
+}
+
+}  // namespace vloc::eval

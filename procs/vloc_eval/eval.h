@@ -1,0 +1,84 @@
+#pragma once
+// vloc_eval: accuracy of a recorded run against the ground truth in its log.
+// Reads SITE_POSE_GT / SITE_POSE_DR (site_pose_t), SITE_POSE_VISUAL
+// (localization_t), the last TRAVERSE (traverse_t), UAV_GT (pose_t) and
+// UAV_STATE (uav_state_t); writes CSVs and report.md into an output folder.
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "vloc/common/pose.h"
+
+namespace vloc::eval {
+
+struct VisualPair {
+  int reference = -1, site = -1, status = 0;
+  PoseWithCovariance relative;  // reference_from_current
+  PoseWithCovariance pose;      // world_from_body of site
+};
+
+struct UavSample {
+  int64_t utime = 0;
+  double height = 0, east = 0, north = 0;
+  int status = 0;
+};
+
+// Everything read from a log.
+struct LogData {
+  std::map<int, PoseWithCovariance> gt, dr;
+  std::vector<VisualPair> visual;
+  std::map<int, PoseWithCovariance> traverse;  // the last TRAVERSE
+  std::vector<std::pair<int64_t, Pose3>> uav_gt;
+  std::vector<UavSample> uav_state;
+  int64_t messages = 0, decode_failures = 0;
+};
+
+// Reads the log, printing progress (% of bytes) to stderr when `progress`.
+// Throws std::runtime_error naming the file when it cannot be read.
+LogData ReadLog(const std::string& path, bool progress);
+
+struct SiteRow {
+  int site = 0;
+  double distance = 0;  // m driven from site 0 (ground truth, site to site)
+  Pose3 gt;
+  bool has_dr = false, has_visual = false, has_opt = false;
+  Pose3 dr, visual, opt;
+  Matrix6d opt_cov = Matrix6d::Zero();
+  double dr_err = NAN, dr_heading_err = NAN, vis_err = NAN, vis_heading_err = NAN, opt_err = NAN,
+         opt_heading_err = NAN;  // m, deg
+};
+
+struct PairRow {
+  int reference = 0, site = 0, status = 0;
+  double spacing = 0, err = NAN, err_pct = NAN, nees = NAN;
+};
+
+struct UavRow {
+  int64_t utime = 0;
+  double t = 0, height = 0, gt_height = 0, east = 0, north = 0, gt_east = 0, gt_north = 0, flown = 0;
+};
+
+struct Summary {
+  std::vector<SiteRow> sites;
+  std::vector<PairRow> pairs;
+  std::vector<UavRow> uav;
+  // End of traverse (last site with ground truth), m and % of distance.
+  double distance = 0;
+  double dr_end = NAN, vis_end = NAN, opt_end = NAN;
+  double dr_end_heading = NAN, vis_end_heading = NAN, opt_end_heading = NAN;
+  double pair_median_pct = NAN, pair_mean_nees = NAN;
+  int pairs_ok = 0;
+  double uav_height_rms = NAN, uav_height_rms_pct = NAN, uav_route_end = NAN, uav_route_end_pct = NAN,
+         uav_flown = 0;
+};
+
+Summary Evaluate(const LogData& data);
+
+// Writes sites.csv, pairs.csv, uav.csv and report.md into `dir` (created).
+void WriteOutputs(const Summary& s, const std::string& dir);
+// The short accuracy table printed to stdout.
+std::string ShortTable(const Summary& s);
+
+}  // namespace vloc::eval

@@ -1,0 +1,60 @@
+// vloc_eval: accuracy of a recorded run against the ground truth in its log.
+//   vloc_eval LOG.lcmlog --out DIR [--scripts DIR] [--no-plots] [--quiet]
+// Writes DIR/report.md, sites.csv, pairs.csv, uav.csv, then runs
+// scripts/plot_eval.py for the PNG plots; prints a short accuracy table.
+#include <cstdlib>
+#include <filesystem>
+#include <iostream>
+
+#include "eval.h"
+#include "vloc/common/command_line.h"
+
+namespace fs = std::filesystem;
+
+// scripts/ next to the source tree: --scripts, $VLOC_SOURCE_DIR/scripts, or
+// up from the executable (<build>/bin/vloc_eval -> <source>/scripts).
+static std::string FindScripts(const vloc::CommandLine& args, const char* argv0) {
+  if (args.Has("scripts")) return args.Get("scripts");
+  if (const char* src = std::getenv("VLOC_SOURCE_DIR")) return std::string(src) + "/scripts";
+  std::error_code ec;
+  fs::path p = fs::canonical(fs::path("/proc/self/exe"), ec);
+  if (ec) p = fs::absolute(argv0);
+  for (fs::path dir = p.parent_path(); !dir.empty() && dir != dir.root_path(); dir = dir.parent_path())
+    if (fs::exists(dir / "scripts" / "plot_eval.py")) return (dir / "scripts").string();
+  return "scripts";
+}
+
+int main(int argc, char** argv) {
+  vloc::CommandLine args;
+  std::string error;
+  if (!args.Parse(argc, argv, {"out", "scripts", "no-plots", "quiet", "help"}, &error) || args.Has("help") ||
+      args.positional().size() != 1 || !args.Has("out")) {
+    if (!error.empty()) std::cerr << "vloc_eval: " << error << "\n";
+    std::cerr << "usage: vloc_eval LOG.lcmlog --out DIR [--scripts DIR] [--no-plots] [--quiet]\n";
+    return 1;
+  }
+  const std::string out = args.Get("out");
+  try {
+    const vloc::eval::LogData data = vloc::eval::ReadLog(args.positional()[0], !args.Has("quiet"));
+    const vloc::eval::Summary summary = vloc::eval::Evaluate(data);
+    vloc::eval::WriteOutputs(summary, out);
+    std::cout << vloc::eval::ShortTable(summary);
+    if (data.decode_failures)
+      std::cerr << "vloc_eval: " << data.decode_failures << " messages could not be decoded (skipped)\n";
+  } catch (const std::exception& e) {
+    std::cerr << "vloc_eval: " << e.what() << "\n";
+    return 1;
+  }
+  if (!args.Has("no-plots")) {
+    const std::string script = FindScripts(args, argv[0]) + "/plot_eval.py";
+    // Debian's python3 carries python3-numpy/-matplotlib (scripts/install_deps.sh);
+    // a python3 earlier on PATH (pyenv, venv) may not. $VLOC_PYTHON overrides.
+    std::string python = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
+    if (const char* p = std::getenv("VLOC_PYTHON")) python = p;
+    const std::string cmd = python + " '" + script + "' --out '" + out + "'";
+    if (std::system(cmd.c_str()) != 0)
+      std::cerr << "vloc_eval: plotting failed (" << cmd << "); the report and CSVs are written\n";
+  }
+  std::cout << "report: " << out << "/report.md\n";
+  return 0;
+}

@@ -1,0 +1,163 @@
+// vloc_eval on a small log whose errors are known by construction: sites
+// 10 m apart along x; DR off by 0.1 m * site to the north; each visual pair
+// off by 2 cm along the reference x axis with a 2 cm sigma; the optimised
+// traverse off by 1 cm north everywhere; a UAV 1 % high and 0.5 m east.
+#include <gtest/gtest.h>
+
+#include <lcm/lcm-cpp.hpp>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "vloc/lcm_io/convert.h"
+#include "vloc/localization_t.hpp"
+#include "vloc/site_pose_t.hpp"
+#include "vloc/testing/subprocess.h"
+#include "vloc/traverse_t.hpp"
+#include "vloc/uav_state_t.hpp"
+
+namespace vloc {
+namespace {
+
+template <class Msg>
+void Write(lcm::LogFile& log, const std::string& channel, const Msg& msg, int64_t t) {
+  std::vector<uint8_t> buf(static_cast<size_t>(msg.getEncodedSize()));
+  msg.encode(buf.data(), 0, static_cast<int>(buf.size()));
+  lcm::LogEvent ev;
+  ev.eventnum = 0;
+  ev.timestamp = t;
+  ev.channel = channel;
+  ev.datalen = static_cast<int32_t>(buf.size());
+  ev.data = buf.data();
+  ASSERT_EQ(log.writeEvent(&ev), 0);
+}
+
+PoseWithCovariance At(double x, double y, double z = 0.0) {
+  PoseWithCovariance p;
+  p.pose = MakePose(x, y, z, 0, 0, 0);
+  return p;
+}
+
+std::vector<std::map<std::string, std::string>> ReadCsv(const std::string& path) {
+  std::ifstream f(path);
+  std::string line;
+  std::getline(f, line);
+  std::vector<std::string> header;
+  std::stringstream hs(line);
+  for (std::string h; std::getline(hs, h, ',');) header.push_back(h);
+  std::vector<std::map<std::string, std::string>> rows;
+  while (std::getline(f, line)) {
+    std::map<std::string, std::string> row;
+    std::stringstream ls(line);
+    std::string v;
+    for (size_t i = 0; i < header.size() && std::getline(ls, v, ','); ++i) row[header[i]] = v;
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+TEST(VlocEval, KnownErrorsComeOutOfTheReport) {
+  const auto dir = std::filesystem::temp_directory_path() / "vloc_eval_test";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string log_path = (dir / "run.lcmlog").string();
+  {
+    lcm::LogFile log(log_path, "w");
+    ASSERT_TRUE(log.good());
+    int64_t t = 1;
+    traverse_t traverse{};
+    for (int i = 0; i < 5; ++i) {
+      Write(log, "SITE_POSE_GT", SitePoseToMessage(i, site_pose_t::SOURCE_GROUND_TRUTH, At(10.0 * i, 0)), t++);
+      Write(log, "SITE_POSE_DR", SitePoseToMessage(i, site_pose_t::SOURCE_DEAD_RECKONING, At(10.0 * i, 0.1 * i)), t++);
+      if (i > 0) {
+        localization_t m{};
+        m.site_id = i;
+        m.reference_site_id = i - 1;
+        m.status = localization_t::STATUS_OK;
+        PoseWithCovariance rel = At(10.02, 0);
+        rel.covariance.topLeftCorner<3, 3>() = 0.02 * 0.02 * Eigen::Matrix3d::Identity();
+        rel.covariance.bottomRightCorner<3, 3>() = 1e-6 * Eigen::Matrix3d::Identity();
+        m.relative_pose = PoseToMessage(rel, "body", "body");
+        m.pose = PoseToMessage(At(10.0 * i + 0.02 * i, 0), "world", "body");
+        Write(log, "SITE_POSE_VISUAL", m, t++);
+      }
+      traverse.site_ids.push_back(i);
+      PoseWithCovariance opt = At(10.0 * i, 0.01);
+      opt.covariance = 1e-4 * Matrix6d::Identity();
+      traverse.poses.push_back(PoseToMessage(opt, "world", "body"));
+      traverse.num_sites = i + 1;
+      Write(log, "TRAVERSE", traverse, t++);
+    }
+    // A failed pair is listed but not counted.
+    localization_t failed{};
+    failed.site_id = 4;
+    failed.reference_site_id = 3;
+    failed.status = localization_t::STATUS_TOO_FEW_POINTS;
+    failed.relative_pose = PoseToMessage(At(0, 0), "body", "body");
+    failed.pose = PoseToMessage(At(0, 0), "world", "body");
+    Write(log, "SITE_POSE_VISUAL", failed, t++);
+    for (int k = 0; k <= 10; ++k) {
+      const int64_t utime = 1000000 + 100000LL * k;
+      pose_t gt = PoseToMessage(At(5.0 + k, 3.0, 100.0), "world", "uav");
+      gt.utime = utime;
+      Write(log, "UAV_GT", gt, t++);
+      uav_state_t s{};
+      s.utime = utime;
+      s.status = uav_state_t::STATUS_TRACKING;
+      s.height = 101.0;
+      s.route_local[0] = k + 0.5;
+      s.route_local[1] = 0.0;
+      Write(log, "UAV_STATE", s, t++);
+    }
+  }
+  const std::string out = (dir / "eval").string();
+  testing::Subprocess proc({testing::BinPath("vloc_eval"), log_path, "--out", out});
+  ASSERT_EQ(proc.WaitExit(60), 0) << proc.output();
+  EXPECT_NE(proc.output().find("dead reckoning"), std::string::npos) << proc.output();
+  EXPECT_NE(proc.output().find("100 %"), std::string::npos) << proc.output();  // progress
+
+  auto sites = ReadCsv(out + "/sites.csv");
+  ASSERT_EQ(sites.size(), 5u);
+  for (int i = 0; i < 5; ++i) {
+    EXPECT_NEAR(std::stod(sites[i]["distance_m"]), 10.0 * i, 1e-9);
+    EXPECT_NEAR(std::stod(sites[i]["dr_err_m"]), 0.1 * i, 1e-9);
+    EXPECT_NEAR(std::stod(sites[i]["opt_err_m"]), 0.01, 1e-9);
+    if (i > 0) {
+      EXPECT_NEAR(std::stod(sites[i]["dr_err_pct"]), 1.0, 1e-6);  // 0.1 m per 10 m
+      EXPECT_NEAR(std::stod(sites[i]["vis_err_m"]), 0.02 * i, 1e-9);
+    }
+  }
+  auto pairs = ReadCsv(out + "/pairs.csv");
+  ASSERT_EQ(pairs.size(), 5u);
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_NEAR(std::stod(pairs[i]["err_m"]), 0.02, 1e-6);
+    EXPECT_NEAR(std::stod(pairs[i]["err_pct"]), 0.2, 1e-4);
+    EXPECT_NEAR(std::stod(pairs[i]["nees"]), 1.0, 1e-3);
+  }
+  EXPECT_EQ(pairs[4]["status"], "1");
+  auto uav = ReadCsv(out + "/uav.csv");
+  ASSERT_EQ(uav.size(), 11u);
+  EXPECT_NEAR(std::stod(uav.back()["height_err_m"]), 1.0, 1e-9);
+  EXPECT_NEAR(std::stod(uav.back()["route_err_m"]), 0.5, 1e-9);
+  EXPECT_NEAR(std::stod(uav.back()["flown_m"]), 10.0, 1e-9);
+  std::ifstream report(out + "/report.md");
+  std::stringstream text;
+  text << report.rdbuf();
+  EXPECT_NE(text.str().find("| dead reckoning | 0.400 | 1.00 |"), std::string::npos) << text.str();
+  EXPECT_NE(text.str().find("| optimised graph | 0.010 | 0.03 |"), std::string::npos) << text.str();
+  EXPECT_NE(text.str().find("| height error RMS % of true height | 1.00 |"), std::string::npos) << text.str();
+  EXPECT_NE(text.str().find("| route error % of distance flown | 5.00 |"), std::string::npos) << text.str();
+  EXPECT_NE(text.str().find("median new-site error 0.200 %"), std::string::npos) << text.str();
+  EXPECT_TRUE(std::filesystem::exists(out + "/traverse_map.png")) << proc.output();
+  EXPECT_TRUE(std::filesystem::exists(out + "/uav_height.png")) << proc.output();
+  // A missing log: one clear line, exit 1.
+  testing::Subprocess bad({testing::BinPath("vloc_eval"), (dir / "missing.lcmlog").string(), "--out", out});
+  EXPECT_EQ(bad.WaitExit(30), 1);
+  EXPECT_NE(bad.output().find("missing.lcmlog"), std::string::npos) << bad.output();
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace vloc
