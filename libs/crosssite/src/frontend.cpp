@@ -11,9 +11,12 @@
 #include <map>
 #include <numeric>
 #include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <unordered_map>
+
+#include <glog/logging.h>
 
 #include "vloc/common/options.h"
 
@@ -35,6 +38,17 @@ void FrontendOptions::Visit(OptionsReader& r) {
   r.Optional("longitude_margin_deg", &longitude_margin_deg, "deg, simulated longitudes around the predicted one");
   r.Optional("gate_margin_px", &gate_margin_px, "px, added to the predicted growth for the match gate");
   r.Optional("fundamental_threshold_px", &fundamental_threshold_px, "px, RANSAC threshold (0 = off)");
+  r.Optional("keep_unrefined_cross", &keep_unrefined_cross, "keep matches whose cross-site LSM failed");
+  r.Optional("sigma_unrefined_px", &sigma_unrefined_px, "px, sigma of an unrefined cross-site position");
+  r.Optional("warp_current", &warp_current, "match on the current image warped by the ground homography");
+  r.Optional("warp_max_tilt", &warp_max_tilt, "largest tilt simulated on the warped image");
+  r.Optional("max_overlaps_per_image", &max_overlaps_per_image, "overlaps matched per current image (0 = all)");
+  r.Optional("zoom_previous", &zoom_previous, "zoom the previous region up (else shrink the current one)");
+  r.Optional("refine_homography_threshold_px", &refine_homography_threshold_px, "px, stage-1 homography RANSAC threshold");
+  r.Optional("refine_gate_px", &refine_gate_px, "px, stage-2 gate");
+  r.Optional("max_gate_px", &max_gate_px, "px, largest stage-1 gate");
+  r.Optional("min_stage1_inliers", &min_stage1_inliers, "stage-1 epipolar inliers needed to refine the prediction");
+  r.Optional("refine_ratio", &refine_ratio, "stage-2 ratio test");
   r.Optional("max_points_per_overlap", &max_points_per_overlap, "matches kept per overlap");
   r.Optional("stereo_min_depth", &stereo_min_depth, "m, nearest depth searched along the epipolar line");
   r.Optional("stereo_max_depth", &stereo_max_depth, "m, farthest depth searched along the epipolar line");
@@ -55,6 +69,8 @@ bool FrontendOptions::Check(std::string* error) const {
   if (tilt_margin < 1) return Fail(error, "tilt_margin must be >= 1");
   if (longitude_margin_deg < 0) return Fail(error, "longitude_margin_deg must be >= 0");
   if (fundamental_threshold_px < 0) return Fail(error, "fundamental_threshold_px must be >= 0");
+  if (refine_homography_threshold_px <= 0 || refine_gate_px <= 0) return Fail(error, "refine thresholds must be > 0");
+  if (refine_ratio <= 0 || refine_ratio > 1) return Fail(error, "refine_ratio must be in (0, 1]");
   if (max_points_per_overlap < 1) return Fail(error, "max_points_per_overlap must be >= 1");
   if (stereo_min_depth <= 0 || stereo_max_depth <= stereo_min_depth)
     return Fail(error, "stereo depths must satisfy 0 < stereo_min_depth < stereo_max_depth");
@@ -134,6 +150,8 @@ struct Candidate {
   Eigen::Vector3d p_prev = Eigen::Vector3d::Zero(), p_cur = Eigen::Vector3d::Zero();
   Eigen::Matrix3d cov_prev = Eigen::Matrix3d::Zero(), cov_cur = Eigen::Matrix3d::Zero();
   bool ok = true;
+  const char* why = "";
+  Eigen::Matrix2d initial_affine = Eigen::Matrix2d::Identity();  // current px per previous px
 };
 
 // Features of one image restricted to a region, in ideal pixels.
@@ -280,7 +298,8 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
     // Union of the regions per image; forward overlaps only (backward ones are matched on the ground).
     std::vector<ImageFeatures> fprev(np), fcur(nc);
     std::vector<double> tilt_max(nc, 1.0), lon_sum(nc, 0.0), lon_w(nc, 0.0), zoom_sum(np, 0.0);
-    std::vector<int> zoom_n(np, 0);
+    std::vector<int> zoom_n(np, 0), shrink_n(nc, 0);
+    std::vector<double> shrink_sum(nc, 0.0);
     for (const auto& ov : pred.overlaps) {
       if (ov.backward) continue;
       fcur[ov.current_pair].region |= ov.current_region;
@@ -291,6 +310,8 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
       lon_w[ov.current_pair] += ov.num_samples * std::cos(2 * ov.tilt_longitude);
       zoom_sum[ov.previous_pair] += std::clamp(1.0 / ov.scale, o.min_zoom, o.max_zoom);
       ++zoom_n[ov.previous_pair];
+      shrink_sum[ov.current_pair] += std::clamp(ov.scale, 1.0 / o.max_zoom, 1.0 / o.min_zoom);
+      ++shrink_n[ov.current_pair];
     }
     double best_std = 0;
     std::vector<cv::Mat> cur_work(nc), prev_work(np);
@@ -302,6 +323,13 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
       best_std = std::max(best_std, raw.std);
       cur_work[i] = WallisFilter(cur_l[i].gray(fcur[i].region), o.wallis);
       const ImageStats st = ComputeImageStats(cur_work[i]);
+      if (!o.zoom_previous) {
+        // The same relative zoom, applied as a reduction of the current region
+        // (the cheaper side to process).
+        fcur[i].zoom = shrink_sum[i] / std::max(1, shrink_n[i]);
+        if (std::abs(fcur[i].zoom - 1.0) > 1e-3)
+          cv::resize(cur_work[i], cur_work[i], cv::Size(), fcur[i].zoom, fcur[i].zoom, cv::INTER_AREA);
+      }
       cur_means.push_back(st.mean);
       cur_stds.push_back(st.std);
     }
@@ -326,7 +354,7 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
     for (int i = 0; i < nc; ++i) num_regions += cur_work[i].empty() ? 0 : 1;
     for (int j = 0; j < np; ++j) {
       if (fprev[j].region.area() == 0) continue;
-      fprev[j].zoom = zoom_sum[j] / std::max(1, zoom_n[j]);
+      fprev[j].zoom = (o.zoom_previous || o.warp_current) ? zoom_sum[j] / std::max(1, zoom_n[j]) : 1.0;
       cv::Mat filtered = WallisFilter(prev_l[j].gray(fprev[j].region), wprev);
       if (std::abs(fprev[j].zoom - 1.0) > 1e-3) {
         cv::resize(filtered, prev_work[j], cv::Size(), fprev[j].zoom, fprev[j].zoom, cv::INTER_CUBIC);
@@ -337,6 +365,23 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
     }
     stage("wallis", num_regions, t0);
 
+    std::vector<cv::Mat> cur_wallis_full(nc);
+    if (o.warp_current) {
+#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
+      for (int i = 0; i < nc; ++i)
+        if (!cur_work[i].empty()) cur_wallis_full[i] = WallisFilter(cur_l[i].gray, o.wallis);
+    }
+    // Overlaps matched: per current image the ones with the most ground samples.
+    std::vector<bool> use_overlap(pred.overlaps.size(), true);
+    if (o.max_overlaps_per_image > 0) {
+      for (int i = 0; i < nc; ++i) {
+        std::vector<std::pair<int, int>> by_samples;
+        for (size_t k = 0; k < pred.overlaps.size(); ++k)
+          if (pred.overlaps[k].current_pair == i) by_samples.emplace_back(-pred.overlaps[k].num_samples, static_cast<int>(k));
+        std::sort(by_samples.begin(), by_samples.end());
+        for (size_t r = o.max_overlaps_per_image; r < by_samples.size(); ++r) use_overlap[by_samples[r].second] = false;
+      }
+    }
     // ---- ASIFT: flat job list of (image, view) over both sites.
     t0 = Clock::now();
     struct Job {
@@ -347,7 +392,7 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
     std::vector<Job> jobs;
     const double lon_margin = o.longitude_margin_deg * M_PI / 180;
     for (int i = 0; i < nc; ++i) {
-      if (cur_work[i].empty()) continue;
+      if (cur_work[i].empty() || o.warp_current) continue;
       fcur[i].views.push_back({1.0, 0.0});
       const double lon = 0.5 * std::atan2(lon_sum[i], lon_w[i]);
       for (double t : o.asift.tilts) {
@@ -363,6 +408,13 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
       fprev[j].views.push_back({1.0, 0.0});
       jobs.push_back({false, j, {1.0, 0.0}});
     }
+    for (int i = 0; i < nc; ++i)
+      if (!cur_work[i].empty())
+        VLOG(1) << "current image " << i << ": region " << fcur[i].region << " zoom " << fcur[i].zoom << " views "
+                << fcur[i].views.size() << " (max tilt " << tilt_max[i] << ")";
+    for (int j = 0; j < np; ++j)
+      if (!prev_work[j].empty())
+        VLOG(1) << "previous image " << j << ": region " << fprev[j].region << " zoom " << fprev[j].zoom;
     std::vector<FeatureSet> job_sets(jobs.size());
     AsiftOptions single = o.asift;
     single.num_threads = 1;
@@ -388,7 +440,7 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
         else cv::vconcat(f.set.descriptors, s.descriptors, f.set.descriptors);
       }
     }
-    size_t num_cur_features = 0;
+    size_t num_cur_features = 0, num_warped_features = 0;
     for (const auto& f : fcur) num_cur_features += f.set.size();
     // Gated matching per forward overlap: previous features predicted into the current image.
     std::vector<std::vector<Candidate>> per_overlap(pred.overlaps.size());
@@ -397,50 +449,143 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
 #pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
     for (int k = 0; k < static_cast<int>(pred.overlaps.size()); ++k) {
       const PairOverlap& ov = pred.overlaps[k];
-      if (ov.backward) continue;
+      if (ov.backward || !use_overlap[k]) continue;
       const FeatureSet& fp = fprev[ov.previous_pair].set;
-      const FeatureSet& fc = fcur[ov.current_pair].set;
-      if (fp.size() == 0 || fc.size() == 0) continue;
       const cv::Matx33d cur_from_prev = ov.previous_from_current.inv();
+      // Train features and the map from their coordinates to current-left px.
+      FeatureSet warped;
+      cv::Matx33d cur_from_train = cv::Matx33d::eye();
+      cv::Matx33d train_from_prev = cur_from_prev;
+      if (o.warp_current) {
+        // Ground-plane normalisation: the current image is warped onto the
+        // (zoomed) previous region with the predicted ground homography, so
+        // the remaining distortion is what the DR error leaves.
+        const cv::Rect R = ov.previous_region & fprev[ov.previous_pair].region;
+        const double z = fprev[ov.previous_pair].zoom;
+        if (R.area() == 0) continue;
+        const cv::Matx33d prev_from_grid(1 / z, 0, R.x, 0, 1 / z, R.y, 0, 0, 1);
+        cur_from_train = cur_from_prev * prev_from_grid;
+        train_from_prev = prev_from_grid.inv();
+        const cv::Size size(static_cast<int>(R.width * z), static_cast<int>(R.height * z));
+        // Anti-aliasing: blur the current image by the local reduction of the
+        // warp (train px per current px at the overlap's median sample).
+        const Eigen::Matrix2d Jc = z * JacobianH(ov.previous_from_current, ov.median_current_px);
+        const double sx = Jc.col(0).norm(), sy = Jc.col(1).norm();
+        const double bx = sx < 1 ? 0.8 * std::sqrt(1 / (sx * sx) - 1) : 0.0;
+        const double by = sy < 1 ? 0.8 * std::sqrt(1 / (sy * sy) - 1) : 0.0;
+        cv::Mat source = cur_wallis_full[ov.current_pair];
+        if (bx > 0.3 || by > 0.3) cv::GaussianBlur(source, source, cv::Size(0, 0), std::max(bx, 0.01), std::max(by, 0.01));
+        cv::Mat img, mask;
+        cv::warpPerspective(source, img, cv::Mat(cur_from_train), size,
+                            cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT, 0);
+        cv::warpPerspective(cv::Mat(cur_l[ov.current_pair].gray.size(), CV_8UC1, cv::Scalar(255)), mask,
+                            cv::Mat(cur_from_train), size, cv::INTER_NEAREST | cv::WARP_INVERSE_MAP,
+                            cv::BORDER_CONSTANT, 0);
+        cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(9, 9)));
+        std::vector<AffineView> views{{1.0, 0.0}};
+        for (double t : o.asift.tilts)
+          if (t > 1 + 1e-6 && t <= o.warp_max_tilt) views.push_back({t, 0.0}), views.push_back({t, M_PI / 2});
+        warped = DetectAsift(img, mask, views, single);
+        if (const char* dump = std::getenv("VLOC_FRONTEND_DUMP")) {
+          const std::string base = std::string(dump) + "/ov_c" + std::to_string(ov.current_pair) + "_p" +
+                                   std::to_string(ov.previous_pair);
+          const cv::Rect in_work((R.x - fprev[ov.previous_pair].region.x) * z, (R.y - fprev[ov.previous_pair].region.y) * z,
+                                 size.width, size.height);
+          cv::imwrite(base + "_cur_warped.png", img);
+          cv::imwrite(base + "_prev.png", prev_work[ov.previous_pair](in_work & cv::Rect(0, 0, prev_work[ov.previous_pair].cols, prev_work[ov.previous_pair].rows)));
+        }
+      }
+      const FeatureSet& fc = o.warp_current ? warped : fcur[ov.current_pair].set;
+      if (o.warp_current) {
+#pragma omp atomic
+        num_warped_features += warped.size();
+      }
+      if (fp.size() == 0 || fc.size() == 0) continue;
       std::vector<Eigen::Vector2d> predicted(fp.size(), Eigen::Vector2d::Constant(NAN));
       for (size_t q = 0; q < fp.size(); ++q) {
         const auto& p = fp.points[q];
         if (!ov.previous_region.contains(cv::Point(static_cast<int>(p.x()), static_cast<int>(p.y())))) continue;
-        predicted[q] = ApplyH(cur_from_prev, p);
+        predicted[q] = ApplyH(train_from_prev, p);
       }
+      // Gate scale: train px per current px.
+      const double train_per_cur = o.warp_current ? ov.scale * fprev[ov.previous_pair].zoom : 1.0;
+      // Stage 1: the DR prediction with a gate as wide as its uncertainty.
       GatedMatchOptions g = gm;
-      g.gate_radius = ov.growth_px / std::max(ov.scale, 1e-3) + o.gate_margin_px;
-      const auto matches = GatedMatch(fp, predicted, fc, g);
+      // ASIFT views of one point land a few (view) px apart: in full-image
+      // px that is distinct_radius / zoom.
+      if (!o.warp_current) g.distinct_radius = gm.distinct_radius / std::min(fcur[ov.current_pair].zoom, 1.0);
+      g.gate_radius = std::min(ov.growth_px / std::max(ov.scale, 1e-3) + o.gate_margin_px, o.max_gate_px) * train_per_cur;
+      auto matches = GatedMatch(fp, predicted, fc, g);
+      auto to_points = [&](const std::vector<FeatureMatch>& ms, std::vector<cv::Point2f>* a, std::vector<cv::Point2f>* b) {
+        a->clear();
+        b->clear();
+        for (const auto& m : ms) {
+          a->emplace_back(static_cast<float>(fp.points[m.query].x()), static_cast<float>(fp.points[m.query].y()));
+          const Eigen::Vector2d pc = ApplyH(cur_from_train, fc.points[m.train]);
+          b->emplace_back(static_cast<float>(pc.x()), static_cast<float>(pc.y()));
+        }
+      };
+      std::vector<cv::Point2f> a, b;
+      cv::Mat F;
+      cv::Matx33d refined = cur_from_prev;
+      bool have_refined = false;
+      const size_t stage1 = matches.size();
+      size_t stage1_inliers = 0;
+      if (o.fundamental_threshold_px > 0 && matches.size() >= 12) {
+        to_points(matches, &a, &b);
+        std::vector<uchar> inl;
+        F = cv::findFundamentalMat(a, b, cv::FM_RANSAC, o.fundamental_threshold_px, 0.999, inl);
+        if (!F.empty() && F.rows == 3 && inl.size() == matches.size()) {
+          std::vector<cv::Point2f> ia, ib;
+          for (size_t q = 0; q < inl.size(); ++q)
+            if (inl[q]) ia.push_back(a[q]), ib.push_back(b[q]);
+          stage1_inliers = ia.size();
+          // Stage 2: re-predict with a homography fitted to the stage-1
+          // inliers and match again in a tight gate, keeping the epipolar
+          // constraint.
+          if (static_cast<int>(ia.size()) >= o.min_stage1_inliers) {
+            cv::Mat Hr = cv::findHomography(ia, ib, cv::RANSAC, o.refine_homography_threshold_px);
+            if (!Hr.empty()) {
+              const cv::Matx33d H = cur_from_train.inv() * cv::Matx33d(Hr);  // prev px -> train coordinates
+              refined = cv::Matx33d(Hr);
+              have_refined = true;
+              for (size_t q = 0; q < fp.size(); ++q)
+                if (predicted[q].allFinite()) predicted[q] = ApplyH(H, fp.points[q]);
+              GatedMatchOptions g2 = g;
+              g2.gate_radius = o.refine_gate_px * train_per_cur;
+              g2.ratio = o.refine_ratio;
+              matches = GatedMatch(fp, predicted, fc, g2);
+            }
+          }
+        } else {
+          F = cv::Mat();
+        }
+      }
       std::vector<Candidate> cands;
+      const cv::Matx33d Fm = F.empty() ? cv::Matx33d::zeros() : cv::Matx33d(F);
       for (const auto& m : matches) {
         Candidate c;
         c.overlap = k;
         c.prev_pair = ov.previous_pair;
         c.cur_pair = ov.current_pair;
         c.prev_left = fp.points[m.query];
-        c.cur_left = fc.points[m.train];
+        c.cur_left = ApplyH(cur_from_train, fc.points[m.train]);
         c.descriptor_distance = m.distance;
+        // Initial LSM shape: the local affine of the refined (or predicted) homography.
+        c.initial_affine = JacobianH(refined, c.prev_left);
+        if (!F.empty()) {
+          // Distance of the current point from the epipolar line of the previous one.
+          const cv::Vec3d l = Fm * cv::Vec3d(c.prev_left.x(), c.prev_left.y(), 1.0);
+          const double d = std::abs(l[0] * c.cur_left.x() + l[1] * c.cur_left.y() + l[2]) / std::hypot(l[0], l[1]);
+          if (!(d <= 2 * o.fundamental_threshold_px)) continue;
+        } else if (o.fundamental_threshold_px > 0) {
+          continue;
+        }
         cands.push_back(c);
       }
-      if (o.fundamental_threshold_px > 0 && cands.size() >= 8) {
-        std::vector<cv::Point2f> a, b;
-        for (const auto& c : cands) {
-          a.emplace_back(static_cast<float>(c.prev_left.x()), static_cast<float>(c.prev_left.y()));
-          b.emplace_back(static_cast<float>(c.cur_left.x()), static_cast<float>(c.cur_left.y()));
-        }
-        std::vector<uchar> inl;
-        cv::Mat F = cv::findFundamentalMat(a, b, cv::FM_RANSAC, o.fundamental_threshold_px, 0.999, inl);
-        if (!F.empty() && inl.size() == cands.size()) {
-          std::vector<Candidate> kept;
-          for (size_t q = 0; q < cands.size(); ++q)
-            if (inl[q]) kept.push_back(cands[q]);
-          cands.swap(kept);
-        } else {
-          cands.clear();
-        }
-      } else if (o.fundamental_threshold_px > 0) {
-        cands.clear();
-      }
+      VLOG(1) << "overlap cur " << ov.current_pair << " prev " << ov.previous_pair << ": scale " << ov.scale << " tilt "
+              << ov.tilt << " gate " << g.gate_radius << " px, stage 1 " << stage1 << " matches (" << stage1_inliers
+              << " epipolar inliers), stage 2 " << matches.size() << " -> " << cands.size();
       std::vector<int> idx(cands.size());
       std::iota(idx.begin(), idx.end(), 0);
       std::vector<Candidate> sel;
@@ -485,6 +630,7 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
     std::vector<Candidate> cands;
     for (auto& v : per_overlap) cands.insert(cands.end(), v.begin(), v.end());
     stage("asift", static_cast<int>(cands.size()), t0);
+    num_cur_features += num_warped_features;
     if (num_cur_features < 20)
       return finish(FrontendStatus::kLowTexture, "ASIFT found almost no features in the current regions (" +
                                                      std::to_string(num_cur_features) + "): too little texture");
@@ -496,21 +642,27 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
     for (int k = 0; k < n0; ++k) {
       Candidate& c = cands[k];
       const PairOverlap& ov = pred.overlaps[c.overlap];
-      Eigen::Matrix2d A = Eigen::Matrix2d::Identity();
-      if (!ov.backward) {
-        const Eigen::Matrix2d J = JacobianH(ov.previous_from_current, c.cur_left);  // prev px per cur px
-        if (std::abs(J.determinant()) > 1e-9) A = J.inverse();
-      } else {
-        A = Eigen::Matrix2d::Identity();
-      }
+      Eigen::Matrix2d A = ov.backward ? Eigen::Matrix2d::Identity() : c.initial_affine;
       const LsmResult r = LeastSquaresMatch(prev_l[c.prev_pair].lsm, c.prev_left, cur_l[c.cur_pair].lsm, c.cur_left, A,
                                             o.cross_lsm);
-      c.ok = r.ok;
+      c.ok = r.ok || o.keep_unrefined_cross;
+      c.why = r.why;
       if (r.ok) {
         c.cur_left = r.target;
         c.sigma_cross = r.sigma_px;
+      } else {
+        c.sigma_cross = o.sigma_unrefined_px;  // feature position only
       }
     }
+    if (VLOG_IS_ON(1)) {
+      std::map<std::string, int> reasons;
+      for (const auto& c : cands)
+        if (!c.ok) ++reasons[c.why];
+      for (const auto& [why, n] : reasons) VLOG(1) << "cross-site LSM rejected " << n << ": " << why;
+    }
+    int num_refined = 0;
+    for (const auto& c : cands) num_refined += c.ok && c.sigma_cross < o.sigma_unrefined_px ? 1 : 0;
+    VLOG(1) << "cross-site LSM refined " << num_refined << " of " << cands.size();
     cands.erase(std::remove_if(cands.begin(), cands.end(), [](const Candidate& c) { return !c.ok; }), cands.end());
     // Merge duplicates (the same current pixel matched through two overlaps).
     {

@@ -15,8 +15,10 @@ void RegionOptions::Visit(OptionsReader& r) {
   r.Optional("ground_height", &ground_height, "m, ground plane z in the body frame");
   r.Optional("max_range_previous", &max_range_previous, "m, farthest ground point from the previous camera");
   r.Optional("max_range_current", &max_range_current, "m, farthest ground point from the current camera");
+  r.Optional("min_range_current", &min_range_current, "m, nearest ground point from the current camera");
   r.Optional("grid_step", &grid_step, "px, footprint sampling step");
   r.Optional("sigma_scale", &sigma_scale, "regions cover the pose perturbed by this many sigma");
+  r.Optional("max_growth_px", &max_growth_px, "px, cap of one sample's growth");
   r.Optional("default_position_sigma_fraction", &default_position_sigma_fraction,
              "relative position sigma as a fraction of the distance when no covariance");
   r.Optional("default_yaw_sigma_deg", &default_yaw_sigma_deg, "deg, relative yaw sigma when no covariance");
@@ -30,6 +32,7 @@ void RegionOptions::Visit(OptionsReader& r) {
 
 bool RegionOptions::Check(std::string* error) const {
   if (max_range_previous <= 0 || max_range_current <= 0) return Fail(error, "regions.max_range_* must be > 0");
+  if (max_growth_px <= 0) return Fail(error, "regions.max_growth_px must be > 0");
   if (grid_step < 2) return Fail(error, "regions.grid_step must be >= 2");
   if (sigma_scale < 0) return Fail(error, "regions.sigma_scale must be >= 0");
   if (default_position_sigma_fraction < 0 || max_position_sigma_fraction <= 0)
@@ -121,7 +124,8 @@ RegionPrediction PredictRegions(const NavcamModel& navcam, const PoseWithCovaria
         const double lambda = (o.ground_height - c.z()) / d.z();
         if (lambda <= 0) continue;
         const Eigen::Vector3d p = c + lambda * d;
-        if ((p - c).norm() > o.max_range_current) continue;
+        const double range = (p - c).norm();
+        if (range > o.max_range_current || range < o.min_range_current) continue;
         samples.push_back({{u, v}, p});
       }
     }
@@ -138,45 +142,77 @@ RegionPrediction PredictRegions(const NavcamModel& navcam, const PoseWithCovaria
       double cx0 = 1e9, cy0 = 1e9, cx1 = -1e9, cy1 = -1e9;
       double px0 = 1e9, py0 = 1e9, px1 = -1e9, py1 = -1e9;
       double gx0 = 1e9, gy0 = 1e9, gx1 = -1e9, gy1 = -1e9;
-      double growth = 0;
+      std::vector<double> growths;
       for (const auto& s : samples) {
+        // A sample belongs to the overlap when the ground point lies within
+        // the previous camera's range and projects into the previous image
+        // under the nominal or any perturbed relative pose.
         const Eigen::Vector3d p_prev = out.previous_from_current * s.p_current;
         const Eigen::Vector3d p_cam = prev_cams_inv[j] * p_prev;
-        if (p_cam.norm() > o.max_range_previous) continue;
         const auto q = cam_l.ProjectIdeal(p_cam);
-        if (!q || !cam_l.InImage(*q, o.image_margin)) continue;
+        if (!q || p_cam.norm() > o.max_range_previous) continue;
+        // Linearised box of where the point can project: per axis the
+        // larger of the +/- displacements, summed over the 6 axes (so
+        // errors on several axes at once stay inside).
+        Eigen::Vector2d ext(0, 0);
+        for (size_t k = 1; k + 1 < perturbed.size(); k += 2) {
+          Eigen::Vector2d e(0, 0);
+          for (size_t m = k; m <= k + 1; ++m) {
+            const Eigen::Vector3d pk = prev_cams_inv[j] * (perturbed[m] * s.p_current);
+            const auto qk = pk.z() > 0.3 * p_cam.z() ? cam_l.ProjectIdeal(pk) : std::nullopt;
+            if (!qk) {
+              e = Eigen::Vector2d::Constant(o.max_growth_px);
+              break;
+            }
+            e = e.cwiseMax((*qk - *q).cwiseAbs());
+          }
+          ext += e;
+        }
+        ext = ext.cwiseMin(o.max_growth_px);
+        const double local_growth = ext.norm();
+        const Eigen::Vector2d lo = *q - ext, hi = *q + ext;
+        const bool member = hi.x() >= o.image_margin && hi.y() >= o.image_margin &&
+                            lo.x() <= cam_l.width - 1 - o.image_margin && lo.y() <= cam_l.height - 1 - o.image_margin;
+        std::vector<Eigen::Vector2d> inside{lo, hi};
+        if (!member) continue;
+        growths.push_back(local_growth);
         cur_px.emplace_back(s.px.x(), s.px.y());
         prev_px.emplace_back(q->x(), q->y());
         cx0 = std::min(cx0, s.px.x()), cy0 = std::min(cy0, s.px.y());
         cx1 = std::max(cx1, s.px.x()), cy1 = std::max(cy1, s.px.y());
         gx0 = std::min(gx0, p_prev.x()), gy0 = std::min(gy0, p_prev.y());
         gx1 = std::max(gx1, p_prev.x()), gy1 = std::max(gy1, p_prev.y());
-        px0 = std::min(px0, q->x()), py0 = std::min(py0, q->y());
-        px1 = std::max(px1, q->x()), py1 = std::max(py1, q->y());
-        for (size_t k = 1; k < perturbed.size(); ++k) {
-          const auto qk = cam_l.ProjectIdeal(prev_cams_inv[j] * (perturbed[k] * s.p_current));
-          if (!qk) continue;
-          growth = std::max(growth, (*qk - *q).norm());
-          px0 = std::min(px0, qk->x()), py0 = std::min(py0, qk->y());
-          px1 = std::max(px1, qk->x()), py1 = std::max(py1, qk->y());
+        for (const auto& qi : inside) {
+          px0 = std::min(px0, qi.x()), py0 = std::min(py0, qi.y());
+          px1 = std::max(px1, qi.x()), py1 = std::max(py1, qi.y());
         }
       }
       ov.num_samples = static_cast<int>(cur_px.size());
       if (ov.num_samples < o.min_samples) continue;
       const double half = 0.5 * o.grid_step;
-      ov.current_region = ClipRect(cx0 - half, cy0 - half, cx1 + half, cy1 + half, cam_l);
+      // The current region reaches a full grid step past the samples (to the
+      // image border where the grid ends near it).
+      ov.current_region = ClipRect(cx0 - o.grid_step, cy0 - o.grid_step, cx1 + o.grid_step, cy1 + o.grid_step, cam_l);
       ov.previous_region = ClipRect(px0 - half, py0 - half, px1 + half, py1 + half, cam_l);
       if (ov.current_region.area() == 0 || ov.previous_region.area() == 0) continue;
       const double gs = o.sigma_scale * std::max(out.relative_sigma(0), out.relative_sigma(1));
       ov.ground_min = {gx0 - gs, gy0 - gs};
       ov.ground_max = {gx1 + gs, gy1 + gs};
-      ov.growth_px = growth;
+      // Gate: the 90th percentile of the samples' growth (a few grazing
+      // samples near the horizon would otherwise open it to the whole image).
+      std::sort(growths.begin(), growths.end());
+      ov.growth_px = growths[static_cast<size_t>(0.9 * (growths.size() - 1))];
       cv::Mat H = cv::findHomography(cur_px, prev_px, 0);
       if (H.empty()) continue;
       ov.previous_from_current = cv::Matx33d(H);
-      // Jacobian at the centre of the current region.
-      const Eigen::Vector2d c(ov.current_region.x + 0.5 * ov.current_region.width,
-                              ov.current_region.y + 0.5 * ov.current_region.height);
+      // Jacobian at the median member sample (the region centre can be a
+      // grazing point near the horizon).
+      std::vector<double> us, vs;
+      for (const auto& p : cur_px) us.push_back(p.x), vs.push_back(p.y);
+      std::nth_element(us.begin(), us.begin() + us.size() / 2, us.end());
+      std::nth_element(vs.begin(), vs.begin() + vs.size() / 2, vs.end());
+      const Eigen::Vector2d c(us[us.size() / 2], vs[vs.size() / 2]);
+      ov.median_current_px = c;
       const Eigen::Vector2d f0 = Apply(ov.previous_from_current, c);
       Eigen::Matrix2d J;
       J.col(0) = Apply(ov.previous_from_current, c + Eigen::Vector2d(1, 0)) - f0;

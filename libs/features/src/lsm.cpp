@@ -199,7 +199,7 @@ LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& templa
       return res;
     }
     const double det = A.determinant();
-    if (!(det > 0.1 && det < 10) || r1 <= 0.05) {
+    if (!(det > 0.01 && det < 100) || r1 <= 0.05) {
       res.why = "degenerate shape or radiometry";
       return res;
     }

@@ -50,8 +50,21 @@ struct FrontendOptions {
   LsmOptions cross_lsm;       // previous-left -> current-left LSM
   ConsistencyOptions consistency;
 
-  double max_zoom = 3.0;               // the previous region is zoomed by min(1 / predicted scale, max_zoom)
+  double max_zoom = 2.0;               // the previous region is zoomed by min(1 / predicted scale, max_zoom)
   double min_zoom = 1.0;               // ... and at least this
+  bool zoom_previous = false;          // true: zoom the previous region up (paper); false: the same relative
+                                       // zoom as a reduction of the current region (4-9x fewer pixels)
+  bool keep_unrefined_cross = true;    // keep a match whose cross-site LSM failed, at its feature position ...
+  double sigma_unrefined_px = 1.0;     // px, ... with this sigma
+  bool warp_current = true;            // match on the current image warped onto the zoomed previous region by
+                                       // the predicted ground-plane homography (false: ASIFT on the current region)
+  double warp_max_tilt = 1.5;          // tilts simulated on the warped image (restricted set: the residual is small)
+  int max_overlaps_per_image = 2;      // per current image, match the overlaps with the most ground samples (0 = all)
+  double refine_homography_threshold_px = 12.0;  // px, RANSAC threshold of the stage-1 homography
+  double refine_gate_px = 30.0;        // px, stage-2 gate around the refined prediction
+  double max_gate_px = 300.0;          // px, largest stage-1 gate (current-image px)
+  int min_stage1_inliers = 12;         // stage-1 epipolar inliers needed to trust the refined prediction
+  double refine_ratio = 0.85;          // stage-2 ratio test
   double tilt_margin = 1.25;           // simulate tilts t <= predicted tilt * tilt_margin (and always t = 1)
   double longitude_margin_deg = 30.0;  // deg, simulated longitudes within this of the predicted one
   double gate_margin_px = 20.0;        // px, gate radius = region growth + this (current-image px)

@@ -24,8 +24,10 @@ struct RegionOptions {
   double ground_height = 0.0;          // m, local ground plane z in each site's body frame
   double max_range_previous = 30.0;    // m, ground points farther from the previous site's camera are not used
   double max_range_current = 30.0;     // m, ... from the current site's camera
+  double min_range_current = 5.0;      // m, nearer ground (seen at a very different scale from the previous site) is not used
   int grid_step = 24;                  // px, sampling of the current image footprint
-  double sigma_scale = 2.0;            // regions grow to cover the pose perturbed by this many sigma
+  double sigma_scale = 1.5;            // regions grow to cover the pose perturbed by this many sigma
+  double max_growth_px = 250.0;        // px, cap of a sample's growth (grazing points near the horizon)
   double default_position_sigma_fraction = 0.15;  // relative position sigma, fraction of the distance, when no covariance
   double default_yaw_sigma_deg = 3.0;      // deg, relative yaw sigma when no covariance
   double default_tilt_sigma_deg = 1.0;     // deg, relative roll/pitch sigma when no covariance
@@ -51,6 +53,7 @@ struct PairOverlap {
   double tilt_longitude = 0;  // rad, direction in the current image along which the previous view is compressed
   double growth_px = 0;       // px, largest displacement of a sample under the perturbed poses (gate radius)
   int num_samples = 0;        // ground samples in this overlap
+  Eigen::Vector2d median_current_px = Eigen::Vector2d::Zero();  // px, median member sample (where scale/tilt are taken)
   Eigen::Vector2d ground_min = Eigen::Vector2d::Zero();  // m, previous body frame x/y box of the common
   Eigen::Vector2d ground_max = Eigen::Vector2d::Zero();  // ground (grown by the position sigma), for backward pairs
 };

@@ -23,7 +23,7 @@ struct AffineView {
 };
 
 struct AsiftOptions {
-  std::vector<double> tilts = {1.0, 1.4142135623730951, 2.0};  // transition tilts simulated (1 = the image itself)
+  std::vector<double> tilts = {1.0, 1.4142135623730951, 2.0, 2.8284271247461903};  // transition tilts simulated (1 = the image itself)
   double longitude_step_deg = 72.0;   // deg, phi step at tilt t is this / t (Morel & Yu)
   double longitude_min_deg = 0.0;     // deg, simulated longitudes are in [min, max)
   double longitude_max_deg = 180.0;   // deg
