@@ -1,0 +1,31 @@
+// feature_frontend: NAVCAM_STEREO + ROVER_SITE + SITE_POSE_DR -> TIE_POINTS,
+// FRONTEND_STATUS (Wan et al. 2.1-2.2: region prediction, Wallis, ASIFT,
+// ZNCC + LSM stereo, distance-consistency check).
+//   feature_frontend --config config/procs/feature_frontend.yaml [--lcm-url URL]
+#include <opencv2/core.hpp>
+#include <iostream>
+
+#include "frontend_adapter.h"
+#include "vloc/common/logging.h"
+#include "vloc/common/options.h"
+#include "vloc/lcm_io/process.h"
+
+int main(int argc, char** argv) {
+  vloc::InitLogging(argv[0]);
+  auto setup = vloc::SetupProcess(argc, argv,
+                                  {"feature_frontend", {}, true, "--config config/procs/feature_frontend.yaml"});
+  if (!setup) return 1;
+  vloc::FeatureFrontendProcOptions options;
+  try {
+    std::string echo;
+    options = vloc::LoadOptions<vloc::FeatureFrontendProcOptions>(setup->config, setup->config_path, &echo);
+    LOG(INFO) << "feature_frontend options:\n" << echo;
+  } catch (const vloc::ConfigError& e) {
+    std::cerr << "feature_frontend: " << e.what() << "\n";
+    return 1;
+  }
+  cv::setNumThreads(options.frontend.num_threads);
+  vloc::FeatureFrontendAdapter adapter(options, *setup->transport);
+  adapter.Subscribe();
+  return vloc::RunUntilSignal(*setup->transport, 100);
+}

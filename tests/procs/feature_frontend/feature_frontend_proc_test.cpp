@@ -1,0 +1,102 @@
+// Starts the real feature_frontend process on loopback LCM and feeds it two
+// textureless sites: it must answer with a FRONTEND_STATUS that says why it
+// failed (and keep running), and reject a bad config with one line.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstdlib>
+#include <string>
+#include <thread>
+
+#include "vloc/frontend_status_t.hpp"
+#include "vloc/lcm_io/convert.h"
+#include "vloc/lcm_io/convert_rover.h"
+#include "vloc/lcm_io/transport.h"
+#include "vloc/lcm_io/typed.h"
+
+namespace vloc {
+namespace {
+
+const char* kUrl = "udpm://239.255.76.67:7741?ttl=0&recv_buf_size=33554432";
+
+std::string Bin() {
+  const char* b = std::getenv("VLOC_BIN_DIR");
+  return std::string(b ? b : VLOC_BIN_DIR) + "/feature_frontend";
+}
+
+pid_t Start(const std::string& config) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    execl(Bin().c_str(), "feature_frontend", "--config", config.c_str(), "--lcm-url", kUrl, nullptr);
+    _exit(127);
+  }
+  return pid;
+}
+
+TEST(FeatureFrontendProc, TexturelessSitesGiveLowTextureStatus) {
+  std::string error;
+  auto transport = MakeLcmTransport(kUrl, &error);
+  ASSERT_TRUE(transport) << error;
+  std::atomic<int> received{0};
+  frontend_status_t last;
+  Subscribe<frontend_status_t>(*transport, "FRONTEND_STATUS", [&](const std::string&, const frontend_status_t& m) {
+    last = m;
+    ++received;
+  });
+  const pid_t pid = Start("config/procs/feature_frontend.yaml");
+  ASSERT_GT(pid, 0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // process start-up (no handshake channel)
+  for (int site = 0; site < 2; ++site) {
+    PoseWithCovariance pose;
+    pose.pose = MakePose(10.0 * site, 0, 0, 0, 0, 0);
+    Publish(*transport, "SITE_POSE_DR", SitePoseToMessage(site, site_pose_t::SOURCE_DEAD_RECKONING, pose));
+    for (int k = 0; k < 3; ++k) {
+      StereoPair p;
+      p.utime = 1000000 * (site * 10 + k + 1);
+      p.site_id = site;
+      p.pair_index = k;
+      p.num_pairs = 3;
+      p.mast_pan = (1 - k) * 26.0 * M_PI / 180;
+      p.mast_tilt = 25.0 * M_PI / 180;
+      p.left = cv::Mat(1024, 1024, CV_8UC1, cv::Scalar(80 + site));
+      p.right = p.left.clone();
+      Publish(*transport, "NAVCAM_STEREO", StereoPairToMessage(p, ImageEncoding::kPng));
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (received == 0 && std::chrono::steady_clock::now() < deadline) transport->Handle(100);
+  kill(pid, SIGTERM);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_EQ(received.load(), 1);
+  EXPECT_EQ(last.previous_site_id, 0);
+  EXPECT_EQ(last.current_site_id, 1);
+  EXPECT_EQ(static_cast<int>(last.status), static_cast<int>(frontend_status_t::STATUS_LOW_TEXTURE)) << last.message;
+  EXPECT_FALSE(last.message.empty());
+  EXPECT_EQ(last.num_stages, static_cast<int>(last.stage_names.size()));
+  EXPECT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+}
+
+TEST(FeatureFrontendProc, BadConfigIsRejectedWithOneLine) {
+  char path[] = "/tmp/feature_frontend_bad_XXXXXX";
+  const int fd = mkstemp(path);
+  ASSERT_GE(fd, 0);
+  const std::string text = "frontend:\n  no_such_key: 3\n";
+  ASSERT_EQ(write(fd, text.data(), text.size()), static_cast<ssize_t>(text.size()));
+  close(fd);
+  const pid_t pid = Start(path);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  unlink(path);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 1);
+}
+
+}  // namespace
+}  // namespace vloc
