@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <set>
 #include <cmath>
 #include <Eigen/SparseCholesky>
 #include <mrpt/graphslam/levmarq.h>
@@ -12,6 +13,7 @@ namespace vloc::posegraph {
 
 void OptimizerOptions::Visit(OptionsReader& r) {
   r.Optional("mrpt_max_iterations", &mrpt_max_iterations, "MRPT optimize_graph_spa_levmarq iterations per update");
+  r.Optional("mrpt_window", &mrpt_window, "MRPT optimises only the newest this many nodes; 0 = all");
   r.Optional("max_iterations", &max_iterations, "weighted Levenberg-Marquardt iterations per update");
   r.Optional("relative_chi2_tolerance", &relative_chi2_tolerance, "stop when chi2 drops by less than this fraction");
   r.Optional("gradient_tolerance", &gradient_tolerance, "stop when the weighted gradient inf-norm is below");
@@ -22,6 +24,7 @@ void OptimizerOptions::Visit(OptionsReader& r) {
 
 bool OptimizerOptions::Check(std::string* error) const {
   if (max_iterations < 1 || mrpt_max_iterations < 1) return Fail(error, "max_iterations and mrpt_max_iterations must be >= 1");
+  if (mrpt_window < 0) return Fail(error, "mrpt_window must be >= 0");
   if (!(relative_chi2_tolerance >= 0.0)) return Fail(error, "relative_chi2_tolerance must be >= 0");
   if (!(gradient_tolerance > 0.0)) return Fail(error, "gradient_tolerance must be > 0");
   if (!(step_tolerance > 0.0)) return Fail(error, "step_tolerance must be > 0");
@@ -51,7 +54,7 @@ double Chi2Impl(const Graph& graph) {
 }
 
 template <class Graph>
-OptimizerResult OptimizeImpl(Graph& graph, const OptimizerOptions& options, int mrpt_iterations) {
+OptimizerResult OptimizeImpl(Graph& graph, const OptimizerOptions& options, int mrpt_iterations, int window) {
   OptimizerResult result;
   const auto start = std::chrono::steady_clock::now();
   result.initial_chi2 = Chi2Impl(graph);
@@ -69,7 +72,11 @@ OptimizerResult OptimizeImpl(Graph& graph, const OptimizerOptions& options, int 
   params["verbose"] = options.verbose;
   mrpt::graphslam::TResultInfoSpaLevMarq info{};
   try {
-    mrpt::graphslam::optimize_graph_spa_levmarq(graph, info, nullptr, params);
+    std::set<mrpt::graphs::TNodeID> newest;
+    if (window > 0)
+      for (auto it = graph.nodes.rbegin(); it != graph.nodes.rend() && static_cast<int>(newest.size()) < window; ++it)
+        if (it->first != graph.root) newest.insert(it->first);
+    mrpt::graphslam::optimize_graph_spa_levmarq(graph, info, window > 0 ? &newest : nullptr, params);
   } catch (const std::exception& e) {
     throw std::runtime_error(std::string("MRPT optimize_graph_spa_levmarq failed: ") + e.what());
   }
@@ -106,7 +113,8 @@ int RefineWeighted(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOpt
   bool rebuild = true;
   Eigen::SparseMatrix<double> H(n, n);
   Eigen::VectorXd g(n);
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower> solver;
+  Eigen::VectorXd diagonal(n);
   bool analysed = false;
   for (int iter = 0; iter < options.max_iterations; ++iter) {
     if (rebuild) {
@@ -130,21 +138,23 @@ int RefineWeighted(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOpt
           if (idx[a] < 0) continue;
           g.segment<6>(6 * idx[a]) += J[a].transpose() * W * e;
           for (int b = 0; b < 2; ++b) {
-            if (idx[b] < 0) continue;
+            if (idx[b] < 0 || idx[a] < idx[b]) continue;  // lower triangle only
             const Matrix6d block = J[a].transpose() * W * J[b];
             for (int r = 0; r < 6; ++r)
-              for (int c = 0; c < 6; ++c) triplets.emplace_back(6 * idx[a] + r, 6 * idx[b] + c, block(r, c));
+              for (int c = 0; c < 6; ++c)
+                if (idx[a] > idx[b] || r >= c) triplets.emplace_back(6 * idx[a] + r, 6 * idx[b] + c, block(r, c));
           }
         }
       }
       H.setFromTriplets(triplets.begin(), triplets.end());
+      diagonal = H.diagonal().cwiseMax(1e-12);
       if (g.lpNorm<Eigen::Infinity>() <= options.gradient_tolerance) break;
       if (lambda < 0) lambda = 1e-5;  // Marquardt: relative to each diagonal entry
       rebuild = false;
     }
     ++iterations;
     Eigen::SparseMatrix<double> A = H;
-    for (int i = 0; i < n; ++i) A.coeffRef(i, i) += lambda * std::max(H.coeff(i, i), 1e-12);
+    A.diagonal() += lambda * diagonal;
     if (!analysed) {
       solver.analyzePattern(A);
       analysed = true;
@@ -190,7 +200,7 @@ int RefineWeighted(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOpt
 }  // namespace
 
 OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOptions& options) {
-  OptimizerResult result = OptimizeImpl(graph, options, options.mrpt_max_iterations);
+  OptimizerResult result = OptimizeImpl(graph, options, options.mrpt_max_iterations, options.mrpt_window);
   const auto start = std::chrono::steady_clock::now();
   if (options.verbose) std::printf("[vloc] MRPT stage %.3f s\n", result.seconds);
   result.iterations += RefineWeighted(graph, options);
@@ -200,7 +210,7 @@ OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const O
 }
 OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses2DInf& graph, const OptimizerOptions& options) {
   // 2D: MRPT alone (no weighted polish), max_iterations iterations.
-  return OptimizeImpl(graph, options, options.max_iterations);
+  return OptimizeImpl(graph, options, options.max_iterations, 0);
 }
 double Chi2(const mrpt::graphs::CNetworkOfPoses3DInf& graph) { return Chi2Impl(graph); }
 double Chi2(const mrpt::graphs::CNetworkOfPoses2DInf& graph) { return Chi2Impl(graph); }

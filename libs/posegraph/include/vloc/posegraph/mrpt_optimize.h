@@ -34,7 +34,8 @@ namespace vloc::posegraph {
 
 // Settings of optimize_graph_spa_levmarq.
 struct OptimizerOptions {
-  int mrpt_max_iterations = 1;       // iterations of MRPT's optimize_graph_spa_levmarq per update (see RefineWeighted)
+  int mrpt_max_iterations = 1;       // iterations of MRPT's optimize_graph_spa_levmarq per update (see OptimizeGraph)
+  int mrpt_window = 50;              // MRPT optimises only the newest this many nodes (by id); 0 = all
   int max_iterations = 100;          // iterations of the weighted Levenberg-Marquardt that follows
   double relative_chi2_tolerance = 1e-5;  // stop when an accepted step lowers chi2 by less than this fraction
   double gradient_tolerance = 1e-9;  // stop when |J^T W e|_inf <= this (MRPT "e1"), information-weighted
