@@ -52,6 +52,18 @@ TraverseGraphAdapter::TraverseGraphAdapter(Transport& transport, const TraverseG
   dr_stats_ = Subscribe<site_pose_t>(
       transport_, options_.dr_channel,
       [this](const std::string&, const site_pose_t& m) {
+        // Site 0 again while the graph holds a traverse: a new run. The saved
+        // graph (reloaded on start) belongs to the previous one: set it aside.
+        if (m.site_id == 0 && graph_.num_sites() > 1) {
+          LOG(WARNING) << "dead reckoning of site 0 while the graph holds " << graph_.num_sites()
+                       << " sites: a new traverse; starting a new graph"
+                       << (options_.graph_path.empty() ? "" : " (old one kept as " + options_.graph_path + ".previous)");
+          if (!options_.graph_path.empty()) {
+            std::error_code ec;
+            std::filesystem::rename(options_.graph_path, options_.graph_path + ".previous", ec);
+          }
+          graph_ = posegraph::TraverseGraph(options_.graph);
+        }
         const auto added = graph_.AddDeadReckoning(m.site_id, PoseFromMessage(m.pose));
         Update(added, "dead reckoning of site " + std::to_string(m.site_id));
       },

@@ -4,7 +4,9 @@
 // reference_from_current) and optionally SITE_POSE_FIX (site_pose_t,
 // absolute world_from_body fixes) in; TRAVERSE (traverse_t) out after every
 // update. The graph is saved (MRPT text format + vloc metadata) after every
-// update to graph_path and reloaded from it on start.
+// update to graph_path and reloaded from it on start. A SITE_POSE_DR for
+// site 0 while the graph holds more than one site starts a new traverse (the
+// old file is kept as graph_path + ".previous").
 
 #include <memory>
 #include <string>

@@ -260,6 +260,10 @@ void WriteOutputs(const Summary& s, const std::string& dir) {
         << std::hypot(u.east - u.gt_east, u.north - u.gt_north) << ',' << u.flown << '\n';
   }
   {
+    auto f = open("summary.md");
+    f << ShortTable(s);
+  }
+  {
     auto f = open("report.md");
     f << "# vloc evaluation\n\n" << ShortTable(s) << "\n";
     if (!s.sites.empty()) {

@@ -144,6 +144,10 @@ TEST(TraverseGraphProcess, OptimisesPublishesSavesAndReloads) {
   // Site 4 = optimised site 3 + DR motion 3->4.
   const PoseWithCovariance p4 = PoseFromMessage(received.back().poses[4]);
   EXPECT_LT((p4.pose.translation() - (p3.pose * (Dr(3).inverse() * Dr(4))).translation()).norm(), 0.05);
+  // Site 0 again: a new traverse starts, the old graph is set aside.
+  Publish(*transport, "SITE_POSE_DR", DrMessage(0));
+  ASSERT_TRUE(WaitFor(*transport, 10, [&] { return received.back().num_sites == 1; })) << proc.output();
+  EXPECT_TRUE(std::filesystem::exists(graph_path + ".previous"));
   proc.Signal(SIGTERM);
   EXPECT_EQ(proc.WaitExit(20), 0) << proc.output();
   std::filesystem::remove_all(dir);
