@@ -11,7 +11,9 @@ void HeightFilterOptions::Visit(OptionsReader& r) {
   r.Optional("gps_use", &gps_use, "calibration | fused");
   r.Optional("vision_sigma", &vision_sigma, "relative 1-sigma of one frame's vision height");
   r.Optional("rate_noise", &rate_noise, "1/s^1.5, random walk of the log climb rate");
-  r.Optional("gps_sigma_floor", &gps_sigma_floor, "m, lowest GPS vertical sigma used");
+  r.Optional("gps_height_sigma", &gps_height_sigma, "m, 1-sigma of GPS height above ground (fused)");
+  r.Optional("bias_sigma", &bias_sigma, "relative, initial sigma of the vision height bias (fused)");
+  r.Optional("bias_drift", &bias_drift, "1/s^0.5, random walk of the vision height bias (fused)");
   r.Optional("enabled", &enabled, "false = raw vision height");
 }
 
@@ -20,46 +22,43 @@ bool HeightFilterOptions::Check(std::string* error) const {
     return Fail(error, "height_filter.gps_use must be 'calibration' or 'fused'");
   if (!(vision_sigma > 0)) return Fail(error, "height_filter.vision_sigma must be > 0");
   if (!(rate_noise > 0)) return Fail(error, "height_filter.rate_noise must be > 0");
-  if (!(gps_sigma_floor > 0)) return Fail(error, "height_filter.gps_sigma_floor must be > 0");
+  if (!(gps_height_sigma > 0)) return Fail(error, "height_filter.gps_height_sigma must be > 0 m");
+  if (!(bias_sigma >= 0) || !(bias_drift >= 0)) return Fail(error, "height_filter.bias_sigma and bias_drift must be >= 0");
   return true;
 }
 
 void HeightFilter::Reset(double height, int64_t utime) {
   initialized_ = true;
   utime_ = utime;
-  x_[0] = std::log(height);
-  x_[1] = 0.0;
-  P_[0][0] = options_.vision_sigma * options_.vision_sigma;
-  P_[0][1] = P_[1][0] = 0.0;
-  P_[1][1] = 0.1 * 0.1;
+  x_ << std::log(height), 0.0, 0.0;
+  P_.setZero();
+  P_(0, 0) = options_.vision_sigma * options_.vision_sigma;
+  P_(1, 1) = 0.1 * 0.1;
+  if (options_.gps_use == "fused") P_(2, 2) = options_.bias_sigma * options_.bias_sigma;
 }
 
 void HeightFilter::Predict(int64_t utime) {
   const double dt = std::clamp((utime - utime_) * 1e-6, 0.0, 5.0);
   utime_ = std::max(utime_, utime);
   if (dt <= 0) return;
-  x_[0] += dt * x_[1];
-  // P = F P F' + Q, F = [1 dt; 0 1], Q from a white-noise rate derivative.
-  const double p00 = P_[0][0] + dt * (P_[0][1] + P_[1][0]) + dt * dt * P_[1][1];
-  const double p01 = P_[0][1] + dt * P_[1][1];
+  Eigen::Matrix3d F = Eigen::Matrix3d::Identity();
+  F(0, 1) = dt;
+  x_ = F * x_;
   const double q = options_.rate_noise * options_.rate_noise;
-  P_[0][0] = p00 + q * dt * dt * dt / 3.0;
-  P_[0][1] = P_[1][0] = p01 + q * dt * dt / 2.0;
-  P_[1][1] += q * dt;
+  Eigen::Matrix3d Q = Eigen::Matrix3d::Zero();
+  Q(0, 0) = q * dt * dt * dt / 3.0;
+  Q(0, 1) = Q(1, 0) = q * dt * dt / 2.0;
+  Q(1, 1) = q * dt;
+  if (options_.gps_use == "fused") Q(2, 2) = options_.bias_drift * options_.bias_drift * dt;
+  P_ = F * P_ * F.transpose() + Q;
 }
 
-void HeightFilter::Update(double z, double r) {
-  const double s = P_[0][0] + r;
-  const double k0 = P_[0][0] / s, k1 = P_[1][0] / s;
-  const double y = z - x_[0];
-  x_[0] += k0 * y;
-  x_[1] += k1 * y;
-  const double p00 = (1 - k0) * P_[0][0];
-  const double p01 = (1 - k0) * P_[0][1];
-  const double p11 = P_[1][1] - k1 * P_[0][1];
-  P_[0][0] = p00;
-  P_[0][1] = P_[1][0] = p01;
-  P_[1][1] = p11;
+void HeightFilter::Update(double z, const Eigen::RowVector3d& H, double r) {
+  const double s = (H * P_ * H.transpose())(0, 0) + r;
+  const Eigen::Vector3d K = P_ * H.transpose() / s;
+  x_ += K * (z - (H * x_)(0, 0));
+  P_ = (Eigen::Matrix3d::Identity() - K * H) * P_;
+  P_ = 0.5 * (P_ + P_.transpose());
 }
 
 double HeightFilter::UpdateVision(double height, int64_t utime) {
@@ -69,19 +68,20 @@ double HeightFilter::UpdateVision(double height, int64_t utime) {
     return height;
   }
   Predict(utime);
-  Update(std::log(height), options_.vision_sigma * options_.vision_sigma);
+  // The vision height measures log h + bias.
+  Update(std::log(height), Eigen::RowVector3d(1, 0, 1), options_.vision_sigma * options_.vision_sigma);
   return this->height();
 }
 
-double HeightFilter::UpdateGps(double height, double sigma, int64_t utime) {
+double HeightFilter::UpdateGps(double height, int64_t utime) {
   if (options_.gps_use != "fused" || !options_.enabled || !initialized_ || !(height > 0)) return this->height();
   Predict(utime);
-  const double s = std::max(std::isfinite(sigma) ? sigma : 0.0, options_.gps_sigma_floor) / height;
-  Update(std::log(height), s * s);
+  const double s = options_.gps_height_sigma / height;
+  Update(std::log(height), Eigen::RowVector3d(1, 0, 0), s * s);
   return this->height();
 }
 
-double HeightFilter::height() const { return initialized_ ? std::exp(x_[0]) : 0.0; }
-double HeightFilter::climb_rate() const { return height() * x_[1]; }
+double HeightFilter::height() const { return initialized_ ? std::exp(x_(0)) : 0.0; }
+double HeightFilter::climb_rate() const { return height() * x_(1); }
 
 }  // namespace vloc::mosaic

@@ -485,7 +485,7 @@ cv::Point2d UavMosaicker::MosaicToLocal(const cv::Point2d& p) const {
 void UavMosaicker::AddGps(const GpsFix& fix) {
   if (std::isfinite(fix.height_above_ground) && fix.height_above_ground > 0) {
     last_hag_ = fix.height_above_ground;
-    if (canvas_) height_filter_.UpdateGps(fix.height_above_ground, fix.vertical_sigma, fix.utime);
+    if (canvas_) height_filter_.UpdateGps(fix.height_above_ground, fix.utime);
   }
   if (!fix.valid || !std::isfinite(fix.latitude) || !std::isfinite(fix.longitude)) return;
   if (!origin_fix_) origin_fix_ = fix;
