@@ -467,20 +467,52 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
         cur_from_train = cur_from_prev * prev_from_grid;
         train_from_prev = prev_from_grid.inv();
         const cv::Size size(static_cast<int>(R.width * z), static_cast<int>(R.height * z));
-        // Anti-aliasing: blur the current image by the local reduction of the
-        // warp (train px per current px at the overlap's median sample).
-        const Eigen::Matrix2d Jc = z * JacobianH(ov.previous_from_current, ov.median_current_px);
-        const double sx = Jc.col(0).norm(), sy = Jc.col(1).norm();
-        const double bx = sx < 1 ? 0.8 * std::sqrt(1 / (sx * sx) - 1) : 0.0;
-        const double by = sy < 1 ? 0.8 * std::sqrt(1 / (sy * sy) - 1) : 0.0;
-        cv::Mat source = cur_wallis_full[ov.current_pair];
-        if (bx > 0.3 || by > 0.3) cv::GaussianBlur(source, source, cv::Size(0, 0), std::max(bx, 0.01), std::max(by, 0.01));
-        cv::Mat img, mask;
-        cv::warpPerspective(source, img, cv::Mat(cur_from_train), size,
-                            cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT, 0);
-        cv::warpPerspective(cv::Mat(cur_l[ov.current_pair].gray.size(), CV_8UC1, cv::Scalar(255)), mask,
-                            cv::Mat(cur_from_train), size, cv::INTER_NEAREST | cv::WARP_INVERSE_MAP,
-                            cv::BORDER_CONSTANT, 0);
+        // Warp in bands of rows, each from a copy of the current image blurred
+        // by that band's reduction (anti-aliasing: the reduction grows
+        // towards the horizon).
+        cv::Mat img(size, CV_8UC1, cv::Scalar(0)), mask(size, CV_8UC1, cv::Scalar(0));
+        const cv::Mat& source = cur_wallis_full[ov.current_pair];
+        const int band = 24;
+        for (int y0 = 0; y0 < size.height; y0 += band) {
+          const int bh = std::min(band, size.height - y0);
+          bool in_front = true;
+          double x_lo = 1e9, y_lo = 1e9, x_hi = -1e9, y_hi = -1e9;
+          for (const auto& g : {cv::Vec3d(0, y0, 1), cv::Vec3d(size.width, y0, 1), cv::Vec3d(0, y0 + bh, 1),
+                                cv::Vec3d(size.width, y0 + bh, 1), cv::Vec3d(0.5 * size.width, y0 + 0.5 * bh, 1)}) {
+            const cv::Vec3d c = cur_from_train * g;
+            if (c[2] <= 1e-9) in_front = false;
+            x_lo = std::min(x_lo, c[0] / c[2]), x_hi = std::max(x_hi, c[0] / c[2]);
+            y_lo = std::min(y_lo, c[1] / c[2]), y_hi = std::max(y_hi, c[1] / c[2]);
+          }
+          if (!in_front) continue;
+          const Eigen::Matrix2d Jtc = JacobianH(cur_from_train, {0.5 * size.width, y0 + 0.5 * bh});
+          if (std::abs(Jtc.determinant()) < 1e-12) continue;
+          const Eigen::Matrix2d Jct = Jtc.inverse();  // train px per current px
+          const double sx = Jct.row(0).norm(), sy = Jct.row(1).norm();
+          (void)sx;
+          const double rx = Jct.col(0).norm(), ry = Jct.col(1).norm();
+          const double bx = rx < 1 ? 0.8 * std::sqrt(1 / (rx * rx) - 1) : 0.0;
+          const double by = ry < 1 ? 0.8 * std::sqrt(1 / (ry * ry) - 1) : 0.0;
+          (void)sy;
+          const int margin = static_cast<int>(3 * std::max(bx, by)) + 4;
+          const cv::Rect box = cv::Rect(static_cast<int>(std::floor(x_lo)) - margin, static_cast<int>(std::floor(y_lo)) - margin,
+                                        static_cast<int>(x_hi - x_lo) + 2 * margin + 2,
+                                        static_cast<int>(y_hi - y_lo) + 2 * margin + 2) &
+                               cv::Rect(0, 0, source.cols, source.rows);
+          if (box.area() == 0) continue;
+          cv::Mat crop = source(box).clone();
+          if (bx > 0.3 || by > 0.3) cv::GaussianBlur(crop, crop, cv::Size(0, 0), std::max(bx, 0.01), std::max(by, 0.01));
+          const cv::Matx33d M = cv::Matx33d(1, 0, -box.x, 0, 1, -box.y, 0, 0, 1) * cur_from_train *
+                                cv::Matx33d(1, 0, 0, 0, 1, y0, 0, 0, 1);
+          const cv::Rect dst(0, y0, size.width, bh);
+          cv::Mat band_img, band_mask;
+          cv::warpPerspective(crop, band_img, cv::Mat(M), dst.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
+                              cv::BORDER_CONSTANT, 0);
+          cv::warpPerspective(cv::Mat(crop.size(), CV_8UC1, cv::Scalar(255)), band_mask, cv::Mat(M), dst.size(),
+                              cv::INTER_NEAREST | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT, 0);
+          band_img.copyTo(img(dst));
+          band_mask.copyTo(mask(dst));
+        }
         cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(9, 9)));
         std::vector<AffineView> views{{1.0, 0.0}};
         for (double t : o.asift.tilts)

@@ -20,6 +20,7 @@ TEST(FrontendSim, DISABLED_SitePairMeetsTheTiePointFigures) {
   }
   const testing::SimSitePair s = testing::MakeSimSitePair(so);
   FrontendOptions options;
+  if (const char* e = std::getenv("VLOC_TEST_MAX_RANGE")) options.regions.max_range_previous = std::atof(e);
   const CrossSiteFrontend frontend(s.navcam, options);
   const FrontendResult r = frontend.Run(s.previous, s.current);
   std::cout << r.summary.BriefReport() << "\n";
