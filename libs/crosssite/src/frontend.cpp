@@ -2,6 +2,7 @@
 
 #include <omp.h>
 
+#include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <Eigen/SVD>
 
@@ -38,6 +39,7 @@ void FrontendOptions::Visit(OptionsReader& r) {
   r.Optional("longitude_margin_deg", &longitude_margin_deg, "deg, simulated longitudes around the predicted one");
   r.Optional("gate_margin_px", &gate_margin_px, "px, added to the predicted growth for the match gate");
   r.Optional("fundamental_threshold_px", &fundamental_threshold_px, "px, RANSAC threshold (0 = off)");
+  r.Optional("max_motion_sigmas", &max_motion_sigmas, "tie-point motion vs DR gate in sigmas (0 = off)");
   r.Optional("keep_unrefined_cross", &keep_unrefined_cross, "keep matches whose cross-site LSM failed");
   r.Optional("sigma_unrefined_px", &sigma_unrefined_px, "px, sigma of an unrefined cross-site position");
   r.Optional("warp_current", &warp_current, "match on the current image warped by the ground homography");
@@ -844,6 +846,31 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
       tps.points.push_back(std::move(tp));
     }
     stage("consistency", static_cast<int>(tps.points.size()), t0);
+    // The distance check is blind to a set of matches that is wrong by one
+    // rigid motion (repeated texture): compare the motion the tie points
+    // imply with the dead-reckoning prediction.
+    if (tps.points.size() >= 3 && o.max_motion_sigmas > 0) {
+      Eigen::Matrix3Xd a(3, tps.points.size()), b(3, tps.points.size());
+      for (size_t k = 0; k < tps.points.size(); ++k) {
+        a.col(k) = tps.points[k].p_current;
+        b.col(k) = tps.points[k].p_previous;
+      }
+      const Eigen::Matrix4d T = Eigen::umeyama(a, b, false);  // previous_from_current
+      const Eigen::Vector3d dt = T.block<3, 1>(0, 3) - pred.previous_from_current.translation();
+      const double dyaw = std::abs(WrapAngle(std::atan2(T(1, 0), T(0, 0)) -
+                                             std::atan2(pred.previous_from_current.linear()(1, 0),
+                                                        pred.previous_from_current.linear()(0, 0))));
+      const double sp = std::max(std::hypot(pred.relative_sigma(0), pred.relative_sigma(1)), 0.05);
+      const double sy = std::max(pred.relative_sigma(5), 1e-3);
+      if (dt.head<2>().norm() > o.max_motion_sigmas * sp || dyaw > o.max_motion_sigmas * sy) {
+        std::ostringstream os;
+        os << "the " << tps.points.size() << " consistent tie points imply a motion " << dt.head<2>().norm()
+           << " m / " << dyaw * 180 / M_PI << " deg from dead reckoning (beyond " << o.max_motion_sigmas
+           << " sigma): likely repeated texture; not used";
+        tps.points.clear();
+        return finish(FrontendStatus::kTooFewPoints, os.str());
+      }
+    }
     if (static_cast<int>(tps.points.size()) < o.min_tie_points) {
       std::ostringstream os;
       os << "only " << tps.points.size() << " verified tie points (need " << o.min_tie_points << ")";

@@ -54,6 +54,7 @@ struct FrontendOptions {
   double min_zoom = 1.0;               // ... and at least this
   bool zoom_previous = false;          // true: zoom the previous region up (paper); false: the same relative
                                        // zoom as a reduction of the current region (4-9x fewer pixels)
+  double max_motion_sigmas = 3.0;      // the motion implied by the tie points must agree with DR within this (0 = off)
   bool keep_unrefined_cross = true;    // keep a match whose cross-site LSM failed, at its feature position ...
   double sigma_unrefined_px = 1.0;     // px, ... with this sigma
   bool warp_current = true;            // match on the current image warped onto the zoomed previous region by
