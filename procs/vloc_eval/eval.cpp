@@ -183,6 +183,7 @@ Summary Evaluate(const LogData& d) {
     const Eigen::Vector2d takeoff = d.uav_gt.front().second.translation().head<2>();
     const int64_t t0 = d.uav_gt.front().first;
     double sq = 0, sq_pct = 0;
+    int height_samples = 0;
     for (const UavSample& u : d.uav_state) {
       auto it = std::lower_bound(d.uav_gt.begin(), d.uav_gt.end(), u.utime,
                                  [](const auto& a, int64_t t) { return a.first < t; });
@@ -199,15 +200,18 @@ Summary Evaluate(const LogData& d) {
       r.gt_east = it->second.translation().x() - takeoff.x();
       r.gt_north = it->second.translation().y() - takeoff.y();
       r.flown = flown[static_cast<size_t>(it - d.uav_gt.begin())];
-      if (std::isfinite(r.height) && r.gt_height > 0) {
+      // While calibrating on the marker the mosaicker has no height yet;
+      // every later frame counts (a lost frame keeps its last height).
+      if (u.status != uav_state_t::STATUS_CALIBRATING && std::isfinite(r.height) && r.gt_height > 0) {
+        ++height_samples;
         sq += (r.height - r.gt_height) * (r.height - r.gt_height);
         sq_pct += std::pow(100.0 * (r.height - r.gt_height) / r.gt_height, 2);
       }
       s.uav.push_back(r);
     }
     if (!s.uav.empty()) {
-      s.uav_height_rms = std::sqrt(sq / s.uav.size());
-      s.uav_height_rms_pct = std::sqrt(sq_pct / s.uav.size());
+      s.uav_height_rms = std::sqrt(sq / std::max(1, height_samples));
+      s.uav_height_rms_pct = std::sqrt(sq_pct / std::max(1, height_samples));
       const UavRow& e = s.uav.back();
       s.uav_flown = e.flown;
       s.uav_route_end = std::hypot(e.east - e.gt_east, e.north - e.gt_north);
