@@ -19,33 +19,16 @@
 #include "vloc/common/options.h"
 #include "vloc/lcm_io/process.h"
 
-namespace {
-
-// --log and --render-sample need no network: run them on an in-process LCM.
-std::vector<char*> WithMemqWhenOffline(int argc, char** argv, std::string* memq) {
-  std::vector<char*> args(argv, argv + argc);
-  bool offline = false, has_url = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    offline = offline || a.rfind("--log", 0) == 0 || a.rfind("--render-sample", 0) == 0;
-    has_url = has_url || a.rfind("--lcm-url", 0) == 0;
-  }
-  if (offline && !has_url) args.push_back(memq->data());
-  return args;
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
-  std::string memq = "--lcm-url=memq://";
-  std::vector<char*> args = WithMemqWhenOffline(argc, argv, &memq);
-  auto setup = vloc::SetupProcess(static_cast<int>(args.size()), args.data(),
+  auto setup = vloc::SetupProcess(argc, argv,
                                   {"sim_rover",
                                    {"log", "speed", "sites", "render-sample"},
                                    false,
                                    "[--config config/procs/sim_rover.yaml] [--speed X] [--sites N] "
-                                   "[--log FILE | --render-sample DIR]"});
+                                   "[--log FILE | --render-sample DIR]",
+                                   {"log", "render-sample"}});
   if (!setup) return 1;
 
   vloc::SimRoverOptions options;

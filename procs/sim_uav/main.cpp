@@ -15,34 +15,17 @@
 #include "vloc/common/options.h"
 #include "vloc/lcm_io/process.h"
 
-namespace {
-
-// --log and --snapshot need no network: run them on an in-process LCM.
-std::vector<char*> WithMemqWhenOffline(int argc, char** argv, std::string* memq) {
-  std::vector<char*> args(argv, argv + argc);
-  bool offline = false, has_url = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    offline = offline || a.rfind("--log", 0) == 0 || a.rfind("--snapshot", 0) == 0;
-    has_url = has_url || a.rfind("--lcm-url", 0) == 0;
-  }
-  if (offline && !has_url) args.push_back(memq->data());
-  return args;
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
-  std::string memq = "--lcm-url=memq://";
-  std::vector<char*> args = WithMemqWhenOffline(argc, argv, &memq);
   auto setup = vloc::SetupProcess(
-      static_cast<int>(args.size()), args.data(),
+      argc, argv,
       {"sim_uav",
        {"log", "duration", "fps", "speed", "snapshot", "at"},
        false,
        "[--config config/procs/sim_uav.yaml] [--speed X] [--duration S] [--fps F] [--log FILE] "
-       "[--snapshot FILE.png --at T]"});
+       "[--snapshot FILE.png --at T]",
+       {"log", "snapshot"}});
   if (!setup) return 1;
 
   vloc::SimUavOptions options;

@@ -58,7 +58,12 @@ std::optional<ProcessSetup> SetupProcess(int argc, char** argv, const ProcessSet
       setup.config.remove("lcm_url");
     }
   }
-  if (setup.args.Has("lcm-url")) configured_url = setup.args.Get("lcm-url");
+  if (setup.args.Has("lcm-url")) {
+    configured_url = setup.args.Get("lcm-url");
+  } else {
+    for (const auto& flag : options.offline_flags)
+      if (setup.args.Has(flag)) configured_url = "memq://";
+  }
   setup.lcm_url = ResolveLcmUrl(configured_url);
   BlockStopSignals();
   setup.transport = MakeLcmTransport(setup.lcm_url, &error);

@@ -23,6 +23,8 @@ struct ProcessSetupOptions {
   std::vector<std::string> extra_flags;   // --flags beyond config, lcm-url, help
   bool config_required = true;            // --config must be given
   std::string usage;                      // one line of usage text
+  std::vector<std::string> offline_flags; // any of these given (and no --lcm-url): run on memq://,
+                                          // e.g. a simulator writing straight to a log needs no network
 };
 
 struct ProcessSetup {
