@@ -43,10 +43,14 @@ void FrontendOptions::Visit(OptionsReader& r) {
   r.Optional("keep_unrefined_cross", &keep_unrefined_cross, "keep matches whose cross-site LSM failed");
   r.Optional("sigma_unrefined_px", &sigma_unrefined_px, "px, sigma of an unrefined cross-site position");
   r.Optional("warp_current", &warp_current, "match on the current image warped by the ground homography");
+  r.Optional("match_previous_resolution", &match_previous_resolution,
+             "blur the warped current image to the zoomed previous region's resolution");
   r.Optional("warp_max_tilt", &warp_max_tilt, "largest tilt simulated on the warped image");
   r.Optional("max_overlaps_per_image", &max_overlaps_per_image, "overlaps matched per current image (0 = all)");
   r.Optional("zoom_previous", &zoom_previous, "zoom the previous region up (else shrink the current one)");
   r.Optional("refine_homography_threshold_px", &refine_homography_threshold_px, "px, stage-1 homography RANSAC threshold");
+  r.Optional("stage1_cluster_fraction", &stage1_cluster_fraction,
+             "radius of the stage-1 offset cluster as a fraction of the gate");
   r.Optional("refine_gate_px", &refine_gate_px, "px, stage-2 gate");
   r.Optional("max_gate_px", &max_gate_px, "px, largest stage-1 gate");
   r.Optional("min_stage1_inliers", &min_stage1_inliers, "stage-1 epipolar inliers needed to refine the prediction");
@@ -72,6 +76,8 @@ bool FrontendOptions::Check(std::string* error) const {
   if (longitude_margin_deg < 0) return Fail(error, "longitude_margin_deg must be >= 0");
   if (fundamental_threshold_px < 0) return Fail(error, "fundamental_threshold_px must be >= 0");
   if (refine_homography_threshold_px <= 0 || refine_gate_px <= 0) return Fail(error, "refine thresholds must be > 0");
+  if (stage1_cluster_fraction <= 0 || stage1_cluster_fraction > 1)
+    return Fail(error, "stage1_cluster_fraction must be in (0, 1]");
   if (refine_ratio <= 0 || refine_ratio > 1) return Fail(error, "refine_ratio must be in (0, 1]");
   if (max_points_per_overlap < 1) return Fail(error, "max_points_per_overlap must be >= 1");
   if (stereo_min_depth <= 0 || stereo_max_depth <= stereo_min_depth)
@@ -469,51 +475,33 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
         cur_from_train = cur_from_prev * prev_from_grid;
         train_from_prev = prev_from_grid.inv();
         const cv::Size size(static_cast<int>(R.width * z), static_cast<int>(R.height * z));
-        // Warp in bands of rows, each from a copy of the current image blurred
-        // by that band's reduction (anti-aliasing: the reduction grows
-        // towards the horizon).
-        cv::Mat img(size, CV_8UC1, cv::Scalar(0)), mask(size, CV_8UC1, cv::Scalar(0));
-        const cv::Mat& source = cur_wallis_full[ov.current_pair];
-        const int band = 24;
-        for (int y0 = 0; y0 < size.height; y0 += band) {
-          const int bh = std::min(band, size.height - y0);
-          bool in_front = true;
-          double x_lo = 1e9, y_lo = 1e9, x_hi = -1e9, y_hi = -1e9;
-          for (const auto& g : {cv::Vec3d(0, y0, 1), cv::Vec3d(size.width, y0, 1), cv::Vec3d(0, y0 + bh, 1),
-                                cv::Vec3d(size.width, y0 + bh, 1), cv::Vec3d(0.5 * size.width, y0 + 0.5 * bh, 1)}) {
-            const cv::Vec3d c = cur_from_train * g;
-            if (c[2] <= 1e-9) in_front = false;
-            x_lo = std::min(x_lo, c[0] / c[2]), x_hi = std::max(x_hi, c[0] / c[2]);
-            y_lo = std::min(y_lo, c[1] / c[2]), y_hi = std::max(y_hi, c[1] / c[2]);
-          }
-          if (!in_front) continue;
-          const Eigen::Matrix2d Jtc = JacobianH(cur_from_train, {0.5 * size.width, y0 + 0.5 * bh});
-          if (std::abs(Jtc.determinant()) < 1e-12) continue;
-          const Eigen::Matrix2d Jct = Jtc.inverse();  // train px per current px
-          const double sx = Jct.row(0).norm(), sy = Jct.row(1).norm();
-          (void)sx;
-          const double rx = Jct.col(0).norm(), ry = Jct.col(1).norm();
-          const double bx = rx < 1 ? 0.8 * std::sqrt(1 / (rx * rx) - 1) : 0.0;
-          const double by = ry < 1 ? 0.8 * std::sqrt(1 / (ry * ry) - 1) : 0.0;
-          (void)sy;
-          const int margin = static_cast<int>(3 * std::max(bx, by)) + 4;
-          const cv::Rect box = cv::Rect(static_cast<int>(std::floor(x_lo)) - margin, static_cast<int>(std::floor(y_lo)) - margin,
-                                        static_cast<int>(x_hi - x_lo) + 2 * margin + 2,
-                                        static_cast<int>(y_hi - y_lo) + 2 * margin + 2) &
-                               cv::Rect(0, 0, source.cols, source.rows);
-          if (box.area() == 0) continue;
-          cv::Mat crop = source(box).clone();
-          if (bx > 0.3 || by > 0.3) cv::GaussianBlur(crop, crop, cv::Size(0, 0), std::max(bx, 0.01), std::max(by, 0.01));
-          const cv::Matx33d M = cv::Matx33d(1, 0, -box.x, 0, 1, -box.y, 0, 0, 1) * cur_from_train *
-                                cv::Matx33d(1, 0, 0, 0, 1, y0, 0, 0, 1);
-          const cv::Rect dst(0, y0, size.width, bh);
-          cv::Mat band_img, band_mask;
-          cv::warpPerspective(crop, band_img, cv::Mat(M), dst.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
-                              cv::BORDER_CONSTANT, 0);
-          cv::warpPerspective(cv::Mat(crop.size(), CV_8UC1, cv::Scalar(255)), band_mask, cv::Mat(M), dst.size(),
-                              cv::INTER_NEAREST | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT, 0);
-          band_img.copyTo(img(dst));
-          band_mask.copyTo(mask(dst));
+        // Anti-aliasing: blur the current image by the local reduction of the
+        // warp (train px per current px at the overlap's median sample).
+        const Eigen::Matrix2d Jc = z * JacobianH(ov.previous_from_current, ov.median_current_px);
+        const double sx = Jc.col(0).norm(), sy = Jc.col(1).norm();
+        const double bx = sx < 1 ? 0.8 * std::sqrt(1 / (sx * sx) - 1) : 0.0;
+        const double by = sy < 1 ? 0.8 * std::sqrt(1 / (sy * sy) - 1) : 0.0;
+        // A blurred copy: several overlaps (threads) share the current image.
+        cv::Mat source = cur_wallis_full[ov.current_pair];
+        if (bx > 0.3 || by > 0.3) {
+          cv::Mat blurred;
+          cv::GaussianBlur(source, blurred, cv::Size(0, 0), std::max(bx, 0.01), std::max(by, 0.01));
+          source = blurred;
+        }
+        cv::Mat img, mask;
+        cv::warpPerspective(source, img, cv::Mat(cur_from_train), size,
+                            cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT, 0);
+        cv::warpPerspective(cv::Mat(cur_l[ov.current_pair].gray.size(), CV_8UC1, cv::Scalar(255)), mask,
+                            cv::Mat(cur_from_train), size, cv::INTER_NEAREST | cv::WARP_INVERSE_MAP,
+                            cv::BORDER_CONSTANT, 0);
+        // The previous region was zoomed up by z: its finest detail is z grid
+        // px, while the warped current image still holds detail down to one
+        // grid px (the previous site saw this ground from farther away). Blur
+        // the warped image to the previous region's resolution, or SIFT
+        // describes different texture at the two sites.
+        if (z > 1.05 && o.match_previous_resolution) {
+          const double bz = 0.8 * std::sqrt(z * z - 1);
+          cv::GaussianBlur(img, img, cv::Size(0, 0), bz, bz);
         }
         cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(9, 9)));
         std::vector<AffineView> views{{1.0, 0.0}};
@@ -562,37 +550,71 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
       std::vector<cv::Point2f> a, b;
       cv::Mat F;
       cv::Matx33d refined = cur_from_prev;
-      bool have_refined = false;
       const size_t stage1 = matches.size();
       size_t stage1_inliers = 0;
-      if (o.fundamental_threshold_px > 0 && matches.size() >= 12) {
-        to_points(matches, &a, &b);
-        std::vector<uchar> inl;
-        F = cv::findFundamentalMat(a, b, cv::FM_RANSAC, o.fundamental_threshold_px, 0.999, inl);
-        if (!F.empty() && F.rows == 3 && inl.size() == matches.size()) {
-          std::vector<cv::Point2f> ia, ib;
-          for (size_t q = 0; q < inl.size(); ++q)
-            if (inl[q]) ia.push_back(a[q]), ib.push_back(b[q]);
-          stage1_inliers = ia.size();
-          // Stage 2: re-predict with a homography fitted to the stage-1
-          // inliers and match again in a tight gate, keeping the epipolar
-          // constraint.
-          if (static_cast<int>(ia.size()) >= o.min_stage1_inliers) {
-            cv::Mat Hr = cv::findHomography(ia, ib, cv::RANSAC, o.refine_homography_threshold_px);
-            if (!Hr.empty()) {
-              const cv::Matx33d H = cur_from_train.inv() * cv::Matx33d(Hr);  // prev px -> train coordinates
-              refined = cv::Matx33d(Hr);
-              have_refined = true;
-              for (size_t q = 0; q < fp.size(); ++q)
-                if (predicted[q].allFinite()) predicted[q] = ApplyH(H, fp.points[q]);
-              GatedMatchOptions g2 = g;
-              g2.gate_radius = o.refine_gate_px * train_per_cur;
-              g2.ratio = o.refine_ratio;
-              matches = GatedMatch(fp, predicted, fc, g2);
-            }
-          }
-        } else {
-          F = cv::Mat();
+      if (o.fundamental_threshold_px > 0) {
+        // Stage 1 -> refined prediction. The DR error shifts the true
+        // matches by nearly one offset from their predictions (the warp
+        // removed the perspective), while wrong matches (repeated texture)
+        // scatter over the whole gate: keep the densest cluster of offsets,
+        // then fit the ground homography to it. An epipolar RANSAC on all
+        // stage-1 matches is not enough: with 8 points it fits a dozen
+        // random matches at 2 px and the stage-2 gate then follows a wrong
+        // motion.
+        std::vector<Eigen::Vector2d> off;
+        for (const auto& m : matches) off.push_back(fc.points[m.train] - predicted[m.query]);
+        const double r = std::max(8.0 * train_per_cur, o.stage1_cluster_fraction * g.gate_radius);
+        int best = -1, best_n = 0;
+        for (size_t q = 0; q < off.size(); ++q) {
+          int n = 0;
+          for (size_t w = 0; w < off.size(); ++w) n += (off[w] - off[q]).norm() <= r ? 1 : 0;
+          if (n > best_n) best_n = n, best = static_cast<int>(q);
+        }
+        std::vector<FeatureMatch> cluster;
+        if (best >= 0) {
+          Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+          int n = 0;
+          for (size_t w = 0; w < off.size(); ++w)
+            if ((off[w] - off[best]).norm() <= r) mean += off[w], ++n;
+          mean /= std::max(n, 1);
+          for (size_t w = 0; w < off.size(); ++w)
+            if ((off[w] - mean).norm() <= 2 * r) cluster.push_back(matches[w]);
+        }
+        stage1_inliers = cluster.size();
+        {
+          int n0 = 0;
+          for (const auto& v : off) n0 += v.norm() <= r ? 1 : 0;
+          VLOG(1) << "overlap cur " << ov.current_pair << " prev " << ov.previous_pair << ": offset mode "
+                  << (best >= 0 ? Eigen::Vector2d(off[best]) : Eigen::Vector2d::Zero()).transpose() << " n " << best_n
+                  << ", near zero " << n0 << " r " << r << " z " << fprev[ov.previous_pair].zoom;
+        }
+        if (static_cast<int>(cluster.size()) < o.min_stage1_inliers) {
+          VLOG(1) << "overlap cur " << ov.current_pair << " prev " << ov.previous_pair << ": stage 1 " << stage1
+                  << " matches, densest offset cluster " << cluster.size() << " < min_stage1_inliers: skipped";
+          continue;
+        }
+        to_points(cluster, &a, &b);
+        std::vector<uchar> hin;
+        cv::Mat Hr = cv::findHomography(a, b, cv::RANSAC, o.refine_homography_threshold_px, hin);
+        int n_h = 0;
+        for (uchar v : hin) n_h += v ? 1 : 0;
+        if (Hr.empty() || n_h < o.min_stage1_inliers) continue;
+        // Stage 2: re-predict with the refined homography and match again
+        // in a tight gate.
+        const cv::Matx33d H = cur_from_train.inv() * cv::Matx33d(Hr);  // prev px -> train coordinates
+        refined = cv::Matx33d(Hr);
+        for (size_t q = 0; q < fp.size(); ++q)
+          if (predicted[q].allFinite()) predicted[q] = ApplyH(H, fp.points[q]);
+        GatedMatchOptions g2 = g;
+        g2.gate_radius = o.refine_gate_px * train_per_cur;
+        g2.ratio = o.refine_ratio;
+        matches = GatedMatch(fp, predicted, fc, g2);
+        // Epipolar RANSAC on the (now mostly right) stage-2 matches.
+        if (matches.size() >= 12) {
+          to_points(matches, &a, &b);
+          std::vector<uchar> inl;
+          F = cv::findFundamentalMat(a, b, cv::FM_RANSAC, o.fundamental_threshold_px, 0.999, inl);
+          if (F.empty() || F.rows != 3) F = cv::Mat();
         }
       }
       std::vector<Candidate> cands;
@@ -691,7 +713,7 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
     if (VLOG_IS_ON(1)) {
       std::map<std::string, int> reasons;
       for (const auto& c : cands)
-        if (!c.ok) ++reasons[c.why];
+        if (c.why && *c.why) ++reasons[c.why];
       for (const auto& [why, n] : reasons) VLOG(1) << "cross-site LSM rejected " << n << ": " << why;
     }
     int num_refined = 0;

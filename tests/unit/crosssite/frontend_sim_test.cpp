@@ -10,8 +10,13 @@
 namespace vloc {
 namespace {
 
-// Disabled: on the simulated pair the matches are still mostly wrong (see the report);
-// run with --gtest_also_run_disabled_tests to measure.
+// Disabled: on the simulated pair the cross-site matches are still mostly
+// wrong even with a perfect DR pose (VLOC_TEST_DR_SCALE=0): the correct
+// correspondences are hardly ever the nearest descriptor inside the gate
+// (the simulator's far/near texture differs), so stage 1 finds no offset
+// cluster and the overlaps are skipped, or the DR motion gate rejects the set.
+// Run with --gtest_also_run_disabled_tests to measure (VLOC_SIM_CACHE=<dir>
+// caches the renders; VLOC_TEST_MOTION_SIGMAS=0 switches the DR gate off).
 TEST(FrontendSim, DISABLED_SitePairMeetsTheTiePointFigures) {
   testing::SimSitePairOptions so;
   if (const char* e = std::getenv("VLOC_TEST_DR_SCALE")) {
@@ -21,6 +26,7 @@ TEST(FrontendSim, DISABLED_SitePairMeetsTheTiePointFigures) {
   const testing::SimSitePair s = testing::MakeSimSitePair(so);
   FrontendOptions options;
   if (const char* e = std::getenv("VLOC_TEST_MAX_RANGE")) options.regions.max_range_previous = std::atof(e);
+  if (const char* e = std::getenv("VLOC_TEST_MOTION_SIGMAS")) options.max_motion_sigmas = std::atof(e);
   const CrossSiteFrontend frontend(s.navcam, options);
   const FrontendResult r = frontend.Run(s.previous, s.current);
   std::cout << r.summary.BriefReport() << "\n";

@@ -59,9 +59,11 @@ struct FrontendOptions {
   double sigma_unrefined_px = 1.0;     // px, ... with this sigma
   bool warp_current = true;            // match on the current image warped onto the zoomed previous region by
                                        // the predicted ground-plane homography (false: ASIFT on the current region)
+  bool match_previous_resolution = false; // blur the warped current image to the zoomed previous region's resolution
   double warp_max_tilt = 1.5;          // tilts simulated on the warped image (restricted set: the residual is small)
   int max_overlaps_per_image = 2;      // per current image, match the overlaps with the most ground samples (0 = all)
   double refine_homography_threshold_px = 12.0;  // px, RANSAC threshold of the stage-1 homography
+  double stage1_cluster_fraction = 0.06; // stage-1 matches kept: offsets within 2x this fraction of the gate of the densest cluster
   double refine_gate_px = 30.0;        // px, stage-2 gate around the refined prediction
   double max_gate_px = 300.0;          // px, largest stage-1 gate (current-image px)
   int min_stage1_inliers = 12;         // stage-1 epipolar inliers needed to trust the refined prediction
