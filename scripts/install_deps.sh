@@ -40,7 +40,8 @@ if [ "$(id -u)" -eq 0 ]; then
   if [ "$cur" -lt 33554432 ]; then
     sysctl -q -w net.core.rmem_max=33554432 || echo "[deps] could not raise net.core.rmem_max (container?)"
   fi
-  if ! ip route show table all 2>/dev/null | grep -q "224.0.0.0/4"; then
+  routes=$(ip route show table all 2>/dev/null || true)   # (grep -q on a pipe would SIGPIPE ip under pipefail)
+  if ! grep -q "224.0.0.0/4" <<<"$routes"; then
     ip route add 224.0.0.0/4 dev lo 2>/dev/null || echo "[deps] could not add multicast route (container?)"
   fi
 else
