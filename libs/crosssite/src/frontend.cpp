@@ -462,6 +462,7 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
       const cv::Matx33d cur_from_prev = ov.previous_from_current.inv();
       // Train features and the map from their coordinates to current-left px.
       FeatureSet warped;
+      cv::Mat coverage;  // warped current image's coverage of the train grid
       cv::Matx33d cur_from_train = cv::Matx33d::eye();
       cv::Matx33d train_from_prev = cur_from_prev;
       if (o.warp_current) {
@@ -504,6 +505,7 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
           cv::GaussianBlur(img, img, cv::Size(0, 0), bz, bz);
         }
         cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(9, 9)));
+        coverage = mask;
         std::vector<AffineView> views{{1.0, 0.0}};
         for (double t : o.asift.tilts)
           if (t > 1 + 1e-6 && t <= o.warp_max_tilt) views.push_back({t, 0.0}), views.push_back({t, M_PI / 2});
@@ -528,6 +530,14 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
         const auto& p = fp.points[q];
         if (!ov.previous_region.contains(cv::Point(static_cast<int>(p.x()), static_cast<int>(p.y())))) continue;
         predicted[q] = ApplyH(train_from_prev, p);
+        // A previous feature whose ground the current image does not see has
+        // no true match: left in, it pairs with whatever lies at the gate's
+        // edge nearest the covered part (one common, wrong, offset).
+        if (o.warp_current && !coverage.empty()) {
+          const int x = static_cast<int>(std::lround(predicted[q].x())), y = static_cast<int>(std::lround(predicted[q].y()));
+          if (x < 0 || y < 0 || x >= coverage.cols || y >= coverage.rows || !coverage.at<uchar>(y, x))
+            predicted[q] = Eigen::Vector2d::Constant(NAN);
+        }
       }
       // Gate scale: train px per current px.
       const double train_per_cur = o.warp_current ? ov.scale * fprev[ov.previous_pair].zoom : 1.0;
