@@ -27,6 +27,7 @@ TEST(FrontendSim, DISABLED_SitePairMeetsTheTiePointFigures) {
   FrontendOptions options;
   if (const char* e = std::getenv("VLOC_TEST_MAX_RANGE")) options.regions.max_range_previous = std::atof(e);
   if (const char* e = std::getenv("VLOC_TEST_MOTION_SIGMAS")) options.max_motion_sigmas = std::atof(e);
+  if (const char* e = std::getenv("VLOC_TEST_MIN_STAGE1")) options.min_stage1_inliers = std::atoi(e);
   const CrossSiteFrontend frontend(s.navcam, options);
   const FrontendResult r = frontend.Run(s.previous, s.current);
   std::cout << r.summary.BriefReport() << "\n";
