@@ -1,12 +1,15 @@
 // vloc_eval: accuracy of a recorded run against the ground truth in its log.
-//   vloc_eval LOG.lcmlog --out DIR [--scripts DIR] [--no-plots] [--quiet]
-// Writes DIR/report.md, sites.csv, pairs.csv, uav.csv, then runs
-// scripts/plot_eval.py for the PNG plots; prints a short accuracy table.
+//   vloc_eval LOG.lcmlog --out DIR [--terrain config/sim/terrain.yaml] [--ortho-m-per-px 0.08]
+//             [--scripts DIR] [--no-plots] [--quiet]
+// Writes DIR/report.md, sites.csv, pairs.csv, uav.csv, with --terrain (a
+// simulated run) DIR/ortho.png + ortho.pgw (the terrain under the traverse),
+// then runs scripts/plot_eval.py for the PNG plots; prints a short accuracy table.
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
 
 #include "eval.h"
+#include "ortho.h"
 #include "vloc/common/command_line.h"
 
 namespace fs = std::filesystem;
@@ -27,10 +30,11 @@ static std::string FindScripts(const vloc::CommandLine& args, const char* argv0)
 int main(int argc, char** argv) {
   vloc::CommandLine args;
   std::string error;
-  if (!args.Parse(argc, argv, {"out", "scripts", "no-plots", "quiet", "help"}, &error) || args.Has("help") ||
+  if (!args.Parse(argc, argv, {"out", "terrain", "ortho-m-per-px", "scripts", "no-plots", "quiet", "help"}, &error) || args.Has("help") ||
       args.positional().size() != 1 || !args.Has("out")) {
     if (!error.empty()) std::cerr << "vloc_eval: " << error << "\n";
-    std::cerr << "usage: vloc_eval LOG.lcmlog --out DIR [--scripts DIR] [--no-plots] [--quiet]\n";
+    std::cerr << "usage: vloc_eval LOG.lcmlog --out DIR [--terrain config/sim/terrain.yaml] [--ortho-m-per-px M]"
+                 " [--scripts DIR] [--no-plots] [--quiet]\n";
     return 1;
   }
   const std::string out = args.Get("out");
@@ -38,6 +42,16 @@ int main(int argc, char** argv) {
     const vloc::eval::LogData data = vloc::eval::ReadLog(args.positional()[0], !args.Has("quiet"));
     const vloc::eval::Summary summary = vloc::eval::Evaluate(data);
     vloc::eval::WriteOutputs(summary, out);
+    std::filesystem::remove(out + "/ortho.png");  // a stale background must not show under another run
+    std::filesystem::remove(out + "/ortho.pgw");
+    if (args.Has("terrain") && !args.Has("no-plots") && !summary.sites.empty()) {
+      vloc::eval::OrthoOptions ortho;
+      ortho.terrain_config = args.Get("terrain");
+      ortho.m_per_px = args.GetDouble("ortho-m-per-px", ortho.m_per_px);
+      std::string ortho_error;
+      if (!vloc::eval::WriteOrthoimage(summary, ortho, out, &ortho_error))
+        std::cerr << "vloc_eval: no orthoimage under the map: " << ortho_error << "\n";
+    }
     std::cout << vloc::eval::ShortTable(summary);
     if (data.decode_failures)
       std::cerr << "vloc_eval: " << data.decode_failures << " messages could not be decoded (skipped)\n";

@@ -159,5 +159,52 @@ TEST(VlocEval, KnownErrorsComeOutOfTheReport) {
   std::filesystem::remove_all(dir);
 }
 
+// --terrain renders the simulated terrain over the sites' bounding box plus
+// a 12 m margin and writes its world file: two sites at (0, 0) and (10, 0)
+// at 0.25 m/px give x -12 .. 22, y -12 .. 12, top-left pixel centre
+// (-11.875, 11.875). A terrain file that cannot be read leaves the plots
+// without a background (one line), not the evaluation.
+TEST(VlocEval, OrthoimageOfTheTerrainUnderTheMap) {
+  const auto dir = std::filesystem::temp_directory_path() / "vloc_eval_ortho_test";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string log_path = (dir / "run.lcmlog").string();
+  {
+    lcm::LogFile log(log_path, "w");
+    ASSERT_TRUE(log.good());
+    for (int i = 0; i < 2; ++i)
+      Write(log, "SITE_POSE_GT", SitePoseToMessage(i, site_pose_t::SOURCE_GROUND_TRUTH, At(10.0 * i, 0)), i + 1);
+  }
+  {
+    std::ofstream t(dir / "terrain.yaml");
+    t << "size_m: 51.2\nresolution_m: 0.08\norigin_x_m: -20.0\norigin_y_m: -20.0\nnum_threads: 1\n";
+  }
+  const std::string out = (dir / "eval").string();
+  testing::Subprocess proc({testing::BinPath("vloc_eval"), log_path, "--out", out, "--quiet", "--terrain",
+                            (dir / "terrain.yaml").string(), "--ortho-m-per-px", "0.25"});
+  ASSERT_EQ(proc.WaitExit(60), 0) << proc.output();
+  ASSERT_TRUE(std::filesystem::exists(out + "/ortho.png")) << proc.output();
+  EXPECT_GT(std::filesystem::file_size(out + "/ortho.png"), 1000u);
+  std::ifstream pgw(out + "/ortho.pgw");
+  std::vector<double> w;
+  for (double v; pgw >> v;) w.push_back(v);
+  ASSERT_EQ(w.size(), 6u);
+  EXPECT_NEAR(w[0], 0.25, 1e-9);
+  EXPECT_NEAR(w[1], 0.0, 1e-12);
+  EXPECT_NEAR(w[2], 0.0, 1e-12);
+  EXPECT_NEAR(w[3], -0.25, 1e-9);
+  EXPECT_NEAR(w[4], -11.875, 1e-9);
+  EXPECT_NEAR(w[5], 11.875, 1e-9);
+  EXPECT_NE(proc.output().find("136 x 96 px"), std::string::npos) << proc.output();
+  EXPECT_TRUE(std::filesystem::exists(out + "/traverse_map.png")) << proc.output();
+
+  testing::Subprocess bad({testing::BinPath("vloc_eval"), log_path, "--out", out, "--quiet", "--terrain",
+                           (dir / "missing.yaml").string()});
+  EXPECT_EQ(bad.WaitExit(60), 0) << bad.output();
+  EXPECT_NE(bad.output().find("no orthoimage under the map"), std::string::npos) << bad.output();
+  EXPECT_FALSE(std::filesystem::exists(out + "/ortho.png"));  // the stale one is gone
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace vloc
