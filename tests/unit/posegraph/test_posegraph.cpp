@@ -289,6 +289,62 @@ TEST(TraverseGraph, LoopClosureAndAbsoluteFixPullTheTraverse) {
   EXPECT_FALSE(g.AddAbsoluteFix(0, fix).accepted);
 }
 
+TEST(TraverseGraph, RevisitOfAnEarlierSiteClosesTheLoop) {
+  // The simulator's revisit: 20 sites, then site 20 back at site 3's pose
+  // (traverse.plan.revisit_site: 3). Dead reckoning 5 % of distance; visual
+  // edges (2 cm, 0.1 mrad) on every other pair only, so the chain drifts;
+  // then the revisit edge 3 -> 20 (what feature_frontend + crosssite_ba
+  // publish). The end error must drop to the revisit edge's and site 3's
+  // accuracy, and site 20's marginal must shrink with it.
+  PoseGraphOptions o = PerMetreOptions();
+  std::mt19937 rng(33);
+  std::vector<Pose3> truth = TrueTraverse(20, 8.0, rng);
+  truth.push_back(truth[3]);  // the revisit
+  TraverseGraph g(o);
+  Pose3 chain = truth[0];
+  for (int i = 0; i < 21; ++i) {
+    if (i > 0) {
+      const Pose3 rel = truth[i - 1].inverse() * truth[i];
+      const double d = rel.translation().norm();
+      Vector6d sd;  // the per-metre model of the options
+      sd << o.dr_position_sigma_per_metre * d, o.dr_position_sigma_per_metre * d, o.dr_vertical_sigma_per_metre * d,
+          o.dr_tilt_sigma, o.dr_tilt_sigma, o.dr_heading_sigma_per_metre * d;
+      chain = chain * Perturb(rel, sd.array().square().matrix().asDiagonal(), rng);
+    }
+    PoseWithCovariance p;
+    p.pose = chain;
+    p.utime = i;
+    ASSERT_TRUE(g.AddDeadReckoning(i, p).accepted);
+    if (i > 0 && i % 2 == 0 && i < 20) {
+      PoseWithCovariance vis;
+      vis.covariance = Diag(0.02, 1e-4);
+      vis.pose = Perturb(truth[i - 1].inverse() * truth[i], vis.covariance, rng);
+      ASSERT_TRUE(g.AddRelative(i - 1, i, vis).changed);
+    }
+  }
+  g.Optimize();
+  auto error = [&](int i) { return (g.Site(i)->world_from_body.pose.translation() - truth[i].translation()).norm(); };
+  const double before = error(20), sigma_before = std::sqrt(g.Site(20)->world_from_body.covariance(0, 0));
+  PoseWithCovariance loop;
+  loop.covariance = Diag(0.02, 1e-4);
+  loop.pose = Perturb(Pose3::Identity(), loop.covariance, rng);  // site 3 from site 20: the same place
+  const AddResult r = g.AddRelative(3, 20, loop);
+  ASSERT_TRUE(r.changed) << r.message;
+  const auto s = g.Optimize();
+  ASSERT_TRUE(s.usable) << s.message;
+  EXPECT_EQ(s.num_loop_edges, 1);
+  const double after = error(20), sigma_after = std::sqrt(g.Site(20)->world_from_body.covariance(0, 0));
+  std::printf("revisit: site 20 error %.3f m (x sigma %.3f m) before the loop edge, %.3f m (%.3f m) after; site 3 %.3f m\n",
+              before, sigma_before, after, sigma_after, error(3));
+  // The revisit can be no better than site 3 itself (3 legs from the root,
+  // one of them visual) plus the loop edge's 2 cm per axis.
+  EXPECT_GT(before, 2.0 * error(3) + 0.1) << "the chain should have drifted well beyond site 3's error";
+  EXPECT_LT(after, error(3) + 3 * 0.02 * std::sqrt(3.0)) << "before " << before;
+  EXPECT_LT(sigma_after, 0.5 * sigma_before);
+  // The middle of the loop is pulled too (the loop's drift is spread along it).
+  EXPECT_LT(error(12), before);
+}
+
 TEST(TraverseGraph, VisualBeforeDeadReckoningWaitsThenApplies) {
   TraverseGraph g(PerMetreOptions());
   PoseWithCovariance rel;
