@@ -2,10 +2,12 @@
 # The UAV mosaicker on real aerial imagery: OpenCV's aero1.jpg and aero3.jpg
 # (Debian package opencv-doc).
 #   scripts/mosaic_aero.sh [--out DIR]        (default out/aero)
-# 1. aero1 + aero3 as a two-frame sequence -> DIR/aero_mosaic.png. These two
-#    oblique photos show different views of a town: A-KAZE (and SIFT) find no
-#    consistent set of matches between them, so the mosaicker reports frame 2
-#    LOST with the reason, and the mosaic holds aero1 only (exit status noted).
+# 1. aero1 + aero3 as a two-frame sequence -> DIR/aero_mosaic.png (+ an 800 px
+#    preview DIR/aero_mosaic_preview.png). The two oblique photos show one town
+#    from different directions and distances: the nadir A-KAZE matcher finds
+#    no consistent set (frame 2 LOST), so uav_mosaic_files falls back to the
+#    affine-invariant RegisterOblique (ASIFT, MAGSAC++ homography, photometric
+#    check) and mosaics aero3 into aero1's frame with multi-band blending.
 # 2. Each photo cut into two overlapping views related by a known similarity
 #    (12 deg, view 2 from 1.18x higher) -> registered, the measured scale
 #    change compared with the truth, and mosaicked: DIR/aero1_split_mosaic.png,
@@ -34,7 +36,8 @@ mkdir -p "$out"
 export GLOG_minloglevel=1
 echo "== aero1 + aero3 as a sequence"
 status=0
-"$tool" --out "$out/aero_mosaic.png" "$data/aero1.jpg" "$data/aero3.jpg" || status=$?
+"$tool" --out "$out/aero_mosaic.png" --preview "$out/aero_mosaic_preview.png" --preview-side 800 \
+  "$data/aero1.jpg" "$data/aero3.jpg" || status=$?
 [ "$status" -eq 2 ] && echo "(aero3 could not be registered to aero1: see the reason above)"
 for img in aero1 aero3; do
   echo "== $img cut into two views with a known similarity"

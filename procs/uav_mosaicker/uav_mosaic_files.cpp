@@ -9,6 +9,11 @@
 // instead cuts one real image into two overlapping views related by a known
 // similarity (rotation DEG, default 12; view 2 seen from Z times higher,
 // default 1.18) and checks the registration against that truth.
+// When the nadir mosaicker loses a frame (views too different: oblique
+// photos from other directions, like aero1/aero3), the sequence is
+// registered pairwise with the affine-invariant RegisterOblique (image i ->
+// image i-1, homographies chained to image 1) and mosaicked in image 1's
+// frame instead (--no-oblique turns this off).
 #include <glog/logging.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -20,16 +25,17 @@
 #include "vloc/common/command_line.h"
 #include "vloc/common/logging.h"
 #include "vloc/common/options.h"
+#include "vloc/mosaic/oblique_registration.h"
 #include "vloc/mosaic/uav_mosaicker.h"
 
 int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
   vloc::CommandLine args;
   std::string error;
-  if (!args.Parse(argc, argv, {"config", "height", "focal", "out", "help", "split", "angle", "zoom", "preview", "preview-side"}, &error) || args.Has("help") ||
+  if (!args.Parse(argc, argv, {"config", "height", "focal", "out", "help", "split", "angle", "zoom", "preview", "preview-side", "no-oblique"}, &error) || args.Has("help") ||
       args.positional().size() < (args.Has("split") ? 1u : 2u) || !args.Has("out")) {
     std::cerr << (error.empty() ? "" : "uav_mosaic_files: " + error + "\n")
-              << "usage: uav_mosaic_files [--config config/procs/uav_mosaicker.yaml] [--height H] [--focal F] [--preview P.png --preview-side N] --out "
+              << "usage: uav_mosaic_files [--config config/procs/uav_mosaicker.yaml] [--height H] [--focal F] [--preview P.png --preview-side N] [--no-oblique] --out "
                  "OUT.png IMAGE IMAGE...\n       uav_mosaic_files --split [--angle DEG] [--zoom Z] --out OUT.png IMAGE\n";
     return 1;
   }
@@ -91,7 +97,7 @@ int main(int argc, char** argv) {
   int failures = 0;
   for (size_t i = 0; i < images.size(); ++i) {
     const auto s = mosaicker.ProcessFrame(images[i], static_cast<int64_t>(i) * 1000000);
- std::cout << names[i] << ": " << vloc::mosaic::ToString(s.status) << ", scale change " << s.scale
+    std::cout << names[i] << ": " << vloc::mosaic::ToString(s.status) << ", scale change " << s.scale
               << ", matches " << s.num_matches << ", inliers " << s.num_inliers << ", foreground " << s.num_foreground
               << ", centre at mosaic px (" << s.route_px.x << ", " << s.route_px.y << "), height "
               << s.height << " m" << (s.message.empty() ? "" : " (" + s.message + ")") << "\n";
@@ -103,7 +109,32 @@ int main(int argc, char** argv) {
                 << " %\n";
     }
   }
-  if (!mosaicker.WriteMosaic(args.Get("out"), &error)) {
+  const bool use_oblique = failures > 0 && !args.Has("split") && !args.Has("no-oblique");
+  if (use_oblique) {
+    // Fallback: pairwise affine-invariant registration, mosaic in image 1's frame.
+    vloc::mosaic::ObliqueOptions oblique;
+    oblique.num_threads = options.num_threads;
+    std::vector<cv::Matx33d> ref_from_image{cv::Matx33d::eye()};
+    failures = 0;
+    for (size_t i = 1; i < images.size(); ++i) {
+      const auto r = vloc::mosaic::RegisterOblique(images[i], images[i - 1], oblique);
+      std::cout << names[i] << " -> " << names[i - 1] << " (affine-invariant fallback): " << r.BriefReport() << "\n";
+      if (!r.ok) {
+        ++failures;
+        break;
+      }
+      ref_from_image.push_back(ref_from_image.back() * r.to_from_from);
+      std::cout << "homography " << names[i] << " -> " << names[0] << ": " << cv::Mat(ref_from_image.back()).reshape(1, 1) << "\n";
+    }
+    std::vector<cv::Mat> placed(images.begin(), images.begin() + static_cast<long>(ref_from_image.size()));
+    const cv::Mat mosaic = vloc::mosaic::MosaicByHomographies(placed, ref_from_image, images[0].size());
+    if (mosaic.empty() || !cv::imwrite(args.Get("out"), mosaic)) {
+      std::cerr << "uav_mosaic_files: cannot write mosaic " << args.Get("out") << "\n";
+      return 1;
+    }
+    std::cout << "mosaic of " << placed.size() << " images (homographies, multi-band blended): " << args.Get("out")
+              << " (" << mosaic.cols << " x " << mosaic.rows << " px)\n";
+  } else if (!mosaicker.WriteMosaic(args.Get("out"), &error)) {
     std::cerr << "uav_mosaic_files: " << error << "\n";
     return 1;
   }
@@ -118,6 +149,6 @@ int main(int argc, char** argv) {
       return 1;
     }
   }
-  std::cout << "mosaic: " << args.Get("out") << " (" << mosaicker.summary().BriefReport() << ")\n";
+  if (!use_oblique) std::cout << "mosaic: " << args.Get("out") << " (" << mosaicker.summary().BriefReport() << ")\n";
   return failures == 0 ? 0 : 2;
 }
