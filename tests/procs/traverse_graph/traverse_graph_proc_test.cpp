@@ -1,6 +1,7 @@
-// traverse_graph over real LCM (ports 7780-7781): dead-reckoning and visual
-// site poses in, TRAVERSE out with the visual poses winning; a restarted
-// process reloads its graph and continues.
+// traverse_graph over real LCM (ports 7780-7781, 7785): dead-reckoning and
+// visual site poses in, TRAVERSE out with the visual poses winning; a
+// restarted process reloads its graph and continues; a revisit (a BA result
+// between non-adjacent sites) closes the loop.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -148,6 +149,71 @@ TEST(TraverseGraphProcess, OptimisesPublishesSavesAndReloads) {
   Publish(*transport, "SITE_POSE_DR", DrMessage(0));
   ASSERT_TRUE(WaitFor(*transport, 10, [&] { return received.back().num_sites == 1; })) << proc.output();
   EXPECT_TRUE(std::filesystem::exists(graph_path + ".previous"));
+  proc.Signal(SIGTERM);
+  EXPECT_EQ(proc.WaitExit(20), 0) << proc.output();
+  std::filesystem::remove_all(dir);
+}
+
+// The revisit as crosssite_ba publishes it: site 6 is back at site 2's place
+// (sim_rover --revisit 2); sites 1-2 are localized visually (1 cm), 3-6 by
+// dead reckoning only, which drifts 0.5 m left per site. The BA result 2 -> 6
+// (identity, 1 cm) becomes a loop edge and pulls site 6 to site 2.
+TEST(TraverseGraphProcess, RevisitOfAnEarlierSiteClosesTheLoop) {
+  const std::string url = TestLcmUrl(7785);
+  const auto dir = std::filesystem::temp_directory_path() / "vloc_traverse_graph_revisit_test";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string config = (dir / "traverse_graph.yaml").string();
+  {
+    std::ifstream in("config/procs/traverse_graph.yaml");
+    std::ofstream out(config);
+    std::string line;
+    while (std::getline(in, line)) {
+      if (line.rfind("graph_path:", 0) == 0) line = "graph_path: \"\"";
+      out << line << "\n";
+    }
+  }
+  auto truth = [](int i) { return i == 6 ? Truth(2) : MakePose(i <= 4 ? 10.0 * i : 40.0 - 10.0 * (i - 4), i <= 4 ? 0 : 8, 0, 0, 0, 0); };
+  std::string error;
+  auto transport = MakeLcmTransport(url, &error);
+  ASSERT_TRUE(transport) << error;
+  std::vector<traverse_t> received;
+  Subscribe<traverse_t>(*transport, "TRAVERSE", [&](const std::string&, const traverse_t& m) { received.push_back(m); });
+  Subprocess proc({BinPath("traverse_graph"), "--config", config, "--lcm-url", url});
+  ASSERT_TRUE(proc.WaitForOutput("waiting for", 30)) << proc.output();
+  for (int i = 0; i <= 6; ++i) {
+    PoseWithCovariance dr;
+    dr.pose = MakePose(0, 0.5 * i, 0, 0, 0, 0) * truth(i);
+    dr.utime = 1000000LL * (i + 1);
+    dr.covariance = Diag(0.5 * i + 0.01, 0.01 * i + 0.001);
+    Publish(*transport, "SITE_POSE_DR", SitePoseToMessage(i, site_pose_t::SOURCE_DEAD_RECKONING, dr));
+    ASSERT_TRUE(WaitFor(*transport, 10, [&] { return !received.empty() && received.back().num_sites == i + 1; }))
+        << proc.output();
+    if (i == 0 || i > 2) continue;
+    localization_t m = VisualMessage(i);
+    const size_t before = received.size();
+    Publish(*transport, "SITE_POSE_VISUAL", m);
+    ASSERT_TRUE(WaitFor(*transport, 10, [&] { return received.size() > before; })) << proc.output();
+  }
+  auto error_of = [&](int i) {
+    return (PoseFromMessage(received.back().poses[i]).pose.translation() - truth(i).translation()).norm();
+  };
+  const double before = error_of(6);
+  localization_t loop = VisualMessage(6);
+  loop.reference_site_id = 2;
+  PoseWithCovariance rel;
+  rel.covariance = Diag(0.01, 0.0005);
+  loop.relative_pose = PoseToMessage(rel, "site_2", "site_6");
+  const size_t count = received.size();
+  Publish(*transport, "SITE_POSE_VISUAL", loop);
+  ASSERT_TRUE(WaitFor(*transport, 10, [&] { return received.size() > count; })) << proc.output();
+  const traverse_t& t = received.back();
+  EXPECT_EQ(t.num_loop_edges, 1);
+  EXPECT_EQ(t.num_visual_edges, 3);
+  const double after = error_of(6);
+  EXPECT_GT(before, 1.0);
+  EXPECT_LT(after, error_of(2) + 0.05) << "before " << before;
+  EXPECT_LT(after, 0.1);
   proc.Signal(SIGTERM);
   EXPECT_EQ(proc.WaitExit(20), 0) << proc.output();
   std::filesystem::remove_all(dir);
