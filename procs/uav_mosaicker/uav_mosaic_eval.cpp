@@ -4,7 +4,12 @@
 // flown), loss of track, time per frame, mosaic update rate, peak memory.
 //   uav_mosaic_eval [--config config/procs/uav_mosaicker.yaml] [--sim-config config/procs/sim_uav.yaml]
 //                   [--fps F] [--duration S] [--gps-use calibration|fused] [--out out/sim_mosaic.png]
-//                   [--csv out/sim_track.csv] [--no-gps]
+//                   [--csv out/sim_track.csv] [--no-gps] [--reregister N]
+// --reregister N overrides mosaicker.reregister_every_n_frames (0 = off).
+// --survey S replaces the flight plan with a lawnmower survey at 60 m over the
+// simulated map lasting S s (legs 40 m apart, back over the map when it is
+// covered); --memory-every T prints the process RSS and canvas tiles every
+// T s of flight (memory over a long flight).
 #include <glog/logging.h>
 
 #include <algorithm>
@@ -23,12 +28,36 @@
 
 namespace {
 
-double PeakRssMb() {
+double StatusMb(const std::string& key) {
   std::ifstream in("/proc/self/status");
   std::string line;
   while (std::getline(in, line))
-    if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
+    if (line.rfind(key, 0) == 0) return std::stod(line.substr(key.size())) / 1024.0;
   return 0;
+}
+double PeakRssMb() { return StatusMb("VmHWM:"); }
+
+// Lawnmower at 60 m over the orthomap, legs along x 40 m apart (the 77 m wide
+// footprint overlaps half), long enough for `seconds` of flight at the
+// configured speed; when the map is covered the legs run back over it.
+std::vector<double> SurveyWaypoints(const vloc::UavWorldOptions& w, double seconds) {
+  const double margin = 45.0, spacing = 40.0, height = 60.0;
+  const double x0 = w.orthomap.centre.x() - w.orthomap.size / 2 + margin;
+  const double x1 = w.orthomap.centre.x() + w.orthomap.size / 2 - margin;
+  const double y0 = w.orthomap.centre.y() - w.orthomap.size / 2 + margin;
+  const int legs = std::max(2, static_cast<int>((w.orthomap.size - 2 * margin) / spacing) + 1);
+  std::vector<double> wp;
+  double length = 0, y = y0;
+  int leg = 0, dir = 1;
+  while (length < w.flight.speed * seconds + 200.0) {
+    const bool east = leg % 2 == 0;
+    wp.insert(wp.end(), {east ? x0 : x1, y, height, east ? x1 : x0, y, height});
+    length += (x1 - x0) + spacing;
+    ++leg;
+    if ((dir > 0 && y + spacing > y0 + (legs - 1) * spacing) || (dir < 0 && y - spacing < y0)) dir = -dir;
+    y += dir * spacing;
+  }
+  return wp;
 }
 
 double Median(std::vector<double> v) {
@@ -43,12 +72,12 @@ int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
   vloc::CommandLine args;
   std::string error;
-  if (!args.Parse(argc, argv, {"config", "sim-config", "fps", "duration", "gps-use", "out", "csv", "no-gps", "help"}, &error) ||
+  if (!args.Parse(argc, argv, {"config", "sim-config", "fps", "duration", "gps-use", "out", "csv", "no-gps", "reregister", "reregister-scale", "survey", "memory-every", "help"}, &error) ||
       args.Has("help")) {
     std::cerr << (error.empty() ? "" : "uav_mosaic_eval: " + error + "\n")
               << "usage: uav_mosaic_eval [--config config/procs/uav_mosaicker.yaml] [--sim-config "
                  "config/procs/sim_uav.yaml] [--fps F] [--duration S] [--gps-use calibration|fused] [--out PNG] "
-                 "[--csv FILE] [--no-gps]\n";
+                 "[--csv FILE] [--no-gps] [--reregister N [--reregister-scale]] [--survey S] [--memory-every T]\n";
     return error.empty() ? 0 : 1;
   }
   const std::string config = args.Get("config", "config/procs/uav_mosaicker.yaml");
@@ -60,6 +89,12 @@ int main(int argc, char** argv) {
     world_options = vloc::LoadOptionsFile<vloc::UavWorldOptions>(sim_config, "world");
     if (args.Has("fps")) world_options.fps = args.GetDouble("fps", world_options.fps);
     if (args.Has("gps-use")) options.height_filter.gps_use = args.Get("gps-use");
+    if (args.Has("survey")) {
+      world_options.flight.waypoints = SurveyWaypoints(world_options, args.GetDouble("survey", 600.0));
+      world_options.gps.dropouts.clear();
+    }
+    if (args.Has("reregister")) options.reregister_every_n_frames = args.GetInt("reregister", 0);
+    if (args.Has("reregister-scale")) options.reregister_scale = true;
     options.async_mosaic = false;  // blend inside ProcessFrame so each frame's mosaic time is measured
     if (!options.Check(&error) || !world_options.Check(&error)) throw vloc::ConfigError("command line: " + error);
   } catch (const std::exception& e) {
@@ -68,7 +103,9 @@ int main(int argc, char** argv) {
   }
   const bool use_gps = !args.Has("no-gps");
   vloc::UavWorld world(world_options);
-  const double duration = args.GetDouble("duration", 0.0);
+  const double duration = args.GetDouble("duration", args.GetDouble("survey", 0.0));
+  const double memory_every = args.GetDouble("memory-every", 0.0);
+  double next_memory = memory_every;
   int frames = world.NumFrames();
   if (duration > 0) frames = std::min(frames, static_cast<int>(duration * world_options.fps));
   vloc::mosaic::UavMosaicker mosaicker(options);
@@ -138,6 +175,14 @@ int main(int argc, char** argv) {
           << est.x << "," << est.y << "," << truth.position.x() << "," << truth.position.y() << "," << s.gps_aided << ","
           << s.num_inliers << "," << s.num_foreground << "," << 1e3 * s.tracking_seconds << "," << 1e3 * s.mosaic_seconds
           << "\n";
+    if (memory_every > 0 && t >= next_memory) {
+      const vloc::mosaic::MosaickerSummary now = mosaicker.summary();
+      std::cout << "memory at t " << std::fixed << std::setprecision(0) << t << " s: RSS " << StatusMb("VmRSS:")
+                << " MB, peak " << StatusMb("VmHWM:") << " MB, canvas tiles " << now.canvas.tiles_total << " ("
+                << now.canvas.tiles_in_memory << " in memory, " << now.canvas.spills << " spills), " << std::setprecision(1)
+                << dist << " m flown" << std::endl;
+      next_memory += memory_every;
+    }
     if (i % 300 == 0)
       LOG(INFO) << "t " << t << " s: height " << s.height << " (true " << truth.position.z() << "), "
                 << vloc::mosaic::ToString(s.status);

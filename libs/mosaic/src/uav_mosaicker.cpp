@@ -73,6 +73,11 @@ void MosaickerOptions::Visit(OptionsReader& r) {
   r.Optional("keyframe_max_scale", &keyframe_max_scale, "new keyframe beyond this scale change");
   r.Optional("recovery_view_scale", &recovery_view_scale, "frame sizes searched in the mosaic when lost");
   r.Optional("recovery_min_painted", &recovery_min_painted, "covered fraction needed for recovery");
+  r.Optional("reregister_every_n_frames", &reregister_every_n_frames,
+             "register every n-th tracked frame against the mosaic (0 = off)");
+  r.Optional("reregister_scale", &reregister_scale, "re-registration also sets the scale (height)");
+  r.Optional("reregister_max_shift", &reregister_max_shift,
+             "largest accepted change of a re-registration (fraction of frame width / of scale)");
   r.Optional("num_threads", &num_threads, "OpenCV threads");
   r.Optional("async_mosaic", &async_mosaic, "blend on a worker thread");
 }
@@ -89,6 +94,8 @@ bool MosaickerOptions::Check(std::string* error) const {
     return Fail(error, "keyframe_max_scale must be in (1, matcher.max_scale_change)");
   if (!(recovery_view_scale >= 1 && recovery_view_scale <= 4)) return Fail(error, "recovery_view_scale must be in [1, 4]");
   if (!(recovery_min_painted > 0 && recovery_min_painted <= 1)) return Fail(error, "recovery_min_painted must be in (0, 1]");
+  if (reregister_every_n_frames < 0) return Fail(error, "reregister_every_n_frames must be >= 0 (0 = off)");
+  if (!(reregister_max_shift > 0 && reregister_max_shift <= 1)) return Fail(error, "reregister_max_shift must be in (0, 1]");
   if (num_threads < 1) return Fail(error, "num_threads must be >= 1");
   return true;
 }
@@ -100,6 +107,9 @@ std::string MosaickerSummary::BriefReport() const {
     << canvas.tiles_total << " (" << canvas.tiles_in_memory << " in memory, peak " << canvas.peak_tiles_in_memory
     << ", spilled " << canvas.spills << "), " << (georeferenced ? "tied to GPS" : "not georeferenced");
   if (georeferenced) s << " (" << tie_pairs << " fixes, rms " << tie_rms << " m)";
+  if (reregistrations + reregistrations_rejected > 0)
+    s << ", re-registered against the mosaic " << reregistrations << " times (" << reregistrations_rejected
+      << " rejected)";
   if (!last_problem.empty()) s << "; last problem: " << last_problem;
   return s.str();
 }
@@ -310,9 +320,10 @@ double UavMosaicker::KeyframeOverlap(const Similarity2& key_to_cur, cv::Size siz
 }
 
 bool UavMosaicker::RegisterToMosaic(const cv::Mat& frame, const FrameFeatures& features,
-                                    Similarity2* mosaic_from_frame, MotionEstimate* motion, std::string* why) {
+                                    Similarity2* mosaic_from_frame, MotionEstimate* motion, std::string* why,
+                                    double view_scale) {
   if (!canvas_) return false;
-  const double k = options_.recovery_view_scale;
+  const double k = view_scale > 0 ? view_scale : options_.recovery_view_scale;
   const cv::Size view_size(static_cast<int>(frame.cols * k), static_cast<int>(frame.rows * k));
   const cv::Point2d offset((view_size.width - frame.cols) / 2.0, (view_size.height - frame.rows) / 2.0);
   // view px v -> frame px v - offset -> mosaic via the last good pose.
@@ -345,6 +356,43 @@ bool UavMosaicker::RegisterToMosaic(const cv::Mat& frame, const FrameFeatures& f
     return false;
   }
   *mosaic_from_frame = mosaic_from_view * motion->similarity.Inverse();
+  return true;
+}
+
+bool UavMosaicker::Reregister(const cv::Mat& frame, const FrameFeatures& features, Similarity2* mosaic_from_frame) {
+  // Render the mosaic around the pose predicted by the chain and register the frame to it.
+  const Similarity2 saved = last_good_;
+  last_good_ = *mosaic_from_frame;
+  Similarity2 S;
+  MotionEstimate m;
+  std::string why;
+  const bool ok = RegisterToMosaic(frame, features, &S, &m, &why, 1.0 + 2 * options_.reregister_max_shift);
+  last_good_ = saved;
+  if (!ok) {
+    ++summary_.reregistrations_rejected;
+    return false;
+  }
+  // Accept only a correction the size of drift, not a different place.
+  const cv::Point2d c(camera_.cx, camera_.cy);
+  const double shift_frames = cv::norm(S.Apply(c) - mosaic_from_frame->Apply(c)) / (mosaic_from_frame->Scale() * frame.cols);
+  const double scale_change = std::abs(S.Scale() / mosaic_from_frame->Scale() - 1.0);
+  if (shift_frames > options_.reregister_max_shift || scale_change > options_.reregister_max_shift ||
+      m.num_background < options_.matcher.min_inliers) {
+    ++summary_.reregistrations_rejected;
+    return false;
+  }
+  if (!options_.reregister_scale) {
+    // Position and heading from the mosaic, scale (height) from the chain: the
+    // mosaic is often coarser than the frame, its scale the less precise.
+    const double scale = mosaic_from_frame->Scale(), angle = S.Angle();
+    Similarity2 kept = Similarity2::FromScaleAngle(scale, angle, 0, 0);
+    const cv::Point2d target = S.Apply(c), moved = kept.Apply(c);
+    kept.tx = target.x - moved.x;
+    kept.ty = target.y - moved.y;
+    S = kept;
+  }
+  *mosaic_from_frame = S;
+  ++summary_.reregistrations;
   return true;
 }
 
@@ -396,8 +444,14 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
   bool ok = motion.ok;
   bool via_mosaic = false;
   std::string why = motion.ok ? "" : "matching failed: " + motion.why;
+  bool reregistered = false;
   if (ok) {
     S = keyframe_->mosaic_from_frame * motion.similarity.Inverse();
+    if (!lost_ && options_.reregister_every_n_frames > 0 &&
+        ++frames_since_reregister_ >= options_.reregister_every_n_frames) {
+      frames_since_reregister_ = 0;
+      reregistered = Reregister(frame, features, &S);
+    }
   } else if (lost_) {
     MotionEstimate m2;
     if (RegisterToMosaic(frame, features, &S, &m2, &why)) {
@@ -440,7 +494,8 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
 
   // New keyframe?
   const double key_scale = motion.lambda;
-  const bool new_key = was_lost || via_mosaic || motion.num_background < options_.keyframe_min_inliers ||
+  state.reregistered = reregistered;
+  const bool new_key = was_lost || via_mosaic || reregistered || motion.num_background < options_.keyframe_min_inliers ||
                        key_scale > options_.keyframe_max_scale || key_scale < 1.0 / options_.keyframe_max_scale ||
                        (!via_mosaic && KeyframeOverlap(motion.similarity, frame.size()) < options_.keyframe_min_overlap);
   if (new_key) {

@@ -4,9 +4,11 @@
 // frames + brute-force matching + RANSAC homography.
 //   build-x/bench/mosaic_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
+#include <sys/resource.h>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <iostream>
@@ -63,6 +65,14 @@ double RssMb(const std::string& key) {
   return 0;
 }
 
+// CPU time of the whole process (all threads, user + system), s: per-frame CPU
+// cost that does not depend on what else the machine is running.
+double ProcessCpuSeconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return u.ru_utime.tv_sec + u.ru_stime.tv_sec + 1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
 // Tracking + height: features of the new frame, matching against the
 // previous one, homography, eq. 2 filter, eq. 3 fit (what ProcessFrame does
 // per frame apart from blending).
@@ -74,6 +84,7 @@ void BM_TrackingAndHeight(benchmark::State& state) {
   vm::FrameFeatures prev = vm::ExtractFeatures(frames[0], options);
   size_t i = 1;
   double h = 40.0;
+  const double cpu0 = ProcessCpuSeconds();
   for (auto _ : state) {
     vm::FrameFeatures cur = vm::ExtractFeatures(frames[i], options);
     const vm::MotionEstimate m = vm::EstimateMotion(prev, cur, options);
@@ -88,6 +99,7 @@ void BM_TrackingAndHeight(benchmark::State& state) {
     }
   }
   state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["cpu_ms_per_frame"] = 1e3 * (ProcessCpuSeconds() - cpu0) / std::max<int64_t>(1, state.iterations());
 }
 BENCHMARK(BM_TrackingAndHeight)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
@@ -160,6 +172,7 @@ void BM_FullPipeline(benchmark::State& state) {
     blends += m->summary().blends - 1;  // the first frame's blend is set-up, not timed
     m.reset();
   };
+  const double cpu0 = ProcessCpuSeconds();
   for (auto _ : state) {
     if (i == 0) {
       state.PauseTiming();
@@ -177,6 +190,8 @@ void BM_FullPipeline(benchmark::State& state) {
   state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
   state.counters["mosaic_updates_per_s"] = benchmark::Counter(static_cast<double>(blends), benchmark::Counter::kIsRate);
   if (state.range(0) == 0) state.counters["blend_ms"] = blends ? 1e3 * mosaic_s / blends : 0.0;
+  // Includes the set-up frames of each restart (1 in 60).
+  state.counters["cpu_ms_per_frame"] = 1e3 * (ProcessCpuSeconds() - cpu0) / std::max<int64_t>(1, state.iterations());
 }
 BENCHMARK(BM_FullPipeline)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 

@@ -65,6 +65,13 @@ struct MosaickerOptions {
   double keyframe_max_scale = 1.2;      // a scale change beyond [1/x, x] from the keyframe, likewise
   double recovery_view_scale = 1.6;     // when lost, the mosaic is searched over this many frame sizes around the last pose
   double recovery_min_painted = 0.25;   // fraction of that view the mosaic must cover to try
+  int reregister_every_n_frames = 0;    // every n-th tracked frame is also registered against the mosaic at its
+                                        // predicted place, which removes drift of the keyframe chain where the
+                                        // mosaic holds earlier content (loops, overlapping strips); 0 = off
+  bool reregister_scale = false;        // the re-registration also replaces the scale (height); false = position and
+                                        // heading only (the mosaic is coarser than low frames: its scale is noisier)
+  double reregister_max_shift = 0.15;   // a mosaic registration moving the frame centre by more than this fraction
+                                        // of the frame width, or its scale by more than this fraction, is rejected
   int num_threads = 2;                  // OpenCV threads (A-KAZE, matching, warping)
   bool async_mosaic = false;            // blend on a worker thread (real time: tracking never waits; a frame due while
                                         // the worker is busy replaces the queued one). false = blend inside ProcessFrame
@@ -103,6 +110,7 @@ struct FrameState {
   bool georeferenced = false;           // a mosaic -> ENU tie exists
   int num_matches = 0, num_inliers = 0, num_foreground = 0;
   bool keyframe = false;                // this frame became the keyframe
+  bool reregistered = false;            // the pose came from a registration against the mosaic (periodic)
   bool mosaic_updated = false;          // blended into the mosaic (async_mosaic: queued for blending)
   double tracking_seconds = 0;          // s, features + matching + height
   double mosaic_seconds = 0;            // s, blending (0 when not blended or async_mosaic)
@@ -110,6 +118,8 @@ struct FrameState {
 
 struct MosaickerSummary {
   int frames = 0, tracked = 0, lost = 0, recoveries = 0, keyframes = 0, blends = 0;
+  int reregistrations = 0;              // frames whose pose came from a periodic registration against the mosaic
+  int reregistrations_rejected = 0;     // such registrations that failed or disagreed too much with the chain
   std::string last_problem;
   Calibration calibration;
   double metres_per_pixel = 0;          // mosaic ground resolution
@@ -157,8 +167,12 @@ class UavMosaicker {
   cv::Mat Undistort(const cv::Mat& image);
   bool TryCalibrate(const cv::Mat& frame, FrameState* state);
   void StartMosaic(const cv::Mat& frame, const FrameFeatures& features, int64_t utime, FrameState* state);
+  // The mosaic rendered around last_good_ over view_scale frame sizes (0 = recovery_view_scale).
   bool RegisterToMosaic(const cv::Mat& frame, const FrameFeatures& features, Similarity2* mosaic_from_frame,
-                        MotionEstimate* motion, std::string* why);
+                        MotionEstimate* motion, std::string* why, double view_scale = 0);
+  // Periodic re-registration: *mosaic_from_frame (the chain's pose) replaced by
+  // the registration against the mosaic rendered there, when that agrees.
+  bool Reregister(const cv::Mat& frame, const FrameFeatures& features, Similarity2* mosaic_from_frame);
   double KeyframeOverlap(const Similarity2& key_to_cur, cv::Size size) const;
   void PairPendingFixes();
   void RefitTie();
@@ -185,6 +199,7 @@ class UavMosaicker {
   double last_scale_ = 0;                  // its similarity scale
   bool lost_ = false;
   int frames_since_blend_ = 0;
+  int frames_since_reregister_ = 0;
   FrameState last_state_;
   MosaickerSummary summary_;
   int frame_counter_ = 0;
