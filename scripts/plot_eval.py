@@ -136,17 +136,33 @@ def traverse_map(sites, pairs, out):
         if abs(cur - ref) <= 1 or str(ref) not in pos or str(cur) not in pos:
             continue
         (x0, y0), (x1, y1) = pos[str(ref)], pos[str(cur)]
-        ax.annotate("", xy=(x0, y0), xytext=(x1, y1), zorder=9,
-                    arrowprops=dict(arrowstyle="->", color="magenta" if status == 0 else "gray", lw=2,
-                                    connectionstyle="arc3,rad=0.35", ls="-" if status == 0 else "--"))
+        colour = "magenta" if status == 0 else "gray"
+        if np.hypot(x1 - x0, y1 - y0) > 1.0:  # an arrow only where it can be seen
+            ax.annotate("", xy=(x0, y0), xytext=(x1, y1), zorder=9,
+                        arrowprops=dict(arrowstyle="->", color=colour, lw=2, connectionstyle="arc3,rad=0.35",
+                                        ls="-" if status == 0 else "--"))
+        for x, y in ((x0, y0), (x1, y1)):
+            ax.plot(x, y, marker="o", ms=18, mfc="none", mec=colour, mew=2.2, zorder=9, ls="none")
         loops += 1
     if loops:
-        handles.append(Line2D([], [], color="magenta", lw=2, label="revisit (loop-closure) match"))
-    # Site numbers next to the ground truth, on a white box so they read over the terrain.
+        handles.append(Line2D([], [], color="magenta", lw=0, marker="o", ms=12, mfc="none", mew=2.2,
+                              label="revisit: site matched with an earlier one (loop closure)"))
+    # Site numbers next to the ground truth, on a white box so they read over the terrain;
+    # sites at the same place (a revisit) share one label, "2/6".
+    labels = []  # [x, y, text]
     for i, sid in enumerate(ids):
-        if np.isfinite(gx[i]):
-            ax.annotate(sid, (gx[i], gy[i]), textcoords="offset points", xytext=(-14, 6), fontsize=8, zorder=10,
-                        bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.8))
+        if not np.isfinite(gx[i]):
+            continue
+        for lab in labels:
+            if np.hypot(lab[0] - gx[i], lab[1] - gy[i]) < 1.0:
+                lab[2] += "/" + sid
+                break
+        else:
+            labels.append([gx[i], gy[i], sid])
+    for x, y, text in labels:
+        ax.annotate(text, (x, y), textcoords="offset points", xytext=(-14, 6), fontsize=8, zorder=10,
+                    ha="right" if "/" in text else "left",
+                    bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.8))
     # Start and end.
     if len(sites):
         ax.plot(gx[0], gy[0], marker="*", ms=16, color="gold", mec="black", zorder=11, ls="none")

@@ -78,7 +78,12 @@ CrossSiteBaSummary CrossSiteBaAdapter::Process(TiePointSet set) {
   // Dead-reckoning motion from the previous to the current site.
   Pose3 previous_from_current_dr = set.previous_site_pose.pose.inverse() * set.current_site_pose_dr.pose;
   std::string motion_source = "tie-point message";
-  if (dr_poses_.count(prev) && dr_poses_.count(cur)) {
+  // A revisit (non-adjacent pair): the front end predicted it from the pose
+  // graph's optimised poses, far closer than the DR drift accumulated between
+  // the two sites; keep the message's motion.
+  const bool revisit = cur - prev > 1;
+  if (revisit) motion_source = "tie-point message (revisit of site " + std::to_string(prev) + ")";
+  if (!revisit && dr_poses_.count(prev) && dr_poses_.count(cur)) {
     previous_from_current_dr = dr_poses_[prev].pose.inverse() * dr_poses_[cur].pose;
     motion_source = "SITE_POSE_DR";
   }
@@ -90,7 +95,9 @@ CrossSiteBaSummary CrossSiteBaAdapter::Process(TiePointSet set) {
   if (dr_poses_.count(cur)) set.current_site_pose_dr.covariance = dr_poses_[cur].covariance;
   set.current_site_pose_dr.pose = set.previous_site_pose.pose * previous_from_current_dr;
   CrossSiteBaSummary s = SolveCrossSiteBa(set, navcam_, options_.ba);
-  estimates_[cur] = s.world_from_current;
+  // The chain continues from the adjacent pair's result; a revisit only sets
+  // the estimate when the site has none yet.
+  if (!revisit || !estimates_.count(cur)) estimates_[cur] = s.world_from_current;
   (s.usable ? solved_ : failed_)++;
   if (s.usable) {
     LOG(INFO) << s.BriefReport() << " [previous site from " << previous_source << ", motion from " << motion_source

@@ -8,7 +8,8 @@
 // tie-point message. The initial value of the current site is that
 // previous pose composed with the dead-reckoning motion between the two
 // sites (from SITE_POSE_DR of both sites when received, else from the
-// message's two poses). On failure the published pose is that chained
+// message's two poses; for a revisit, a non-adjacent pair, always the
+// message's poses: feature_frontend sets them from the pose graph). On failure the published pose is that chained
 // dead-reckoning pose with the current site's DR covariance.
 
 #include <map>

@@ -2,6 +2,10 @@
 
 #include <glog/logging.h>
 
+#include <algorithm>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+
 #include "vloc/common/options.h"
 #include "vloc/lcm_io/convert.h"
 #include "vloc/lcm_io/convert_rover.h"
@@ -9,6 +13,7 @@
 #include "vloc/site_pose_t.hpp"
 #include "vloc/stereo_image_t.hpp"
 #include "vloc/tie_points_t.hpp"
+#include "vloc/traverse_t.hpp"
 
 namespace vloc {
 
@@ -22,6 +27,15 @@ void FeatureFrontendProcOptions::Visit(OptionsReader& r) {
   r.Optional("publish_unusable", &publish_unusable, "publish tie points also when the status is not OK");
   r.Child("navcam", [&](OptionsReader& c) { navcam.Visit(c); });
   r.Child("frontend", [&](OptionsReader& c) { frontend.Visit(c); });
+  r.Optional("traverse_channel", &traverse_channel, "subscribed traverse_t channel (optimised poses), empty = none");
+  r.Optional("loop_max_distance_m", &loop_max_distance_m,
+             "m, also match a new site against an earlier site this close (0 = off)");
+  r.Optional("loop_min_site_gap", &loop_min_site_gap, "revisited site at least this many ids back");
+  r.Optional("loop_max_matches", &loop_max_matches, "earlier sites matched per new site, nearest first");
+  r.Optional("loop_max_position_sigma_fraction", &loop_max_position_sigma_fraction,
+             "regions.max_position_sigma_fraction of the revisit front end");
+  r.Optional("max_sites_in_memory", &max_sites_in_memory, "earlier sites whose images stay in memory");
+  r.Optional("site_cache_dir", &site_cache_dir, "older sites' images are written here (PNG); empty = dropped");
 }
 
 bool FeatureFrontendProcOptions::Check(std::string* error) const {
@@ -29,6 +43,11 @@ bool FeatureFrontendProcOptions::Check(std::string* error) const {
       status_channel.empty())
     return Fail(error, "channel names must not be empty");
   if (queue_capacity < 1) return Fail(error, "queue_capacity must be >= 1");
+  if (!(loop_max_distance_m >= 0)) return Fail(error, "loop_max_distance_m must be >= 0 (0 = no revisits)");
+  if (loop_min_site_gap < 2) return Fail(error, "loop_min_site_gap must be >= 2 (adjacent sites are matched anyway)");
+  if (loop_max_matches < 1) return Fail(error, "loop_max_matches must be >= 1");
+  if (!(loop_max_position_sigma_fraction > 0)) return Fail(error, "loop_max_position_sigma_fraction must be > 0");
+  if (max_sites_in_memory < 0) return Fail(error, "max_sites_in_memory must be >= 0");
   return navcam.Check(error) && frontend.Check(error);
 }
 
@@ -57,8 +76,33 @@ frontend_status_t FrontendStatusToMessage(const FrontendSummary& s, int64_t utim
   return m;
 }
 
+namespace {
+
+FrontendOptions LoopFrontendOptions(const FeatureFrontendProcOptions& o) {
+  FrontendOptions f = o.frontend;
+  f.regions.max_position_sigma_fraction = o.loop_max_position_sigma_fraction;
+  return f;
+}
+
+std::string CachePath(const std::string& dir, int site, int pair, const char* side) {
+  return dir + "/site" + std::to_string(site) + "_pair" + std::to_string(pair) + "_" + side + ".png";
+}
+
+}  // namespace
+
 FeatureFrontendAdapter::FeatureFrontendAdapter(const FeatureFrontendProcOptions& options, Transport& transport)
-    : options_(options), transport_(transport), frontend_(options.navcam, options.frontend) {}
+    : options_(options),
+      transport_(transport),
+      frontend_(options.navcam, options.frontend),
+      loop_frontend_(options.navcam, LoopFrontendOptions(options)) {
+  if (options_.loop_max_distance_m > 0 && !options_.site_cache_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(options_.site_cache_dir, ec);
+    if (ec)
+      LOG(ERROR) << "site_cache_dir " << options_.site_cache_dir << ": " << ec.message()
+                 << "; older sites cannot be revisited (fix the path or its permissions)";
+  }
+}
 
 void FeatureFrontendAdapter::Subscribe() {
   stats_.push_back(vloc::Subscribe<stereo_image_t>(
@@ -79,6 +123,20 @@ void FeatureFrontendAdapter::Subscribe() {
         OnSitePoseDr(m.site_id, PoseFromMessage(m.pose));
       },
       options_.queue_capacity));
+  if (options_.loop_max_distance_m > 0 && !options_.traverse_channel.empty())
+    stats_.push_back(vloc::Subscribe<traverse_t>(
+        transport_, options_.traverse_channel,
+        [this](const std::string&, const traverse_t& m) {
+          std::map<int, PoseWithCovariance> poses;
+          for (int i = 0; i < m.num_sites && i < static_cast<int>(m.poses.size()); ++i)
+            poses[m.site_ids[i]] = PoseFromMessage(m.poses[i]);
+          OnTraverse(std::move(poses));
+        },
+        options_.queue_capacity));
+}
+
+void FeatureFrontendAdapter::OnTraverse(std::map<int, PoseWithCovariance> optimised) {
+  optimised_ = std::move(optimised);
 }
 
 std::optional<int> FeatureFrontendAdapter::previous_site_id() const {
@@ -144,15 +202,131 @@ void FeatureFrontendAdapter::Process(int site_id, Collecting& c) {
     previous_ = std::move(site);
     return;
   }
-  const FrontendResult r = frontend_.Run(*previous_, site);
+  RunPair(frontend_, *previous_, site, "sites");
   ++sites_processed_;
-  LOG(INFO) << "sites " << previous_->site_id << " -> " << site_id << ": " << r.summary.BriefReport();
-  if (r.summary.IsUsable() || (options_.publish_unusable && !r.tie_points.points.empty())) {
-    Publish(transport_, options_.tie_points_channel, TiePointsToMessage(r.tie_points));
+  dr_[previous_->site_id] = previous_->world_from_body;
+  dr_[site_id] = site.world_from_body;
+  if (options_.loop_max_distance_m > 0) {
+    TryRevisits(site);
+    Archive(std::move(*previous_));
   }
+  previous_ = std::move(site);  // without revisits the older site's images are released here
+}
+
+void FeatureFrontendAdapter::RunPair(const CrossSiteFrontend& frontend, const SiteImages& previous,
+                                     const SiteImages& current, const char* what) {
+  const FrontendResult r = frontend.Run(previous, current);
+  LOG(INFO) << what << " " << previous.site_id << " -> " << current.site_id << ": " << r.summary.BriefReport();
+  const bool publish = r.summary.IsUsable() || (options_.publish_unusable && !r.tie_points.points.empty());
+  if (publish) Publish(transport_, options_.tie_points_channel, TiePointsToMessage(r.tie_points));
+  if (publish && current.site_id - previous.site_id > 1) ++loops_published_;
   Publish(transport_, options_.status_channel,
-          FrontendStatusToMessage(r.summary, r.tie_points.utime, previous_->site_id, site_id));
-  previous_ = std::move(site);  // the older site's images are released here
+          FrontendStatusToMessage(r.summary, r.tie_points.utime, previous.site_id, current.site_id));
+}
+
+void FeatureFrontendAdapter::Archive(SiteImages site) {
+  Archived& a = archive_[site.site_id];
+  a.dr = site.world_from_body;
+  a.pairs = std::move(site.pairs);
+  // Older sites leave memory: to the cache folder, or gone (index kept).
+  int in_memory = 0;
+  for (auto it = archive_.rbegin(); it != archive_.rend(); ++it) {
+    Archived& old = it->second;
+    if (old.pairs.empty()) continue;
+    if (++in_memory <= options_.max_sites_in_memory) continue;
+    bool written = !options_.site_cache_dir.empty();
+    for (const StereoPair& p : old.pairs) {
+      if (!written) break;
+      written = cv::imwrite(CachePath(options_.site_cache_dir, p.site_id, p.pair_index, "left"), p.left) &&
+                cv::imwrite(CachePath(options_.site_cache_dir, p.site_id, p.pair_index, "right"), p.right);
+    }
+    if (written) {
+      old.meta = old.pairs;
+      for (StereoPair& m : old.meta) m.left = m.right = cv::Mat();
+      old.on_disk = true;
+    } else if (!options_.site_cache_dir.empty()) {
+      LOG(ERROR) << "cannot write site " << it->first << "'s images to " << options_.site_cache_dir
+                 << "; that site cannot be revisited (check the folder and free space)";
+    }
+    old.pairs.clear();
+  }
+}
+
+std::optional<SiteImages> FeatureFrontendAdapter::Restore(int site_id) const {
+  const auto it = archive_.find(site_id);
+  if (it == archive_.end()) return std::nullopt;
+  SiteImages s;
+  s.site_id = site_id;
+  s.world_from_body = it->second.dr;
+  if (!it->second.pairs.empty()) {
+    s.pairs = it->second.pairs;  // cv::Mat headers: shared, not copied
+    return s;
+  }
+  if (!it->second.on_disk) return std::nullopt;
+  for (StereoPair p : it->second.meta) {
+    p.left = cv::imread(CachePath(options_.site_cache_dir, site_id, p.pair_index, "left"), cv::IMREAD_UNCHANGED);
+    p.right = cv::imread(CachePath(options_.site_cache_dir, site_id, p.pair_index, "right"), cv::IMREAD_UNCHANGED);
+    if (p.left.empty() || p.right.empty()) {
+      LOG(ERROR) << "site " << site_id << " pair " << p.pair_index << ": cached images missing in "
+                 << options_.site_cache_dir << "; not revisited";
+      return std::nullopt;
+    }
+    s.pairs.push_back(std::move(p));
+  }
+  return s;
+}
+
+std::optional<PoseWithCovariance> FeatureFrontendAdapter::BestPose(int site_id) const {
+  if (const auto it = optimised_.find(site_id); it != optimised_.end()) return it->second;
+  const auto dr = dr_.find(site_id);
+  if (dr == dr_.end()) return std::nullopt;
+  // The newest earlier site the graph has, carried forward by dead reckoning.
+  for (auto it = optimised_.rbegin(); it != optimised_.rend(); ++it) {
+    if (it->first >= site_id) continue;
+    const auto base = dr_.find(it->first);
+    if (base == dr_.end()) continue;
+    PoseWithCovariance p;
+    p.utime = dr->second.utime;
+    p.pose = it->second.pose * base->second.pose.inverse() * dr->second.pose;
+    const Matrix6d growth = dr->second.covariance - base->second.covariance;
+    p.covariance = it->second.covariance;
+    for (int k = 0; k < 6; ++k) p.covariance(k, k) += std::max(growth(k, k), 0.0);
+    return p;
+  }
+  return dr->second;
+}
+
+void FeatureFrontendAdapter::TryRevisits(const SiteImages& current) {
+  const auto here = BestPose(current.site_id);
+  if (!here) return;
+  std::vector<std::pair<double, int>> candidates;  // distance, site
+  for (const auto& [id, a] : archive_) {
+    if (current.site_id - id < options_.loop_min_site_gap) continue;
+    const auto there = BestPose(id);
+    if (!there) continue;
+    const double d = (there->pose.translation() - here->pose.translation()).head<2>().norm();
+    if (d <= options_.loop_max_distance_m) candidates.emplace_back(d, id);
+  }
+  std::sort(candidates.begin(), candidates.end());
+  if (candidates.size() > static_cast<size_t>(options_.loop_max_matches))
+    candidates.resize(static_cast<size_t>(options_.loop_max_matches));
+  for (const auto& [d, id] : candidates) {
+    std::optional<SiteImages> earlier = Restore(id);
+    if (!earlier) {
+      LOG(INFO) << "site " << current.site_id << " is " << d << " m from site " << id
+                << " but that site's images are no longer kept (set site_cache_dir); not revisited";
+      continue;
+    }
+    ++loops_tried_;
+    LOG(INFO) << "site " << current.site_id << ": revisit of site " << id << " (" << d << " m apart, poses from "
+              << (optimised_.count(id) ? "the pose graph" : "dead reckoning") << ")";
+    earlier->world_from_body = *BestPose(id);
+    SiteImages now;
+    now.site_id = current.site_id;
+    now.world_from_body = *here;
+    now.pairs = current.pairs;  // shared image buffers
+    RunPair(loop_frontend_, *earlier, now, "revisit");
+  }
 }
 
 }  // namespace vloc

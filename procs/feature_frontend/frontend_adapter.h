@@ -3,7 +3,18 @@
 // and DR pose, runs vloc::CrossSiteFrontend when a site's imaging is done
 // and the previous site is known, and publishes TIE_POINTS and
 // FRONTEND_STATUS. Only the previous site's images are kept once a site
-// pair has been processed.
+// pair has been processed, unless revisits are on (loop_max_distance_m > 0):
+//
+// Revisits. Every processed site stays in an index (id, DR pose, mast
+// pointings); the images of the newest `max_sites_in_memory` stay in memory,
+// older ones are written to `site_cache_dir` (PNG) when it is set, else
+// dropped. When a new site's best pose lies within loop_max_distance_m
+// (horizontal) of an earlier site at least loop_min_site_gap ids back whose
+// images are kept, the front end also runs on (earlier, new) and publishes
+// TIE_POINTS / FRONTEND_STATUS with previous_site_id = the earlier site.
+// Best pose: the pose graph's optimised pose from TRAVERSE when it has the
+// site, else the newest optimised site chained with dead reckoning, else
+// dead reckoning (the graph's poses predict a revisit far better than DR).
 
 #include <map>
 #include <memory>
@@ -31,6 +42,13 @@ struct FeatureFrontendProcOptions {
   bool publish_unusable = false;                      // publish TIE_POINTS also when the status is not OK
   NavcamModel navcam;                                 // calibration (include ../navcam.yaml)
   FrontendOptions frontend;                           // the pipeline
+  std::string traverse_channel = "TRAVERSE";          // subscribed: traverse_t, optimised poses for revisits (empty = none)
+  double loop_max_distance_m = 0.0;                   // m, revisit when this close to an earlier site (0 = off)
+  int loop_min_site_gap = 3;                          // the earlier site is at least this many ids back (>= 2)
+  int loop_max_matches = 1;                           // earlier sites matched per new site, nearest first
+  double loop_max_position_sigma_fraction = 3.0;      // regions.max_position_sigma_fraction of the revisit front end
+  int max_sites_in_memory = 3;                        // earlier sites whose images stay in memory for revisits
+  std::string site_cache_dir;                         // older sites' images go here (PNG); empty = dropped
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
@@ -49,6 +67,11 @@ class FeatureFrontendAdapter {
   void OnStereo(const StereoPair& pair);
   void OnSiteEvent(const SiteEvent& event);
   void OnSitePoseDr(int site_id, const PoseWithCovariance& world_from_body);
+  // The pose graph's optimised poses (all sites of one TRAVERSE message).
+  void OnTraverse(std::map<int, PoseWithCovariance> optimised);
+
+  int loops_tried() const { return loops_tried_; }
+  int loops_published() const { return loops_published_; }
 
   int sites_processed() const { return sites_processed_; }
   std::optional<int> previous_site_id() const;
@@ -60,16 +83,33 @@ class FeatureFrontendAdapter {
     bool imaging_done = false;
     std::optional<PoseWithCovariance> dr_pose;
   };
+  // An earlier site for revisits: its images in memory, on disk, or gone.
+  struct Archived {
+    PoseWithCovariance dr;
+    std::vector<StereoPair> pairs;  // in memory (empty when cached on disk or dropped)
+    std::vector<StereoPair> meta;   // pair metadata without images, when on disk
+    bool on_disk = false;
+  };
   bool Complete(const Collecting& c) const;
   void TryProcess();
   void Process(int site_id, Collecting& site);
+  void Archive(SiteImages site);
+  std::optional<SiteImages> Restore(int site_id) const;
+  std::optional<PoseWithCovariance> BestPose(int site_id) const;
+  void TryRevisits(const SiteImages& current);
+  void RunPair(const CrossSiteFrontend& frontend, const SiteImages& previous, const SiteImages& current,
+               const char* what);
 
   FeatureFrontendProcOptions options_;
   Transport& transport_;
   CrossSiteFrontend frontend_;
+  CrossSiteFrontend loop_frontend_;  // regions allowed to grow more (graph-predicted revisits)
   std::map<int, Collecting> collecting_;
   std::optional<SiteImages> previous_;
-  int sites_processed_ = 0;
+  std::map<int, Archived> archive_;                    // sites before previous_ (revisits on)
+  std::map<int, PoseWithCovariance> dr_;               // DR pose of every processed site
+  std::map<int, PoseWithCovariance> optimised_;        // last TRAVERSE
+  int sites_processed_ = 0, loops_tried_ = 0, loops_published_ = 0;
   std::vector<std::shared_ptr<SubscriptionStats>> stats_;
 };
 

@@ -1,7 +1,8 @@
 // feature_frontend: NAVCAM_STEREO + ROVER_SITE + SITE_POSE_DR -> TIE_POINTS,
 // FRONTEND_STATUS (Wan et al. 2.1-2.2: region prediction, Wallis, ASIFT,
 // ZNCC + LSM stereo, distance-consistency check).
-//   feature_frontend --config config/procs/feature_frontend.yaml [--lcm-url URL]
+//   feature_frontend --config config/procs/feature_frontend.yaml [--lcm-url URL] [--site-cache DIR]
+//     --site-cache DIR: overrides site_cache_dir (earlier sites' images kept there for revisits)
 #include <opencv2/core.hpp>
 #include <iostream>
 
@@ -13,12 +14,17 @@
 int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
   auto setup = vloc::SetupProcess(argc, argv,
-                                  {"feature_frontend", {}, true, "--config config/procs/feature_frontend.yaml"});
+                                  {"feature_frontend", {"site-cache"}, true,
+                                   "--config config/procs/feature_frontend.yaml [--site-cache DIR]"});
   if (!setup) return 1;
   vloc::FeatureFrontendProcOptions options;
   try {
     std::string echo;
     options = vloc::LoadOptions<vloc::FeatureFrontendProcOptions>(setup->config, setup->config_path, &echo);
+    if (setup->args.Has("site-cache")) {
+      options.site_cache_dir = setup->args.Get("site-cache");
+      echo += "\n(override: site_cache_dir " + options.site_cache_dir + ")";
+    }
     LOG(INFO) << "feature_frontend options:\n" << echo;
   } catch (const vloc::ConfigError& e) {
     std::cerr << "feature_frontend: " << e.what() << "\n";

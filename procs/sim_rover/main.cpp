@@ -1,5 +1,6 @@
 // sim_rover: the simulated lunar rover world (terrain, traverse, Navcam, IMU, wheels).
-//   sim_rover [--config config/procs/sim_rover.yaml] [--speed X] [--sites N]
+//   sim_rover [--config config/procs/sim_rover.yaml] [--speed X] [--sites N] [--revisit K]
+//       --revisit K: one extra final site back at site K (loop closure; -1 = none)
 //       publishes NAVCAM_STEREO, ROVER_SITE, IMU, WHEEL_ODOM, GT_POSE, SITE_POSE_GT over LCM
 //       in real time (x speed; 0 = as fast as possible)
 //   sim_rover ... --log FILE           writes the messages straight to an LCM log, as fast as it
@@ -24,9 +25,9 @@ int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
   auto setup = vloc::SetupProcess(argc, argv,
                                   {"sim_rover",
-                                   {"log", "speed", "sites", "render-sample"},
+                                   {"log", "speed", "sites", "revisit", "render-sample"},
                                    false,
-                                   "[--config config/procs/sim_rover.yaml] [--speed X] [--sites N] "
+                                   "[--config config/procs/sim_rover.yaml] [--speed X] [--sites N] [--revisit K] "
                                    "[--log FILE | --render-sample DIR]",
                                    {"log", "render-sample"}});
   if (!setup) return 1;
@@ -44,10 +45,13 @@ int main(int argc, char** argv) {
             std::min<size_t>(options.world.traverse.plan.sites_xy.size(), 2 * std::max(1, options.world.traverse.plan.num_sites)));
       if (options.world.traverse.plan.revisit_site >= options.world.traverse.plan.num_sites) options.world.traverse.plan.revisit_site = -1;
     }
+    if (setup->args.Has("revisit"))
+      options.world.traverse.plan.revisit_site = setup->args.GetInt("revisit", options.world.traverse.plan.revisit_site);
     std::string error;
     if (!options.Check(&error)) throw vloc::ConfigError("command line: " + error);
     LOG(INFO) << "sim_rover options:\n"
-              << echo << "\n(overrides: speed " << options.speed << ", sites " << options.world.traverse.plan.num_sites << ")";
+              << echo << "\n(overrides: speed " << options.speed << ", sites " << options.world.traverse.plan.num_sites
+              << ", revisit " << options.world.traverse.plan.revisit_site << ")";
   } catch (const vloc::ConfigError& e) {
     std::cerr << "sim_rover: " << e.what() << "\n";
     return 1;
