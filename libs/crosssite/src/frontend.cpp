@@ -20,6 +20,7 @@
 #include <glog/logging.h>
 
 #include "vloc/common/options.h"
+#include "vloc/features/tile_registration.h"
 
 namespace vloc {
 
@@ -33,6 +34,18 @@ void FrontendOptions::Visit(OptionsReader& r) {
   r.Child("lsm", [&](OptionsReader& c) { lsm.Visit(c); });
   r.Child("cross_lsm", [&](OptionsReader& c) { cross_lsm.Visit(c); });
   r.Child("consistency", [&](OptionsReader& c) { consistency.Visit(c); });
+  r.Child("tiles", [&](OptionsReader& c) { tiles.Visit(c); });
+  r.Child("motion", [&](OptionsReader& c) { motion.Visit(c); });
+  r.Optional("motion_consistency", &motion_consistency, "keep only points that agree under one rigid motion");
+  r.Child("grid_lsm", [&](OptionsReader& c) { grid_lsm.Visit(c); });
+  r.Optional("grid_search_px", &grid_search_px, "px (grid), correlation search around a match before grid LSM");
+  r.Optional("grid_min_zncc", &grid_min_zncc, "correlation peak needed before the grid LSM");
+  r.Optional("grid_min_margin", &grid_min_margin, "peak minus the best correlation >= 3 px away");
+  r.Optional("grid_lsm_enabled", &grid_lsm_enabled, "refine cross-site matches by LSM on the previous region's grid");
+  r.Optional("keep_grid_unrefined", &keep_grid_unrefined, "keep matches the grid LSM could not refine");
+  r.Optional("tile_registration", &tile_registration, "register the warped current image by tile correlation first");
+  r.Optional("min_tile_inliers", &min_tile_inliers, "tiles agreeing on one motion needed to register");
+  r.Optional("tile_inlier_px", &tile_inlier_px, "reduced px, RANSAC threshold of the tile motion");
   r.Optional("max_zoom", &max_zoom, "largest zoom of the previous region");
   r.Optional("min_zoom", &min_zoom, "smallest zoom of the previous region");
   r.Optional("tilt_margin", &tilt_margin, "simulate tilts up to the predicted tilt times this");
@@ -58,6 +71,8 @@ void FrontendOptions::Visit(OptionsReader& r) {
   r.Optional("max_points_per_overlap", &max_points_per_overlap, "matches kept per overlap");
   r.Optional("stereo_min_depth", &stereo_min_depth, "m, nearest depth searched along the epipolar line");
   r.Optional("stereo_max_depth", &stereo_max_depth, "m, farthest depth searched along the epipolar line");
+  r.Optional("cross_sigma_floor_px", &cross_sigma_floor_px, "px (previous image), least cross-site sigma");
+  r.Optional("stereo_sigma_floor_px", &stereo_sigma_floor_px, "px, least stereo (right image) sigma");
   r.Optional("sigma_angle_px", &sigma_angle_px, "px, lateral error for the consistency threshold");
   r.Optional("min_sigma_parallax", &min_sigma_parallax, "px, floor of the parallax sigma in eq. 7");
   r.Optional("min_region_std", &min_region_std, "grey level, texture needed in the regions");
@@ -69,7 +84,7 @@ void FrontendOptions::Visit(OptionsReader& r) {
 bool FrontendOptions::Check(std::string* error) const {
   if (!regions.Check(error) || !wallis.Check(error) || !asift.Check(error) || !matching.Check(error) ||
       !zncc.Check(error) || !median.Check(error) || !lsm.Check(error) || !cross_lsm.Check(error) ||
-      !consistency.Check(error))
+      !consistency.Check(error) || !tiles.Check(error) || !motion.Check(error) || !grid_lsm.Check(error))
     return false;
   if (min_zoom <= 0 || max_zoom < min_zoom) return Fail(error, "min_zoom must be > 0 and max_zoom >= min_zoom");
   if (tilt_margin < 1) return Fail(error, "tilt_margin must be >= 1");
@@ -82,7 +97,9 @@ bool FrontendOptions::Check(std::string* error) const {
   if (max_points_per_overlap < 1) return Fail(error, "max_points_per_overlap must be >= 1");
   if (stereo_min_depth <= 0 || stereo_max_depth <= stereo_min_depth)
     return Fail(error, "stereo depths must satisfy 0 < stereo_min_depth < stereo_max_depth");
+  if (cross_sigma_floor_px < 0 || stereo_sigma_floor_px < 0) return Fail(error, "sigma floors must be >= 0");
   if (sigma_angle_px < 0 || min_sigma_parallax <= 0) return Fail(error, "sigma_angle_px >= 0, min_sigma_parallax > 0");
+  if (min_tile_inliers < 3 || tile_inlier_px <= 0) return Fail(error, "min_tile_inliers must be >= 3 and tile_inlier_px > 0");
   if (min_tie_points < 1) return Fail(error, "min_tie_points must be >= 1");
   if (num_threads < 1) return Fail(error, "num_threads must be >= 1");
   return true;
@@ -158,6 +175,7 @@ struct Candidate {
   Eigen::Vector3d p_prev = Eigen::Vector3d::Zero(), p_cur = Eigen::Vector3d::Zero();
   Eigen::Matrix3d cov_prev = Eigen::Matrix3d::Zero(), cov_cur = Eigen::Matrix3d::Zero();
   bool ok = true;
+  bool grid_refined = false;  // cross-site position already refined by LSM on the previous region's grid
   const char* why = "";
   Eigen::Matrix2d initial_affine = Eigen::Matrix2d::Identity();  // current px per previous px
 };
@@ -215,6 +233,41 @@ bool EpipolarSegment(const StereoRig& rig, const Eigen::Vector2d& left_px, doubl
   const Eigen::Vector2d a0 = *a;
   *a = a0 + t0 * d;
   *b = a0 + t1 * d;
+  return true;
+}
+
+// The correlation peak of the window around `templ_px` of `templ` within
+// +-radius px of *target_px in `target` (both CV_8UC1), sub-pixel by a
+// parabola fit; false without a clear peak of at least min_score.
+bool ZnccPeakNear(const cv::Mat& templ, const Eigen::Vector2d& templ_px, const cv::Mat& target, int radius, int half,
+                  double min_score, double min_margin, Eigen::Vector2d* target_px) {
+  const int tx = static_cast<int>(std::lround(templ_px.x())), ty = static_cast<int>(std::lround(templ_px.y()));
+  const int gx = static_cast<int>(std::lround(target_px->x())), gy = static_cast<int>(std::lround(target_px->y()));
+  const cv::Rect tr(tx - half, ty - half, 2 * half + 1, 2 * half + 1);
+  const cv::Rect sr(gx - half - radius, gy - half - radius, 2 * (half + radius) + 1, 2 * (half + radius) + 1);
+  if ((tr & cv::Rect(0, 0, templ.cols, templ.rows)) != tr || (sr & cv::Rect(0, 0, target.cols, target.rows)) != sr)
+    return false;
+  cv::Mat score;
+  cv::matchTemplate(target(sr), templ(tr), score, cv::TM_CCOEFF_NORMED);
+  double best;
+  cv::Point p;
+  cv::minMaxLoc(score, nullptr, &best, nullptr, &p);
+  if (!(best >= min_score) || p.x == 0 || p.y == 0 || p.x == score.cols - 1 || p.y == score.rows - 1) return false;
+  // Unique: texture streaked along the view (a grazing look at the ground)
+  // correlates almost as well a few px to the side.
+  cv::Mat away = score.clone();
+  cv::rectangle(away, cv::Rect(p.x - 2, p.y - 2, 5, 5), cv::Scalar(-2), cv::FILLED);
+  double second;
+  cv::minMaxLoc(away, nullptr, &second);
+  if (best - second < min_margin) return false;
+  auto peak = [](double a, double b, double c) {
+    const double den = a - 2 * b + c;
+    return std::abs(den) < 1e-12 ? 0.0 : std::clamp(0.5 * (a - c) / den, -0.5, 0.5);
+  };
+  const double sx = peak(score.at<float>(p.y, p.x - 1), best, score.at<float>(p.y, p.x + 1));
+  const double sy = peak(score.at<float>(p.y - 1, p.x), best, score.at<float>(p.y + 1, p.x));
+  // Offsets from the integer template centre carry over (templ_px sub-pixel).
+  *target_px = Eigen::Vector2d(sr.x + half + p.x + sx + (templ_px.x() - tx), sr.y + half + p.y + sy + (templ_px.y() - ty));
   return true;
 }
 
@@ -440,7 +493,9 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
       f.set.views.push_back(jobs[k].view);
       for (size_t q = 0; q < s.size(); ++q) {
         f.set.keypoints.push_back(s.keypoints[q]);
-        f.set.points.push_back(Eigen::Vector2d(f.region.x, f.region.y) + s.points[q] / f.zoom);
+        // cv::resize maps pixel centres: work px u is region px (u + 0.5) / zoom - 0.5.
+        f.set.points.push_back(Eigen::Vector2d(f.region.x, f.region.y) +
+                               (s.points[q] + Eigen::Vector2d::Constant(0.5)) / f.zoom - Eigen::Vector2d::Constant(0.5));
         f.set.view.push_back(view_index);
       }
       if (!s.descriptors.empty()) {
@@ -463,6 +518,7 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
       // Train features and the map from their coordinates to current-left px.
       FeatureSet warped;
       cv::Mat coverage;  // warped current image's coverage of the train grid
+      cv::Mat warped_image, previous_crop;  // the warped current image and the previous region on the train grid
       cv::Matx33d cur_from_train = cv::Matx33d::eye();
       cv::Matx33d train_from_prev = cur_from_prev;
       if (o.warp_current) {
@@ -472,7 +528,12 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
         const cv::Rect R = ov.previous_region & fprev[ov.previous_pair].region;
         const double z = fprev[ov.previous_pair].zoom;
         if (R.area() == 0) continue;
-        const cv::Matx33d prev_from_grid(1 / z, 0, R.x, 0, 1 / z, R.y, 0, 0, 1);
+        // The grid is the zoomed previous region from pixel in_work of the
+        // work image on (cv::resize maps pixel centres).
+        const cv::Rect& F = fprev[ov.previous_pair].region;
+        const cv::Point grid0(static_cast<int>((R.x - F.x) * z), static_cast<int>((R.y - F.y) * z));
+        const cv::Matx33d prev_from_grid(1 / z, 0, F.x + (grid0.x + 0.5) / z - 0.5, 0, 1 / z,
+                                         F.y + (grid0.y + 0.5) / z - 0.5, 0, 0, 1);
         cur_from_train = cur_from_prev * prev_from_grid;
         train_from_prev = prev_from_grid.inv();
         const cv::Size size(static_cast<int>(R.width * z), static_cast<int>(R.height * z));
@@ -510,11 +571,16 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
         for (double t : o.asift.tilts)
           if (t > 1 + 1e-6 && t <= o.warp_max_tilt) views.push_back({t, 0.0}), views.push_back({t, M_PI / 2});
         warped = DetectAsift(img, mask, views, single);
+        warped_image = img;
+        {
+          const cv::Rect in_work(grid0.x, grid0.y, size.width, size.height);
+          previous_crop = prev_work[ov.previous_pair](in_work & cv::Rect(0, 0, prev_work[ov.previous_pair].cols,
+                                                                          prev_work[ov.previous_pair].rows));
+        }
         if (const char* dump = std::getenv("VLOC_FRONTEND_DUMP")) {
           const std::string base = std::string(dump) + "/ov_c" + std::to_string(ov.current_pair) + "_p" +
                                    std::to_string(ov.previous_pair);
-          const cv::Rect in_work((R.x - fprev[ov.previous_pair].region.x) * z, (R.y - fprev[ov.previous_pair].region.y) * z,
-                                 size.width, size.height);
+          const cv::Rect in_work(grid0.x, grid0.y, size.width, size.height);
           cv::imwrite(base + "_cur_warped.png", img);
           cv::imwrite(base + "_prev.png", prev_work[ov.previous_pair](in_work & cv::Rect(0, 0, prev_work[ov.previous_pair].cols, prev_work[ov.previous_pair].rows)));
         }
@@ -562,7 +628,54 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
       cv::Matx33d refined = cur_from_prev;
       const size_t stage1 = matches.size();
       size_t stage1_inliers = 0;
-      if (o.fundamental_threshold_px > 0) {
+      // Stage 2: re-predict with a refined map H (prev px -> train
+      // coordinates) and match again in a tight gate.
+      auto stage2 = [&](const cv::Matx33d& H) {
+        refined = cur_from_train * H;
+        for (size_t q = 0; q < fp.size(); ++q)
+          if (predicted[q].allFinite()) predicted[q] = ApplyH(H, fp.points[q]);
+        GatedMatchOptions g2 = g;
+        g2.gate_radius = o.refine_gate_px * train_per_cur;
+        g2.ratio = o.refine_ratio;
+        matches = GatedMatch(fp, predicted, fc, g2);
+        // Epipolar RANSAC on the (now mostly right) stage-2 matches.
+        if (matches.size() >= 12) {
+          to_points(matches, &a, &b);
+          std::vector<uchar> inl;
+          F = cv::findFundamentalMat(a, b, cv::FM_RANSAC, o.fundamental_threshold_px, 0.999, inl);
+          if (F.empty() || F.rows != 3) F = cv::Mat();
+        }
+      };
+      // Stage 1a: where the tiles of the warped current image lie in the
+      // previous region (correlation over the whole DR gate).
+      bool registered = false;
+      if (o.warp_current && o.tile_registration && !warped_image.empty() && !previous_crop.empty()) {
+        const auto tiles = RegisterTiles(warped_image, coverage, previous_crop, g.gate_radius, o.tiles);
+        std::vector<cv::Point2f> from, to;
+        for (const auto& t : tiles) {
+          from.emplace_back(static_cast<float>(t.fixed_px.x()), static_cast<float>(t.fixed_px.y()));
+          to.emplace_back(static_cast<float>(t.moving_px.x()), static_cast<float>(t.moving_px.y()));
+        }
+        int n_in = 0;
+        cv::Mat A;
+        if (static_cast<int>(tiles.size()) >= o.min_tile_inliers) {
+          std::vector<uchar> inl;
+          // A pose error of the camera maps the ground plane by a homography:
+          // on the previous image's grid a lateral error shears the offsets
+          // (larger near the camera), a range error stretches them.
+          A = cv::findHomography(from, to, cv::RANSAC, o.tile_inlier_px * o.tiles.reduction, inl, 5000, 0.999);
+          for (uchar v : inl) n_in += v ? 1 : 0;
+        }
+        stage1_inliers = n_in;
+        if (!A.empty() && n_in >= o.min_tile_inliers) {
+          const cv::Matx33d G(A);  // true train -> predicted train
+          registered = true;
+          stage2(G * train_from_prev);
+        }
+        VLOG(1) << "overlap cur " << ov.current_pair << " prev " << ov.previous_pair << ": " << tiles.size()
+                << " tiles correlated, " << n_in << " agree on one motion" << (registered ? "" : ": not registered");
+      }
+      if (!registered && o.fundamental_threshold_px > 0) {
         // Stage 1 -> refined prediction. The DR error shifts the true
         // matches by nearly one offset from their predictions (the warp
         // removed the perspective), while wrong matches (repeated texture)
@@ -609,23 +722,7 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
         int n_h = 0;
         for (uchar v : hin) n_h += v ? 1 : 0;
         if (Hr.empty() || n_h < o.min_stage1_inliers) continue;
-        // Stage 2: re-predict with the refined homography and match again
-        // in a tight gate.
-        const cv::Matx33d H = cur_from_train.inv() * cv::Matx33d(Hr);  // prev px -> train coordinates
-        refined = cv::Matx33d(Hr);
-        for (size_t q = 0; q < fp.size(); ++q)
-          if (predicted[q].allFinite()) predicted[q] = ApplyH(H, fp.points[q]);
-        GatedMatchOptions g2 = g;
-        g2.gate_radius = o.refine_gate_px * train_per_cur;
-        g2.ratio = o.refine_ratio;
-        matches = GatedMatch(fp, predicted, fc, g2);
-        // Epipolar RANSAC on the (now mostly right) stage-2 matches.
-        if (matches.size() >= 12) {
-          to_points(matches, &a, &b);
-          std::vector<uchar> inl;
-          F = cv::findFundamentalMat(a, b, cv::FM_RANSAC, o.fundamental_threshold_px, 0.999, inl);
-          if (F.empty() || F.rows != 3) F = cv::Mat();
-        }
+        stage2(cur_from_train.inv() * cv::Matx33d(Hr));
       }
       std::vector<Candidate> cands;
       const cv::Matx33d Fm = F.empty() ? cv::Matx33d::zeros() : cv::Matx33d(F);
@@ -656,6 +753,39 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
       std::iota(idx.begin(), idx.end(), 0);
       std::vector<Candidate> sel;
       for (int q : SpreadSelect(cands, idx, o.max_points_per_overlap, 24.0)) sel.push_back(cands[q]);
+      // Cross-site LSM on the previous region's grid: the previous window
+      // against the warped current image, which the refined prediction has
+      // brought to the same scale, shape and (anti-aliased) resolution. The
+      // full-resolution current image holds detail the previous site never
+      // saw, and LSM from the coarse window into it rarely converges.
+      if (o.grid_lsm_enabled && o.warp_current && !warped_image.empty() && !previous_crop.empty() && !sel.empty()) {
+        const LsmImage lt = MakeLsmImage(previous_crop), lw = MakeLsmImage(warped_image);
+        int refined_here = 0;
+        for (Candidate& c : sel) {
+          const Eigen::Vector2d pt = ApplyH(train_from_prev, c.prev_left);
+          Eigen::Vector2d wt = ApplyH(cur_from_train.inv(), c.cur_left);
+          // The feature positions of the two sites differ by a few grid px
+          // (different scales of detection): start LSM at the correlation
+          // peak near them.
+          if (!ZnccPeakNear(previous_crop, pt, warped_image, o.grid_search_px, o.grid_lsm.half_window, o.grid_min_zncc,
+                            o.grid_min_margin, &wt))
+            continue;
+          const LsmResult r = LeastSquaresMatch(lt, pt, lw, wt, Eigen::Matrix2d::Identity(), o.grid_lsm);
+          if (!r.ok) {
+            VLOG(2) << "grid LSM: " << r.why << " corr " << r.correlation << " sigma " << r.sigma_px;
+            continue;
+          }
+          const Eigen::Matrix2d J = JacobianH(cur_from_train, r.target);  // current px per grid px
+          c.cur_left = ApplyH(cur_from_train, r.target);
+          c.sigma_cross = r.sigma_px * std::sqrt(std::abs(J.determinant()));
+          c.grid_refined = true;
+          VLOG(2) << "grid LSM ok at " << c.prev_left.transpose() << " sigma " << r.sigma_px << " max " << r.sigma_max_px
+                  << " corr " << r.correlation;
+          ++refined_here;
+        }
+        VLOG(1) << "overlap cur " << ov.current_pair << " prev " << ov.previous_pair << ": grid LSM refined "
+                << refined_here << " of " << sel.size();
+      }
       per_overlap[k] = std::move(sel);
     }
     // Backward overlaps: match on the ground plane.
@@ -707,6 +837,12 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
 #pragma omp parallel for schedule(dynamic, 16) num_threads(o.num_threads)
     for (int k = 0; k < n0; ++k) {
       Candidate& c = cands[k];
+      if (c.grid_refined) continue;
+      if (o.grid_lsm_enabled && o.warp_current && !pred.overlaps[c.overlap].backward && !o.keep_grid_unrefined) {
+        c.ok = false;
+        c.why = "grid LSM failed";
+        continue;
+      }
       const PairOverlap& ov = pred.overlaps[c.overlap];
       Eigen::Matrix2d A = ov.backward ? Eigen::Matrix2d::Identity() : c.initial_affine;
       const LsmResult r = LeastSquaresMatch(prev_l[c.prev_pair].lsm, c.prev_left, cur_l[c.cur_pair].lsm, c.cur_left, A,
@@ -727,7 +863,7 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
       for (const auto& [why, n] : reasons) VLOG(1) << "cross-site LSM rejected " << n << ": " << why;
     }
     int num_refined = 0;
-    for (const auto& c : cands) num_refined += c.ok && c.sigma_cross < o.sigma_unrefined_px ? 1 : 0;
+    for (const auto& c : cands) num_refined += c.ok && (c.grid_refined || c.sigma_cross < o.sigma_unrefined_px) ? 1 : 0;
     VLOG(1) << "cross-site LSM refined " << num_refined << " of " << cands.size();
     cands.erase(std::remove_if(cands.begin(), cands.end(), [](const Candidate& c) { return !c.ok; }), cands.end());
     // Merge duplicates (the same current pixel matched through two overlaps).
@@ -859,25 +995,45 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
       c2.push_back(c.cov_cur);
     }
     const ConsistencyResult cons = DistanceConsistencyCheck(p1, c1, p2, c2, o.consistency);
+    stage("consistency", cons.num_inliers, t0);
+    // ---- motion consistency (one rigid motion, per-point covariances)
+    t0 = Clock::now();
+    std::vector<bool> keep = cons.inlier;
+    if (o.motion_consistency) {
+      std::vector<Eigen::Vector3d> q1, q2;
+      std::vector<Eigen::Matrix3d> d1, d2;
+      std::vector<size_t> where;
+      for (size_t k = 0; k < cands.size(); ++k) {
+        if (!cons.inlier[k]) continue;
+        q1.push_back(p1[k]), q2.push_back(p2[k]), d1.push_back(c1[k]), d2.push_back(c2[k]);
+        where.push_back(k);
+      }
+      const MotionConsistencyResult mc = MotionConsistencyCheck(q1, d1, q2, d2, o.motion);
+      for (size_t q = 0; q < where.size(); ++q) keep[where[q]] = mc.ok && mc.inlier[q];
+    }
     int id = 0;
     for (size_t k = 0; k < cands.size(); ++k) {
-      if (!cons.inlier[k]) continue;
+      if (!keep[k]) continue;
       const Candidate& c = cands[k];
       TiePoint tp;
       tp.id = id++;
       tp.p_previous = c.p_prev;
       tp.p_current = c.p_cur;
       tp.weight = cons.weights[k];
-      const double s_left = std::max(c.sigma_cross, 0.02);
-      tp.observations.push_back({SiteRole::kPrevious, c.prev_pair, CameraSide::kLeft, c.prev_left, s_left});
+      // The cross-site error is split between the two left observations:
+      // the floor in previous px, scaled to current px by the overlap's scale.
+      const double cur_per_prev = 1.0 / std::max(pred.overlaps[c.overlap].scale, 1e-3);
+      const double s_prev = std::max(c.sigma_cross / cur_per_prev, o.cross_sigma_floor_px) / std::sqrt(2.0);
+      const double s_cur = std::max(c.sigma_cross, o.cross_sigma_floor_px * cur_per_prev) / std::sqrt(2.0);
+      tp.observations.push_back({SiteRole::kPrevious, c.prev_pair, CameraSide::kLeft, c.prev_left, s_prev});
       tp.observations.push_back({SiteRole::kPrevious, c.prev_pair, CameraSide::kRight, c.prev_right,
-                                 std::max(std::hypot(c.sigma_prev_right, s_left), 0.02)});
-      tp.observations.push_back({SiteRole::kCurrent, c.cur_pair, CameraSide::kLeft, c.cur_left, s_left});
+                                 std::hypot(std::max(c.sigma_prev_right, o.stereo_sigma_floor_px), s_prev)});
+      tp.observations.push_back({SiteRole::kCurrent, c.cur_pair, CameraSide::kLeft, c.cur_left, s_cur});
       tp.observations.push_back({SiteRole::kCurrent, c.cur_pair, CameraSide::kRight, c.cur_right,
-                                 std::max(std::hypot(c.sigma_cur_right, s_left), 0.02)});
+                                 std::hypot(std::max(c.sigma_cur_right, o.stereo_sigma_floor_px), s_cur)});
       tps.points.push_back(std::move(tp));
     }
-    stage("consistency", static_cast<int>(tps.points.size()), t0);
+    stage("motion", static_cast<int>(tps.points.size()), t0);
     // The distance check is blind to a set of matches that is wrong by one
     // rigid motion (repeated texture): compare the motion the tie points
     // imply with the dead-reckoning prediction.

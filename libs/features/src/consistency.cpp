@@ -1,7 +1,10 @@
 #include "vloc/features/consistency.h"
 
+#include <Eigen/Cholesky>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <random>
 
 #include "vloc/common/options.h"
 
@@ -88,6 +91,99 @@ ConsistencyResult DistanceConsistencyCheck(const std::vector<Eigen::Vector3d>& p
     if (!changed) break;
   }
   res.num_inliers = static_cast<int>(std::count(res.inlier.begin(), res.inlier.end(), true));
+  return res;
+}
+
+void MotionConsistencyOptions::Visit(OptionsReader& r) {
+  r.Optional("max_mahalanobis_sq", &max_mahalanobis_sq, "squared Mahalanobis residual of an inlier (chi-square, 3 DoF)");
+  r.Optional("ransac_iterations", &ransac_iterations, "3-point RANSAC samples");
+  r.Optional("seed", &seed, "sample generator seed");
+}
+
+bool MotionConsistencyOptions::Check(std::string* error) const {
+  if (!(max_mahalanobis_sq > 0)) return Fail(error, "motion consistency max_mahalanobis_sq must be > 0");
+  if (ransac_iterations < 1) return Fail(error, "motion consistency ransac_iterations must be >= 1");
+  return true;
+}
+
+namespace {
+
+// Inliers of p1 ~ T * p2 under the per-point covariances.
+int CountMotionInliers(const Eigen::Matrix4d& T, const std::vector<Eigen::Vector3d>& p1,
+                       const std::vector<Eigen::Matrix3d>& cov1, const std::vector<Eigen::Vector3d>& p2,
+                       const std::vector<Eigen::Matrix3d>& cov2, double max_m2, std::vector<bool>* inlier) {
+  const Eigen::Matrix3d R = T.block<3, 3>(0, 0);
+  const Eigen::Vector3d t = T.block<3, 1>(0, 3);
+  int n = 0;
+  inlier->assign(p1.size(), false);
+  for (size_t i = 0; i < p1.size(); ++i) {
+    const Eigen::Vector3d r = p1[i] - (R * p2[i] + t);
+    Eigen::Matrix3d C = Eigen::Matrix3d::Identity() * 1e-6;
+    if (!cov1.empty()) C += cov1[i];
+    if (!cov2.empty()) C += R * cov2[i] * R.transpose();
+    const double m2 = r.dot(C.ldlt().solve(r));
+    if (m2 <= max_m2) (*inlier)[i] = true, ++n;
+  }
+  return n;
+}
+
+Eigen::Matrix4d FitMotion(const std::vector<Eigen::Vector3d>& p1, const std::vector<Eigen::Vector3d>& p2,
+                          const std::vector<int>& idx) {
+  Eigen::Matrix3Xd a(3, idx.size()), b(3, idx.size());
+  for (size_t k = 0; k < idx.size(); ++k) {
+    a.col(k) = p2[idx[k]];
+    b.col(k) = p1[idx[k]];
+  }
+  return Eigen::umeyama(a, b, false);
+}
+
+}  // namespace
+
+MotionConsistencyResult MotionConsistencyCheck(const std::vector<Eigen::Vector3d>& p1,
+                                               const std::vector<Eigen::Matrix3d>& cov1,
+                                               const std::vector<Eigen::Vector3d>& p2,
+                                               const std::vector<Eigen::Matrix3d>& cov2,
+                                               const MotionConsistencyOptions& o) {
+  MotionConsistencyResult res;
+  const int n = static_cast<int>(p1.size());
+  res.inlier.assign(n, false);
+  if (n < 3 || p2.size() != p1.size()) return res;
+  std::mt19937_64 rng(o.seed);
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  std::vector<bool> in;
+  int best = 0;
+  Eigen::Matrix4d best_T = Eigen::Matrix4d::Identity();
+  for (int it = 0; it < o.ransac_iterations; ++it) {
+    const int a = pick(rng), b = pick(rng), c = pick(rng);
+    if (a == b || b == c || a == c) continue;
+    // Degenerate (nearly collinear) samples fix no rotation.
+    const Eigen::Vector3d u = p2[b] - p2[a], v = p2[c] - p2[a];
+    if (u.cross(v).norm() < 1e-3 * u.norm() * v.norm()) continue;
+    const Eigen::Matrix4d T = FitMotion(p1, p2, {a, b, c});
+    const int k = CountMotionInliers(T, p1, cov1, p2, cov2, o.max_mahalanobis_sq, &in);
+    if (k > best) best = k, best_T = T;
+  }
+  if (best < 3) return res;
+  // Refit on the inliers until the set settles.
+  Eigen::Matrix4d T = best_T;
+  int k = CountMotionInliers(T, p1, cov1, p2, cov2, o.max_mahalanobis_sq, &in);
+  for (int pass = 0; pass < 5; ++pass) {
+    std::vector<int> idx;
+    for (int i = 0; i < n; ++i)
+      if (in[i]) idx.push_back(i);
+    if (idx.size() < 3) break;
+    const Eigen::Matrix4d T2 = FitMotion(p1, p2, idx);
+    std::vector<bool> in2;
+    const int k2 = CountMotionInliers(T2, p1, cov1, p2, cov2, o.max_mahalanobis_sq, &in2);
+    if (k2 < k) break;
+    const bool same = in2 == in;
+    T = T2, k = k2, in = in2;
+    if (same) break;
+  }
+  res.ok = k >= 3;
+  res.site1_from_site2 = T;
+  res.inlier = in;
+  res.num_inliers = k;
   return res;
 }
 

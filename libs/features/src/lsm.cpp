@@ -1,6 +1,7 @@
 #include "vloc/features/lsm.h"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <cmath>
 #include <vector>
@@ -17,6 +18,7 @@ void LsmOptions::Visit(OptionsReader& r) {
   r.Optional("max_shift_px", &max_shift_px, "px, largest accepted move from the initial position");
   r.Optional("min_template_std", &min_template_std, "grey level, minimum template std");
   r.Optional("max_sigma_px", &max_sigma_px, "px, largest accepted 1-sigma precision");
+  r.Optional("max_sigma_axis_px", &max_sigma_axis_px, "px, largest accepted sigma along the worst direction (0 = off)");
   r.Optional("min_correlation", &min_correlation, "minimum correlation at the solution");
   r.Optional("estimate_affine", &estimate_affine, "estimate the 4 affine shape parameters");
 }
@@ -220,6 +222,10 @@ LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& templa
   const Mat8 Ninv = Eigen::LDLT<Mat8>(N).solve(Mat8::Identity());
   res.sigma0 = std::sqrt(sigma0_sq);
   res.sigma_px = std::sqrt(sigma0_sq * 0.5 * (Ninv(0, 0) + Ninv(1, 1)));
+  {
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(sigma0_sq * Ninv.block<2, 2>(0, 0));
+    res.sigma_max_px = std::sqrt(std::max(es.eigenvalues()(1), 0.0));
+  }
   // Correlation of template and the last resampled window.
   double gm = 0;
   for (float v : G) gm += v;
@@ -239,7 +245,7 @@ LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& templa
     res.why = "correlation below min_correlation";
     return res;
   }
-  if (!(res.sigma_px <= o.max_sigma_px)) {
+  if (!(res.sigma_px <= o.max_sigma_px) || (o.max_sigma_axis_px > 0 && !(res.sigma_max_px <= o.max_sigma_axis_px))) {
     res.why = "precision worse than max_sigma_px";
     return res;
   }

@@ -4,20 +4,29 @@
 #include <algorithm>
 #include <cstdlib>
 #include <iostream>
+#include <sstream>
 
 #include "sim_site_pair.h"
 
 namespace vloc {
 namespace {
 
-// Disabled: on the simulated pair the cross-site matches are still mostly
-// wrong even with a perfect DR pose (VLOC_TEST_DR_SCALE=0): the correct
-// correspondences are hardly ever the nearest descriptor inside the gate
-// (the simulator's far/near texture differs), so stage 1 finds no offset
-// cluster and the overlaps are skipped, or the DR motion gate rejects the set.
-// Run with --gtest_also_run_disabled_tests to measure (VLOC_SIM_CACHE=<dir>
-// caches the renders; VLOC_TEST_MOTION_SIGMAS=0 switches the DR gate off).
-TEST(FrontendSim, DISABLED_SitePairMeetsTheTiePointFigures) {
+// The figures on the 10 m pair with a 14 % DR error (>= 100
+// verified tie points, < 1 % of them more than 2 px from the truth) are not
+// met yet: the pipeline reaches about 107 points with 13 % between 2 and
+// 3 px off (matches along the streaks of grazing texture, which neither
+// eq. 2 nor the motion check can tell from the range error). Run with
+// --gtest_also_run_disabled_tests to measure (VLOC_SIM_CACHE=<dir> caches
+// the renders, VLOC_TEST_FRONTEND_CONFIG=<yaml> overrides options,
+// VLOC_TEST_PRINT_ERRORS=1 lists every point's error).
+struct PairRun {
+  FrontendResult result;
+  testing::TruthCheck truth;
+};
+
+// Runs the front end on the default simulated pair and prints the figures.
+PairRun RunDefaultPair() {
+  PairRun run;
   testing::SimSitePairOptions so;
   if (const char* e = std::getenv("VLOC_TEST_DR_SCALE")) {
     so.dr_position_error *= std::atof(e);
@@ -25,14 +34,16 @@ TEST(FrontendSim, DISABLED_SitePairMeetsTheTiePointFigures) {
   }
   const testing::SimSitePair s = testing::MakeSimSitePair(so);
   FrontendOptions options;
+  if (const char* e = std::getenv("VLOC_TEST_FRONTEND_CONFIG")) options = LoadOptionsFile<FrontendOptions>(e);
   if (const char* e = std::getenv("VLOC_TEST_MAX_RANGE")) options.regions.max_range_previous = std::atof(e);
   if (const char* e = std::getenv("VLOC_TEST_MOTION_SIGMAS")) options.max_motion_sigmas = std::atof(e);
   if (const char* e = std::getenv("VLOC_TEST_MIN_STAGE1")) options.min_stage1_inliers = std::atoi(e);
   const CrossSiteFrontend frontend(s.navcam, options);
-  const FrontendResult r = frontend.Run(s.previous, s.current);
+  run.result = frontend.Run(s.previous, s.current);
+  const FrontendResult& r = run.result;
   std::cout << r.summary.BriefReport() << "\n";
-  ASSERT_TRUE(r.summary.IsUsable()) << r.summary.message;
-  const testing::TruthCheck t = testing::CheckAgainstTruth(s, r.tie_points);
+  run.truth = testing::CheckAgainstTruth(s, r.tie_points);
+  const testing::TruthCheck& t = run.truth;
   std::cout << "tie points " << t.num_points << ", wrong " << t.num_wrong << ", unchecked (depth edge) "
             << t.num_unchecked << ", stereo error median "
             << testing::Median(t.stereo_error_px) << " px rms " << testing::Rms(t.stereo_error_px)
@@ -45,6 +56,34 @@ TEST(FrontendSim, DISABLED_SitePairMeetsTheTiePointFigures) {
       std::cout << "cross-site error percentiles 10/50/90: " << e[e.size() / 10] << " " << e[e.size() / 2] << " "
                 << e[9 * e.size() / 10] << " px\n";
   }
+  if (std::getenv("VLOC_TEST_PRINT_ERRORS"))
+    for (size_t k = 0; k < t.cross_error_vec.size(); ++k)
+      std::cout << "error " << t.cross_error_vec[k].transpose() << " at " << r.tie_points.points[k].observations[0].uv.transpose()
+                << " pair " << r.tie_points.points[k].observations[0].pair_index << " dist "
+                << (s.previous_true * r.tie_points.points[k].p_previous - s.current_true * r.tie_points.points[k].p_current).norm()
+                << " range " << r.tie_points.points[k].p_previous.norm() << " zcheck " << [&] {
+                     const auto& tp = r.tie_points.points[k];
+                     for (const auto& ob : tp.observations)
+                       if (ob.site == SiteRole::kCurrent && ob.camera == CameraSide::kLeft) {
+                         const MastPointing& mc = r.tie_points.current_pointing[ob.pair_index];
+                         const Pose3 bl = s.navcam.mast.BodyFromLeft(mc.pan, mc.tilt, s.navcam.rig);
+                         const Eigen::Vector3d pc = bl.inverse() * tp.p_current;
+                         std::ostringstream os;
+                         os << testing::DepthAt(s.current_depth[ob.pair_index], ob.uv) << " " << pc.z() << " proj "
+                            << s.navcam.rig.left.ProjectIdeal(pc).value_or(Eigen::Vector2d(-1, -1)).transpose() << " obs "
+                            << ob.uv.transpose();
+                         for (const auto& op : tp.observations)
+                           if (op.site == SiteRole::kPrevious && op.camera == CameraSide::kLeft) {
+                             const MastPointing& mp = r.tie_points.previous_pointing[op.pair_index];
+                             const Pose3 bp = s.navcam.mast.BodyFromLeft(mp.pan, mp.tilt, s.navcam.rig);
+                             os << " prevproj " << s.navcam.rig.left.ProjectIdeal(bp.inverse() * tp.p_previous).value_or(Eigen::Vector2d(-1, -1)).transpose()
+                                << " curworld_in_prev " << s.navcam.rig.left.ProjectIdeal((s.previous_true * bp).inverse() * (s.current_true * tp.p_current)).value_or(Eigen::Vector2d(-1, -1)).transpose()
+                                << " prevobs " << op.uv.transpose();
+                           }
+                         return os.str();
+                       }
+                     return std::string();
+                   }() << "\n";
   {
     std::vector<double> d;
     for (const auto& tp : r.tie_points.points)
@@ -54,9 +93,32 @@ TEST(FrontendSim, DISABLED_SitePairMeetsTheTiePointFigures) {
       std::cout << "world distance of the two intersections 10/50/90: " << d[d.size() / 10] << " " << d[d.size() / 2]
                 << " " << d[9 * d.size() / 10] << " m\n";
   }
+  return run;
+}
+
+TEST(FrontendSim, DISABLED_SitePairMeetsTheTiePointFigures) {
+  const PairRun run = RunDefaultPair();
+  const FrontendResult& r = run.result;
+  const testing::TruthCheck& t = run.truth;
+  ASSERT_TRUE(r.summary.IsUsable()) << r.summary.message;
   EXPECT_GE(t.num_points, 100);
   EXPECT_LT(t.num_wrong, 0.01 * t.num_points);
   EXPECT_LT(t.num_unchecked, 0.05 * t.num_points);
+  EXPECT_LE(testing::Median(t.stereo_error_px), 0.1);
+  for (const auto& tp : r.tie_points.points) EXPECT_EQ(tp.observations.size(), 4u);
+}
+
+// What the pipeline reaches today on the same pair (guards against
+// regressions; the figures above are the goal): the 14 % DR error is
+// registered away, most points are right and the stereo half meets 0.1 px.
+TEST(FrontendSim, SitePairRegistersAndMostTiePointsAreRight) {
+  const PairRun run = RunDefaultPair();
+  const FrontendResult& r = run.result;
+  const testing::TruthCheck& t = run.truth;
+  ASSERT_TRUE(r.summary.IsUsable()) << r.summary.message;
+  EXPECT_GE(t.num_points, 80);
+  EXPECT_LT(t.num_wrong, 0.2 * t.num_points);
+  EXPECT_LT(testing::Median(t.cross_error_px), 1.0);
   EXPECT_LE(testing::Median(t.stereo_error_px), 0.1);
   for (const auto& tp : r.tie_points.points) EXPECT_EQ(tp.observations.size(), 4u);
 }

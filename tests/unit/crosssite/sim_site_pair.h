@@ -170,6 +170,7 @@ struct TruthCheck {
   std::vector<double> stereo_error_px; // |right obs - true right|, both sites
   std::vector<double> cross_error_px;  // |previous-left obs - true previous-left| of the right ones
   std::vector<double> all_cross_error_px;
+  std::vector<Eigen::Vector2d> cross_error_vec;  // per tie point: true minus observed previous-left position, px (NaN: unchecked)
 };
 
 // Bilinear depth at a sub-pixel position; 0 when a neighbour has no hit or
@@ -208,11 +209,15 @@ inline TruthCheck CheckAgainstTruth(const SimSitePair& s, const TiePointSet& tps
       const bool prev = o.site == SiteRole::kPrevious, left = o.camera == CameraSide::kLeft;
       (prev ? (left ? pl : pr) : (left ? cl : cr)) = &o;
     }
-    if (!pl || !cl) continue;
+    if (!pl || !cl) {
+      out.cross_error_vec.push_back(Eigen::Vector2d::Constant(NAN));
+      continue;
+    }
     ++out.num_points;
     const double z = DepthAt(s.current_depth[cl->pair_index], cl->uv);
     if (!(z > 0)) {
       ++out.num_unchecked;
+      out.cross_error_vec.push_back(Eigen::Vector2d::Constant(NAN));
       continue;
     }
     const Eigen::Vector3d p_cam = cam.Ray(cl->uv) * z;
@@ -230,6 +235,7 @@ inline TruthCheck CheckAgainstTruth(const SimSitePair& s, const TiePointSet& tps
     const auto q = cam.ProjectIdeal(pl_from_world * p_world);
     const double err = q ? (*q - pl->uv).norm() : 1e9;
     out.all_cross_error_px.push_back(err);
+    out.cross_error_vec.push_back(q ? Eigen::Vector2d(*q - pl->uv) : Eigen::Vector2d::Constant(NAN));
     if (err > wrong_px) ++out.num_wrong;
     else out.cross_error_px.push_back(err);
     if (pr) {

@@ -15,6 +15,7 @@
 #include "vloc/features/consistency.h"
 #include "vloc/features/lsm.h"
 #include "vloc/features/stereo_match.h"
+#include "vloc/features/tile_registration.h"
 #include "vloc/features/wallis.h"
 
 namespace vloc {
@@ -252,6 +253,64 @@ TEST(Consistency, RejectsPlantedOutliers) {
   EXPECT_GT(res.weight_threshold, 50);
 }
 
+// Far points moved across the line of sight by 12 lateral sigmas (a match
+// a few px off along a streak of grazing texture): the pairwise distances
+// hide most of them in the range error; one rigid motion within each
+// point's covariance does not.
+TEST(Consistency, MotionCheckRejectsLateralOutliersAtRange) {
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> ux(12, 28), uy(-8, 8), usign(0, 1);
+  std::normal_distribution<double> gauss(0, 1);
+  const Pose3 site2_from_site1 = MakePose(-10.0, 0.5, 0.05, 0.0, 0.01, 0.1);
+  const double baseline = 0.27, focal = 1189, sigma_p = 0.1, sigma_a = 0.5 / focal;
+  const Eigen::Vector3d cam(0, 0, 1.5);
+  std::vector<Eigen::Vector3d> p1, p2;
+  std::vector<Eigen::Matrix3d> c1, c2;
+  std::vector<bool> planted;
+  for (int i = 0; i < 200; ++i) {
+    const Eigen::Vector3d truth(ux(rng), uy(rng), 0.0);
+    Eigen::Vector3d m1 = truth, m2 = site2_from_site1 * truth;
+    for (int s = 0; s < 2; ++s) {
+      Eigen::Vector3d& m = s == 0 ? m1 : m2;
+      const Eigen::Vector3d ray = m - cam;
+      const Eigen::Matrix3d cov = StereoPointCovariance(ray, ray.norm(), baseline, focal, sigma_p, sigma_a);
+      m += Eigen::LLT<Eigen::Matrix3d>(cov).matrixL() * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+      (s == 0 ? c1 : c2).push_back(cov);
+    }
+    const bool out = i % 8 == 5;
+    if (out) {
+      const Eigen::Vector3d ray = (m2 - cam).normalized();
+      const Eigen::Vector3d across = ray.cross(Eigen::Vector3d::UnitZ()).normalized();
+      // 12 sigma of the two sites' lateral errors combined.
+      const double s_lat = sigma_a * std::hypot((m1 - cam).norm(), (m2 - cam).norm());
+      m2 += (usign(rng) < 0.5 ? -1.0 : 1.0) * 12 * s_lat * across;
+    }
+    p1.push_back(m1);
+    p2.push_back(m2);
+    planted.push_back(out);
+  }
+  const MotionConsistencyResult res = MotionConsistencyCheck(p1, c1, p2, c2, MotionConsistencyOptions());
+  ASSERT_TRUE(res.ok);
+  int kept = 0, lost = 0, planted_n = 0;
+  for (size_t i = 0; i < planted.size(); ++i) {
+    planted_n += planted[i] ? 1 : 0;
+    if (planted[i] && res.inlier[i]) ++kept;
+    if (!planted[i] && !res.inlier[i]) ++lost;
+  }
+  // A shift across the current view can lie along the previous view's ray
+  // (the rays differ by tens of degrees near the rover), where the range
+  // error hides it from both checks: allow a tenth.
+  const ConsistencyResult eq2 = DistanceConsistencyCheck(p1, c1, p2, c2, ConsistencyOptions());
+  int kept_eq2 = 0;
+  for (size_t i = 0; i < planted.size(); ++i) kept_eq2 += planted[i] && eq2.inlier[i] ? 1 : 0;
+  EXPECT_LE(kept, planted_n / 10) << "of " << planted_n;
+  EXPECT_LT(kept, kept_eq2) << "eq. 2 alone keeps " << kept_eq2;
+  EXPECT_LE(lost, 4);  // 99.9 % gate: ~0.2 of 175 expected
+  // The motion is the true one.
+  const Eigen::Matrix4d truth = site2_from_site1.inverse().matrix();
+  EXPECT_LT((res.site1_from_site2.block<3, 1>(0, 3) - truth.block<3, 1>(0, 3)).norm(), 0.05);
+}
+
 TEST(Consistency, RangeSigmaFollowsEquation7) {
   // sigma_r = r^2 / (b f) sigma_p: Yutu numbers, r = 10 m, sigma_p = 1/3 px.
   EXPECT_NEAR(RangeSigma(10.0, 0.27, 1189.0, 1.0 / 3.0), 100.0 / (0.27 * 1189.0) / 3.0, 1e-12);
@@ -312,6 +371,64 @@ TEST(Asift, ViewTransformMapsBackToOriginalPixels) {
   EXPECT_NEAR(y, (vs.height - 1) / 2.0, 1.0);
   // Determinant = 1 / tilt.
   EXPECT_NEAR(A(0, 0) * A(1, 1) - A(0, 1) * A(1, 0), 0.5, 1e-12);
+}
+
+}  // namespace
+}  // namespace vloc
+
+namespace vloc {
+namespace {
+
+// A shifted, slightly rotated copy with noise: every clear tile finds the
+// true position of its centre within a quarter of a reduced pixel.
+TEST(TileRegistration, FindsAKnownOffsetFarOutsideAFeatureGate) {
+  const cv::Mat fixed = testing::TexturedImage(640, 480, 11, 2.0);
+  const double dx = 37.3, dy = -21.6, angle_deg = 1.0;
+  // moving(x) = fixed(M x): moving pixel x shows the ground of fixed pixel M x.
+  const cv::Point2f c(320, 240);
+  cv::Mat M = cv::getRotationMatrix2D(c, angle_deg, 1.0);
+  M.at<double>(0, 2) += dx;
+  M.at<double>(1, 2) += dy;
+  cv::Mat moving;
+  cv::warpAffine(fixed, moving, M, fixed.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT, 0);
+  cv::Mat noise(moving.size(), CV_8S);
+  cv::RNG(5).fill(noise, cv::RNG::NORMAL, 0, 3);
+  cv::add(moving, noise, moving, cv::noArray(), CV_8U);
+  cv::Mat mask;
+  cv::warpAffine(cv::Mat(fixed.size(), CV_8U, cv::Scalar(255)), mask, M, fixed.size(),
+                 cv::INTER_NEAREST | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT, 0);
+  TileRegistrationOptions o;
+  const auto tiles = RegisterTiles(moving, mask, fixed, 60.0, o);
+  ASSERT_GE(tiles.size(), 40u);
+  int good = 0;
+  for (const auto& t : tiles) {
+    const Eigen::Vector2d truth(M.at<double>(0, 0) * t.moving_px.x() + M.at<double>(0, 1) * t.moving_px.y() + M.at<double>(0, 2),
+                                M.at<double>(1, 0) * t.moving_px.x() + M.at<double>(1, 1) * t.moving_px.y() + M.at<double>(1, 2));
+    good += (t.fixed_px - truth).norm() < 0.25 * o.reduction + 0.01 * 320 * angle_deg * M_PI / 180 * o.reduction ? 1 : 0;
+  }
+  EXPECT_GE(good, static_cast<int>(0.95 * tiles.size()));
+}
+
+TEST(TileRegistration, UnrelatedImagesGiveFewTiles) {
+  const cv::Mat a = testing::TexturedImage(320, 240, 1, 2.0), b = testing::TexturedImage(320, 240, 2, 2.0);
+  const TileRegistrationOptions o;
+  const auto tiles = RegisterTiles(a, cv::Mat(), b, 40.0, o);
+  // Chance peaks of unrelated texture do not agree on one offset: fewer
+  // tiles share any tile's offset (within one reduced pixel) than the 6 the
+  // front end needs to register an overlap (half-overlapping neighbours
+  // share content, so a few do).
+  int most = 0;
+  for (const auto& t : tiles) {
+    int n = 0;
+    for (const auto& u : tiles) n += ((u.fixed_px - u.moving_px) - (t.fixed_px - t.moving_px)).norm() <= o.reduction ? 1 : 0;
+    most = std::max(most, n);
+  }
+  EXPECT_LT(most, 6) << tiles.size() << " tiles";
+}
+
+TEST(TileRegistration, FlatImageGivesNoTiles) {
+  const cv::Mat flat(240, 320, CV_8UC1, cv::Scalar(100));
+  EXPECT_TRUE(RegisterTiles(flat, cv::Mat(), flat, 40.0, TileRegistrationOptions()).empty());
 }
 
 }  // namespace

@@ -20,11 +20,13 @@ void NavcamRenderOptions::Visit(OptionsReader& r) {
   r.Optional("add_noise", &add_noise, "false: noise-free images");
   r.Optional("apply_distortion", &apply_distortion, "render through the lens distortion");
   r.Optional("max_range_m", &max_range_m, "m, rays beyond see sky");
+  r.Optional("max_footprint_samples", &max_footprint_samples, "shading samples along a grazing pixel's footprint");
   r.Optional("num_threads", &num_threads, "OpenMP threads");
 }
 
 bool NavcamRenderOptions::Check(std::string* error) const {
   if (!(exposure_gain_dn > 0)) return Fail(error, "render exposure_gain_dn must be > 0");
+  if (max_footprint_samples < 1) return Fail(error, "render max_footprint_samples must be >= 1");
   if (!(black_level_dn >= 0 && black_level_dn < 255)) return Fail(error, "render black_level_dn must be in [0, 255)");
   if (!(read_noise_dn >= 0 && shot_noise_dn2_per_dn >= 0)) return Fail(error, "render noise levels must be >= 0");
   if (!(max_range_m > 0)) return Fail(error, "render max_range_m must be > 0");
@@ -99,12 +101,31 @@ RenderedImage NavcamRenderer::Render(const PinholeCamera& camera, const Pose3& w
         const Eigen::Vector3d& p = hit->point;
         const Eigen::Vector3d n = terrain_.Normal(p.x(), p.y());
         const double cos_view = std::max(0.05, std::abs(dir.dot(n)));
-        // Pixel footprint on the ground (m): range / f, stretched by obliquity.
-        const double footprint = hit->range * ray_norm * inv_f / std::sqrt(cos_view);
-        const double albedo = terrain_.Albedo(p.x(), p.y(), footprint);
-        const Eigen::Vector3d shading_normal = terrain_.ShadingNormal(p.x(), p.y(), footprint, n);
-        const double direct = std::max(0.0, shading_normal.dot(sun)) * terrain_.SunVisibility(p.x(), p.y());
-        signal = options_.exposure_gain_dn * albedo * (ambient + (1.0 - ambient) * direct);
+        // Pixel footprint on the ground (m): range / f across the line of
+        // sight, stretched by 1 / cos along it. A long footprint is shaded at
+        // several points along the line of sight, each filtered to its part
+        // (anisotropic filtering): one isotropic sample either aliases along
+        // the view or blurs the far ground across it.
+        const double across = hit->range * ray_norm * inv_f;
+        const double along_length = across / cos_view;
+        Eigen::Vector3d along = dir - dir.dot(n) * n;
+        const double along_norm = along.norm();
+        const int samples = along_norm > 1e-6 ? std::clamp(static_cast<int>(std::ceil(along_length / (2 * across))), 1,
+                                                           options_.max_footprint_samples)
+                                              : 1;
+        if (samples > 1) along /= along_norm;
+        const double footprint = std::max(across, along_length / samples);
+        const double visibility = terrain_.SunVisibility(p.x(), p.y());
+        double radiance = 0.0;
+        for (int k = 0; k < samples; ++k) {
+          const double offset = samples > 1 ? ((k + 0.5) / samples - 0.5) * along_length : 0.0;
+          const double qx = p.x() + offset * along.x(), qy = p.y() + offset * along.y();
+          const double albedo = terrain_.Albedo(qx, qy, footprint);
+          const Eigen::Vector3d shading_normal = terrain_.ShadingNormal(qx, qy, footprint, n);
+          const double direct = std::max(0.0, shading_normal.dot(sun)) * visibility;
+          radiance += albedo * (ambient + (1.0 - ambient) * direct);
+        }
+        signal = options_.exposure_gain_dn * radiance / samples;
         if (depth_row) depth_row[u] = static_cast<float>(hit->range / ray_norm);
       } else {
         ++sky;

@@ -12,6 +12,7 @@
 //   median       median filter of the disparities against the neighbours
 //   lsm          least-squares matching left -> right at both sites
 //   consistency  distance-consistency voting (eq. 2) with thresholds from eq. 7
+//   motion       one rigid motion for all points within each point's anisotropic covariance
 //
 // Observations are ideal (undistorted) pixels; images with distortion are
 // undistorted first.
@@ -26,6 +27,7 @@
 #include "vloc/features/consistency.h"
 #include "vloc/features/lsm.h"
 #include "vloc/features/stereo_match.h"
+#include "vloc/features/tile_registration.h"
 #include "vloc/features/wallis.h"
 
 namespace vloc {
@@ -39,6 +41,26 @@ struct SiteImages {
   std::vector<StereoPair> pairs;       // indexed by pair_index after sorting
 };
 
+// Cross-site LSM on the previous region's grid: a larger window (the grid
+// is zoomed) and a lower correlation floor (the two sites' views differ).
+inline LsmOptions GridLsmDefaults() {
+  LsmOptions o;
+  o.half_window = 10;
+  o.min_correlation = 0.6;
+  o.max_sigma_px = 0.5;
+  o.convergence_px = 0.02;  // the two views differ: the last hundredths of a px oscillate
+  o.max_iterations = 30;
+  return o;
+}
+
+// 97 % (chi-square 3 DoF): the stated covariances hold the angular error
+// floor (sigma_angle_px), so misplaced matches sit just beyond.
+inline MotionConsistencyOptions MotionDefaults() {
+  MotionConsistencyOptions o;
+  o.max_mahalanobis_sq = 9.0;
+  return o;
+}
+
 struct FrontendOptions {
   RegionOptions regions;
   WallisOptions wallis;
@@ -49,6 +71,10 @@ struct FrontendOptions {
   LsmOptions lsm;             // stereo LSM (left -> right)
   LsmOptions cross_lsm;       // previous-left -> current-left LSM
   ConsistencyOptions consistency;
+  LsmOptions grid_lsm = GridLsmDefaults();  // previous region -> warped current image, on the previous grid
+  MotionConsistencyOptions motion = MotionDefaults();  // after eq. 2: one rigid motion within each point's covariance
+  bool motion_consistency = true;   // apply it
+  TileRegistrationOptions tiles;  // stage 1: correlation of the warped current image's tiles with the previous region
 
   double max_zoom = 2.0;               // the previous region is zoomed by min(1 / predicted scale, max_zoom)
   double min_zoom = 1.0;               // ... and at least this
@@ -59,9 +85,18 @@ struct FrontendOptions {
   double sigma_unrefined_px = 1.0;     // px, ... with this sigma
   bool warp_current = true;            // match on the current image warped onto the zoomed previous region by
                                        // the predicted ground-plane homography (false: ASIFT on the current region)
-  bool match_previous_resolution = false; // blur the warped current image to the zoomed previous region's resolution
-  double warp_max_tilt = 1.5;          // tilts simulated on the warped image (restricted set: the residual is small)
+  bool match_previous_resolution = true;  // blur the warped current image to the zoomed previous region's resolution
+  double warp_max_tilt = 1.0;          // tilts simulated on the warped image: the warp by the predicted ground
+                                       // homography leaves tilt ~1, so the restricted set is {1}
   int max_overlaps_per_image = 2;      // per current image, match the overlaps with the most ground samples (0 = all)
+  bool grid_lsm_enabled = true;        // cross-site LSM on the previous region's grid (warp_current)
+  double grid_min_zncc = 0.6;          // correlation peak needed before the grid LSM ...
+  double grid_min_margin = 0.0;        // ... and its lead over the best score >= 3 grid px away (uniqueness)
+  int grid_search_px = 12;             // px (grid), correlation search around a match before the grid LSM
+  bool keep_grid_unrefined = false;    // keep matches the grid LSM could not refine (with sigma_unrefined_px)
+  bool tile_registration = true;       // stage 1 by tile correlation (falls back to the SIFT offset cluster)
+  int min_tile_inliers = 6;            // tiles agreeing on one similarity needed to register an overlap
+  double tile_inlier_px = 1.5;         // reduced px, RANSAC threshold of that similarity
   double refine_homography_threshold_px = 12.0;  // px, RANSAC threshold of the stage-1 homography
   double stage1_cluster_fraction = 0.06; // stage-1 matches kept: offsets within 2x this fraction of the gate of the densest cluster
   double refine_gate_px = 30.0;        // px, stage-2 gate around the refined prediction
@@ -75,6 +110,9 @@ struct FrontendOptions {
   int max_points_per_overlap = 300;    // strongest matches kept per overlap, spread over a grid
   double stereo_min_depth = 1.0;       // m, epipolar search starts at this depth ...
   double stereo_max_depth = 80.0;      // m, ... and ends at this one
+  double cross_sigma_floor_px = 0.5;   // px (previous image), least sigma of a cross-site left observation:
+                                       // LSM's own precision ignores relief and resolution differences
+  double stereo_sigma_floor_px = 0.1;  // px, least sigma of a right-image observation
   double sigma_angle_px = 0.5;         // px, lateral error of cross-site positions for the consistency threshold
   double min_sigma_parallax = 0.1;     // px, floor of the stereo parallax sigma (eq. 7)
   double min_region_std = 4.0;         // grey level: regions flatter than this have too little texture

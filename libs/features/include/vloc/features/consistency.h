@@ -9,6 +9,7 @@
 // than the weight threshold are outliers.
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -54,5 +55,34 @@ ConsistencyResult DistanceConsistencyCheck(const std::vector<Eigen::Vector3d>& p
                                            const std::vector<Eigen::Vector3d>& p2,
                                            const std::vector<Eigen::Matrix3d>& cov2,
                                            const ConsistencyOptions& options);
+
+// Motion consistency, the per-point complement of eq. 2: the points of
+// both sites must agree under ONE rigid motion, each within its own
+// anisotropic covariance (long along the ray at far range, narrow across
+// it). Pairwise distances cannot see a point shifted across the line of
+// sight by many angular sigmas when its distances to the others run along
+// the rays, where the range error hides it; the Mahalanobis residual does.
+// RANSAC over 3-point samples (Umeyama), refit on the inliers.
+struct MotionConsistencyOptions {
+  double max_mahalanobis_sq = 16.27;  // chi-square, 3 DoF, 99.9 %
+  int ransac_iterations = 300;        // 3-point samples
+  uint64_t seed = 1;                  // sample generator (results are reproducible)
+
+  void Visit(OptionsReader& reader);
+  bool Check(std::string* error) const;
+};
+
+struct MotionConsistencyResult {
+  bool ok = false;                         // a motion with at least 3 inliers was found
+  Eigen::Matrix4d site1_from_site2 = Eigen::Matrix4d::Identity();
+  std::vector<bool> inlier;
+  int num_inliers = 0;
+};
+
+MotionConsistencyResult MotionConsistencyCheck(const std::vector<Eigen::Vector3d>& p1,
+                                               const std::vector<Eigen::Matrix3d>& cov1,
+                                               const std::vector<Eigen::Vector3d>& p2,
+                                               const std::vector<Eigen::Matrix3d>& cov2,
+                                               const MotionConsistencyOptions& options);
 
 }  // namespace vloc

@@ -20,7 +20,8 @@ struct LsmOptions {
   double convergence_px = 0.005;   // px, stop when the shift update is below this
   double max_shift_px = 3.0;       // px, reject when t moves further from its initial value
   double min_template_std = 2.0;   // grey level, flatter templates are rejected
-  double max_sigma_px = 0.3;       // px, reject results less precise than this
+  double max_sigma_px = 0.3;       // px, reject results less precise than this (mean of x and y)
+  double max_sigma_axis_px = 0;    // px, reject when the least precise direction is worse than this (0 = off)
   double min_correlation = 0.8;    // correlation of template and resampled window at the solution
   bool estimate_affine = true;     // false: shift + radiometry only
 
@@ -44,6 +45,7 @@ struct LsmResult {
   Eigen::Matrix2d affine = Eigen::Matrix2d::Identity();  // d target / d template offset
   double r0 = 0, r1 = 1;                               // radiometric offset and gain
   double sigma_px = 0;                                 // px, 1-sigma precision of `target` (mean of x, y)
+  double sigma_max_px = 0;                             // px, 1-sigma along the least precise direction
   double sigma0 = 0;                                   // grey level, a-posteriori std of the residuals
   double correlation = 0;                              // at the solution
   int iterations = 0;

@@ -40,6 +40,9 @@ struct NavcamRenderOptions {
   bool add_noise = true;                 // false: noise-free images (still quantised)
   bool apply_distortion = true;          // render through the camera's lens distortion
   double max_range_m = 200.0;            // m, rays beyond this see sky
+  int max_footprint_samples = 6;         // a grazing pixel's ground footprint is long along the line of sight:
+                                         // shaded at up to this many points along it, each filtered to its share
+                                         // (1 = one isotropic sample, which blurs the far ground across the view)
   int num_threads = 2;                   // OpenMP threads
 
   void Visit(OptionsReader& reader);
