@@ -33,5 +33,7 @@ int main(int argc, char** argv) {
   cv::setNumThreads(options.frontend.num_threads);
   vloc::FeatureFrontendAdapter adapter(options, *setup->transport);
   adapter.Subscribe();
+  LOG(INFO) << "feature_frontend: waiting for " << options.stereo_channel << ", " << options.site_channel << " and "
+            << options.dr_channel;
   return vloc::RunUntilSignal(*setup->transport, 100);
 }
