@@ -11,6 +11,7 @@
 // covered); --memory-every T prints the process RSS and canvas tiles every
 // T s of flight (memory over a long flight).
 #include <glog/logging.h>
+#include <sys/resource.h>
 
 #include <algorithm>
 #include <chrono>
@@ -36,6 +37,13 @@ double StatusMb(const std::string& key) {
   return 0;
 }
 double PeakRssMb() { return StatusMb("VmHWM:"); }
+
+// CPU time of the whole process (all threads, user + system), s.
+double ProcessCpuSeconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return u.ru_utime.tv_sec + u.ru_stime.tv_sec + 1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
 
 // Lawnmower at 60 m over the orthomap, legs along x 40 m apart (the 77 m wide
 // footprint overlaps half), long enough for `seconds` of flight at the
@@ -103,6 +111,9 @@ int main(int argc, char** argv) {
   }
   const bool use_gps = !args.Has("no-gps");
   vloc::UavWorld world(world_options);
+  if (args.Has("memory-every"))
+    std::cout << "memory with the simulated world built: RSS " << StatusMb("VmRSS:") << " MB, peak " << PeakRssMb()
+              << " MB" << std::endl;
   const double duration = args.GetDouble("duration", args.GetDouble("survey", 0.0));
   const double memory_every = args.GetDouble("memory-every", 0.0);
   double next_memory = memory_every;
@@ -118,7 +129,8 @@ int main(int argc, char** argv) {
   int gps_index = 0, lost = 0, calibrating = 0, recovered = 0, evaluated = 0, georef = 0;
   double se_height = 0, max_height = 0, dist = 0, se_route = 0, max_route = 0, max_route_dropout = 0, last_route = 0;
   double render_s = 0;
-  std::vector<double> track_ms, mosaic_ms;
+  std::vector<double> track_ms, mosaic_ms, cpu_track_ms;
+  double cpu_all_s = 0;
   double total_s = 0;
   int blends = 0;
   Eigen::Vector3d prev_truth = world.flight().StateAt(0).position;
@@ -140,7 +152,11 @@ int main(int argc, char** argv) {
     const auto r0 = std::chrono::steady_clock::now();
     const cv::Mat frame = world.RenderFrame(t);
     render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - r0).count();
+    const double cpu0 = ProcessCpuSeconds();
     const vloc::mosaic::FrameState s = mosaicker.ProcessFrame(frame, world.FrameUtime(i));
+    const double cpu_s = ProcessCpuSeconds() - cpu0;
+    cpu_all_s += cpu_s;
+    if (!s.mosaic_updated && s.status != vloc::mosaic::TrackStatus::kCalibrating) cpu_track_ms.push_back(1e3 * cpu_s);
     const vloc::UavState truth = world.flight().StateAt(t);
     dist += (truth.position.head<2>() - prev_truth.head<2>()).norm();
     prev_truth = truth.position;
@@ -201,11 +217,15 @@ int main(int argc, char** argv) {
     std::cout << "route error (georeferenced frames " << georef << "): RMS " << std::sqrt(se_route / georef) << " m, max "
               << max_route << " m (" << 100 * max_route / dist << " % of distance), final " << last_route
               << " m, max in GPS drop-outs " << max_route_dropout << " m (" << 100 * max_route_dropout / dist << " %)\n";
+  std::cout << "CPU per frame (process, all threads; independent of load): tracking+height median "
+            << Median(cpu_track_ms) << " ms (frames not blended), all frames mean " << 1e3 * cpu_all_s / std::max(1, frames)
+            << " ms\n";
   std::cout << "time per frame: tracking+height median " << Median(track_ms) << " ms, mosaic blend median "
             << Median(mosaic_ms) << " ms (" << blends << " blends); throughput " << frames / std::max(1e-9, total_s)
             << " frames/s, mosaic updates " << blends / std::max(1e-9, total_s) << " /s of processing; render "
             << 1e3 * render_s / std::max(1, frames) << " ms/frame (not counted)\n";
-  std::cout << "memory: peak RSS " << PeakRssMb() << " MB (process incl. simulator), canvas "
+  std::cout << "memory: peak RSS " << PeakRssMb() << " MB, at the end " << StatusMb("VmRSS:")
+            << " MB (process incl. simulator), canvas "
             << summary.canvas.bytes_in_memory / 1048576.0 << " MB, tiles " << summary.canvas.tiles_total
             << " (peak in memory " << summary.canvas.peak_tiles_in_memory << ", spilled " << summary.canvas.spills << ")\n";
   std::cout << summary.BriefReport() << "\n";

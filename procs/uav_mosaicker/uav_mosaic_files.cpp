@@ -48,7 +48,7 @@ int main(int argc, char** argv) {
     }
   }
   // --split: two views of one image with a known similarity between them.
-  double true_scale = 0, true_angle = 0;
+  double true_scale = 0;
   std::vector<std::string> names = args.positional();
   if (args.Has("split")) {
     const cv::Mat src = images[0];
@@ -67,7 +67,6 @@ int main(int argc, char** argv) {
     names = {args.positional()[0] + " (view 1)", args.positional()[0] + " (view 2)"};
     // View 1 px -> view 2 px is B^-1 A: scale 1/zoom (zoom out, lambda < 1), angle -angle.
     true_scale = 1.0 / zoom;
-    true_angle = -angle;
   }
   vloc::mosaic::MosaickerOptions options;
   try {

@@ -158,12 +158,14 @@ void BM_MosaicUpdate(benchmark::State& state) {
 BENCHMARK(BM_MosaicUpdate)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // The whole per-frame pipeline (tracking, height, route, blending every 3rd
-// frame): arg 0 = blending inside ProcessFrame, 1 = async_mosaic (worker thread).
+// frame): arg 0 = blending inside ProcessFrame, 1 = async_mosaic (worker thread),
+// 2 = async_mosaic with OpenCV on one thread (num_threads 1).
 void BM_FullPipeline(benchmark::State& state) {
   const auto& frames = Frames();
   std::unique_ptr<vm::UavMosaicker> m;
   vm::MosaickerOptions options = Options();
-  options.async_mosaic = state.range(0) == 1;
+  options.async_mosaic = state.range(0) >= 1;
+  if (state.range(0) == 2) options.num_threads = 1;  // tracking thread + blending thread, OpenCV single-threaded
   size_t i = 0;
   int64_t blends = 0;
   double mosaic_s = 0;
@@ -193,7 +195,7 @@ void BM_FullPipeline(benchmark::State& state) {
   // Includes the set-up frames of each restart (1 in 60).
   state.counters["cpu_ms_per_frame"] = 1e3 * (ProcessCpuSeconds() - cpu0) / std::max<int64_t>(1, state.iterations());
 }
-BENCHMARK(BM_FullPipeline)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_FullPipeline)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // Memory over a 10-minute flight: 8 m/s lawnmower at 60 m over wrapped
 // synthetic ground, one frame every 1.25 s of flight (the canvas and its memory
