@@ -43,14 +43,7 @@ const std::vector<cv::Mat>& Frames() {
 }
 
 vm::MosaickerOptions Options() {
-  vm::MosaickerOptions o;
-  o.camera.width = kCam.size.width;
-  o.camera.height = kCam.size.height;
-  o.camera.fx = o.camera.fy = kCam.f;
-  o.camera.cx = kCam.cx();
-  o.camera.cy = kCam.cy();
-  o.calibration.source = "config";
-  o.calibration.height = 40.0;
+  vm::MosaickerOptions o = vm::testing::OptionsForCamera(kCam, 40.0);
   o.canvas.metres_per_pixel = 0.08;
   o.matcher.downscale = 0.4;  // as config/procs/uav_mosaicker.yaml
   return o;

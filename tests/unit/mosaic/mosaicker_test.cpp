@@ -32,14 +32,7 @@ TruthPose Truth(double t) {
 }
 
 MosaickerOptions TestOptions(const NadirCamera& cam, double h0) {
-  MosaickerOptions o;
-  o.camera.width = cam.size.width;
-  o.camera.height = cam.size.height;
-  o.camera.fx = o.camera.fy = cam.f;
-  o.camera.cx = cam.cx();
-  o.camera.cy = cam.cy();
-  o.calibration.source = "config";
-  o.calibration.height = h0;
+  MosaickerOptions o = testing::OptionsForCamera(cam, h0);
   o.canvas.metres_per_pixel = 0.12;
   o.geo.min_spread = 5.0;
   return o;

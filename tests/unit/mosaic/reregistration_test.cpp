@@ -64,14 +64,7 @@ struct RouteErrors {
 
 RouteErrors Fly(const testing::SyntheticGround& ground, int reregister_every) {
   const NadirCamera cam;
-  MosaickerOptions o;
-  o.camera.width = cam.size.width;
-  o.camera.height = cam.size.height;
-  o.camera.fx = o.camera.fy = cam.f;
-  o.camera.cx = cam.cx();
-  o.camera.cy = cam.cy();
-  o.calibration.source = "config";
-  o.calibration.height = Truth(0).height;
+  MosaickerOptions o = testing::OptionsForCamera(cam, Truth(0).height);
   o.canvas.metres_per_pixel = 0.1;
   o.reregister_every_n_frames = reregister_every;
   UavMosaicker m(o);

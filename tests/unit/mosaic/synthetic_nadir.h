@@ -9,6 +9,8 @@
 #include <cmath>
 #include <vector>
 
+#include "vloc/mosaic/uav_mosaicker.h"
+
 namespace vloc::mosaic::testing {
 
 struct SyntheticGround {
@@ -83,6 +85,19 @@ inline cv::Mat RenderNadir(const SyntheticGround& g, const NadirCamera& cam, dou
     o16.convertTo(out, CV_8UC3);
   }
   return out;
+}
+
+// Mosaicker options for frames of `cam`, calibrated from config at `height` m.
+inline MosaickerOptions OptionsForCamera(const NadirCamera& cam, double height) {
+  MosaickerOptions o;
+  o.camera.width = cam.size.width;
+  o.camera.height = cam.size.height;
+  o.camera.fx = o.camera.fy = cam.f;
+  o.camera.cx = cam.cx();
+  o.camera.cy = cam.cy();
+  o.calibration.source = "config";
+  o.calibration.height = height;
+  return o;
 }
 
 // A simple truth trajectory: position (m), height (m), yaw (rad) at t (s).
