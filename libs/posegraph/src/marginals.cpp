@@ -11,7 +11,7 @@
 
 #include <Eigen/SparseCholesky>
 #include <algorithm>
-#include <mrpt/poses/Lie/SE.h>
+#include <stdexcept>
 
 #include "vloc/posegraph/mrpt_optimize.h"
 
@@ -54,19 +54,35 @@ bool BlockDiagonalOfInverse(const Eigen::SparseMatrix<double>& matrix, int block
     return z[static_cast<size_t>(it - inner)];
   };
 
+  // Column j needs Z(i, k) for every pair of rows i >= k > j of its pattern:
+  // Z(i, k) lies in column k. Scatter column k's rows once (row -> position)
+  // and read all its pairs in O(1), each pair feeding both rows' sums.
+  std::vector<int> position(static_cast<size_t>(n), -1);
+  std::vector<double> acc;
   for (int j = n - 1; j >= 0; --j) {
     const int begin = outer[j];
     const int end = outer[j + 1];
     if (inner[begin] != j || !(values[begin] > 0.0)) return false;
     const double ljj = values[begin];
-    for (int p = end - 1; p > begin; --p) {
-      const int i = inner[p];
-      double sum = 0.0;
-      for (int q = begin + 1; q < end; ++q) sum += values[q] * z_at(i, inner[q]);
-      z[static_cast<size_t>(p)] = -sum / ljj;
+    const int m = end - begin - 1;  // rows below the diagonal
+    acc.assign(static_cast<size_t>(m), 0.0);
+    for (int a = 0; a < m; ++a) {
+      const int k = inner[begin + 1 + a];
+      for (int t = outer[k]; t < outer[k + 1]; ++t) position[static_cast<size_t>(inner[t])] = t;
+      for (int b = a; b < m; ++b) {
+        const int at = position[static_cast<size_t>(inner[begin + 1 + b])];
+        if (at < 0) continue;  // outside the pattern: never needed
+        const double z_ik = z[static_cast<size_t>(at)];
+        acc[static_cast<size_t>(b)] += values[begin + 1 + a] * z_ik;
+        if (b != a) acc[static_cast<size_t>(a)] += values[begin + 1 + b] * z_ik;
+      }
+      for (int t = outer[k]; t < outer[k + 1]; ++t) position[static_cast<size_t>(inner[t])] = -1;
     }
     double sum = 0.0;
-    for (int q = begin + 1; q < end; ++q) sum += values[q] * z[static_cast<size_t>(q)];
+    for (int b = 0; b < m; ++b) {
+      z[static_cast<size_t>(begin + 1 + b)] = -acc[static_cast<size_t>(b)] / ljj;
+      sum += values[begin + 1 + b] * z[static_cast<size_t>(begin + 1 + b)];
+    }
     z[static_cast<size_t>(begin)] = 1.0 / (ljj * ljj) - sum / ljj;
   }
 
@@ -84,8 +100,7 @@ bool BlockDiagonalOfInverse(const Eigen::SparseMatrix<double>& matrix, int block
 }
 
 bool LocalMarginals(const mrpt::graphs::CNetworkOfPoses3DInf& graph,
-                    std::map<mrpt::graphs::TNodeID, Matrix6d>* marginals, std::string* error) {
-  using SE3 = mrpt::poses::Lie::SE<3>;
+                    std::map<mrpt::graphs::TNodeID, Matrix6d>* marginals, std::string* error, int num_threads) {
   marginals->clear();
   std::map<mrpt::graphs::TNodeID, int> index;
   std::vector<mrpt::graphs::TNodeID> ids;
@@ -95,44 +110,14 @@ bool LocalMarginals(const mrpt::graphs::CNetworkOfPoses3DInf& graph,
     ids.push_back(n.first);
   }
   if (ids.empty()) return true;
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(graph.edges.size() * 3 * 36);
-  auto add_block = [&](int bi, int bj, const Matrix6d& block) {
-    // Lower triangle only (row block >= column block).
-    if (bi < bj) return;
-    for (int r = 0; r < 6; ++r)
-      for (int c = 0; c < 6; ++c)
-        if (bi > bj || r >= c) triplets.emplace_back(6 * bi + r, 6 * bj + c, block(r, c));
-  };
-  for (const auto& [key, edge] : graph.edges) {
-    const auto it1 = graph.nodes.find(key.first);
-    const auto it2 = graph.nodes.find(key.second);
-    if (it1 == graph.nodes.end() || it2 == graph.nodes.end()) {
-      if (error) *error = "edge to a missing node";
-      return false;
-    }
-    SE3::matrix_TxT J1, J2;
-    const mrpt::poses::CPose3D p1 = it1->second;
-    const mrpt::poses::CPose3D p2 = it2->second;
-    SE3::jacob_dDinvP1invP2_de1e2(-edge.mean, p1, p2, J1, J2);
-    const Matrix6d W = edge.cov_inv.asEigen();
-    const Matrix6d A = J1.asEigen();
-    const Matrix6d B = J2.asEigen();
-    const auto f1 = index.find(key.first);
-    const auto f2 = index.find(key.second);
-    const bool free1 = f1 != index.end();
-    const bool free2 = f2 != index.end();
-    if (free1) add_block(f1->second, f1->second, A.transpose() * W * A);
-    if (free2) add_block(f2->second, f2->second, B.transpose() * W * B);
-    if (free1 && free2) {
-      const Matrix6d AB = A.transpose() * W * B;  // block (1, 2)
-      if (f1->second > f2->second) add_block(f1->second, f2->second, AB);
-      else add_block(f2->second, f1->second, AB.transpose());
-    }
+  Eigen::SparseMatrix<double> H;
+  Eigen::VectorXd g;
+  try {
+    Linearise(graph, index, num_threads, &H, &g);
+  } catch (const std::exception& e) {
+    if (error) *error = e.what();
+    return false;
   }
-  const int n = static_cast<int>(ids.size()) * 6;
-  Eigen::SparseMatrix<double> H(n, n);
-  H.setFromTriplets(triplets.begin(), triplets.end());
   std::vector<Eigen::MatrixXd> blocks;
   if (!BlockDiagonalOfInverse(H, 6, &blocks)) {
     if (error)

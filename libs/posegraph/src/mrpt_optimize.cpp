@@ -8,6 +8,8 @@
 #include <mrpt/graphslam/levmarq.h>
 #include <mrpt/poses/Lie/SE.h>
 #include <stdexcept>
+#include <type_traits>
+#include <vector>
 
 namespace vloc::posegraph {
 
@@ -20,6 +22,7 @@ void OptimizerOptions::Visit(OptionsReader& r) {
   r.Optional("step_tolerance", &step_tolerance, "stop when |step| < tol * (|x| + tol)");
   r.Optional("tau", &tau, "initial damping factor relative to the Hessian diagonal");
   r.Optional("verbose", &verbose, "print MRPT's iterations");
+  r.Optional("num_threads", &num_threads, "OpenMP threads of the weighted LM's linearisation");
 }
 
 bool OptimizerOptions::Check(std::string* error) const {
@@ -29,6 +32,7 @@ bool OptimizerOptions::Check(std::string* error) const {
   if (!(gradient_tolerance > 0.0)) return Fail(error, "gradient_tolerance must be > 0");
   if (!(step_tolerance > 0.0)) return Fail(error, "step_tolerance must be > 0");
   if (!(tau > 0.0)) return Fail(error, "tau must be > 0");
+  if (num_threads < 1) return Fail(error, "num_threads must be >= 1");
   return true;
 }
 
@@ -118,35 +122,7 @@ int RefineWeighted(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOpt
   bool analysed = false;
   for (int iter = 0; iter < options.max_iterations; ++iter) {
     if (rebuild) {
-      std::vector<Eigen::Triplet<double>> triplets;
-      triplets.reserve(graph.edges.size() * 4 * 36);
-      g.setZero();
-      for (const auto& [key, edge] : graph.edges) {
-        const mrpt::poses::CPose3D p1 = graph.nodes.at(key.first);
-        const mrpt::poses::CPose3D p2 = graph.nodes.at(key.second);
-        SE3::matrix_TxT J1, J2;
-        SE3::jacob_dDinvP1invP2_de1e2(-edge.mean, p1, p2, J1, J2);
-        const auto residual = SE3::log((p2 - p1) - edge.mean);
-        const Vector6d e = residual.asEigen();
-        const Matrix6d W = edge.cov_inv.asEigen();
-        const Matrix6d J[2] = {J1.asEigen(), J2.asEigen()};
-        int idx[2] = {-1, -1};
-        const auto f1 = index.find(key.first), f2 = index.find(key.second);
-        if (f1 != index.end()) idx[0] = f1->second;
-        if (f2 != index.end()) idx[1] = f2->second;
-        for (int a = 0; a < 2; ++a) {
-          if (idx[a] < 0) continue;
-          g.segment<6>(6 * idx[a]) += J[a].transpose() * W * e;
-          for (int b = 0; b < 2; ++b) {
-            if (idx[b] < 0 || idx[a] < idx[b]) continue;  // lower triangle only
-            const Matrix6d block = J[a].transpose() * W * J[b];
-            for (int r = 0; r < 6; ++r)
-              for (int c = 0; c < 6; ++c)
-                if (idx[a] > idx[b] || r >= c) triplets.emplace_back(6 * idx[a] + r, 6 * idx[b] + c, block(r, c));
-          }
-        }
-      }
-      H.setFromTriplets(triplets.begin(), triplets.end());
+      Linearise(graph, index, options.num_threads, &H, &g);
       diagonal = H.diagonal().cwiseMax(1e-12);
       if (g.lpNorm<Eigen::Infinity>() <= options.gradient_tolerance) break;
       if (lambda < 0) lambda = 1e-5;  // Marquardt: relative to each diagonal entry
@@ -171,7 +147,10 @@ int RefineWeighted(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOpt
       x_norm += p.x() * p.x() + p.y() * p.y() + p.z() * p.z();
     }
     if (delta.norm() < options.step_tolerance * (std::sqrt(x_norm) + options.step_tolerance)) break;
-    auto backup = graph.nodes;
+    // Backup by value, restored in place: edge_list/node_ptr point into the maps.
+    std::vector<typename std::decay_t<decltype(graph.nodes)>::mapped_type> backup;
+    backup.reserve(index.size());
+    for (const auto& [id, i] : index) backup.push_back(graph.nodes.at(id));
     for (const auto& [id, i] : index) {
       SE3::tangent_vector step;
       for (int k = 0; k < 6; ++k) step[k] = -delta[6 * i + k];
@@ -189,7 +168,8 @@ int RefineWeighted(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOpt
       rebuild = true;
       if (converged) break;
     } else {
-      graph.nodes = std::move(backup);
+      size_t k = 0;
+      for (const auto& [id, i] : index) graph.nodes.at(id) = backup[k++];
       lambda *= 10.0;
       if (lambda > 1e12) break;
     }
@@ -198,6 +178,104 @@ int RefineWeighted(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOpt
 }
 
 }  // namespace
+
+Eigen::Matrix3d InverseRightJacobianSO3(const Eigen::Vector3d& theta) {
+  const double phi = theta.norm();
+  const Eigen::Matrix3d K = Skew(theta);
+  // 1/phi^2 - (1 + cos phi) / (2 phi sin phi), series below 1e-4 rad.
+  const double c = phi < 1e-4 ? 1.0 / 12.0 + phi * phi / 720.0
+                              : 1.0 / (phi * phi) - (1.0 + std::cos(phi)) / (2.0 * phi * std::sin(phi));
+  return Eigen::Matrix3d::Identity() + 0.5 * K + c * K * K;
+}
+
+Vector6d EdgeResidualAndJacobians(const mrpt::poses::CPose3D& z, const mrpt::poses::CPose3D& p1,
+                                  const mrpt::poses::CPose3D& p2, Matrix6d* J1, Matrix6d* J2) {
+  using SE3 = mrpt::poses::Lie::SE<3>;
+  // T = Z^-1 P1^-1 P2 = D B, D = Z^-1, B = P1^-1 P2; e = [t_T; Log(R_T)].
+  // With P_i <- P_i exp([tau_i; w_i]) (translation uncoupled, MRPT's
+  // pseudo-exponential), at zero:
+  //   de/d(tau1, w1) = [-R_D, R_D [t_B]x; 0, -Jr^-1(Log R_T) R_B^T]
+  //   de/d(tau2, w2) = [R_T, 0; 0, Jr^-1(Log R_T)]
+  const mrpt::poses::CPose3D B = p2 - p1;
+  const Vector6d e = SE3::log(B - z).asEigen();
+  const Eigen::Matrix3d R_B = B.getRotationMatrix().asEigen();
+  const Eigen::Matrix3d R_D = z.getRotationMatrix().asEigen().transpose();
+  const Eigen::Matrix3d R_T = R_D * R_B;
+  const Eigen::Vector3d t_B(B.x(), B.y(), B.z());
+  const Eigen::Matrix3d Jr_inv = InverseRightJacobianSO3(e.tail<3>());
+  J1->setZero();
+  J1->topLeftCorner<3, 3>() = -R_D;
+  J1->topRightCorner<3, 3>() = R_D * Skew(t_B);
+  J1->bottomRightCorner<3, 3>() = -Jr_inv * R_B.transpose();
+  J2->setZero();
+  J2->topLeftCorner<3, 3>() = R_T;
+  J2->bottomRightCorner<3, 3>() = Jr_inv;
+  return e;
+}
+
+void Linearise(const mrpt::graphs::CNetworkOfPoses3DInf& graph, const std::map<mrpt::graphs::TNodeID, int>& index,
+               int num_threads, Eigen::SparseMatrix<double>* H, Eigen::VectorXd* g) {
+  using SE3 = mrpt::poses::Lie::SE<3>;
+  struct Linearised {
+    Matrix6d H11, H22, H21;
+    Vector6d g1, g2;
+    int i1 = -1, i2 = -1;  // unknown index of each node, -1 = fixed (root)
+  };
+  std::vector<const std::decay_t<decltype(graph.edges)>::value_type*> edges;
+  edges.reserve(graph.edges.size());
+  for (const auto& entry : graph.edges) {
+    if (!graph.nodes.count(entry.first.first) || !graph.nodes.count(entry.first.second))
+      throw std::runtime_error("pose graph edge " + std::to_string(entry.first.first) + "->" +
+                               std::to_string(entry.first.second) + " refers to a missing node");
+    edges.push_back(&entry);
+  }
+  const int m = static_cast<int>(edges.size());
+  std::vector<Linearised> lin(edges.size());
+  // Each edge on its own (in parallel), then one serial assembly.
+#pragma omp parallel for schedule(static) num_threads(std::max(1, num_threads))
+  for (int k = 0; k < m; ++k) {
+    const auto& [key, edge] = *edges[static_cast<size_t>(k)];
+    const mrpt::poses::CPose3D& p1 = graph.nodes.at(key.first);
+    const mrpt::poses::CPose3D& p2 = graph.nodes.at(key.second);
+    Matrix6d J1, J2;
+    const Vector6d e = EdgeResidualAndJacobians(edge.mean, p1, p2, &J1, &J2);
+    const Matrix6d W = edge.cov_inv.asEigen();
+    Linearised& l = lin[static_cast<size_t>(k)];
+    const Matrix6d WJ1 = W * J1, WJ2 = W * J2;
+    l.g1 = WJ1.transpose() * e;
+    l.g2 = WJ2.transpose() * e;
+    l.H11 = J1.transpose() * WJ1;
+    l.H22 = J2.transpose() * WJ2;
+    l.H21 = J2.transpose() * WJ1;
+    const auto f1 = index.find(key.first), f2 = index.find(key.second);
+    l.i1 = f1 != index.end() ? f1->second : -1;
+    l.i2 = f2 != index.end() ? f2->second : -1;
+  }
+  const int n = 6 * static_cast<int>(index.size());
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(static_cast<size_t>(m) * 78);
+  g->setZero(n);
+  auto add_block = [&](int a, int b, const Matrix6d& block) {  // a >= b: lower triangle only
+    for (int c = 0; c < 6; ++c)
+      for (int r = (a == b ? c : 0); r < 6; ++r) triplets.emplace_back(6 * a + r, 6 * b + c, block(r, c));
+  };
+  for (const Linearised& l : lin) {
+    if (l.i1 >= 0) {
+      g->segment<6>(6 * l.i1) += l.g1;
+      add_block(l.i1, l.i1, l.H11);
+    }
+    if (l.i2 >= 0) {
+      g->segment<6>(6 * l.i2) += l.g2;
+      add_block(l.i2, l.i2, l.H22);
+    }
+    if (l.i1 >= 0 && l.i2 >= 0) {
+      if (l.i2 > l.i1) add_block(l.i2, l.i1, l.H21);
+      else add_block(l.i1, l.i2, l.H21.transpose());
+    }
+  }
+  H->resize(n, n);
+  H->setFromTriplets(triplets.begin(), triplets.end());
+}
 
 OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOptions& options) {
   OptimizerResult result = OptimizeImpl(graph, options, options.mrpt_max_iterations, options.mrpt_window);

@@ -361,7 +361,7 @@ PoseGraphSummary TraverseGraph::Optimize() {
   if (options_.compute_marginals) {
     const auto m_start = Clock::now();
     std::string error;
-    s.marginals_valid = LocalMarginals(graph_, &marginals_, &error);
+    s.marginals_valid = LocalMarginals(graph_, &marginals_, &error, options_.optimizer.num_threads);
     if (!s.marginals_valid) s.message = error;
     s.marginal_seconds = Since(m_start);
   }

@@ -145,6 +145,45 @@ TEST(Marginals, SelectedInversionMatchesDenseInverse) {
   EXPECT_FALSE(BlockDiagonalOfInverse((-dense).sparseView(), 6, &result));
 }
 
+TEST(Jacobians, ClosedFormMatchesMrptAndFiniteDifferences) {
+  using SE3 = mrpt::poses::Lie::SE<3>;
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  auto random_pose = [&](double t, double r) {
+    return ToMrpt(MakePose(t * u(rng), t * u(rng), t * u(rng), r * u(rng), r * u(rng), r * u(rng)));
+  };
+  for (int trial = 0; trial < 20; ++trial) {
+    // Residual rotations from large (1 rad) down to tiny (near-converged edges).
+    const double r = trial < 10 ? 1.0 : std::pow(10.0, -trial + 8);
+    const mrpt::poses::CPose3D p1 = random_pose(20, 3), p2 = p1 + random_pose(10, 1);
+    const mrpt::poses::CPose3D z = (p2 - p1) + random_pose(0.5, r);
+    Matrix6d J1, J2;
+    const Vector6d e = EdgeResidualAndJacobians(z, p1, p2, &J1, &J2);
+    EXPECT_LT((e - SE3::log((p2 - p1) - z).asEigen()).norm(), 1e-12);
+    SE3::matrix_TxT M1, M2;
+    SE3::jacob_dDinvP1invP2_de1e2(-z, p1, p2, M1, M2);
+    if (trial < 10) {  // MRPT's small-angle branch differs at second order; compare away from it
+      EXPECT_LT((J1 - M1.asEigen()).cwiseAbs().maxCoeff(), 1e-6) << trial << "\n" << J1 << "\n" << M1.asEigen();
+      EXPECT_LT((J2 - M2.asEigen()).cwiseAbs().maxCoeff(), 1e-6) << trial;
+    }
+    // Central differences of the residual itself.
+    for (int k = 0; k < 6; ++k) {
+      const double h = 1e-6;
+      SE3::tangent_vector d;
+      d.fill(0);
+      d[k] = h;
+      SE3::tangent_vector m = d;
+      m[k] = -h;
+      const Vector6d de1 = (SE3::log((p2 - (p1 + SE3::exp(d))) - z).asEigen() -
+                            SE3::log((p2 - (p1 + SE3::exp(m))) - z).asEigen()) / (2 * h);
+      const Vector6d de2 = (SE3::log(((p2 + SE3::exp(d)) - p1) - z).asEigen() -
+                            SE3::log(((p2 + SE3::exp(m)) - p1) - z).asEigen()) / (2 * h);
+      EXPECT_LT((de1 - J1.col(k)).cwiseAbs().maxCoeff(), 1e-5) << trial << " col " << k;
+      EXPECT_LT((de2 - J2.col(k)).cwiseAbs().maxCoeff(), 1e-5) << trial << " col " << k;
+    }
+  }
+}
+
 TEST(TraverseGraph, OptimumBeatsOdometryAndCovariancesAreConsistent) {
   const int sites = 20, seeds = 40;
   double nees_position = 0.0, nees_rotation = 0.0;

@@ -43,6 +43,7 @@ struct OptimizerOptions {
                                      // default 1e-6 is loose on long traverses (|x| grows with the distance)
   double tau = 1e-3;                 // initial damping = tau * max diagonal of the Hessian (MRPT "tau")
   bool verbose = false;              // MRPT prints every iteration to stdout
+  int num_threads = 1;               // OpenMP threads linearising the edges (LM and marginals); 1 is fastest on a busy 2-core machine
 
   void Visit(OptionsReader& r);
   bool Check(std::string* error) const;
@@ -86,8 +87,26 @@ Matrix6d VlocFromLocalCovariance(const Pose3& a_from_b, const Matrix6d& covarian
 // selected-inversion recurrence over the factor's pattern (exact, and about
 // linear in the number of sites for a traverse with few loops). Returns
 // false (with *error) when H is singular, e.g. a node not linked to the root.
+// The edges are linearised on `num_threads` OpenMP threads.
 bool LocalMarginals(const mrpt::graphs::CNetworkOfPoses3DInf& graph,
-                    std::map<mrpt::graphs::TNodeID, Matrix6d>* marginals, std::string* error);
+                    std::map<mrpt::graphs::TNodeID, Matrix6d>* marginals, std::string* error, int num_threads = 1);
+
+// The residual of an edge i->j measuring z = i_from_j, e = pseudo-log(z^-1
+// p1^-1 p2) = [t; Log R] (MRPT's), and its Jacobians with respect to
+// right increments of p1 and p2 (MRPT's retraction p (+) exp(d)), in closed
+// form (the inverse right Jacobian of SO(3) for the rotation): the same
+// matrices as MRPT's SE<3>::jacob_dDinvP1invP2_de1e2(-z, p1, p2) at a
+// fraction of its cost.
+Vector6d EdgeResidualAndJacobians(const mrpt::poses::CPose3D& z, const mrpt::poses::CPose3D& p1,
+                                  const mrpt::poses::CPose3D& p2, Matrix6d* J1, Matrix6d* J2);
+
+// Gauss-Newton linearisation at the current estimate, with MRPT's residual
+// and EdgeResidualAndJacobians: H = sum J^T W J (lower triangle only) and g = sum J^T W e
+// over the free nodes, node id -> unknown block `index` (the root absent).
+// Edges are linearised in parallel on `num_threads` threads, assembled
+// serially. Throws std::runtime_error for an edge to a missing node.
+void Linearise(const mrpt::graphs::CNetworkOfPoses3DInf& graph, const std::map<mrpt::graphs::TNodeID, int>& index,
+               int num_threads, Eigen::SparseMatrix<double>* H, Eigen::VectorXd* g);
 
 // Diagonal blocks (block_size x block_size) of the inverse of a symmetric
 // positive-definite sparse matrix (the lower triangle is read). Exposed for
