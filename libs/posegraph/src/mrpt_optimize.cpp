@@ -215,7 +215,6 @@ Vector6d EdgeResidualAndJacobians(const mrpt::poses::CPose3D& z, const mrpt::pos
 
 void Linearise(const mrpt::graphs::CNetworkOfPoses3DInf& graph, const std::map<mrpt::graphs::TNodeID, int>& index,
                int num_threads, Eigen::SparseMatrix<double>* H, Eigen::VectorXd* g) {
-  using SE3 = mrpt::poses::Lie::SE<3>;
   struct Linearised {
     Matrix6d H11, H22, H21;
     Vector6d g1, g2;
