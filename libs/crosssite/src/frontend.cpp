@@ -519,6 +519,8 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
       FeatureSet warped;
       cv::Mat coverage;  // warped current image's coverage of the train grid
       cv::Mat warped_image, previous_crop;  // the warped current image and the previous region on the train grid
+      bool registered = false;              // the warp is corrected by tile registration
+      int tile_inliers = 0;
       cv::Matx33d cur_from_train = cv::Matx33d::eye();
       cv::Matx33d train_from_prev = cur_from_prev;
       if (o.warp_current) {
@@ -550,33 +552,72 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
           cv::GaussianBlur(source, blurred, cv::Size(0, 0), std::max(bx, 0.01), std::max(by, 0.01));
           source = blurred;
         }
-        cv::Mat img, mask;
-        cv::warpPerspective(source, img, cv::Mat(cur_from_train), size,
-                            cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT, 0);
-        cv::warpPerspective(cv::Mat(cur_l[ov.current_pair].gray.size(), CV_8UC1, cv::Scalar(255)), mask,
-                            cv::Mat(cur_from_train), size, cv::INTER_NEAREST | cv::WARP_INVERSE_MAP,
-                            cv::BORDER_CONSTANT, 0);
-        // The previous region was zoomed up by z: its finest detail is z grid
-        // px, while the warped current image still holds detail down to one
-        // grid px (the previous site saw this ground from farther away). Blur
-        // the warped image to the previous region's resolution, or SIFT
-        // describes different texture at the two sites.
-        if (z > 1.05 && o.match_previous_resolution) {
-          const double bz = 0.8 * std::sqrt(z * z - 1);
-          cv::GaussianBlur(img, img, cv::Size(0, 0), bz, bz);
+        {
+          const cv::Rect in_work(grid0.x, grid0.y, size.width, size.height);
+          previous_crop = prev_work[ov.previous_pair](in_work & cv::Rect(0, 0, prev_work[ov.previous_pair].cols,
+                                                                          prev_work[ov.previous_pair].rows));
         }
-        cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(9, 9)));
+        cv::Mat img, mask;
+        auto warp = [&]() {
+          cv::warpPerspective(source, img, cv::Mat(cur_from_train), size, cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
+                              cv::BORDER_CONSTANT, 0);
+          cv::warpPerspective(cv::Mat(cur_l[ov.current_pair].gray.size(), CV_8UC1, cv::Scalar(255)), mask,
+                              cv::Mat(cur_from_train), size, cv::INTER_NEAREST | cv::WARP_INVERSE_MAP,
+                              cv::BORDER_CONSTANT, 0);
+          // The previous region was zoomed up by z: its finest detail is z
+          // grid px, while the warped current image still holds detail down
+          // to one grid px (the previous site saw this ground from farther
+          // away). Blur the warped image to the previous region's
+          // resolution, or SIFT describes different texture at the two sites.
+          if (z > 1.05 && o.match_previous_resolution) {
+            const double bz = 0.8 * std::sqrt(z * z - 1);
+            cv::GaussianBlur(img, img, cv::Size(0, 0), bz, bz);
+          }
+          cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(9, 9)));
+        };
+        warp();
+        // Stage 1 (registration): where the tiles of the warped current image
+        // lie in the previous region, correlated over the whole DR gate; a
+        // pose error of the camera maps the ground plane by a homography (on
+        // the previous image's grid a lateral error shears the offsets, a
+        // range error stretches them). Then the current image is warped
+        // again with the correction, and once more registered within a few
+        // px, so that features are detected on an image aligned with the
+        // previous region.
+        if (o.tile_registration && !previous_crop.empty()) {
+          const double train_per_cur0 = ov.scale * z;
+          double radius =
+              std::min(ov.growth_px / std::max(ov.scale, 1e-3) + o.gate_margin_px, o.max_gate_px) * train_per_cur0;
+          for (int pass = 0; pass < 2; ++pass) {
+            const auto tiles = RegisterTiles(img, mask, previous_crop, radius, o.tiles);
+            std::vector<cv::Point2f> from, to;
+            for (const auto& t : tiles) {
+              from.emplace_back(static_cast<float>(t.fixed_px.x()), static_cast<float>(t.fixed_px.y()));
+              to.emplace_back(static_cast<float>(t.moving_px.x()), static_cast<float>(t.moving_px.y()));
+            }
+            int n_in = 0;
+            cv::Mat A;
+            if (static_cast<int>(tiles.size()) >= o.min_tile_inliers) {
+              std::vector<uchar> inl;
+              A = cv::findHomography(from, to, cv::RANSAC, o.tile_inlier_px * o.tiles.reduction, inl, 5000, 0.999);
+              for (uchar v : inl) n_in += v ? 1 : 0;
+            }
+            VLOG(1) << "overlap cur " << ov.current_pair << " prev " << ov.previous_pair << " pass " << pass << ": "
+                    << tiles.size() << " tiles correlated, " << n_in << " agree on one motion";
+            if (A.empty() || n_in < o.min_tile_inliers) break;
+            cur_from_train = cur_from_train * cv::Matx33d(A);  // A: true grid -> predicted grid
+            tile_inliers = std::max(tile_inliers, n_in);
+            registered = true;
+            warp();
+            radius = 3.0 * o.tiles.reduction;
+          }
+        }
         coverage = mask;
         std::vector<AffineView> views{{1.0, 0.0}};
         for (double t : o.asift.tilts)
           if (t > 1 + 1e-6 && t <= o.warp_max_tilt) views.push_back({t, 0.0}), views.push_back({t, M_PI / 2});
         warped = DetectAsift(img, mask, views, single);
         warped_image = img;
-        {
-          const cv::Rect in_work(grid0.x, grid0.y, size.width, size.height);
-          previous_crop = prev_work[ov.previous_pair](in_work & cv::Rect(0, 0, prev_work[ov.previous_pair].cols,
-                                                                          prev_work[ov.previous_pair].rows));
-        }
         if (const char* dump = std::getenv("VLOC_FRONTEND_DUMP")) {
           const std::string base = std::string(dump) + "/ov_c" + std::to_string(ov.current_pair) + "_p" +
                                    std::to_string(ov.previous_pair);
@@ -646,34 +687,9 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
           if (F.empty() || F.rows != 3) F = cv::Mat();
         }
       };
-      // Stage 1a: where the tiles of the warped current image lie in the
-      // previous region (correlation over the whole DR gate).
-      bool registered = false;
-      if (o.warp_current && o.tile_registration && !warped_image.empty() && !previous_crop.empty()) {
-        const auto tiles = RegisterTiles(warped_image, coverage, previous_crop, g.gate_radius, o.tiles);
-        std::vector<cv::Point2f> from, to;
-        for (const auto& t : tiles) {
-          from.emplace_back(static_cast<float>(t.fixed_px.x()), static_cast<float>(t.fixed_px.y()));
-          to.emplace_back(static_cast<float>(t.moving_px.x()), static_cast<float>(t.moving_px.y()));
-        }
-        int n_in = 0;
-        cv::Mat A;
-        if (static_cast<int>(tiles.size()) >= o.min_tile_inliers) {
-          std::vector<uchar> inl;
-          // A pose error of the camera maps the ground plane by a homography:
-          // on the previous image's grid a lateral error shears the offsets
-          // (larger near the camera), a range error stretches them.
-          A = cv::findHomography(from, to, cv::RANSAC, o.tile_inlier_px * o.tiles.reduction, inl, 5000, 0.999);
-          for (uchar v : inl) n_in += v ? 1 : 0;
-        }
-        stage1_inliers = n_in;
-        if (!A.empty() && n_in >= o.min_tile_inliers) {
-          const cv::Matx33d G(A);  // true train -> predicted train
-          registered = true;
-          stage2(G * train_from_prev);
-        }
-        VLOG(1) << "overlap cur " << ov.current_pair << " prev " << ov.previous_pair << ": " << tiles.size()
-                << " tiles correlated, " << n_in << " agree on one motion" << (registered ? "" : ": not registered");
+      if (registered) {
+        stage1_inliers = tile_inliers;
+        stage2(train_from_prev);  // the warp is aligned with the previous region
       }
       if (!registered && o.fundamental_threshold_px > 0) {
         // Stage 1 -> refined prediction. The DR error shifts the true

@@ -53,11 +53,11 @@ inline LsmOptions GridLsmDefaults() {
   return o;
 }
 
-// 97 % (chi-square 3 DoF): the stated covariances hold the angular error
+// 95 % (chi-square 3 DoF): the stated covariances hold the angular error
 // floor (sigma_angle_px), so misplaced matches sit just beyond.
 inline MotionConsistencyOptions MotionDefaults() {
   MotionConsistencyOptions o;
-  o.max_mahalanobis_sq = 9.0;
+  o.max_mahalanobis_sq = 7.81;
   return o;
 }
 
@@ -92,14 +92,14 @@ struct FrontendOptions {
   bool grid_lsm_enabled = true;        // cross-site LSM on the previous region's grid (warp_current)
   double grid_min_zncc = 0.6;          // correlation peak needed before the grid LSM ...
   double grid_min_margin = 0.0;        // ... and its lead over the best score >= 3 grid px away (uniqueness)
-  int grid_search_px = 12;             // px (grid), correlation search around a match before the grid LSM
+  int grid_search_px = 6;              // px (grid), correlation search around a match before the grid LSM
   bool keep_grid_unrefined = false;    // keep matches the grid LSM could not refine (with sigma_unrefined_px)
   bool tile_registration = true;       // stage 1 by tile correlation (falls back to the SIFT offset cluster)
   int min_tile_inliers = 6;            // tiles agreeing on one similarity needed to register an overlap
   double tile_inlier_px = 1.5;         // reduced px, RANSAC threshold of that similarity
   double refine_homography_threshold_px = 12.0;  // px, RANSAC threshold of the stage-1 homography
   double stage1_cluster_fraction = 0.06; // stage-1 matches kept: offsets within 2x this fraction of the gate of the densest cluster
-  double refine_gate_px = 30.0;        // px, stage-2 gate around the refined prediction
+  double refine_gate_px = 10.0;        // px, stage-2 gate around the refined prediction
   double max_gate_px = 300.0;          // px, largest stage-1 gate (current-image px)
   int min_stage1_inliers = 12;         // stage-1 epipolar inliers needed to trust the refined prediction
   double refine_ratio = 0.85;          // stage-2 ratio test
