@@ -3,8 +3,8 @@
 // cv::AffineFeature (SIFT, default tilts) over whole left images +
 // brute-force matching, measured on one image pair and added up to the site
 // pair (14 images, 21 overlapping image pairs).
-//   VLOC_SIM_CACHE=/tmp/vloc-sim-cache build/bench/bench_frontend --benchmark_repetitions=5 \
-//     --benchmark_report_aggregates_only=true
+//   VLOC_SIM_CACHE=/tmp/vloc-sim-cache build/bench/bench_frontend --benchmark_repetitions=5
+//     (add --benchmark_report_aggregates_only=true for medians only)
 // (run from the source root; the cache folder keeps the rendered images between runs)
 #include <benchmark/benchmark.h>
 
