@@ -2,6 +2,7 @@
 
 #include <omp.h>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <Eigen/SVD>
@@ -11,6 +12,7 @@
 #include <cmath>
 #include <map>
 #include <numeric>
+#include <random>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -36,6 +38,11 @@ void FrontendOptions::Visit(OptionsReader& r) {
   r.Child("consistency", [&](OptionsReader& c) { consistency.Visit(c); });
   r.Child("tiles", [&](OptionsReader& c) { tiles.Visit(c); });
   r.Child("motion", [&](OptionsReader& c) { motion.Visit(c); });
+  r.Optional("fit_ground_planes", &fit_ground_planes, "fit each current image's ground plane to sparse stereo");
+  r.Optional("ground_grid_px", &ground_grid_px, "px, grid of the stereo points for the ground plane");
+  r.Optional("ground_min_points", &ground_min_points, "stereo points (and plane inliers) a ground plane needs");
+  r.Optional("ground_tolerance_m", &ground_tolerance_m, "m, plane inlier tolerance at short range");
+  r.Optional("ground_max_slope_deg", &ground_max_slope_deg, "deg, steepest accepted ground plane");
   r.Optional("motion_consistency", &motion_consistency, "keep only points that agree under one rigid motion");
   r.Child("grid_lsm", [&](OptionsReader& c) { grid_lsm.Visit(c); });
   r.Optional("grid_search_px", &grid_search_px, "px (grid), correlation search around a match before grid LSM");
@@ -284,6 +291,76 @@ bool Triangulate(const Eigen::Vector3d& o1, const Eigen::Vector3d& d1, const Eig
   return true;
 }
 
+// The ground seen by one current pair as a plane n . p + e = 0 (n up, unit)
+// in the body frame: ZNCC stereo on a coarse grid of the image, points
+// within the region ranges, RANSAC, least squares on the inliers. A zero
+// vector when there are too few points or the plane is implausible.
+Eigen::Vector4d FitGroundPlane(const NavcamModel& navcam, const MastPointing& pointing, const cv::Mat& left,
+                               const cv::Mat& right, const FrontendOptions& o) {
+  const Pose3 bl = navcam.mast.BodyFromLeft(pointing.pan, pointing.tilt, navcam.rig);
+  const Pose3 br = bl * navcam.rig.left_from_right;
+  const PinholeCamera& cam = navcam.rig.left;
+  std::vector<Eigen::Vector3d> pts;
+  const int step = std::max(8, o.ground_grid_px);
+  for (int v = step / 2; v < cam.height; v += step) {
+    for (int u = step / 2; u < cam.width; u += step) {
+      const Eigen::Vector2d px(u, v);
+      Eigen::Vector2d a, b;
+      if (!EpipolarSegment(navcam.rig, px, 0.5 * o.regions.min_range_current, 1.5 * o.regions.max_range_current, &a, &b))
+        continue;
+      const ZnccMatch z = ZnccAlongSegment(left, right, px, a, b, o.zncc);
+      if (!z.ok) continue;
+      Eigen::Vector3d p;
+      if (!Triangulate(bl.translation(), bl.linear() * cam.Ray(px), br.translation(),
+                       br.linear() * navcam.rig.right.Ray(z.right), &p))
+        continue;
+      const double range = (p - bl.translation()).norm();
+      if (range < 0.5 * o.regions.min_range_current || range > o.regions.max_range_current) continue;
+      pts.push_back(p);
+    }
+  }
+  const int n = static_cast<int>(pts.size());
+  if (n < o.ground_min_points) return Eigen::Vector4d::Zero();
+  // Inlier tolerance grows with range (stereo range error, eq. 7).
+  auto tolerance = [&](const Eigen::Vector3d& p) {
+    const double r = (p - bl.translation()).norm();
+    return o.ground_tolerance_m + 3 * RangeSigma(r, navcam.rig.Baseline(), cam.fx, 0.5) * 0.2;
+  };
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  Eigen::Vector4d best = Eigen::Vector4d::Zero();
+  int best_n = 0;
+  for (int it = 0; it < 300; ++it) {
+    const Eigen::Vector3d &a = pts[pick(rng)], &b = pts[pick(rng)], &c = pts[pick(rng)];
+    Eigen::Vector3d nrm = (b - a).cross(c - a);
+    if (nrm.norm() < 1e-6) continue;
+    nrm.normalize();
+    if (nrm.z() < 0) nrm = -nrm;
+    if (nrm.z() < std::cos(o.ground_max_slope_deg * M_PI / 180)) continue;
+    const double e = -nrm.dot(a);
+    int k = 0;
+    for (const auto& p : pts) k += std::abs(nrm.dot(p) + e) <= tolerance(p) ? 1 : 0;
+    if (k > best_n) best_n = k, best << nrm, e;
+  }
+  if (best_n < o.ground_min_points || best_n < 0.3 * n) return Eigen::Vector4d::Zero();
+  // Least squares on the inliers.
+  std::vector<Eigen::Vector3d> in;
+  for (const auto& p : pts)
+    if (std::abs(best.head<3>().dot(p) + best(3)) <= tolerance(p)) in.push_back(p);
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : in) mean += p;
+  mean /= in.size();
+  Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+  for (const auto& p : in) C += (p - mean) * (p - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
+  Eigen::Vector3d nrm = es.eigenvectors().col(0);
+  if (nrm.z() < 0) nrm = -nrm;
+  if (nrm.z() < std::cos(o.ground_max_slope_deg * M_PI / 180)) return Eigen::Vector4d::Zero();
+  Eigen::Vector4d plane;
+  plane << nrm, -nrm.dot(mean);
+  return plane;
+}
+
 }  // namespace
 
 FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteImages& current_in) const {
@@ -335,19 +412,8 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
     }
     const int np = static_cast<int>(prev.pairs.size()), nc = static_cast<int>(cur.pairs.size());
 
-    // ---- regions
+    // ---- prepare (undistort)
     auto t0 = Clock::now();
-    const RegionPrediction pred = PredictRegions(navcam_, prev.world_from_body, cur.world_from_body,
-                                                 tps.previous_pointing, tps.current_pointing, o.regions);
-    stage("regions", static_cast<int>(pred.overlaps.size()), t0);
-    sum.num_overlaps = static_cast<int>(pred.overlaps.size());
-    if (pred.overlaps.empty())
-      return finish(FrontendStatus::kNoOverlap,
-                    "no current image sees ground that a previous image sees within the range limits "
-                    "(check the DR poses, mast pointing and regions.max_range_*)");
-
-    // ---- prepare (undistort) and Wallis + zoom of the regions
-    t0 = Clock::now();
     std::vector<Prepared> prev_l(np), prev_r(np), cur_l(nc), cur_r(nc);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
     for (int k = 0; k < 2 * (np + nc); ++k) {
@@ -356,6 +422,30 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
       else if (k < 2 * np + nc) cur_l[k - 2 * np] = Prepare(cur.pairs[k - 2 * np].left, navcam_.rig.left);
       else cur_r[k - 2 * np - nc] = Prepare(cur.pairs[k - 2 * np - nc].right, navcam_.rig.right);
     }
+    // ---- ground planes of the current images from sparse stereo: the
+    // rover's own footprint (z = 0 in the body frame) is a poor model of
+    // ground 5-30 m away when it stands on a slope or a crater rim.
+    std::vector<Eigen::Vector4d> planes(nc, Eigen::Vector4d::Zero());
+    int num_planes = 0;
+    if (o.fit_ground_planes) {
+#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads) reduction(+ : num_planes)
+      for (int i = 0; i < nc; ++i) {
+        planes[i] = FitGroundPlane(navcam_, tps.current_pointing[i], cur_l[i].lsm.gray, cur_r[i].lsm.gray, o);
+        num_planes += planes[i].head<3>().norm() > 0.5 ? 1 : 0;
+      }
+    }
+    stage("ground", num_planes, t0);
+    // ---- regions
+    t0 = Clock::now();
+    const RegionPrediction pred = PredictRegions(navcam_, prev.world_from_body, cur.world_from_body,
+                                                 tps.previous_pointing, tps.current_pointing, o.regions, planes);
+    stage("regions", static_cast<int>(pred.overlaps.size()), t0);
+    sum.num_overlaps = static_cast<int>(pred.overlaps.size());
+    if (pred.overlaps.empty())
+      return finish(FrontendStatus::kNoOverlap,
+                    "no current image sees ground that a previous image sees within the range limits "
+                    "(check the DR poses, mast pointing and regions.max_range_*)");
+    t0 = Clock::now();
     // Union of the regions per image; forward overlaps only (backward ones are matched on the ground).
     std::vector<ImageFeatures> fprev(np), fcur(nc);
     std::vector<double> tilt_max(nc, 1.0), lon_sum(nc, 0.0), lon_w(nc, 0.0), zoom_sum(np, 0.0);

@@ -84,7 +84,8 @@ cv::Rect ClipRect(double x0, double y0, double x1, double y1, const PinholeCamer
 RegionPrediction PredictRegions(const NavcamModel& navcam, const PoseWithCovariance& world_from_previous,
                                 const PoseWithCovariance& world_from_current,
                                 const std::vector<MastPointing>& previous_pointing,
-                                const std::vector<MastPointing>& current_pointing, const RegionOptions& o) {
+                                const std::vector<MastPointing>& current_pointing, const RegionOptions& o,
+                                const std::vector<Eigen::Vector4d>& current_ground_planes) {
   RegionPrediction out;
   const Pose3 previous_from_world = world_from_previous.pose.inverse();
   out.previous_from_current = previous_from_world * world_from_current.pose;
@@ -116,12 +117,16 @@ RegionPrediction PredictRegions(const NavcamModel& navcam, const PoseWithCovaria
   for (size_t i = 0; i < current_pointing.size(); ++i) {
     const Pose3 body_from_cur = navcam.mast.BodyFromLeft(current_pointing[i].pan, current_pointing[i].tilt, navcam.rig);
     std::vector<Sample> samples;
+    Eigen::Vector4d plane(0, 0, 1, -o.ground_height);
+    if (i < current_ground_planes.size() && current_ground_planes[i].head<3>().norm() > 0.5)
+      plane = current_ground_planes[i];
+    const Eigen::Vector3d n = plane.head<3>();
     for (double v = o.image_margin; v < cam_l.height - o.image_margin; v += o.grid_step) {
       for (double u = o.image_margin; u < cam_l.width - o.image_margin; u += o.grid_step) {
         const Eigen::Vector3d d = body_from_cur.linear() * cam_l.Ray({u, v});
         const Eigen::Vector3d c = body_from_cur.translation();
-        if (d.z() >= -1e-9) continue;
-        const double lambda = (o.ground_height - c.z()) / d.z();
+        if (n.dot(d) >= -1e-9) continue;
+        const double lambda = -(n.dot(c) + plane(3)) / n.dot(d);
         if (lambda <= 0) continue;
         const Eigen::Vector3d p = c + lambda * d;
         const double range = (p - c).norm();

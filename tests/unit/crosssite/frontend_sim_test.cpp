@@ -31,6 +31,7 @@ PairRun RunDefaultPair() {
   if (const char* e = std::getenv("VLOC_TEST_HEADING_DEG")) so.heading_change_deg = std::atof(e);
   if (const char* e = std::getenv("VLOC_TEST_DISTANCE")) so.distance = std::atof(e);
   if (const char* e = std::getenv("VLOC_TEST_TERRAIN_SEED")) so.terrain_seed = std::atoi(e);
+  if (const char* e = std::getenv("VLOC_TEST_DR_SIGMA_FRACTION")) so.dr_sigma_fraction = std::atof(e);
   if (const char* e = std::getenv("VLOC_TEST_DR_SCALE")) {
     so.dr_position_error *= std::atof(e);
     so.dr_yaw_error_deg *= std::atof(e);

@@ -35,6 +35,8 @@ struct SimSitePairOptions {
   double heading_change_deg = 8.0;     // deg, yaw of the current site
   Eigen::Vector3d dr_position_error = Eigen::Vector3d(0.9, -1.1, 0.05);  // m, DR minus truth (14 % of 10 m)
   double dr_yaw_error_deg = 2.0;       // deg, DR minus truth
+  double dr_sigma_fraction = 0.15;     // stated DR position sigma, fraction of the distance
+  double dr_yaw_sigma_deg = 3.0;       // stated DR yaw sigma
   uint64_t terrain_seed = 3;
   bool textureless = false;            // albedo contrast and relief off: a featureless plain
 };
@@ -156,7 +158,7 @@ inline SimSitePair MakeSimSitePair(const SimSitePairOptions& so = SimSitePairOpt
   out.current.world_from_body.pose = dr;
   // DR covariance: 15 % of the distance in position, 3 deg yaw, 1 deg tilt.
   Vector6d sigma;
-  const double sp = 0.15 * so.distance, st = M_PI / 180, sy = 3 * M_PI / 180;
+  const double sp = so.dr_sigma_fraction * so.distance, st = M_PI / 180, sy = so.dr_yaw_sigma_deg * M_PI / 180;
   sigma << sp, sp, 0.5 * sp, st, st, sy;
   out.current.world_from_body.covariance = sigma.cwiseAbs2().asDiagonal();
   return out;

@@ -74,6 +74,11 @@ struct FrontendOptions {
   LsmOptions grid_lsm = GridLsmDefaults();  // previous region -> warped current image, on the previous grid
   MotionConsistencyOptions motion = MotionDefaults();  // after eq. 2: one rigid motion within each point's covariance
   bool motion_consistency = true;   // apply it
+  bool fit_ground_planes = true;    // each current image's ground plane from sparse stereo (else z = ground_height)
+  int ground_grid_px = 48;          // px, grid of the stereo points for it
+  int ground_min_points = 20;       // stereo points (and plane inliers) a plane needs
+  double ground_tolerance_m = 0.1;  // m, inlier tolerance at short range (grows with the stereo range error)
+  double ground_max_slope_deg = 30; // deg, steepest plane accepted
   TileRegistrationOptions tiles;  // stage 1: correlation of the warped current image's tiles with the previous region
 
   double max_zoom = 2.0;               // the previous region is zoomed by min(1 / predicted scale, max_zoom)

@@ -70,10 +70,15 @@ struct RegionPrediction {
 Vector6d RelativePoseSigma(const PoseWithCovariance& world_from_previous, const PoseWithCovariance& world_from_current,
                            const RegionOptions& options);
 
+// `current_ground_planes` (optional, one per current pair): the ground seen
+// by that pair as a plane n . p + e = 0 (n up, unit) in the current body
+// frame, e.g. fitted to the pair's stereo points; an empty vector or a zero
+// plane uses z = ground_height.
 RegionPrediction PredictRegions(const NavcamModel& navcam, const PoseWithCovariance& world_from_previous,
                                 const PoseWithCovariance& world_from_current,
                                 const std::vector<MastPointing>& previous_pointing,
-                                const std::vector<MastPointing>& current_pointing, const RegionOptions& options);
+                                const std::vector<MastPointing>& current_pointing, const RegionOptions& options,
+                                const std::vector<Eigen::Vector4d>& current_ground_planes = {});
 
 // Ground-plane projection: the homography from an ortho image to the ideal
 // pixels of a camera. The ortho pixel (u, v) is the ground point
