@@ -28,10 +28,13 @@ void CrossSiteBaOptions::Visit(OptionsReader& r) {
   r.Optional("max_correction_m", &max_correction_m, "m, largest accepted move from dead reckoning");
   r.Optional("min_intersection_parallax_rad", &min_intersection_parallax_rad, "rad, intersection ray angle");
   r.Optional("inflate_by_variance_factor", &inflate_by_variance_factor, "scale covariance by max(1, s0^2)");
+  r.Optional("max_independent_points", &max_independent_points,
+             "covariance scaled by max(1, points / this): shared errors do not average down (0 = off)");
   r.Optional("num_threads", &num_threads, "count, Ceres threads");
 }
 
 bool CrossSiteBaOptions::Check(std::string* error) const {
+  if (max_independent_points < 0) return Fail(error, "max_independent_points must be >= 0 (0 = off)");
   if (min_tie_points < 3) return Fail(error, "min_tie_points must be at least 3");
   if (!(huber_sigmas > 0)) return Fail(error, "huber_sigmas must be positive");
   if (!(outlier_sigmas > 0)) return Fail(error, "outlier_sigmas must be positive");
@@ -432,6 +435,8 @@ CrossSiteBaSummary SolveCrossSiteBa(const TiePointSet& set, const NavcamModel& n
   const int dof = 2 * res.observations - 6 - 3 * res.points;
   const double variance_factor = dof > 0 ? res.chi2 / dof : 1.0;
   if (options.inflate_by_variance_factor) cov *= std::max(1.0, variance_factor);
+  if (options.max_independent_points > 0)
+    cov *= std::max(1.0, static_cast<double>(res.points) / options.max_independent_points);
   double mean_range = 0;
   for (const auto& p : points)
     if (p.inlier) mean_range += (p.p_world - world_from_current.translation()).norm();

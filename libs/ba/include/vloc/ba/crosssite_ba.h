@@ -34,6 +34,9 @@ struct CrossSiteBaOptions {
   double max_correction_m = 10.0;          // a solution further than this from the dead-reckoning pose: NOT_CONVERGED
   double min_intersection_parallax_rad = 1e-3;  // rays closer than this do not intersect a point
   bool inflate_by_variance_factor = true;  // multiply the covariance by max(1, a-posteriori variance factor)
+  int max_independent_points = 200;        // ... and by max(1, points / this): the points of one site pair share
+                                           // errors (calibration, relief-biased matching) that do not average down
+                                           // with their number; 0 = off
   int num_threads = 2;                     // Ceres threads
 
   void Visit(OptionsReader& reader);
