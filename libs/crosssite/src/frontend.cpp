@@ -183,6 +183,8 @@ struct Candidate {
   Eigen::Matrix3d cov_prev = Eigen::Matrix3d::Zero(), cov_cur = Eigen::Matrix3d::Zero();
   bool ok = true;
   bool grid_refined = false;  // cross-site position already refined by LSM on the previous region's grid
+  double grid_correlation = 0, grid_sigma_max = 0;                 // of the grid LSM (grid px)
+  Eigen::Matrix2d grid_affine = Eigen::Matrix2d::Identity();       // its shape
   const char* why = "";
   Eigen::Matrix2d initial_affine = Eigen::Matrix2d::Identity();  // current px per previous px
 };
@@ -247,11 +249,11 @@ bool EpipolarSegment(const StereoRig& rig, const Eigen::Vector2d& left_px, doubl
 // +-radius px of *target_px in `target` (both CV_8UC1), sub-pixel by a
 // parabola fit; false without a clear peak of at least min_score.
 bool ZnccPeakNear(const cv::Mat& templ, const Eigen::Vector2d& templ_px, const cv::Mat& target, int radius, int half,
-                  double min_score, double min_margin, Eigen::Vector2d* target_px) {
+                  int half_y, double min_score, double min_margin, Eigen::Vector2d* target_px) {
   const int tx = static_cast<int>(std::lround(templ_px.x())), ty = static_cast<int>(std::lround(templ_px.y()));
   const int gx = static_cast<int>(std::lround(target_px->x())), gy = static_cast<int>(std::lround(target_px->y()));
-  const cv::Rect tr(tx - half, ty - half, 2 * half + 1, 2 * half + 1);
-  const cv::Rect sr(gx - half - radius, gy - half - radius, 2 * (half + radius) + 1, 2 * (half + radius) + 1);
+  const cv::Rect tr(tx - half, ty - half_y, 2 * half + 1, 2 * half_y + 1);
+  const cv::Rect sr(gx - half - radius, gy - half_y - radius, 2 * (half + radius) + 1, 2 * (half_y + radius) + 1);
   if ((tr & cv::Rect(0, 0, templ.cols, templ.rows)) != tr || (sr & cv::Rect(0, 0, target.cols, target.rows)) != sr)
     return false;
   cv::Mat score;
@@ -274,7 +276,7 @@ bool ZnccPeakNear(const cv::Mat& templ, const Eigen::Vector2d& templ_px, const c
   const double sx = peak(score.at<float>(p.y, p.x - 1), best, score.at<float>(p.y, p.x + 1));
   const double sy = peak(score.at<float>(p.y - 1, p.x), best, score.at<float>(p.y + 1, p.x));
   // Offsets from the integer template centre carry over (templ_px sub-pixel).
-  *target_px = Eigen::Vector2d(sr.x + half + p.x + sx + (templ_px.x() - tx), sr.y + half + p.y + sy + (templ_px.y() - ty));
+  *target_px = Eigen::Vector2d(sr.x + half + p.x + sx + (templ_px.x() - tx), sr.y + half_y + p.y + sy + (templ_px.y() - ty));
   return true;
 }
 
@@ -873,7 +875,8 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
           // The feature positions of the two sites differ by a few grid px
           // (different scales of detection): start LSM at the correlation
           // peak near them.
-          if (!ZnccPeakNear(previous_crop, pt, warped_image, o.grid_search_px, o.grid_lsm.half_window, o.grid_min_zncc,
+          if (!ZnccPeakNear(previous_crop, pt, warped_image, o.grid_search_px, o.grid_lsm.half_window,
+                            o.grid_lsm.half_height > 0 ? o.grid_lsm.half_height : o.grid_lsm.half_window, o.grid_min_zncc,
                             o.grid_min_margin, &wt))
             continue;
           const LsmResult r = LeastSquaresMatch(lt, pt, lw, wt, Eigen::Matrix2d::Identity(), o.grid_lsm);
@@ -881,10 +884,14 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
             VLOG(2) << "grid LSM: " << r.why << " corr " << r.correlation << " sigma " << r.sigma_px;
             continue;
           }
+
           const Eigen::Matrix2d J = JacobianH(cur_from_train, r.target);  // current px per grid px
           c.cur_left = ApplyH(cur_from_train, r.target);
           c.sigma_cross = r.sigma_px * std::sqrt(std::abs(J.determinant()));
           c.grid_refined = true;
+          c.grid_correlation = r.correlation;
+          c.grid_sigma_max = r.sigma_max_px;
+          c.grid_affine = r.affine;
           VLOG(2) << "grid LSM ok at " << c.prev_left.transpose() << " sigma " << r.sigma_px << " max " << r.sigma_max_px
                   << " corr " << r.correlation;
           ++refined_here;
@@ -1137,6 +1144,10 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
       tp.observations.push_back({SiteRole::kCurrent, c.cur_pair, CameraSide::kLeft, c.cur_left, s_cur});
       tp.observations.push_back({SiteRole::kCurrent, c.cur_pair, CameraSide::kRight, c.cur_right,
                                  std::hypot(std::max(c.sigma_cur_right, o.stereo_sigma_floor_px), s_cur)});
+      VLOG(2) << "tie point at previous " << c.prev_left.transpose() << " range " << c.p_prev.norm() << " corr "
+              << c.grid_correlation << " sigma_max " << c.grid_sigma_max << " affine " << c.grid_affine(0, 0) << " "
+              << c.grid_affine(0, 1) << " " << c.grid_affine(1, 0) << " " << c.grid_affine(1, 1) << " weight "
+              << cons.weights[k];
       tps.points.push_back(std::move(tp));
     }
     stage("motion", static_cast<int>(tps.points.size()), t0);

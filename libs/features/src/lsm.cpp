@@ -13,6 +13,7 @@ namespace vloc {
 
 void LsmOptions::Visit(OptionsReader& r) {
   r.Optional("half_window", &half_window, "px, template half size");
+  r.Optional("half_height", &half_height, "px, template half height (0 = half_window: square)");
   r.Optional("max_iterations", &max_iterations, "Gauss-Newton iterations");
   r.Optional("convergence_px", &convergence_px, "px, shift update that ends the iteration");
   r.Optional("max_shift_px", &max_shift_px, "px, largest accepted move from the initial position");
@@ -25,6 +26,7 @@ void LsmOptions::Visit(OptionsReader& r) {
 
 bool LsmOptions::Check(std::string* error) const {
   if (half_window < 2 || half_window > 30) return Fail(error, "lsm.half_window must be in [2, 30]");
+  if (half_height != 0 && (half_height < 2 || half_height > 30)) return Fail(error, "lsm.half_height must be 0 or in [2, 30]");
   if (max_iterations < 1) return Fail(error, "lsm.max_iterations must be >= 1");
   if (convergence_px <= 0) return Fail(error, "lsm.convergence_px must be > 0");
   if (max_shift_px <= 0) return Fail(error, "lsm.max_shift_px must be > 0");
@@ -93,8 +95,8 @@ inline void SampleCubic(const cv::Mat& img, double x, double y, double* value, d
   *gy = vy;
 }
 
-bool Inside(const cv::Mat& m, const Eigen::Vector2d& p, double margin) {
-  return p.x() >= margin && p.y() >= margin && p.x() <= m.cols - 1 - margin && p.y() <= m.rows - 1 - margin;
+bool Inside(const cv::Mat& m, const Eigen::Vector2d& p, double margin_x, double margin_y) {
+  return p.x() >= margin_x && p.y() >= margin_y && p.x() <= m.cols - 1 - margin_x && p.y() <= m.rows - 1 - margin_y;
 }
 }  // namespace
 
@@ -102,14 +104,15 @@ LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& templa
                             const Eigen::Vector2d& initial_target, const Eigen::Matrix2d& initial_affine,
                             const LsmOptions& o) {
   LsmResult res;
-  const int h = o.half_window, side = 2 * h + 1, n = side * side;
-  if (!Inside(templ.gray, template_px, h + 3)) {
+  const int h = o.half_window, hy = o.half_height > 0 ? o.half_height : h;
+  const int n = (2 * h + 1) * (2 * hy + 1);
+  if (!Inside(templ.gray, template_px, h + 3, hy + 3)) {
     res.why = "template outside its image";
     return res;
   }
   std::vector<float> T(n);
   double sum = 0, sum2 = 0;
-  for (int r = -h, i = 0; r <= h; ++r) {
+  for (int r = -hy, i = 0; r <= hy; ++r) {
     for (int c = -h; c <= h; ++c, ++i) {
       double v, unused_x, unused_y;
       SampleCubic(templ.gray, template_px.x() + c, template_px.y() + r, &v, &unused_x, &unused_y);
@@ -142,15 +145,16 @@ LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& templa
   int it = 0;
   for (; it < o.max_iterations; ++it) {
     // Bounding margin of the warped window.
-    const double reach = h * (std::abs(A(0, 0)) + std::abs(A(0, 1)) + std::abs(A(1, 0)) + std::abs(A(1, 1))) + 3;
-    if (!Inside(target.gray, t, reach)) {
+    const double reach_x = h * std::abs(A(0, 0)) + hy * std::abs(A(0, 1)) + 3;
+    const double reach_y = h * std::abs(A(1, 0)) + hy * std::abs(A(1, 1)) + 3;
+    if (!Inside(target.gray, t, reach_x, reach_y)) {
       res.why = "window left the target image";
       return res;
     }
     N.setZero();
     b.setZero();
     ssr = 0;
-    for (int r = -h, i = 0; r <= h; ++r) {
+    for (int r = -hy, i = 0; r <= hy; ++r) {
       for (int c = -h; c <= h; ++c, ++i) {
         const double x = t.x() + A(0, 0) * c + A(0, 1) * r;
         const double y = t.y() + A(1, 0) * c + A(1, 1) * r;

@@ -86,7 +86,9 @@ TEST(Regions, PredictionContainsTheTrueOverlap) {
     if (ov.backward) continue;  // outermost pairs looking across each other
     ++forward;
     // Looking ahead at the common ground, the previous view is the smaller one.
-    if (ov.current_pair == ov.previous_pair) EXPECT_LT(ov.scale, 1.0);
+    if (ov.current_pair == ov.previous_pair) {
+      EXPECT_LT(ov.scale, 1.0);
+    }
     EXPECT_GE(ov.tilt, 1.0);
     EXPECT_GT(ov.growth_px, 10.0);
   }

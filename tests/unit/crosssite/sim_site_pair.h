@@ -39,6 +39,7 @@ struct SimSitePairOptions {
   double dr_yaw_sigma_deg = 3.0;       // stated DR yaw sigma
   uint64_t terrain_seed = 3;
   bool textureless = false;            // albedo contrast and relief off: a featureless plain
+  bool no_relief = false;              // relief, craters and rocks off, texture on: a textured plane
 };
 
 // Rendered images and depths can be cached in a folder (env
@@ -76,15 +77,14 @@ inline SimSitePair MakeSimSitePair(const SimSitePairOptions& so = SimSitePairOpt
   const char* cache_env = std::getenv("VLOC_SIM_CACHE");
   const std::string cache = cache_env ? cache_env : "";
   std::ostringstream key;
-  key << "t" << so.terrain_seed << "_d" << so.distance << "_h" << so.heading_change_deg << (so.textureless ? "_flat" : "");
+  key << "t" << so.terrain_seed << "_d" << so.distance << "_h" << so.heading_change_deg << (so.textureless ? "_flat" : "") << (so.no_relief ? "_plane" : "");
   sim::TerrainOptions to;
   to.seed = so.terrain_seed;
   to.size_m = 72;
   to.origin_x_m = -24;
   to.origin_y_m = -36;
-  if (so.textureless) {
-    to.albedo_contrast = 0.0;
-    to.micro_slope = 0.0;
+  if (so.textureless || so.no_relief) {
+    if (so.textureless) to.albedo_contrast = 0.0, to.micro_slope = 0.0;
     to.relief_amplitude_m = 0.0;
     to.crater_density = 0.0;
     to.rock_density = 0.0;

@@ -157,7 +157,7 @@ struct AffineCase {
 
 // The target shows the template's texture under y = A (x - c) + c + shift,
 // both rendered exactly from a continuous texture.
-void CheckLsm(const AffineCase& k, bool estimate_affine, double tolerance) {
+void CheckLsm(const AffineCase& k, bool estimate_affine, double tolerance, int half_height = 0) {
   const testing::BlobTexture tex(160, 160, 1400, 21);
   const Eigen::Vector2d c(80, 80);
   const Eigen::Matrix2d Ainv = k.A.inverse();
@@ -170,7 +170,8 @@ void CheckLsm(const AffineCase& k, bool estimate_affine, double tolerance) {
   const LsmImage a = MakeLsmImage(templ_f), b = MakeLsmImage(target_f);
   LsmOptions o;
   o.estimate_affine = estimate_affine;
-  o.half_window = 10;
+  o.half_window = half_height > 0 ? 18 : 10;
+  o.half_height = half_height;
   int n = 0;
   for (int dy = -20; dy <= 20; dy += 20) {
     for (int dx = -20; dx <= 20; dx += 20) {
@@ -182,7 +183,9 @@ void CheckLsm(const AffineCase& k, bool estimate_affine, double tolerance) {
       EXPECT_LT((r.target - truth).norm(), tolerance) << "at offset " << dx << "," << dy << " error "
                                                       << (r.target - truth).transpose();
       EXPECT_LT(r.sigma_px, 0.1);
-      if (estimate_affine) EXPECT_LT((r.affine - k.A).norm(), 0.01);
+      if (estimate_affine) {
+        EXPECT_LT((r.affine - k.A).norm(), 0.01);
+      }
       EXPECT_NEAR(r.r1, 1.25, 0.05);  // T = r0 + r1 G with G = 0.8 T + 20
       ++n;
     }
@@ -198,6 +201,28 @@ TEST(Lsm, RecoversAffineDistortion) {
   Eigen::Matrix2d A;
   A << 1.08, 0.06, -0.04, 0.93;
   CheckLsm({{-0.42, 0.28}, A}, true, 0.05);
+}
+
+// A wide, short window (the cross-site grid LSM's shape) on the same case.
+TEST(Lsm, WideShortWindowRecoversAffineDistortion) {
+  Eigen::Matrix2d A;
+  A << 1.08, 0.06, -0.04, 0.93;
+  CheckLsm({{-0.42, 0.28}, A}, true, 0.05, 4);
+}
+
+// A rectangular window near the top edge: only its half height counts.
+TEST(Lsm, WideShortWindowFitsNearTheTopEdge) {
+  const testing::BlobTexture tex(160, 160, 1400, 21);
+  const cv::Mat img = tex.Render(160, 160, [](int x, int y) { return std::make_pair<double, double>(x, y); });
+  const LsmImage a = MakeLsmImage(img);
+  LsmOptions o;
+  o.half_window = 18;
+  o.half_height = 4;
+  const LsmResult r = LeastSquaresMatch(a, {80, 9}, a, {80.4, 9.3}, Eigen::Matrix2d::Identity(), o);
+  ASSERT_TRUE(r.ok) << r.why;
+  EXPECT_LT((r.target - Eigen::Vector2d(80, 9)).norm(), 0.02);
+  o.half_height = 0;  // square 37 x 37: does not fit
+  EXPECT_FALSE(LeastSquaresMatch(a, {80, 9}, a, {80.4, 9.3}, Eigen::Matrix2d::Identity(), o).ok);
 }
 
 TEST(Lsm, FlatTemplateIsRejected) {

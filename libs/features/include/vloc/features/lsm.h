@@ -15,7 +15,8 @@ namespace vloc {
 class OptionsReader;
 
 struct LsmOptions {
-  int half_window = 7;             // px, template is (2 h + 1)^2
+  int half_window = 7;             // px, template is (2 h + 1)^2 ...
+  int half_height = 0;             // px, ... or (2 h + 1) wide and (2 half_height + 1) high (0: square)
   int max_iterations = 20;         // Gauss-Newton iterations
   double convergence_px = 0.005;   // px, stop when the shift update is below this
   double max_shift_px = 3.0;       // px, reject when t moves further from its initial value
