@@ -48,6 +48,8 @@ void FrontendOptions::Visit(OptionsReader& r) {
   r.Optional("grid_search_px", &grid_search_px, "px (grid), correlation search around a match before grid LSM");
   r.Optional("grid_min_zncc", &grid_min_zncc, "correlation peak needed before the grid LSM");
   r.Optional("grid_min_margin", &grid_min_margin, "peak minus the best correlation >= 3 px away");
+  r.Optional("grid_back_check_px", &grid_back_check_px, "px (grid), LSM back from the warped current image must return this close (0 = off)");
+  r.Optional("grid_max_shear", &grid_max_shear, "largest |dx/dy| of the grid LSM's affine (relief parallax), 0 = off");
   r.Optional("grid_lsm_enabled", &grid_lsm_enabled, "refine cross-site matches by LSM on the previous region's grid");
   r.Optional("keep_grid_unrefined", &keep_grid_unrefined, "keep matches the grid LSM could not refine");
   r.Optional("tile_registration", &tile_registration, "register the warped current image by tile correlation first");
@@ -885,6 +887,17 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous_in, const SiteI
             continue;
           }
 
+          if (o.grid_back_check_px > 0) {
+            const LsmResult back = LeastSquaresMatch(lw, r.target, lt, pt, r.affine.inverse(), o.grid_lsm);
+            if (!back.ok || (back.target - pt).norm() > o.grid_back_check_px) {
+              VLOG(2) << "grid LSM: back match " << (back.ok ? "misses" : back.why) << " by " << (back.target - pt).norm();
+              continue;
+            }
+          }
+          if (o.grid_max_shear > 0 && std::abs(r.affine(0, 1)) > o.grid_max_shear) {
+            VLOG(2) << "grid LSM: shear " << r.affine(0, 1) << " beyond grid_max_shear";
+            continue;
+          }
           const Eigen::Matrix2d J = JacobianH(cur_from_train, r.target);  // current px per grid px
           c.cur_left = ApplyH(cur_from_train, r.target);
           c.sigma_cross = r.sigma_px * std::sqrt(std::abs(J.determinant()));

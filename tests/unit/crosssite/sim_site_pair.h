@@ -35,6 +35,7 @@ struct SimSitePairOptions {
   double heading_change_deg = 8.0;     // deg, yaw of the current site
   Eigen::Vector3d dr_position_error = Eigen::Vector3d(0.9, -1.1, 0.05);  // m, DR minus truth (14 % of 10 m)
   double dr_yaw_error_deg = 2.0;       // deg, DR minus truth
+  double dr_error_rotation_deg = 0.0;  // deg, turns the horizontal DR position error about the vertical
   double dr_sigma_fraction = 0.15;     // stated DR position sigma, fraction of the distance
   double dr_yaw_sigma_deg = 3.0;       // stated DR yaw sigma
   uint64_t terrain_seed = 3;
@@ -153,7 +154,7 @@ inline SimSitePair MakeSimSitePair(const SimSitePairOptions& so = SimSitePairOpt
   }
   out.previous.world_from_body.pose = out.previous_true;
   Pose3 dr = out.current_true;
-  dr.translation() += so.dr_position_error;
+  dr.translation() += Eigen::AngleAxisd(so.dr_error_rotation_deg * M_PI / 180, Eigen::Vector3d::UnitZ()) * so.dr_position_error;
   dr.linear() = ExpSO3(Eigen::Vector3d(0, 0, so.dr_yaw_error_deg * M_PI / 180)) * dr.linear();
   out.current.world_from_body.pose = dr;
   // DR covariance: 15 % of the distance in position, 3 deg yaw, 1 deg tilt.
