@@ -78,6 +78,7 @@ std::optional<ProcessSetup> SetupProcess(int argc, char** argv, const ProcessSet
 
 int RunUntilSignal(Transport& transport, int timeout_ms, const std::function<void()>& on_idle,
                    const std::function<bool()>& should_stop) {
+  LOG(INFO) << kReadyLine;
   while (true) {
     if (StopSignalPending()) {
       LOG(INFO) << "stop signal received, shutting down";

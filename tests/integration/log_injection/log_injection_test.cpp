@@ -11,6 +11,7 @@
 #include <map>
 
 #include "vloc/lcm_io/convert.h"
+#include "vloc/lcm_io/process.h"
 #include "vloc/lcm_io/transport.h"
 #include "vloc/lcm_io/typed.h"
 #include "vloc/localization_t.hpp"
@@ -72,11 +73,12 @@ class Collector {
   std::vector<Msg> got_;
 };
 
-// Starts a vloc process and waits until it reports that it started.
+// Starts a vloc process and waits until it has subscribed (messages
+// replayed before that would be lost).
 std::unique_ptr<Subprocess> StartProcess(const std::string& name, const std::string& config, const std::string& url) {
   auto p = std::make_unique<Subprocess>(
       std::vector<std::string>{BinPath(name), "--config", config, "--lcm-url", url});
-  EXPECT_TRUE(p->WaitForOutput(name + " started", 60)) << p->output();
+  EXPECT_TRUE(p->WaitForOutput(kReadyLine, 60)) << p->output();
   return p;
 }
 

@@ -12,6 +12,7 @@
 #include "vloc/common/options.h"
 #include "vloc/lcm_io/convert.h"
 #include "vloc/lcm_io/convert_rover.h"
+#include "vloc/lcm_io/process.h"
 #include "vloc/lcm_io/transport.h"
 #include "vloc/lcm_io/typed.h"
 #include "vloc/localization_t.hpp"
@@ -115,7 +116,7 @@ TEST(CrossSiteBaProcess, LocalizesSyntheticSiteAndReportsFailures) {
 TEST(DeadReckoningProcess, PublishesPeriodicAndSitePoses) {
   const std::string url = TestLcmUrl(7763);
   Subprocess proc({BinPath("dead_reckoning"), "--config", "config/procs/dead_reckoning.yaml", "--lcm-url", url});
-  ASSERT_TRUE(proc.WaitForOutput("dead_reckoning options", 30)) << proc.output();
+  ASSERT_TRUE(proc.WaitForOutput(kReadyLine, 30)) << proc.output();
   std::string error;
   auto transport = MakeLcmTransport(url, &error);
   ASSERT_TRUE(transport) << error;

@@ -63,15 +63,27 @@ TEST(Transport, LoggerRecordsAndLogplayerReplaysIntoAProcess) {
   std::filesystem::remove(log);
   {
     Subprocess logger({"/usr/bin/lcm-logger", "--lcm-url=" + record_url, "-f", log});
-    // The logger has subscribed once a probe message shows up in the file.
+    // The logger has subscribed once a warm-up message shows up in the file
+    // (200 kB: larger than stdio's buffer, so it is written at once); what
+    // is sent before that is lost, by design of multicast.
     std::string error;
     auto transport = MakeLcmTransport(record_url, &error);
     ASSERT_TRUE(transport) << error;
+    const std::vector<uint8_t> warm_up(200000, 0);
+    bool subscribed = false;
+    for (int i = 0; i < 100 && !subscribed; ++i) {
+      ASSERT_TRUE(transport->Publish("VLOC_WARM_UP", warm_up.data(), warm_up.size()));
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      subscribed = std::filesystem::exists(log) && std::filesystem::file_size(log) > 0;
+    }
+    ASSERT_TRUE(subscribed) << "lcm-logger wrote nothing in 10 s\n" << logger.output();
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));  // warm-ups still in flight land
     Subprocess sender({BinPath("vloc_lcm_probe"), "send", "--count", "20", "--size", "200000", "--rate", "20",
                        "--lcm-url", record_url});
     ASSERT_EQ(sender.WaitExit(30), 0) << sender.output();
     // Wait until all 20 are on disk (each ~200 kB).
-    for (int i = 0; i < 100 && (!std::filesystem::exists(log) || std::filesystem::file_size(log) < 20 * 200000); ++i)
+    const auto before = std::filesystem::file_size(log);
+    for (int i = 0; i < 100 && std::filesystem::file_size(log) < before + 20 * 200000; ++i)
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
     logger.Signal(SIGINT);
     ASSERT_TRUE(logger.WaitExit(10)) << logger.output();

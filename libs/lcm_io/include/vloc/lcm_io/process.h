@@ -45,7 +45,11 @@ std::optional<ProcessSetup> SetupProcess(int argc, char** argv, const ProcessSet
 
 // Dispatches messages until SIGINT or SIGTERM arrives (or `should_stop`
 // returns true), calling on_idle after every wait of up to timeout_ms.
-// Returns the exit code (0 after a signal).
+// Returns the exit code (0 after a signal). Logs kReadyLine first: the
+// process has subscribed, so messages published from then on reach it
+// (whoever injects messages, e.g. lcm-logplayer in a test, waits for it;
+// "started" comes before the subscriptions).
+inline constexpr const char* kReadyLine = "subscribed, handling LCM messages";
 int RunUntilSignal(Transport& transport, int timeout_ms, const std::function<void()>& on_idle = {},
                    const std::function<bool()>& should_stop = {});
 
