@@ -12,6 +12,7 @@
 #include <map>
 
 #include "vloc/image_t.hpp"
+#include "vloc/lcm_io/process.h"
 #include "vloc/lcm_io/convert.h"
 #include "vloc/lcm_io/transport.h"
 #include "vloc/lcm_io/typed.h"
@@ -51,8 +52,8 @@ TEST(UavMosaickerProcess, TracksSimulatedFlightOverRealLcm) {
   }, 10);
   Subprocess mosaicker({BinPath("uav_mosaicker"), "--config", "config/procs/uav_mosaicker.yaml", "--lcm-url", url,
                         "--output", mosaic});
-  // Wait until the mosaicker listens: it logs its options first; give LCM a moment via a probe loop.
-  for (int i = 0; i < 20; ++i) transport->Handle(50);
+  // Frames published before the mosaicker has subscribed would be lost.
+  ASSERT_TRUE(mosaicker.WaitForOutput(kReadyLine, 60)) << mosaicker.output();
   Subprocess sim({BinPath("sim_uav"), "--config", "config/procs/sim_uav.yaml", "--lcm-url", url, "--duration", "9",
                   "--fps", "10", "--speed", "0.5"});
   std::optional<int> sim_code;
