@@ -1,5 +1,7 @@
 #include "crosssite_ba_adapter.h"
 
+#include <filesystem>
+#include <fstream>
 #include <sstream>
 
 #include "vloc/common/options.h"
@@ -15,6 +17,7 @@ void CrossSiteBaProcOptions::Visit(OptionsReader& r) {
   r.Optional("visual_channel", &visual_channel, "localization_t out");
   r.Optional("chain_previous", &chain_previous, "hold the previous site at our own estimate");
   r.Optional("queue_capacity", &queue_capacity, "messages per subscription queue");
+  r.Optional("state_path", &state_path, "site estimates kept across restarts (relative: in --state-dir)");
   r.Child("ba", [&](OptionsReader& c) { ba.Visit(c); });
 }
 
@@ -52,7 +55,18 @@ CrossSiteBaAdapter::CrossSiteBaAdapter(Transport& transport, const CrossSiteBaPr
     : transport_(transport), options_(options), navcam_(navcam) {
   dr_stats_ = Subscribe<site_pose_t>(
       transport_, options_.dr_channel,
-      [this](const std::string&, const site_pose_t& msg) { dr_poses_[msg.site_id] = PoseFromMessage(msg.pose); },
+      [this](const std::string&, const site_pose_t& msg) {
+        if (msg.site_id < 0) throw std::invalid_argument("negative site id " + std::to_string(msg.site_id));
+        const PoseWithCovariance pose = PoseFromMessage(msg.pose);
+        if (msg.site_id == 0 && (estimates_.size() > 1 || dr_poses_.size() > 1)) {
+          LOG(WARNING) << "dead reckoning of site 0 while holding " << dr_poses_.size()
+                       << " sites: a new traverse; earlier estimates dropped";
+          estimates_.clear();
+          dr_poses_.clear();
+        }
+        dr_poses_[msg.site_id] = pose;
+        SaveState();
+      },
       options_.queue_capacity);
   tie_stats_ = Subscribe<tie_points_t>(
       transport_, options_.tie_points_channel,
@@ -98,6 +112,7 @@ CrossSiteBaSummary CrossSiteBaAdapter::Process(TiePointSet set) {
   // The chain continues from the adjacent pair's result; a revisit only sets
   // the estimate when the site has none yet.
   if (!revisit || !estimates_.count(cur)) estimates_[cur] = s.world_from_current;
+  SaveState();
   (s.usable ? solved_ : failed_)++;
   if (s.usable) {
     LOG(INFO) << s.BriefReport() << " [previous site from " << previous_source << ", motion from " << motion_source
@@ -134,10 +149,49 @@ CrossSiteBaSummary CrossSiteBaAdapter::BadMessage(const tie_points_t& msg, const
 
 std::string CrossSiteBaAdapter::StatusLine() const {
   std::ostringstream o;
-  o << "site pairs solved " << solved_ << ", failed " << failed_ << "; tie-point messages received "
-    << tie_stats_->received << " (undecodable " << tie_stats_->decode_failures << ", rejected "
-    << tie_stats_->handler_failures << ")";
+  o << "site pairs solved " << solved_ << ", failed " << failed_ << "; " << SubscriptionSummary({tie_stats_, dr_stats_});
   return o.str();
+}
+
+// State file: one line per pose, "estimate|dr <site id> " + WritePoseText.
+bool CrossSiteBaAdapter::Restore(const std::string& path, std::string* error) {
+  state_path_ = path;
+  if (path.empty() || !std::filesystem::exists(path)) return true;
+  std::ifstream f(path);
+  std::map<int, PoseWithCovariance> estimates, dr;
+  std::string line;
+  int number = 0;
+  while (std::getline(f, line)) {
+    ++number;
+    std::istringstream ls(line);
+    std::string kind;
+    int site = -1;
+    PoseWithCovariance pose;
+    if (!(ls >> kind >> site) || site < 0 || (kind != "estimate" && kind != "dr") || !ReadPoseText(ls, &pose)) {
+      *error = "state file " + path + " line " + std::to_string(number) +
+               " is not '<estimate|dr> <site> <pose>' (move or delete the file to start afresh)";
+      return false;
+    }
+    (kind == "estimate" ? estimates : dr)[site] = pose;
+  }
+  estimates_ = std::move(estimates);
+  dr_poses_ = std::move(dr);
+  LOG(INFO) << "reloaded " << path << ": estimates of " << estimates_.size() << " sites, dead reckoning of "
+            << dr_poses_.size();
+  return true;
+}
+
+void CrossSiteBaAdapter::SaveState() const {
+  if (state_path_.empty()) return;
+  std::ostringstream o;
+  for (const auto* map : {&estimates_, &dr_poses_})
+    for (const auto& [site, pose] : *map) {
+      o << (map == &estimates_ ? "estimate " : "dr ") << site << ' ';
+      WritePoseText(o, pose);
+      o << '\n';
+    }
+  std::string error;
+  if (!WriteFileAtomically(state_path_, o.str(), &error)) LOG(ERROR) << "crosssite_ba state not saved: " << error;
 }
 
 }  // namespace vloc

@@ -31,7 +31,9 @@ struct CrossSiteBaProcOptions {
   std::string dr_channel = "SITE_POSE_DR";               // site_pose_t in
   std::string visual_channel = "SITE_POSE_VISUAL";       // localization_t out
   bool chain_previous = true;                            // hold the previous site at our own estimate (see above)
-  int queue_capacity = 30;                               // messages per subscription queue
+  int queue_capacity = 1000;                             // messages per subscription queue (tie points queue while a BA solves)
+  std::string state_path = "crosssite_ba.state";         // site estimates kept across restarts; relative = in --state-dir
+                                                         // or $VLOC_LOG_DIR; "" = none
   CrossSiteBaOptions ba;                                 // the adjustment (map `ba`)
 
   void Visit(OptionsReader& reader);
@@ -48,6 +50,11 @@ class CrossSiteBaAdapter {
   int64_t failed() const { return failed_; }
   std::string StatusLine() const;
 
+  // Reloads the site estimates and DR poses saved at `path` (resolved
+  // state_path; "" = none), and saves there after every site from then on.
+  // A missing file is a fresh start; an unreadable one is an error.
+  bool Restore(const std::string& path, std::string* error);
+
   // Prepares the set as the chain says, solves it and remembers the result.
   CrossSiteBaSummary Process(TiePointSet set);
 
@@ -60,6 +67,9 @@ class CrossSiteBaAdapter {
   NavcamModel navcam_;
   std::map<int, PoseWithCovariance> dr_poses_;    // SITE_POSE_DR per site
   std::map<int, PoseWithCovariance> estimates_;   // our latest estimate per site
+  void SaveState() const;
+
+  std::string state_path_;                        // resolved; "" = state not kept
   std::shared_ptr<SubscriptionStats> tie_stats_, dr_stats_;
   int64_t solved_ = 0, failed_ = 0;
 };

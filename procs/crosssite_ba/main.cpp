@@ -1,5 +1,5 @@
 // crosssite_ba: cross-site bundle adjustment of each new site.
-//   crosssite_ba --config config/procs/crosssite_ba.yaml [--lcm-url URL]
+//   crosssite_ba --config config/procs/crosssite_ba.yaml [--state-dir DIR] [--lcm-url URL]
 #include <iostream>
 
 #include "crosssite_ba_adapter.h"
@@ -10,7 +10,8 @@
 int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
   auto setup =
-      vloc::SetupProcess(argc, argv, {"crosssite_ba", {}, false, "[--config config/procs/crosssite_ba.yaml]"});
+      vloc::SetupProcess(argc, argv, {"crosssite_ba", {"state-dir"}, true,
+                                      "--config config/procs/crosssite_ba.yaml [--state-dir DIR] [--lcm-url URL]"});
   if (!setup) return 1;
   vloc::CrossSiteBaProcOptions options;
   vloc::NavcamModel navcam;
@@ -24,6 +25,13 @@ int main(int argc, char** argv) {
     return 1;
   }
   vloc::CrossSiteBaAdapter adapter(*setup->transport, options, navcam);
+  std::string note, error;
+  const std::string state_path = vloc::ResolveStatePath(options.state_path, setup->args, &note);
+  if (!note.empty()) LOG(WARNING) << "crosssite_ba: " << note;
+  if (!adapter.Restore(state_path, &error)) {
+    std::cerr << "crosssite_ba: " << error << "\n";
+    return 1;
+  }
   LOG(INFO) << "crosssite_ba: waiting for " << options.tie_points_channel;
   const int rc = vloc::RunUntilSignal(*setup->transport, 200);
   LOG(INFO) << "crosssite_ba: " << adapter.StatusLine();

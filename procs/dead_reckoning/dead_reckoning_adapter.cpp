@@ -84,9 +84,10 @@ std::string DeadReckoningAdapter::StatusLine() const {
   o << "imu used " << s.imu_used << ", dropped " << s.imu_dropped << ", gaps " << s.imu_gaps << "; wheel used "
     << s.wheel_used << ", dropped " << s.wheel_dropped << ", odometer resets " << s.odometer_resets
     << "; gravity updates " << s.gravity_updates << "; restarts " << s.resets << "; duplicate arrivals "
-    << s.site_events_dropped << "; distance " << s.distance_m << " m; published " << published_poses_
-    << " poses, " << published_sites_ << " site poses; undecodable messages "
-    << imu_stats_->decode_failures + wheel_stats_->decode_failures + site_stats_->decode_failures;
+    << s.site_events_dropped << "; implausible samples rejected " << s.implausible << ", time outliers "
+    << s.time_outliers << "; distance " << s.distance_m << " m; published " << published_poses_
+    << " poses, " << published_sites_ << " site poses; "
+    << SubscriptionSummary({imu_stats_, wheel_stats_, site_stats_, start_stats_});
   return o.str();
 }
 

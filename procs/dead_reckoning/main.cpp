@@ -10,7 +10,7 @@
 int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
   auto setup = vloc::SetupProcess(argc, argv,
-                                  {"dead_reckoning", {}, false, "[--config config/procs/dead_reckoning.yaml]"});
+                                  {"dead_reckoning", {}, true, "--config config/procs/dead_reckoning.yaml [--lcm-url URL]"});
   if (!setup) return 1;
   vloc::DeadReckoningProcOptions options;
   try {

@@ -166,6 +166,7 @@ void FeatureFrontendAdapter::OnSiteEvent(const SiteEvent& event) {
 }
 
 void FeatureFrontendAdapter::OnSitePoseDr(int site_id, const PoseWithCovariance& world_from_body) {
+  if (site_id < 0) throw std::invalid_argument("dead-reckoning pose of a negative site id " + std::to_string(site_id));
   if (previous_ && site_id <= previous_->site_id) return;
   collecting_[site_id].dr_pose = world_from_body;
   TryProcess();
@@ -177,10 +178,23 @@ bool FeatureFrontendAdapter::Complete(const Collecting& c) const {
 }
 
 void FeatureFrontendAdapter::TryProcess() {
-  // Sites in order; a site waits for the ones before it.
+  // Sites in order; a site waits for the ones before it, until a later site
+  // is complete: then an earlier incomplete one never will be (its DR pose
+  // or images were lost, or its id was corrupt) and is dropped.
   while (!collecting_.empty()) {
     auto it = collecting_.begin();
-    if (!Complete(it->second)) return;
+    if (!Complete(it->second)) {
+      const auto later = std::find_if(std::next(it), collecting_.end(),
+                                      [this](const auto& kv) { return Complete(kv.second); });
+      if (later == collecting_.end() && static_cast<int>(collecting_.size()) <= kMaxSitesCollecting) return;
+      LOG(WARNING) << "site " << it->first << ": incomplete (" << it->second.pairs.size() << " pairs, "
+                   << (it->second.dr_pose ? "with" : "no") << " dead-reckoning pose) while "
+                   << (later == collecting_.end() ? "too many sites wait" : "site " + std::to_string(later->first) +
+                                                                              " is complete")
+                   << "; dropped";
+      collecting_.erase(it);
+      continue;
+    }
     const int site_id = it->first;
     Collecting site = std::move(it->second);
     collecting_.erase(it);
@@ -327,6 +341,11 @@ void FeatureFrontendAdapter::TryRevisits(const SiteImages& current) {
     now.pairs = current.pairs;  // shared image buffers
     RunPair(loop_frontend_, *earlier, now, "revisit");
   }
+}
+
+std::string FeatureFrontendAdapter::StatusLine() const {
+  return "site pairs matched " + std::to_string(sites_processed_) + ", revisits published " +
+         std::to_string(loops_published_) + "; " + SubscriptionSummary(stats_);
 }
 
 }  // namespace vloc

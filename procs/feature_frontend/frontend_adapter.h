@@ -74,6 +74,8 @@ class FeatureFrontendAdapter {
   int loops_published() const { return loops_published_; }
 
   int sites_processed() const { return sites_processed_; }
+  // Sites matched and what the subscriptions received, for the closing log line.
+  std::string StatusLine() const;
   std::optional<int> previous_site_id() const;
 
  private:
@@ -105,6 +107,7 @@ class FeatureFrontendAdapter {
   CrossSiteFrontend frontend_;
   CrossSiteFrontend loop_frontend_;  // regions allowed to grow more (graph-predicted revisits)
   std::map<int, Collecting> collecting_;
+  static constexpr int kMaxSitesCollecting = 8;  // sites waiting for their images at once; beyond, the oldest goes
   std::optional<SiteImages> previous_;
   std::map<int, Archived> archive_;                    // sites before previous_ (revisits on)
   std::map<int, PoseWithCovariance> dr_;               // DR pose of every processed site

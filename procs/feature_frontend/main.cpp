@@ -35,5 +35,7 @@ int main(int argc, char** argv) {
   adapter.Subscribe();
   LOG(INFO) << "feature_frontend: waiting for " << options.stereo_channel << ", " << options.site_channel << " and "
             << options.dr_channel;
-  return vloc::RunUntilSignal(*setup->transport, 100);
+  const int rc = vloc::RunUntilSignal(*setup->transport, 100);
+  LOG(INFO) << "feature_frontend: " << adapter.StatusLine();
+  return rc;
 }

@@ -1,5 +1,5 @@
 // traverse_graph: the traverse pose graph (MRPT) over every site.
-//   traverse_graph --config config/procs/traverse_graph.yaml [--lcm-url URL]
+//   traverse_graph --config config/procs/traverse_graph.yaml [--state-dir DIR] [--lcm-url URL]
 #include <iostream>
 
 #include "traverse_graph_adapter.h"
@@ -10,13 +10,17 @@
 int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
   auto setup = vloc::SetupProcess(argc, argv,
-                                  {"traverse_graph", {}, false, "[--config config/procs/traverse_graph.yaml]"});
+                                  {"traverse_graph", {"state-dir"}, true,
+                                   "--config config/procs/traverse_graph.yaml [--state-dir DIR] [--lcm-url URL]"});
   if (!setup) return 1;
   vloc::TraverseGraphProcOptions options;
   try {
     std::string echo;
     options = vloc::LoadOptions<vloc::TraverseGraphProcOptions>(setup->config, setup->config_path, &echo);
     LOG(INFO) << "traverse_graph options:\n" << echo;
+    std::string note;
+    options.graph_path = vloc::ResolveStatePath(options.graph_path, setup->args, &note);
+    if (!note.empty()) LOG(WARNING) << "traverse_graph: " << note;
   } catch (const vloc::ConfigError& e) {
     std::cerr << "traverse_graph: " << e.what() << "\n";
     return 1;

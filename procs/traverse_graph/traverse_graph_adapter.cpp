@@ -130,7 +130,8 @@ void TraverseGraphAdapter::Update(const posegraph::AddResult& added, const std::
 std::string TraverseGraphAdapter::StatusLine() const {
   return std::to_string(updates_) + " updates, " + std::to_string(graph_.num_sites()) + " sites, " +
          std::to_string(visual_skipped_) + " failed BA results skipped, " + std::to_string(rejected_) +
-         " measurements rejected; last: " + graph_.last_summary().BriefReport();
+         " measurements rejected; last: " + graph_.last_summary().BriefReport() + "; " +
+         SubscriptionSummary({dr_stats_, visual_stats_, fix_stats_});
 }
 
 }  // namespace vloc

@@ -44,6 +44,7 @@ int main(int argc, char** argv) {
     if (sigtimedwait(&usr1, nullptr, &zero) == SIGUSR1) adapter.WriteMosaic();
   });
   adapter.WriteMosaic();
-  LOG(INFO) << "uav_mosaicker: " << adapter.frames() << " frames; " << adapter.mosaicker().summary().BriefReport();
+  LOG(INFO) << "uav_mosaicker: " << adapter.frames() << " frames; " << adapter.mosaicker().summary().BriefReport()
+            << "; " << adapter.SubscriptionLine();
   return code;
 }

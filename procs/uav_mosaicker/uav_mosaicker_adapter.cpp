@@ -90,8 +90,10 @@ void UavMosaickerAdapter::OnFrame(const image_t& msg) {
   try {
     image = ImageFromMessage(msg);
   } catch (const std::exception& e) {
-    LOG_EVERY_N(ERROR, 30) << "channel " << options_.camera_channel << ": frame not decodable (" << e.what()
-                           << "); counted as a lost frame";
+    ++undecodable_frames_;
+    if (undecodable_log_.ShouldLog())
+      LOG(ERROR) << "channel " << options_.camera_channel << ": frame not decodable (" << e.what()
+                 << "); counted as a lost frame (" << undecodable_frames_ << " so far)" << undecodable_log_.Suppressed();
   }
   const mosaic::FrameState state = mosaicker_.ProcessFrame(image, msg.utime);
   Publish(transport_, options_.state_channel, StateToMessage(state));

@@ -8,6 +8,7 @@
 #include <memory>
 #include <string>
 
+#include "vloc/lcm_io/rate_limited_log.h"
 #include "vloc/lcm_io/transport.h"
 #include "vloc/lcm_io/typed.h"
 #include "vloc/mosaic/uav_mosaicker.h"
@@ -47,6 +48,8 @@ class UavMosaickerAdapter {
   bool WriteMosaic();
   const mosaic::UavMosaicker& mosaicker() const { return mosaicker_; }
   int64_t frames() const { return frames_; }
+  // What the subscriptions received (undecodable frames included).
+  std::string SubscriptionLine() const { return SubscriptionSummary({camera_stats_, gps_stats_}); }
 
  private:
   void OnFrame(const image_t& msg);
@@ -59,6 +62,8 @@ class UavMosaickerAdapter {
   std::shared_ptr<SubscriptionStats> camera_stats_, gps_stats_;
   int64_t last_preview_utime_ = INT64_MIN / 2;
   int64_t frames_ = 0;
+  int64_t undecodable_frames_ = 0;   // image bytes that are no image (counted as lost frames)
+  RateLimitedLog undecodable_log_;
 };
 
 }  // namespace vloc

@@ -13,6 +13,8 @@
 #include <stdexcept>
 
 #include "vloc/lcm_io/convert.h"
+#include "vloc/lcm_io/log_reader.h"
+#include "vloc/lcm_io/typed.h"
 #include "vloc/localization_t.hpp"
 #include "vloc/site_pose_t.hpp"
 #include "vloc/traverse_t.hpp"
@@ -24,7 +26,7 @@ namespace {
 
 template <class Msg>
 bool DecodeEvent(const lcm::LogEvent& ev, Msg* msg) {
-  return msg->decode(ev.data, 0, ev.datalen) == ev.datalen;
+  return Decode(static_cast<const uint8_t*>(ev.data), static_cast<size_t>(ev.datalen), msg);
 }
 
 double Deg(double rad) { return rad * 180.0 / M_PI; }
@@ -43,15 +45,15 @@ std::string F(double v, int prec = 3) {
 }  // namespace
 
 LogData ReadLog(const std::string& path, bool progress) {
-  lcm::LogFile log(path, "r");
-  if (!log.good()) throw std::runtime_error("cannot read LCM log " + path + " (check the path)");
+  LogReader log(path);
+  if (!log.good()) throw std::runtime_error(log.error());
   LogData d;
-  const double size = static_cast<double>(std::filesystem::file_size(path));
+  const double size = static_cast<double>(log.file_size());
   int last_pct = -1;
-  while (const lcm::LogEvent* ev = log.readNextEvent()) {
+  while (const lcm::LogEvent* ev = log.Next()) {
     ++d.messages;
     if (progress && size > 0) {
-      const int pct = static_cast<int>(100.0 * static_cast<double>(std::ftell(log.getFilePtr())) / size);
+      const int pct = static_cast<int>(100.0 * static_cast<double>(log.position()) / size);
       if (pct / 5 != last_pct / 5) {
         std::fprintf(stderr, "\rvloc_eval: reading %s: %3d %%", path.c_str(), pct);
         last_pct = pct;
@@ -92,6 +94,7 @@ LogData ReadLog(const std::string& path, bool progress) {
     }
   }
   if (progress) std::fprintf(stderr, "\rvloc_eval: reading %s: 100 %%\n", path.c_str());
+  d.read_problem = log.EndProblem();
   return d;
 }
 

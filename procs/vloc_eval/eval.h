@@ -33,6 +33,7 @@ struct LogData {
   std::vector<std::pair<int64_t, Pose3>> uav_gt;
   std::vector<UavSample> uav_state;
   int64_t messages = 0, decode_failures = 0;
+  std::string read_problem;  // "" when the whole log was read; else where and why it stopped
 };
 
 // Reads the log, printing progress (% of bytes) to stderr when `progress`.

@@ -38,9 +38,15 @@ int main(int argc, char** argv) {
     return 1;
   }
   const std::string out = args.Get("out");
+  std::string read_problem;  // the log stopped early: report on what was read, then fail
   try {
     const vloc::eval::LogData data = vloc::eval::ReadLog(args.positional()[0], !args.Has("quiet"));
+    if (data.messages == 0) throw std::runtime_error(data.read_problem);
     const vloc::eval::Summary summary = vloc::eval::Evaluate(data);
+    if (summary.sites.empty() && data.uav_state.empty())
+      throw std::runtime_error(args.positional()[0] + " holds " + std::to_string(data.messages) +
+                               " messages but no rover sites with ground truth and no UAV_STATE: nothing to evaluate");
+    read_problem = data.read_problem;
     vloc::eval::WriteOutputs(summary, out);
     std::filesystem::remove(out + "/ortho.png");  // a stale background must not show under another run
     std::filesystem::remove(out + "/ortho.pgw");
@@ -70,5 +76,9 @@ int main(int argc, char** argv) {
       std::cerr << "vloc_eval: plotting failed (" << cmd << "); the report and CSVs are written\n";
   }
   std::cout << "report: " << out << "/report.md\n";
+  if (!read_problem.empty()) {
+    std::cerr << "vloc_eval: " << read_problem << "\n";
+    return 1;
+  }
   return 0;
 }

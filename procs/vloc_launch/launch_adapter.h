@@ -31,6 +31,9 @@ class LaunchLcmAdapter {
   // Orders are ignored once the launcher is shutting down.
   void SetShuttingDown() { shutting_down_ = true; }
 
+  // What the order subscription received, for the closing log line.
+  std::string SubscriptionLine() const { return SubscriptionSummary({order_stats_}); }
+
   // Applies one order; public for tests.
   void HandleOrder(const procman_order_t& order);
 

@@ -106,6 +106,6 @@ int main(int argc, char** argv) {
     adapter.Tick();
   }
   adapter.PublishStatus();
-  LOG(INFO) << "every process stopped; exiting";
+  LOG(INFO) << "every process stopped; orders: " << adapter.SubscriptionLine() << "; exiting";
   return outcome.value_or(0);
 }

@@ -11,6 +11,7 @@
 #include <regex>
 
 #include "vloc/common/command_line.h"
+#include "vloc/lcm_io/log_reader.h"
 
 int main(int argc, char** argv) {
   vloc::CommandLine args;
@@ -25,9 +26,9 @@ int main(int argc, char** argv) {
     const std::regex channels(args.Get("channels", ".*"));
     const double start_s = args.GetDouble("start", 0.0);
     const double end_s = args.GetDouble("end", 1e18);
-    lcm::LogFile in(args.positional()[0], "r");
+    vloc::LogReader in(args.positional()[0]);
     if (!in.good()) {
-      std::cerr << "vloc_logfilter: cannot read log " << args.positional()[0] << "\n";
+      std::cerr << "vloc_logfilter: " << in.error() << "\n";
       return 1;
     }
     lcm::LogFile out(args.positional()[1], "w");
@@ -38,7 +39,7 @@ int main(int argc, char** argv) {
     std::map<std::string, int> kept;
     int64_t first = -1;
     int64_t eventnum = 0;
-    while (const lcm::LogEvent* ev = in.readNextEvent()) {
+    while (const lcm::LogEvent* ev = in.Next()) {
       if (first < 0) first = ev->timestamp;
       const double t = (ev->timestamp - first) * 1e-6;
       if (t < start_s || t > end_s || !std::regex_match(ev->channel, channels)) continue;
@@ -48,6 +49,10 @@ int main(int argc, char** argv) {
       ++kept[ev->channel];
     }
     for (const auto& [channel, n] : kept) std::cout << channel << ": " << n << "\n";
+    if (const std::string problem = in.EndProblem(); !problem.empty()) {
+      std::cerr << "vloc_logfilter: " << problem << "; " << args.positional()[1] << " holds what came before\n";
+      return 1;
+    }
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "vloc_logfilter: " << e.what() << "\n";

@@ -85,10 +85,16 @@ void SiteCameraPoses(const Pose3& world_from_body, const std::vector<MastPointin
 namespace {
 
 bool PoseIsValid(const Pose3& pose) {
-  if (!pose.matrix().allFinite()) return false;
-  const Eigen::Matrix3d R = pose.linear();
-  return (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < 1e-6 && R.determinant() > 0;
+  PoseWithCovariance p;
+  p.pose = pose;
+  return IsPlausiblePose(p);
 }
+
+// Image coordinates and sigmas beyond these are corrupt, not measurements:
+// they would turn the residuals non-finite inside Ceres.
+constexpr double kMaxImageCoordinatePx = 1e5;
+constexpr double kMaxObservationSigmaPx = 1e3;
+constexpr double kMaxMastAngleRad = 100.0;
 
 // A tie point prepared for the adjustment.
 struct BaPoint {
@@ -314,6 +320,10 @@ CrossSiteBaSummary SolveCrossSiteBa(const TiePointSet& set, const NavcamModel& n
   std::string error;
   if (!options.Check(&error)) return finish(CrossSiteBaStatus::kBadInput, "bad BA options: " + error);
   if (!navcam.Check(&error)) return finish(CrossSiteBaStatus::kBadInput, "bad Navcam model: " + error);
+  if (set.previous_site_id == set.current_site_id || set.previous_site_id < 0 || set.current_site_id < 0)
+    return finish(CrossSiteBaStatus::kBadInput, "previous site " + std::to_string(set.previous_site_id) +
+                                                    " and current site " + std::to_string(set.current_site_id) +
+                                                    " must be two different non-negative ids");
   if (!PoseIsValid(set.previous_site_pose.pose))
     return finish(CrossSiteBaStatus::kBadInput, "previous site pose is not a finite rigid pose; check the tie-point message");
   if (!PoseIsValid(set.current_site_pose_dr.pose))
@@ -322,8 +332,8 @@ CrossSiteBaSummary SolveCrossSiteBa(const TiePointSet& set, const NavcamModel& n
     return finish(CrossSiteBaStatus::kBadInput, "no mast pointing for the previous or current site's pairs");
   for (const auto* list : {&set.previous_pointing, &set.current_pointing})
     for (const auto& p : *list)
-      if (!std::isfinite(p.pan) || !std::isfinite(p.tilt))
-        return finish(CrossSiteBaStatus::kBadInput, "a mast pan/tilt is not finite");
+      if (!(std::abs(p.pan) <= kMaxMastAngleRad) || !(std::abs(p.tilt) <= kMaxMastAngleRad))
+        return finish(CrossSiteBaStatus::kBadInput, "a mast pan/tilt is not finite or beyond 100 rad");
 
   Network net;
   net.navcam = &navcam;
@@ -341,7 +351,7 @@ CrossSiteBaSummary SolveCrossSiteBa(const TiePointSet& set, const NavcamModel& n
     for (const auto& o : tp.observations) {
       const size_t pairs = o.site == SiteRole::kPrevious ? set.previous_pointing.size() : set.current_pointing.size();
       if (o.pair_index < 0 || o.pair_index >= static_cast<int>(pairs) || !(o.sigma > 0) ||
-          !std::isfinite(o.sigma) || !o.uv.allFinite()) {
+          !(o.sigma <= kMaxObservationSigmaPx) || !(o.uv.cwiseAbs().maxCoeff() <= kMaxImageCoordinatePx)) {
         ++s.num_bad_observations;
         continue;
       }

@@ -103,6 +103,9 @@ YAML::Node LoadYamlFile(const std::string& path) {
   } catch (const YAML::Exception& e) {
     throw ConfigError("config file " + path + " is not valid YAML: " + e.what());
   }
+  if (root.IsNull())
+    throw ConfigError("config file " + path +
+                      " is empty: nothing would be set on purpose (write {} to take every default)");
   return ResolveIncludes(root, std::filesystem::path(path).parent_path(), 0);
 }
 

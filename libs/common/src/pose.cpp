@@ -2,6 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <istream>
+#include <ostream>
 
 namespace vloc {
 
@@ -85,6 +89,71 @@ Matrix6d ComposeCovariance(const Pose3& a_from_b, const Matrix6d& cov_a_from_b,
   J2.block<3, 3>(0, 0) = R1;
   J2.block<3, 3>(3, 3) = R1;
   return J1 * cov_a_from_b * J1.transpose() + J2 * cov_b_from_c * J2.transpose();
+}
+
+bool IsPlausiblePose(const PoseWithCovariance& p, std::string* why) {
+  auto fail = [why](const std::string& what) {
+    if (why) *why = what;
+    return false;
+  };
+  const Eigen::Vector3d t = p.pose.translation();
+  const Eigen::Matrix3d R = p.pose.linear();
+  if (!t.allFinite() || !R.allFinite()) return fail("pose is not finite");
+  if (t.cwiseAbs().maxCoeff() > kMaxPositionMetres)
+    return fail("position (" + std::to_string(t.x()) + ", " + std::to_string(t.y()) + ", " + std::to_string(t.z()) +
+                ") m is beyond " + std::to_string(kMaxPositionMetres) + " m");
+  if (!(((R.transpose() * R) - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-6) || !(R.determinant() > 0))
+    return fail("rotation is not a proper rotation");
+  const Matrix6d& C = p.covariance;
+  if (!C.allFinite()) return fail("covariance is not finite");
+  if (C.cwiseAbs().maxCoeff() > kMaxCovarianceEntry) return fail("covariance entry beyond 1e12");
+  if (C.diagonal().minCoeff() < 0) return fail("covariance has a negative variance");
+  if ((C - C.transpose()).cwiseAbs().maxCoeff() > 1e-9 * std::max(1.0, C.cwiseAbs().maxCoeff()))
+    return fail("covariance is not symmetric");
+  return true;
+}
+
+void WritePoseText(std::ostream& os, const PoseWithCovariance& p) {
+  const Eigen::Quaterniond q(p.pose.linear());
+  const Eigen::Vector3d t = p.pose.translation();
+  const auto precision = os.precision(17);
+  os << p.utime << ' ' << t.x() << ' ' << t.y() << ' ' << t.z() << ' ' << q.w() << ' ' << q.x() << ' ' << q.y()
+     << ' ' << q.z();
+  for (int i = 0; i < 36; ++i) os << ' ' << p.covariance(i / 6, i % 6);
+  os.precision(precision);
+}
+
+bool ReadPoseText(std::istream& is, PoseWithCovariance* p) {
+  double x, y, z, qw, qx, qy, qz;
+  if (!(is >> p->utime >> x >> y >> z >> qw >> qx >> qy >> qz)) return false;
+  for (int i = 0; i < 36; ++i)
+    if (!(is >> p->covariance(i / 6, i % 6))) return false;
+  const Eigen::Quaterniond q(qw, qx, qy, qz);
+  if (!(std::abs(q.norm() - 1.0) < 1e-3)) return false;
+  p->pose = MakePose(q.normalized().toRotationMatrix(), Eigen::Vector3d(x, y, z));
+  return IsPlausiblePose(*p);
+}
+
+bool WriteFileAtomically(const std::string& path, const std::string& text, std::string* error) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp);
+    if (!f) {
+      if (error) *error = "cannot write " + tmp + " (check the directory exists and is writable)";
+      return false;
+    }
+    f << text;
+    f.flush();
+    if (!f) {
+      if (error) *error = "writing " + tmp + " failed (disk full?)";
+      return false;
+    }
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    if (error) *error = "cannot rename " + tmp + " to " + path;
+    return false;
+  }
+  return true;
 }
 
 }  // namespace vloc

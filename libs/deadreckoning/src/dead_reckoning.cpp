@@ -40,6 +40,9 @@ void DeadReckoningOptions::Visit(OptionsReader& r) {
   r.Optional("max_speed_mps", &max_speed_mps, "m/s, faster odometer increments dropped");
   r.Optional("wheel_wait_s", &wheel_wait_s, "s, wheel samples wait this long for the IMU");
   r.Optional("reset_backward_jump_s", &reset_backward_jump_s, "s, larger backward jumps restart");
+  r.Optional("max_forward_jump_s", &max_forward_jump_s, "s, larger forward jumps wait for the next sample to confirm");
+  r.Optional("max_gyro_rate_rps", &max_gyro_rate_rps, "rad/s, faster rates are rejected as not physical");
+  r.Optional("max_accel_mps2", &max_accel_mps2, "m/s^2, larger specific forces are rejected");
 }
 
 bool DeadReckoningOptions::Check(std::string* error) const {
@@ -58,6 +61,11 @@ bool DeadReckoningOptions::Check(std::string* error) const {
     return Fail(error, "still_duration_s must be positive and still_settle_s >= 0");
   if (!(max_imu_gap_s > 0) || !(max_speed_mps > 0) || !(wheel_wait_s >= 0) || !(reset_backward_jump_s > 0))
     return Fail(error, "max_imu_gap_s, max_speed_mps, reset_backward_jump_s must be positive, wheel_wait_s >= 0");
+  if (!(max_forward_jump_s > max_imu_gap_s) || !(max_forward_jump_s < 1e9))
+    return Fail(error, "max_forward_jump_s must be above max_imu_gap_s and below 1e9 s, is " +
+                           std::to_string(max_forward_jump_s));
+  if (!(max_gyro_rate_rps > still_gyro_threshold) || !(max_accel_mps2 > gravity_mps2))
+    return Fail(error, "max_gyro_rate_rps must exceed still_gyro_threshold and max_accel_mps2 gravity_mps2");
   return true;
 }
 
@@ -139,13 +147,83 @@ void DeadReckoning::PropagateAttitude(const Eigen::Vector3d& rate, double dt) {
   P_.block<3, 3>(kB, kB) += Eigen::Matrix3d::Identity() * options_.gyro_bias_walk * options_.gyro_bias_walk * dt;
 }
 
-void DeadReckoning::AddImu(const ImuSample& s) {
+bool DeadReckoning::Plausible(const ImuSample& s, std::string* why) const {
+  if (s.utime < 0 || s.utime > kMaxPlausibleUtime) {
+    *why = "its time " + std::to_string(s.utime) + " us is outside [0, 2^53]";
+    return false;
+  }
   if (!s.angular_velocity.allFinite() || !s.linear_acceleration.allFinite()) {
-    ++stats_.imu_dropped;
-    LOG_EVERY_N(WARNING, 100) << "dead reckoning: IMU sample at " << s.utime << " is not finite; dropped ("
-                              << google::COUNTER << " so far)";
+    *why = "it is not finite";
+    return false;
+  }
+  if (s.angular_velocity.cwiseAbs().maxCoeff() > options_.max_gyro_rate_rps) {
+    *why = "a rate of " + std::to_string(s.angular_velocity.cwiseAbs().maxCoeff()) +
+           " rad/s exceeds max_gyro_rate_rps " + std::to_string(options_.max_gyro_rate_rps);
+    return false;
+  }
+  if (s.linear_acceleration.cwiseAbs().maxCoeff() > options_.max_accel_mps2) {
+    *why = "a specific force of " + std::to_string(s.linear_acceleration.cwiseAbs().maxCoeff()) +
+           " m/s^2 exceeds max_accel_mps2 " + std::to_string(options_.max_accel_mps2);
+    return false;
+  }
+  return true;
+}
+
+DeadReckoning::TimeStep DeadReckoning::GateTime(int64_t utime, int64_t last, std::optional<int64_t>* held,
+                                                const char* what) {
+  const double step_s = static_cast<double>(utime - last) * kMicro;  // both in [0, 2^53]: no overflow
+  const bool jump = step_s > options_.max_forward_jump_s || -step_s > options_.reset_backward_jump_s;
+  if (!jump) {
+    if (*held) {
+      ++stats_.time_outliers;
+      LOG(WARNING) << "dead reckoning: " << what << " sample at " << **held << " us jumped from " << last
+                   << " us and the stream did not follow; dropped as a time outlier";
+      held->reset();
+    }
+    return TimeStep::kContinues;
+  }
+  if (*held && utime >= **held && static_cast<double>(utime - **held) * kMicro <= options_.max_imu_gap_s) {
+    LOG(WARNING) << "dead reckoning: " << what << " time jumped " << static_cast<double>(**held - last) * kMicro
+                 << " s and the next sample confirms it";
+    held->reset();
+    return TimeStep::kConfirmedJump;
+  }
+  if (*held) ++stats_.time_outliers;
+  *held = utime;
+  LOG(WARNING) << "dead reckoning: " << what << " sample at " << utime << " us jumps " << step_s
+               << " s from the last; held until the next sample confirms the jump";
+  return TimeStep::kHeld;
+}
+
+void DeadReckoning::AddImu(const ImuSample& s) {
+  std::string why;
+  if (!Plausible(s, &why)) {
+    ++stats_.implausible;
+    LOG_EVERY_N(WARNING, 100) << "dead reckoning: IMU sample rejected: " << why << " (" << google::COUNTER
+                              << " so far)";
     return;
   }
+  if (initialized_) {
+    switch (GateTime(s.utime, imu_utime_, &held_imu_utime_, "IMU")) {
+      case TimeStep::kHeld:
+        held_imu_ = s;
+        return;
+      case TimeStep::kConfirmedJump: {
+        const ImuSample first = *held_imu_;
+        held_imu_.reset();
+        if (first.utime < imu_utime_) Reset("IMU time jumped back (a new log?)");
+        ApplyImu(first);
+        break;
+      }
+      case TimeStep::kContinues:
+        held_imu_.reset();
+        break;
+    }
+  }
+  ApplyImu(s);
+}
+
+void DeadReckoning::ApplyImu(const ImuSample& s) {
   if (!initialized_) {
     Initialize(s);
     ++stats_.imu_used;
@@ -256,15 +334,41 @@ Eigen::Matrix3d DeadReckoning::AttitudeAt(int64_t utime) const {
 }
 
 void DeadReckoning::AddWheel(const WheelOdometrySample& s) {
-  if (!std::isfinite(s.distance) || !std::isfinite(s.speed)) {
-    ++stats_.wheel_dropped;
-    LOG_EVERY_N(WARNING, 100) << "dead reckoning: wheel sample at " << s.utime << " is not finite; dropped";
+  if (s.utime < 0 || s.utime > kMaxPlausibleUtime || !std::isfinite(s.distance) || !std::isfinite(s.speed) ||
+      std::abs(s.distance) > kMaxPositionMetres || std::abs(s.speed) > 100 * options_.max_speed_mps) {
+    ++stats_.implausible;
+    LOG_EVERY_N(WARNING, 100) << "dead reckoning: wheel sample at " << s.utime << " us (distance " << s.distance
+                              << " m, speed " << s.speed << " m/s) is not plausible; rejected (" << google::COUNTER
+                              << " so far)";
     return;
   }
   const int64_t last = !wheel_queue_.empty() ? wheel_queue_.back().utime : (have_wheel_ ? last_wheel_.utime : INT64_MIN);
-  if (last != INT64_MIN && TimeWentBack(s.utime, last, "wheel odometry")) {
+  if (last != INT64_MIN) {
+    switch (GateTime(s.utime, last, &held_wheel_utime_, "wheel odometry")) {
+      case TimeStep::kHeld:
+        held_wheel_ = s;
+        return;
+      case TimeStep::kConfirmedJump: {
+        const WheelOdometrySample first = *held_wheel_;
+        held_wheel_.reset();
+        if (first.utime < last) {
+          // The odometer's own restart: rebase on it, keep the IMU state.
+          wheel_queue_.clear();
+          have_wheel_ = false;
+        }
+        wheel_queue_.push_back(first);
+        break;
+      }
+      case TimeStep::kContinues:
+        held_wheel_.reset();
+        break;
+    }
+  }
+  const int64_t newest =
+      !wheel_queue_.empty() ? wheel_queue_.back().utime : (have_wheel_ ? last_wheel_.utime : INT64_MIN);
+  if (newest != INT64_MIN && TimeWentBack(s.utime, newest, "wheel odometry")) {
     ++stats_.wheel_dropped;
-    LOG_EVERY_N(WARNING, 100) << "dead reckoning: wheel sample at " << s.utime << " is not after " << last
+    LOG_EVERY_N(WARNING, 100) << "dead reckoning: wheel sample at " << s.utime << " is not after " << newest
                               << " (duplicated or out of order); dropped (" << google::COUNTER << " so far)";
     return;
   }
@@ -363,6 +467,19 @@ PoseWithCovariance DeadReckoning::Current() const {
 
 void DeadReckoning::AddSiteEvent(const SiteEvent& event) {
   if (event.event != SiteEventType::kArrived) return;
+  if (event.site_id < 0 || event.utime < 0 || event.utime > kMaxPlausibleUtime) {
+    ++stats_.implausible;
+    LOG(WARNING) << "dead reckoning: arrival at site " << event.site_id << " at " << event.utime
+                 << " us: negative site id or time outside [0, 2^53] us; rejected";
+    return;
+  }
+  if (!sites_seen_.empty() &&
+      static_cast<int64_t>(event.site_id) - *std::max_element(sites_seen_.begin(), sites_seen_.end()) > kMaxSiteIdJump) {
+    ++stats_.implausible;
+    LOG(WARNING) << "dead reckoning: arrival at site " << event.site_id << " is more than " << kMaxSiteIdJump
+                 << " beyond the newest site (a corrupt id?); rejected";
+    return;
+  }
   if (std::find(sites_seen_.begin(), sites_seen_.end(), event.site_id) != sites_seen_.end()) {
     ++stats_.site_events_dropped;
     LOG(WARNING) << "dead reckoning: site " << event.site_id << " arrival already reported; duplicate dropped";

@@ -123,8 +123,10 @@ PoseWithCovariance PoseFromMessage(const pose_t& msg) {
   out.pose = MakePose(q.normalized().toRotationMatrix(), t);
   for (int r = 0; r < 6; ++r)
     for (int c = 0; c < 6; ++c) out.covariance(r, c) = msg.covariance[r * 6 + c];
-  if (!out.covariance.allFinite())
-    throw std::invalid_argument("pose " + msg.frame_id + "_from_" + msg.child_frame_id + ": covariance not finite");
+  out.covariance = 0.5 * (out.covariance + out.covariance.transpose()).eval();
+  std::string why;
+  if (!IsPlausiblePose(out, &why))
+    throw std::invalid_argument("pose " + msg.frame_id + "_from_" + msg.child_frame_id + ": " + why);
   return out;
 }
 

@@ -39,9 +39,10 @@ stereo_image_t StereoPairToMessage(const StereoPair& pair, ImageEncoding encodin
 StereoPair StereoPairFromMessage(const stereo_image_t& msg) {
   const std::string who = "stereo pair " + std::to_string(msg.pair_index) + " of site " + std::to_string(msg.site_id);
   if (msg.site_id < 0) throw std::invalid_argument(who + ": negative site id");
-  if (msg.num_pairs <= 0 || msg.pair_index < 0 || msg.pair_index >= msg.num_pairs)
-    throw std::invalid_argument(who + ": pair_index must be in [0, num_pairs) (num_pairs " +
-                                std::to_string(msg.num_pairs) + ")");
+  if (msg.num_pairs <= 0 || msg.num_pairs > kMaxPairsPerSite || msg.pair_index < 0 || msg.pair_index >= msg.num_pairs)
+    throw std::invalid_argument(who + ": pair_index must be in [0, num_pairs) and num_pairs in [1, " +
+                                std::to_string(kMaxPairsPerSite) + "] (num_pairs " + std::to_string(msg.num_pairs) +
+                                ")");
   RequireFinite(msg.mast_pan, who + ": mast_pan");
   RequireFinite(msg.mast_tilt, who + ": mast_tilt");
   StereoPair pair;
@@ -107,6 +108,10 @@ SiteEvent SiteEventFromMessage(const site_event_t& msg) {
   if (msg.event < 0 || msg.event > 2)
     throw std::invalid_argument("site event " + std::to_string(int(msg.event)) + " is not ARRIVED, IMAGING_DONE or DEPARTED");
   if (msg.site_id < 0) throw std::invalid_argument("site event with negative site id");
+  if (msg.num_pairs < 0 || msg.num_pairs > kMaxPairsPerSite)
+    throw std::invalid_argument("site event of site " + std::to_string(msg.site_id) + ": num_pairs " +
+                                std::to_string(msg.num_pairs) + " outside [0, " + std::to_string(kMaxPairsPerSite) +
+                                "]");
   return {msg.utime, msg.site_id, static_cast<SiteEventType>(msg.event), msg.num_pairs};
 }
 

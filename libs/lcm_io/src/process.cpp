@@ -3,7 +3,9 @@
 #include <glog/logging.h>
 #include <signal.h>
 
+#include <cstdlib>
 #include <ctime>
+#include <filesystem>
 #include <iostream>
 
 #include "vloc/common/options.h"
@@ -53,6 +55,11 @@ std::optional<ProcessSetup> SetupProcess(int argc, char** argv, const ProcessSet
       std::cerr << options.name << ": " << e.what() << "\n";
       return std::nullopt;
     }
+    if (!setup.config.IsMap()) {
+      std::cerr << options.name << ": config " << setup.config_path
+                << " is not a map of keys; start from config/procs/" << options.name << ".yaml\n";
+      return std::nullopt;
+    }
     if (setup.config.IsMap() && setup.config["lcm_url"]) {
       configured_url = setup.config["lcm_url"].as<std::string>("");
       setup.config.remove("lcm_url");
@@ -74,6 +81,23 @@ std::optional<ProcessSetup> SetupProcess(int argc, char** argv, const ProcessSet
   LOG(INFO) << options.name << " started, LCM URL " << setup.lcm_url
             << (setup.config_path.empty() ? "" : ", config " + setup.config_path);
   return setup;
+}
+
+std::string ResolveStatePath(const std::string& configured, const CommandLine& args, std::string* note) {
+  if (configured.empty()) return "";
+  const std::filesystem::path path(configured);
+  if (path.is_absolute()) return configured;
+  std::string dir = args.Get("state-dir");
+  if (dir.empty())
+    if (const char* env = std::getenv("VLOC_LOG_DIR"); env && *env) dir = env;
+  if (dir.empty()) {
+    if (note)
+      *note = "no --state-dir and no VLOC_LOG_DIR: " + configured + " is not kept (a restart starts afresh)";
+    return "";
+  }
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  return (std::filesystem::path(dir) / path).string();
 }
 
 int RunUntilSignal(Transport& transport, int timeout_ms, const std::function<void()>& on_idle,

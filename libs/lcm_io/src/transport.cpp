@@ -4,7 +4,9 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
+#include <deque>
 #include <cstdlib>
 #include <regex>
 
@@ -29,11 +31,14 @@ class LcmTransport : public Transport {
     return lcm_.publish(channel, data, static_cast<unsigned int>(size)) == 0;
   }
 
-  int Subscribe(const std::string& channel, RawHandler handler, int queue_capacity) override {
+  int Subscribe(const std::string& channel, RawHandler handler, int queue_capacity, DropHandler on_drop) override {
     auto holder = std::make_unique<Holder>();
     holder->handler = std::move(handler);
-    holder->subscription = lcm_.subscribeFunction(channel, &LcmTransport::Dispatch, holder.get());
-    holder->subscription->setQueueCapacity(queue_capacity);
+    holder->on_drop = std::move(on_drop);
+    holder->capacity = static_cast<size_t>(std::max(queue_capacity, 1));
+    holder->owner = this;
+    holder->subscription = lcm_.subscribeFunction(channel, &LcmTransport::Enqueue, holder.get());
+    holder->subscription->setQueueCapacity(0);  // unbounded in LCM; bounded (and counted) in Holder::queue
     const int id = next_id_++;
     holders_[id] = std::move(holder);
     return id;
@@ -46,20 +51,56 @@ class LcmTransport : public Transport {
     holders_.erase(it);
   }
 
-  int Handle(int timeout_ms) override { return lcm_.handleTimeout(timeout_ms); }
+  // Waits for a message, drains everything LCM has received into the
+  // bounded queues (counting drops), then delivers in arrival order.
+  int Handle(int timeout_ms) override {
+    const int rc = lcm_.handleTimeout(timeout_ms);
+    if (rc <= 0) return rc;
+    while (lcm_.handleTimeout(0) > 0) {
+    }
+    int delivered = 0;
+    while (true) {
+      Holder* next = nullptr;
+      for (auto& [id, h] : holders_)
+        if (!h->queue.empty() && (!next || h->queue.front().sequence < next->queue.front().sequence))
+          next = h.get();
+      if (!next) break;
+      Queued q = std::move(next->queue.front());
+      next->queue.pop_front();
+      const RawHandler handler = next->handler;  // the call may unsubscribe (destroy) `next`
+      handler(q.channel, q.bytes.data(), q.bytes.size());
+      ++delivered;
+    }
+    return std::max(delivered, 1);
+  }
 
  private:
+  struct Queued {
+    uint64_t sequence;
+    std::string channel;
+    std::vector<uint8_t> bytes;
+  };
   struct Holder {
     RawHandler handler;
+    DropHandler on_drop;
+    size_t capacity = 30;
+    std::deque<Queued> queue;
+    LcmTransport* owner = nullptr;
     lcm::Subscription* subscription = nullptr;
   };
-  static void Dispatch(const lcm::ReceiveBuffer* rbuf, const std::string& channel, Holder* holder) {
-    holder->handler(channel, static_cast<const uint8_t*>(rbuf->data), rbuf->data_size);
+  static void Enqueue(const lcm::ReceiveBuffer* rbuf, const std::string& channel, Holder* holder) {
+    const auto* bytes = static_cast<const uint8_t*>(rbuf->data);
+    holder->queue.push_back({holder->owner->sequence_++, channel, std::vector<uint8_t>(bytes, bytes + rbuf->data_size)});
+    while (holder->queue.size() > holder->capacity) {
+      holder->queue.pop_front();
+      if (holder->on_drop) holder->on_drop(channel);
+    }
   }
 
   lcm::LCM lcm_;
   std::map<int, std::unique_ptr<Holder>> holders_;
   int next_id_ = 1;
+  uint64_t sequence_ = 0;
 };
 
 }  // namespace
@@ -105,7 +146,8 @@ bool MockTransport::Publish(const std::string& channel, const void* data, size_t
   return true;
 }
 
-int MockTransport::Subscribe(const std::string& channel, RawHandler handler, int /*queue_capacity*/) {
+int MockTransport::Subscribe(const std::string& channel, RawHandler handler, int /*queue_capacity*/,
+                             DropHandler /*on_drop*/) {
   const int id = next_id_++;
   subscriptions_[id] = {channel, std::move(handler)};
   return id;

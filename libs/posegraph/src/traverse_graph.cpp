@@ -1,7 +1,10 @@
 #include "vloc/posegraph/traverse_graph.h"
 
+#include <glog/logging.h>
+
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -14,14 +17,36 @@ namespace vloc::posegraph {
 
 namespace {
 
+// An information matrix must be symmetric positive definite, or the
+// optimiser reports a negative chi2 and wanders. Some public data sets hold
+// semi-definite or indefinite ones: eigenvalues below 1e-9 of the largest
+// are raised to it. False when the matrix is not finite or has no positive
+// eigenvalue; *smallest receives the smallest eigenvalue found.
+bool RepairInformation(mrpt::poses::CPose3DPDFGaussianInf* edge, double* smallest) {
+  Matrix6d info;
+  for (int r = 0; r < 6; ++r)
+    for (int c = 0; c < 6; ++c) info(r, c) = edge->cov_inv(r, c);
+  if (!info.allFinite()) return false;
+  info = 0.5 * (info + info.transpose()).eval();
+  Eigen::SelfAdjointEigenSolver<Matrix6d> eig(info);
+  if (eig.info() != Eigen::Success) return false;
+  Vector6d values = eig.eigenvalues();
+  *smallest = values.minCoeff();
+  const double largest = values.maxCoeff();
+  if (!(largest > 0)) return false;
+  if (*smallest > 1e-9 * largest) return true;
+  values = values.cwiseMax(1e-9 * largest);
+  info = eig.eigenvectors() * values.asDiagonal() * eig.eigenvectors().transpose();
+  edge->cov_inv = mrpt::math::CMatrixDouble66(0.5 * (info + info.transpose()));
+  if (*smallest > 0) *smallest = 0;  // repaired though positive: report as repaired
+  return true;
+}
+
 using Clock = std::chrono::steady_clock;
 double Since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
 bool IsZero(const Matrix6d& m) { return (m.array() == 0.0).all(); }
 
-bool IsFinitePose(const PoseWithCovariance& p) {
-  return p.pose.matrix().allFinite() && p.covariance.allFinite();
-}
 
 Matrix6d Diagonal(double sx, double sy, double sz, double srx, double sry, double srz) {
   Vector6d d;
@@ -34,24 +59,6 @@ Matrix6d RotateBlocks(const Eigen::Matrix3d& R, const Matrix6d& covariance) {
   J.block<3, 3>(0, 0) = R;
   J.block<3, 3>(3, 3) = R;
   return J * covariance * J.transpose();
-}
-
-void WritePose(std::ostream& os, const PoseWithCovariance& p) {
-  const Eigen::Quaterniond q(p.pose.linear());
-  const Eigen::Vector3d t = p.pose.translation();
-  os << p.utime << ' ' << t.x() << ' ' << t.y() << ' ' << t.z() << ' ' << q.w() << ' ' << q.x() << ' ' << q.y()
-     << ' ' << q.z();
-  for (int i = 0; i < 36; ++i) os << ' ' << p.covariance(i / 6, i % 6);
-}
-
-bool ReadPose(std::istream& is, PoseWithCovariance* p) {
-  double x, y, z, qw, qx, qy, qz;
-  if (!(is >> p->utime >> x >> y >> z >> qw >> qx >> qy >> qz)) return false;
-  for (int i = 0; i < 36; ++i)
-    if (!(is >> p->covariance(i / 6, i % 6))) return false;
-  const Eigen::Quaterniond q = Eigen::Quaterniond(qw, qx, qy, qz).normalized();
-  p->pose = MakePose(q.toRotationMatrix(), Eigen::Vector3d(x, y, z));
-  return true;
 }
 
 }  // namespace
@@ -81,6 +88,7 @@ void PoseGraphOptions::Visit(OptionsReader& r) {
   r.Optional("min_position_sigma", &min_position_sigma, "m, floor added to every edge");
   r.Optional("min_rotation_sigma", &min_rotation_sigma, "rad, floor added to every edge");
   r.Optional("compute_marginals", &compute_marginals, "marginal covariances after each update");
+  r.Optional("max_site_id_jump", &max_site_id_jump, "site ids further beyond the newest are rejected as corrupt");
 }
 
 bool PoseGraphOptions::Check(std::string* error) const {
@@ -102,6 +110,7 @@ bool PoseGraphOptions::Check(std::string* error) const {
       {"min_rotation_sigma", min_rotation_sigma}};
   for (const auto& [name, value] : positive)
     if (!(value > 0.0) || !std::isfinite(value)) return Fail(error, std::string(name) + " must be > 0");
+  if (max_site_id_jump < 1) return Fail(error, "max_site_id_jump must be >= 1, is " + std::to_string(max_site_id_jump));
   return true;
 }
 
@@ -163,14 +172,26 @@ Matrix6d TraverseGraph::DrEdgeCovariance(int from, int to, const Pose3& relative
                   options_.dr_heading_sigma_per_metre * d);
 }
 
+std::string TraverseGraph::SiteIdProblem(int site_id) const {
+  if (site_id < 0) return "site id " + std::to_string(site_id) + " is negative";
+  if (sites_.empty()) return "";
+  const int newest = sites_.rbegin()->first;
+  if (static_cast<int64_t>(site_id) - newest > options_.max_site_id_jump)
+    return "site id " + std::to_string(site_id) + " is more than max_site_id_jump " +
+           std::to_string(options_.max_site_id_jump) + " beyond the newest site " + std::to_string(newest) +
+           " (a corrupt id?)";
+  return "";
+}
+
 AddResult TraverseGraph::AddDeadReckoning(int site_id, const PoseWithCovariance& world_from_body) {
   AddResult result;
-  if (site_id < 0) {
-    result.message = "site id " + std::to_string(site_id) + " is negative; dead-reckoning pose ignored";
+  if (const std::string problem = SiteIdProblem(site_id); !problem.empty()) {
+    result.message = problem + "; dead-reckoning pose ignored";
     return result;
   }
-  if (!IsFinitePose(world_from_body)) {
-    result.message = "site " + std::to_string(site_id) + ": dead-reckoning pose is not finite; ignored";
+  std::string why;
+  if (!IsPlausiblePose(world_from_body, &why)) {
+    result.message = "site " + std::to_string(site_id) + ": dead-reckoning pose rejected: " + why + "; ignored";
     return result;
   }
   SiteRecord& record = sites_[site_id];
@@ -229,9 +250,16 @@ AddResult TraverseGraph::AddRelative(int reference_site_id, int site_id,
                      ": needs two different non-negative site ids; ignored";
     return result;
   }
-  if (!IsFinitePose(reference_from_current)) {
-    result.message = "visual edge " + std::to_string(reference_site_id) + "->" + std::to_string(site_id) +
-                     ": pose or covariance not finite; ignored";
+  for (const int id : {reference_site_id, site_id})
+    if (const std::string problem = SiteIdProblem(id); !problem.empty()) {
+      result.message = "visual edge " + std::to_string(reference_site_id) + "->" + std::to_string(site_id) + ": " +
+                       problem + "; ignored";
+      return result;
+    }
+  std::string why;
+  if (!IsPlausiblePose(reference_from_current, &why)) {
+    result.message = "visual edge " + std::to_string(reference_site_id) + "->" + std::to_string(site_id) + ": " +
+                     why + "; ignored";
     return result;
   }
   PoseWithCovariance measurement = reference_from_current;
@@ -248,8 +276,9 @@ AddResult TraverseGraph::AddRelative(int reference_site_id, int site_id,
 
 AddResult TraverseGraph::AddAbsoluteFix(int site_id, const PoseWithCovariance& world_from_body) {
   AddResult result;
-  if (site_id < 0 || !IsFinitePose(world_from_body)) {
-    result.message = "absolute fix for site " + std::to_string(site_id) + ": bad site id or pose; ignored";
+  std::string why = SiteIdProblem(site_id);
+  if (!why.empty() || !IsPlausiblePose(world_from_body, &why)) {
+    result.message = "absolute fix for site " + std::to_string(site_id) + ": " + why + "; ignored";
     return result;
   }
   PoseWithCovariance measurement = world_from_body;
@@ -408,7 +437,7 @@ std::string TraverseGraph::Serialize() const {
   os << "# VLOC_VERSION 1\n";
   for (const auto& [id, rec] : sites_) {
     os << "# VLOC_SITE " << id << ' ' << rec.utime << ' ' << (rec.has_dr ? 1 : 0) << ' ';
-    WritePose(os, rec.dr);
+    WritePoseText(os, rec.dr);
     os << '\n';
   }
   // The exact information matrix (upper triangle, optimiser order x y z rx ry
@@ -421,7 +450,7 @@ std::string TraverseGraph::Serialize() const {
   }
   for (const Pending& p : pending_) {
     os << "# VLOC_PENDING " << p.from << ' ' << p.to << ' ' << static_cast<int>(p.kind) << ' ';
-    WritePose(os, p.measurement);
+    WritePoseText(os, p.measurement);
     os << '\n';
   }
   graph_.writeAsText(os);
@@ -429,17 +458,8 @@ std::string TraverseGraph::Serialize() const {
 }
 
 bool TraverseGraph::Save(const std::string& path, std::string* error) const {
-  const std::string text = Serialize();
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp);
-    if (!f) return Fail(error, "cannot write pose graph file " + tmp + " (check the directory exists and is writable)");
-    f << text;
-    f.flush();
-    if (!f) return Fail(error, "writing pose graph file " + tmp + " failed (disk full?)");
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0)
-    return Fail(error, "cannot rename " + tmp + " to " + path);
+  std::string sub;
+  if (!WriteFileAtomically(path, Serialize(), &sub)) return Fail(error, "pose graph file: " + sub);
   return true;
 }
 
@@ -473,7 +493,7 @@ bool TraverseGraph::Deserialize(const std::string& text, std::string* error) {
     if (tag == "VLOC_SITE") {
       int id, has_dr;
       SiteRecord rec;
-      if (!(ls >> id >> rec.utime >> has_dr) || !ReadPose(ls, &rec.dr)) return Fail(error, "bad line: " + line);
+      if (!(ls >> id >> rec.utime >> has_dr) || !ReadPoseText(ls, &rec.dr)) return Fail(error, "bad line: " + line);
       rec.has_dr = has_dr != 0;
       loaded.sites_[id] = rec;
     } else if (tag == "VLOC_EDGE") {
@@ -490,7 +510,7 @@ bool TraverseGraph::Deserialize(const std::string& text, std::string* error) {
     } else if (tag == "VLOC_PENDING") {
       Pending p;
       int kind;
-      if (!(ls >> p.from >> p.to >> kind) || kind < 0 || kind > 3 || !ReadPose(ls, &p.measurement))
+      if (!(ls >> p.from >> p.to >> kind) || kind < 0 || kind > 3 || !ReadPoseText(ls, &p.measurement))
         return Fail(error, "bad line: " + line);
       p.kind = static_cast<EdgeKind>(kind);
       loaded.pending_.push_back(p);
@@ -516,8 +536,20 @@ bool TraverseGraph::Deserialize(const std::string& text, std::string* error) {
       // A plain MRPT graph: first edge of an adjacent pair = DR, then visual.
       key.kind = seen[{from, to}]++ == 0 ? EdgeKind::kDeadReckoning : EdgeKind::kVisual;
     }
+    double smallest = 0;
+    if (!RepairInformation(&exact, &smallest))
+      return Fail(error, "edge " + std::to_string(from) + "->" + std::to_string(to) +
+                             ": information matrix is not finite or has no positive eigenvalue");
+    if (smallest <= 0) {
+      if (loaded.num_repaired_informations_++ == 0) loaded.smallest_repaired_eigenvalue_ = smallest;
+      loaded.smallest_repaired_eigenvalue_ = std::min(loaded.smallest_repaired_eigenvalue_, smallest);
+    }
     loaded.edges_[key] = exact;
   }
+  if (loaded.num_repaired_informations_ > 0)
+    LOG(WARNING) << "pose graph: " << loaded.num_repaired_informations_
+                 << " edges had an information matrix that is not positive definite (smallest eigenvalue "
+                 << loaded.smallest_repaired_eigenvalue_ << "); repaired by raising its eigenvalues to 1e-9 of the largest";
   for (const auto& n : g.nodes) {
     const int id = static_cast<int>(n.first);
     if (!loaded.sites_.count(id)) loaded.sites_[id] = SiteRecord{};

@@ -25,7 +25,7 @@ class ConfigError : public std::runtime_error {
 // Sets *error (when not null) and returns false: `return Fail(error, "...")`.
 bool Fail(std::string* error, const std::string& message);
 
-// Reads a YAML file. A map of the form {include: other.yaml} anywhere in it
+// Reads a YAML file; an empty one is an error. A map of the form {include: other.yaml} anywhere in it
 // is replaced by the contents of other.yaml (relative to the including file).
 YAML::Node LoadYamlFile(const std::string& path);
 

@@ -5,6 +5,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <iosfwd>
+#include <string>
 
 namespace vloc {
 
@@ -21,6 +23,29 @@ struct PoseWithCovariance {
   Pose3 pose = Pose3::Identity();
   Matrix6d covariance = Matrix6d::Zero();
 };
+
+// Largest position magnitude any vloc frame holds (10,000 km): a local
+// level frame on a planet. Beyond it a number is corrupt, not a position:
+// 1e308 is finite but overflows the first product it enters.
+inline constexpr double kMaxPositionMetres = 1e7;
+// Largest covariance entry accepted (m^2 or rad^2): a 1,000 km sigma.
+inline constexpr double kMaxCovarianceEntry = 1e12;
+
+// True when the pose is finite, its position within kMaxPositionMetres, its
+// rotation orthonormal, and its covariance finite, symmetric within
+// rounding, with entries within kMaxCovarianceEntry and a non-negative
+// diagonal. Otherwise false and *why (when not null) says what is wrong.
+bool IsPlausiblePose(const PoseWithCovariance& p, std::string* why = nullptr);
+
+// One line of text: utime x y z qw qx qy qz and the 36 covariance entries
+// (row-major), at full precision; ReadPoseText reads it back (false when the
+// numbers are missing or the pose is not plausible).
+void WritePoseText(std::ostream& os, const PoseWithCovariance& p);
+bool ReadPoseText(std::istream& is, PoseWithCovariance* p);
+
+// Writes `text` to `path` through a temporary file and a rename, so a crash
+// mid-write leaves the previous file whole. False with *error naming the file.
+bool WriteFileAtomically(const std::string& path, const std::string& text, std::string* error);
 
 // Rotation from roll (about x), pitch (about y), yaw (about z), applied as
 // R = Rz(yaw) * Ry(pitch) * Rx(roll). Radians.

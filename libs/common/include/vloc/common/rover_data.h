@@ -11,6 +11,18 @@
 
 namespace vloc {
 
+// Latest plausible message time, microseconds (2^53 us: year 2255).
+// Later times are corrupt; every product of them overflows.
+inline constexpr int64_t kMaxPlausibleUtime = int64_t{1} << 53;
+
+// Most stereo pairs one site's panorama may hold (a full 360 x 3-tier
+// panorama is about 30); more is a corrupt count.
+inline constexpr int kMaxPairsPerSite = 64;
+
+// Site ids count up along a traverse; one this far beyond the newest site
+// is a corrupt id, not a drive.
+inline constexpr int kMaxSiteIdJump = 1000;
+
 // One Navcam stereo pair at a site.
 struct StereoPair {
   int64_t utime = 0;     // microseconds, time of exposure

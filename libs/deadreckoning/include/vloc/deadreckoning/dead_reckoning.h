@@ -57,6 +57,9 @@ struct DeadReckoningOptions {
   double max_speed_mps = 1.0;              // m/s, faster odometer increments are dropped as implausible
   double wheel_wait_s = 0.5;               // s, hold wheel samples this long for the IMU to catch up
   double reset_backward_jump_s = 10.0;     // s, time going back more than this restarts dead reckoning (new log)
+  double max_forward_jump_s = 60.0;        // s, a larger forward jump of a sample's time is held until the next sample confirms it
+  double max_gyro_rate_rps = 10.0;         // rad/s, faster rates are not physical for a rover: sample rejected
+  double max_accel_mps2 = 100.0;           // m/s^2, larger specific forces are rejected
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
@@ -73,6 +76,8 @@ struct DeadReckoningStats {
   int64_t gravity_updates = 0;      // roll/pitch corrections from the accelerometer
   int64_t resets = 0;               // restarts after a large backward time jump
   int64_t site_events_dropped = 0;  // duplicated arrivals
+  int64_t implausible = 0;          // samples rejected: time outside [0, 2^53] us or values beyond the sensor's range
+  int64_t time_outliers = 0;        // samples whose time jumped and the next sample did not confirm the jump
   double distance_m = 0;            // m, distance integrated
 };
 
@@ -106,6 +111,7 @@ class DeadReckoning {
 
   void Reset(const char* why);
   void Initialize(const ImuSample& first);
+  void ApplyImu(const ImuSample& s);  // after the plausibility and time gates
   void PropagateAttitude(const Eigen::Vector3d& rate, double dt);
   void IntegrateWheel(const WheelOdometrySample& sample);
   void FlushWheel(bool force_all);
@@ -113,6 +119,13 @@ class DeadReckoning {
   void Align(const Eigen::Vector3d& mean_specific_force);
   Eigen::Matrix3d AttitudeAt(int64_t utime) const;
   bool TimeWentBack(int64_t utime, int64_t last, const char* what);
+  // How a sample's time relates to its stream's last time.
+  enum class TimeStep { kContinues, kHeld, kConfirmedJump };
+  // A sample whose time jumps (back more than reset_backward_jump_s or
+  // forward more than max_forward_jump_s) is held in *held; the jump stands
+  // when the next sample continues from it, else the held one is dropped.
+  TimeStep GateTime(int64_t utime, int64_t last, std::optional<int64_t>* held, const char* what);
+  bool Plausible(const ImuSample& s, std::string* why) const;
 
   DeadReckoningOptions options_;
   DeadReckoningStats stats_;
@@ -135,6 +148,9 @@ class DeadReckoning {
   int still_count_ = 0;
   bool stop_updated_ = false;
   int64_t next_publish_utime_ = 0;
+  std::optional<int64_t> held_imu_utime_, held_wheel_utime_;  // times of samples held by GateTime
+  std::optional<ImuSample> held_imu_;
+  std::optional<WheelOdometrySample> held_wheel_;
   std::vector<int> sites_seen_;
   std::vector<SiteEvent> pending_arrivals_;
   std::vector<std::pair<int, PoseWithCovariance>> ready_sites_;

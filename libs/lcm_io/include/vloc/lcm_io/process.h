@@ -43,6 +43,13 @@ struct ProcessSetup {
 // RunUntilSignal can wait for them.
 std::optional<ProcessSetup> SetupProcess(int argc, char** argv, const ProcessSetupOptions& options);
 
+// Where a process keeps the state it reloads after a restart. An absolute
+// `configured` path is used as is; a relative one is placed in the folder
+// given by --state-dir, else in $VLOC_LOG_DIR (vloc_launch sets it to the
+// group's log folder, so two groups on one machine never share a file);
+// with neither, "" (no state kept) and *note says why. Empty stays empty.
+std::string ResolveStatePath(const std::string& configured, const CommandLine& args, std::string* note);
+
 // Dispatches messages until SIGINT or SIGTERM arrives (or `should_stop`
 // returns true), calling on_idle after every wait of up to timeout_ms.
 // Returns the exit code (0 after a signal). Logs kReadyLine first: the

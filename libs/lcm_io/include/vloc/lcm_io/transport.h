@@ -15,6 +15,9 @@ namespace vloc {
 
 // Called with the channel, the encoded bytes and the receive time (us).
 using RawHandler = std::function<void(const std::string& channel, const uint8_t* data, size_t size)>;
+// Called with the channel each time a message is dropped because the
+// subscription's queue is full.
+using DropHandler = std::function<void(const std::string& channel)>;
 
 class Transport {
  public:
@@ -22,8 +25,11 @@ class Transport {
   // Returns false when the message could not be sent.
   virtual bool Publish(const std::string& channel, const void* data, size_t size) = 0;
   // `channel` is a regular expression as in LCM. `queue_capacity` is how
-  // many messages may wait before the oldest are dropped. Returns an id.
-  virtual int Subscribe(const std::string& channel, RawHandler handler, int queue_capacity = 30) = 0;
+  // many messages may wait before the oldest are dropped; each drop calls
+  // `on_drop` (LCM's own queue drops silently, so LcmTransport keeps its
+  // own bounded queue per subscription). Returns an id.
+  virtual int Subscribe(const std::string& channel, RawHandler handler, int queue_capacity = 30,
+                        DropHandler on_drop = {}) = 0;
   virtual void Unsubscribe(int id) = 0;
   // Waits up to timeout_ms for messages and dispatches them. Returns >0 when
   // something was handled, 0 on timeout, <0 on a transport error.
@@ -47,7 +53,8 @@ std::unique_ptr<Transport> MakeLcmTransport(const std::string& url, std::string*
 class MockTransport : public Transport {
  public:
   bool Publish(const std::string& channel, const void* data, size_t size) override;
-  int Subscribe(const std::string& channel, RawHandler handler, int queue_capacity = 30) override;
+  int Subscribe(const std::string& channel, RawHandler handler, int queue_capacity = 30,
+                DropHandler on_drop = {}) override;
   void Unsubscribe(int id) override;
   int Handle(int timeout_ms) override;
   // Delivers until the queue is empty; returns how many were delivered.

@@ -36,6 +36,7 @@
 
 #include "vloc/common/options.h"
 #include "vloc/common/pose.h"
+#include "vloc/common/rover_data.h"
 #include "vloc/posegraph/mrpt_optimize.h"
 
 namespace vloc::posegraph {
@@ -58,6 +59,7 @@ struct PoseGraphOptions {
   double min_position_sigma = 1e-3;               // m, added in quadrature to every edge (keeps W finite)
   double min_rotation_sigma = 1e-5;               // rad, ditto
   bool compute_marginals = true;                  // marginal covariance of every site after each update
+  int max_site_id_jump = kMaxSiteIdJump;          // a site id this far beyond the newest is corrupt: rejected
 
   void Visit(OptionsReader& r);
   bool Check(std::string* error) const;
@@ -129,6 +131,9 @@ class TraverseGraph {
   // Reads a graph saved by Save (or any MRPT 3D text graph; its edges are
   // then classified by adjacency). False with *error (the graph unchanged).
   bool Load(const std::string& path, std::string* error);
+  // Loaded edges whose information matrix was not positive definite and was
+  // repaired (eigenvalues raised to 1e-9 of the largest; one warning line).
+  int num_repaired_informations() const { return num_repaired_informations_; }
 
  private:
   struct EdgeKey {
@@ -154,6 +159,8 @@ class TraverseGraph {
   AddResult AddEdge(int from, int to, EdgeKind kind, const PoseWithCovariance& measurement);
   bool MakeEdge(const Pose3& from_T_to, const Matrix6d& covariance_vloc, mrpt::poses::CPose3DPDFGaussianInf* edge,
                 std::string* error) const;
+  // "" when `site_id` may belong to this traverse, else why not.
+  std::string SiteIdProblem(int site_id) const;
   Matrix6d DrEdgeCovariance(int from, int to, const Pose3& relative, bool* fallback) const;
   void AddNode(int site_id, const Pose3& world_from_body);
   void RebuildEdges();
@@ -169,6 +176,8 @@ class TraverseGraph {
   std::map<mrpt::graphs::TNodeID, Matrix6d> marginals_;  // MRPT local tangent
   bool have_root_ = false;
   int num_dr_fallbacks_ = 0;
+  int num_repaired_informations_ = 0;      // loaded edges whose information was not positive definite
+  double smallest_repaired_eigenvalue_ = 0;
   PoseGraphSummary summary_;
 };
 

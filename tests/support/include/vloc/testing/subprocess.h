@@ -93,6 +93,13 @@ class Subprocess {
     return exit_status_;
   }
 
+  // Reads what output is ready, without waiting: call it while the process
+  // runs long, or it blocks once the pipe's buffer (64 kB) is full.
+  void Drain() {
+    while (ReadSome(0.0)) {
+    }
+  }
+
   void Signal(int sig) {
     if (pid_ > 0) kill(pid_, sig);
   }
