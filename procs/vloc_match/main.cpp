@@ -16,6 +16,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "vloc/common/command_line.h"
+#include "vloc/common/logging.h"
 #include "vloc/features/asift.h"
 
 namespace {
@@ -31,6 +32,7 @@ std::vector<double> ParseList(const std::string& text) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  vloc::InitLogging(argv[0]);
   vloc::CommandLine args;
   std::string error;
   const char* usage =

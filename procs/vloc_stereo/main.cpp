@@ -15,6 +15,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "vloc/common/command_line.h"
+#include "vloc/common/logging.h"
 #include "vloc/features/lsm.h"
 #include "vloc/features/stereo_match.h"
 
@@ -31,6 +32,7 @@ bool WritePfm(const std::string& path, const cv::Mat& disp) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  vloc::InitLogging(argv[0]);
   vloc::CommandLine args;
   std::string error;
   const char* usage =

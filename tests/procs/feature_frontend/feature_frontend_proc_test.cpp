@@ -17,6 +17,7 @@
 #include "vloc/lcm_io/convert_rover.h"
 #include "vloc/lcm_io/transport.h"
 #include "vloc/lcm_io/typed.h"
+#include "vloc/testing/rover_inputs.h"
 
 namespace vloc {
 namespace {
@@ -55,16 +56,7 @@ TEST(FeatureFrontendProc, TexturelessSitesGiveLowTextureStatus) {
     pose.pose = MakePose(10.0 * site, 0, 0, 0, 0, 0);
     Publish(*transport, "SITE_POSE_DR", SitePoseToMessage(site, site_pose_t::SOURCE_DEAD_RECKONING, pose));
     for (int k = 0; k < 3; ++k) {
-      StereoPair p;
-      p.utime = 1000000 * (site * 10 + k + 1);
-      p.site_id = site;
-      p.pair_index = k;
-      p.num_pairs = 3;
-      p.mast_pan = (1 - k) * 26.0 * M_PI / 180;
-      p.mast_tilt = 25.0 * M_PI / 180;
-      p.left = cv::Mat(1024, 1024, CV_8UC1, cv::Scalar(80 + site));
-      p.right = p.left.clone();
-      Publish(*transport, "NAVCAM_STEREO", StereoPairToMessage(p, ImageEncoding::kPng));
+      Publish(*transport, "NAVCAM_STEREO", StereoPairToMessage(testing::TexturelessPair(site, k), ImageEncoding::kPng));
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
   }

@@ -58,16 +58,6 @@ struct Scratch {
   std::string dir;
 };
 
-// Lines of a process's output that are not glog INFO/WARNING lines.
-std::vector<std::string> ErrorLines(const std::string& output) {
-  std::vector<std::string> lines;
-  std::istringstream in(output);
-  std::string line;
-  while (std::getline(in, line))
-    if (!line.empty() && line[0] != 'I' && line[0] != 'W') lines.push_back(line);
-  return lines;
-}
-
 int CountOccurrences(const std::string& text, const std::string& what) {
   int n = 0;
   for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;

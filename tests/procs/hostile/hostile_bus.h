@@ -173,6 +173,7 @@ struct Outcome {
   int nonfinite_outputs = 0;
   std::string first_nonfinite;
   std::string status;  // the process's own counts, from its closing log line
+  std::vector<std::string> sent;  // names of the hostile cases, in order (their bytes follow from them)
 };
 
 // Sends SIGTERM and records how the process ended.
@@ -192,7 +193,10 @@ inline void Report(const Outcome& o) {
 }
 
 inline void ExpectSurvived(const Outcome& o, const Subprocess& p) {
-  EXPECT_TRUE(o.alive_after_hostile) << o.process << " died:\n" << p.output().substr(p.output().size() > 4000 ? p.output().size() - 4000 : 0);
+  std::string last;
+  for (size_t k = o.sent.size() > 10 ? o.sent.size() - 10 : 0; k < o.sent.size(); ++k) last += "\n  " + o.sent[k];
+  EXPECT_TRUE(o.alive_after_hostile) << o.process << " died; the last hostile cases sent:" << last << "\n"
+                                     << p.output().substr(p.output().size() > 4000 ? p.output().size() - 4000 : 0);
   EXPECT_EQ(o.exit_code, std::optional<int>(0)) << o.process << " did not stop cleanly";
   EXPECT_EQ(o.nonfinite_outputs, 0) << o.process << " published " << o.first_nonfinite;
 }

@@ -30,6 +30,7 @@
 #include "vloc/stereo_image_t.hpp"
 #include "vloc/traverse_t.hpp"
 #include "vloc/uav_gps_t.hpp"
+#include "vloc/testing/rover_inputs.h"
 #include "vloc/uav_state_t.hpp"
 
 namespace vloc {
@@ -98,10 +99,10 @@ LogRun RunWithLog(const std::string& name, const std::vector<std::string>& argv,
   for (size_t i = 0; i < log.size(); ++i) {
     auto it = plan.find(i);
     if (before && it != plan.end())
-      for (const HostileMessage& h : it->second) run.bus->Send(log[i].channel, h.bytes), ++run.outcome.hostile_sent;
+      for (const HostileMessage& h : it->second) run.bus->Send(log[i].channel, h.bytes), ++run.outcome.hostile_sent, run.outcome.sent.push_back(h.name);
     run.bus->Send(log[i].channel, log[i].bytes);
     if (!before && it != plan.end())
-      for (const HostileMessage& h : it->second) run.bus->Send(log[i].channel, h.bytes), ++run.outcome.hostile_sent;
+      for (const HostileMessage& h : it->second) run.bus->Send(log[i].channel, h.bytes), ++run.outcome.hostile_sent, run.outcome.sent.push_back(h.name);
   }
   EXPECT_TRUE(run.bus->PumpUntil([&] { return done(*run.bus); }, timeout_s))
       << name << ": " << run.bus->got().size() << " outputs received";
@@ -249,9 +250,9 @@ TEST(Hostile, TraverseGraphOptimisesTheSameTraverseThroughHostileInput) {
     for (size_t i = 0; i < log.size(); ++i) {
       hostile.bus->Send(log[i].channel, log[i].bytes);
       if (plan.count(i))
-        for (const HostileMessage& h : plan.at(i)) hostile.bus->Send(log[i].channel, h.bytes), ++hostile.outcome.hostile_sent;
+        for (const HostileMessage& h : plan.at(i)) hostile.bus->Send(log[i].channel, h.bytes), ++hostile.outcome.hostile_sent, hostile.outcome.sent.push_back(h.name);
       if (fix_plan.count(i))
-        for (const HostileMessage& h : fix_plan.at(i)) hostile.bus->Send("SITE_POSE_FIX", h.bytes), ++hostile.outcome.hostile_sent;
+        for (const HostileMessage& h : fix_plan.at(i)) hostile.bus->Send("SITE_POSE_FIX", h.bytes), ++hostile.outcome.hostile_sent, hostile.outcome.sent.push_back(h.name);
     }
     hostile.bus->PumpUntilQuiet(3.0, 120);
     hostile.outcome.alive_after_hostile = !proc->WaitExit(0.2);
@@ -289,18 +290,8 @@ std::vector<Event> TexturelessSites(int first_site) {
     PoseWithCovariance pose;
     pose.pose = MakePose(10.0 * site, 0, 0, 0, 0, 0);
     out.push_back({"SITE_POSE_DR", bytes(SitePoseToMessage(site, site_pose_t::SOURCE_DEAD_RECKONING, pose))});
-    for (int k = 0; k < 3; ++k) {
-      StereoPair p;
-      p.utime = 1000000 * (site * 10 + k + 1);
-      p.site_id = site;
-      p.pair_index = k;
-      p.num_pairs = 3;
-      p.mast_pan = (1 - k) * 26.0 * M_PI / 180;
-      p.mast_tilt = 25.0 * M_PI / 180;
-      p.left = cv::Mat(1024, 1024, CV_8UC1, cv::Scalar(80 + site));
-      p.right = p.left.clone();
-      out.push_back({"NAVCAM_STEREO", bytes(StereoPairToMessage(p, ImageEncoding::kPng))});
-    }
+    for (int k = 0; k < 3; ++k)
+      out.push_back({"NAVCAM_STEREO", bytes(StereoPairToMessage(TexturelessPair(site, k), ImageEncoding::kPng))});
   }
   return out;
 }
@@ -339,7 +330,7 @@ TEST(Hostile, FeatureFrontendStillAnswersASitePairAfterHostileInput) {
                          url});
   bus.Watch(proc.get());
   for (const auto& [i, cases] : plan)
-    for (const HostileMessage& h : cases) bus.Send(templates[i].channel, h.bytes), ++o.hostile_sent;
+    for (const HostileMessage& h : cases) bus.Send(templates[i].channel, h.bytes), ++o.hostile_sent, o.sent.push_back(h.name);
   bus.Pump(2000);
   o.alive_after_hostile = !proc->WaitExit(0.2);
   for (const Event& e : good) bus.Send(e.channel, e.bytes);
@@ -381,7 +372,7 @@ TEST(Hostile, UavMosaickerStillTracksAFlightAfterHostileInput) {
   auto proc = StartProc({BinPath("uav_mosaicker"), "--config", "config/procs/uav_mosaicker.yaml", "--lcm-url", url});
   bus.Watch(proc.get());
   for (const auto& [i, cases] : plan)
-    for (const HostileMessage& h : cases) bus.Send(templates[i].channel, h.bytes), ++o.hostile_sent;
+    for (const HostileMessage& h : cases) bus.Send(templates[i].channel, h.bytes), ++o.hostile_sent, o.sent.push_back(h.name);
   bus.Pump(3000);
   o.alive_after_hostile = !proc->WaitExit(0.2);
   const size_t before = bus.got().size();
@@ -437,7 +428,7 @@ TEST(Hostile, LauncherStillObeysOrdersAfterHostileOnes) {
   const auto pool = ReadEvents(SourceFile("tests/data/logs/rover_tiepoints_13sites.lcmlog"), ".*");
   for (const HostileMessage& h :
        MakeHostileMessages("PROCMAN_ORDERS", "procman_order_t", bytes, OthersThan("procman_order_t", pool), kPerChannel))
-    bus.Send("PROCMAN_ORDERS", h.bytes), ++o.hostile_sent;
+    bus.Send("PROCMAN_ORDERS", h.bytes), ++o.hostile_sent, o.sent.push_back(h.name);
   bus.Pump(2000);
   o.alive_after_hostile = !proc->WaitExit(0.2);
   EXPECT_EQ(state_of("sleeper"), int(proc_status_t::STATE_RUNNING));

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <set>
 
+#include "vloc/testing/rover_inputs.h"
 #include "vloc/frontend_status_t.hpp"
 #include "vloc/lcm_io/convert.h"
 #include "vloc/lcm_io/convert_rover.h"
@@ -53,16 +54,7 @@ TEST(RevisitFrontendProcess, NewSiteNearAnEarlierOneIsAlsoMatchedAgainstIt) {
     pose.covariance = (0.01 + 0.1 * site) * Matrix6d::Identity();
     Publish(*transport, "SITE_POSE_DR", SitePoseToMessage(site, site_pose_t::SOURCE_DEAD_RECKONING, pose));
     for (int k = 0; k < 3; ++k) {
-      StereoPair p;
-      p.utime = 1000000LL * (site * 10 + k + 1);
-      p.site_id = site;
-      p.pair_index = k;
-      p.num_pairs = 3;
-      p.mast_pan = (1 - k) * 26.0 * M_PI / 180;
-      p.mast_tilt = 25.0 * M_PI / 180;
-      p.left = cv::Mat(1024, 1024, CV_8UC1, cv::Scalar(80 + site));
-      p.right = p.left.clone();
-      Publish(*transport, "NAVCAM_STEREO", StereoPairToMessage(p, ImageEncoding::kPng));
+      Publish(*transport, "NAVCAM_STEREO", StereoPairToMessage(testing::TexturelessPair(site, k), ImageEncoding::kPng));
       transport->Handle(20);
     }
   }

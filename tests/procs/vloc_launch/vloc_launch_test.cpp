@@ -26,6 +26,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using testing::BinPath;
+using testing::ErrorLines;
 using testing::Subprocess;
 using testing::TestLcmUrl;
 
@@ -113,15 +114,6 @@ Subprocess Launch(const Scratch& scratch, const std::string& group_file, int por
   return Subprocess(argv);
 }
 
-// Lines of the launcher's output that are not glog INFO/WARNING lines.
-std::vector<std::string> ErrorLines(const std::string& output) {
-  std::vector<std::string> lines;
-  std::istringstream in(output);
-  std::string line;
-  while (std::getline(in, line))
-    if (!line.empty() && line[0] != 'I' && line[0] != 'W') lines.push_back(line);
-  return lines;
-}
 
 const char* kTwoSleepers = R"(
 group: pair

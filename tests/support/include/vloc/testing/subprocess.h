@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -25,6 +26,17 @@ inline std::string BinPath(const std::string& name) {
 // A test-unique LCM URL on loopback multicast.
 inline std::string TestLcmUrl(int port) {
   return "udpm://239.255.76.67:" + std::to_string(port) + "?ttl=0&recv_buf_size=33554432";
+}
+
+// Lines of a process's output that are not glog INFO/WARNING lines: what a
+// user reads as its errors.
+inline std::vector<std::string> ErrorLines(const std::string& output) {
+  std::vector<std::string> lines;
+  std::istringstream in(output);
+  std::string line;
+  while (std::getline(in, line))
+    if (!line.empty() && line[0] != 'I' && line[0] != 'W') lines.push_back(line);
+  return lines;
 }
 
 class Subprocess {
