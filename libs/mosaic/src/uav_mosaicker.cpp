@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "vloc/common/options.h"
+#include "vloc/mosaic/gis_export.h"
 
 namespace vloc::mosaic {
 
@@ -78,6 +79,11 @@ void MosaickerOptions::Visit(OptionsReader& r) {
   r.Optional("reregister_scale", &reregister_scale, "re-registration also sets the scale (height)");
   r.Optional("reregister_max_shift", &reregister_max_shift,
              "largest accepted change of a re-registration (fraction of frame width / of scale)");
+  r.Optional("min_spread", &min_spread, "fraction of the frame the background matches must span");
+  r.Optional("guided_matching", &guided_matching, "match again around the predicted pose when plain matching fails");
+  r.Optional("guide_gate", &guide_gate, "gate radius of guided matching, fraction of the frame width");
+  r.Optional("gps_max_disagreement", &gps_max_disagreement, "largest distance from the GPS position, fraction of frame width");
+  r.Optional("reseat_by_gps", &reseat_by_gps, "place an unregistered frame at its GPS position to restart tracking");
   r.Optional("num_threads", &num_threads, "OpenCV threads");
   r.Optional("async_mosaic", &async_mosaic, "blend on a worker thread");
 }
@@ -96,6 +102,9 @@ bool MosaickerOptions::Check(std::string* error) const {
   if (!(recovery_min_painted > 0 && recovery_min_painted <= 1)) return Fail(error, "recovery_min_painted must be in (0, 1]");
   if (reregister_every_n_frames < 0) return Fail(error, "reregister_every_n_frames must be >= 0 (0 = off)");
   if (!(reregister_max_shift > 0 && reregister_max_shift <= 1)) return Fail(error, "reregister_max_shift must be in (0, 1]");
+  if (!(min_spread >= 0 && min_spread < 1)) return Fail(error, "min_spread must be in [0, 1)");
+  if (!(guide_gate > 0 && guide_gate <= 1)) return Fail(error, "guide_gate must be in (0, 1]");
+  if (!(gps_max_disagreement > 0)) return Fail(error, "gps_max_disagreement must be > 0");
   if (num_threads < 1) return Fail(error, "num_threads must be >= 1");
   return true;
 }
@@ -107,6 +116,8 @@ std::string MosaickerSummary::BriefReport() const {
     << canvas.tiles_total << " (" << canvas.tiles_in_memory << " in memory, peak " << canvas.peak_tiles_in_memory
     << ", spilled " << canvas.spills << "), " << (georeferenced ? "tied to GPS" : "not georeferenced");
   if (georeferenced) s << " (" << tie_pairs << " fixes, rms " << tie_rms << " m)";
+  if (guided + gps_rejections + reseats > 0)
+    s << ", guided " << guided << ", rejected by GPS " << gps_rejections << ", placed by GPS " << reseats;
   if (reregistrations + reregistrations_rejected > 0)
     s << ", re-registered against the mosaic " << reregistrations << " times (" << reregistrations_rejected
       << " rejected)";
@@ -298,6 +309,9 @@ void UavMosaicker::StartMosaic(const cv::Mat& frame, const FrameFeatures& featur
   keyframe_ = Keyframe{features, S, utime};
   last_good_ = S;
   last_scale_ = s;
+  prev_good_.reset();
+  last_good_index_ = state->frame_index;
+  last_good_enu_ = GpsEnuAt(utime);
   height_filter_.Reset(calibration_.height, utime);
   BlendOrQueue(frame, S, state);
   frames_since_blend_ = 0;
@@ -438,15 +452,40 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
     return state;
   }
 
-  // Track against the keyframe.
+  // Track against the keyframe: plain matching, then (when that fails or
+  // disagrees with the GPS) guided matching around the predicted pose.
+  const std::optional<Prediction> prediction = Predict(utime, frame.size());
   MotionEstimate motion = EstimateMotion(keyframe_->features, features, options_.matcher);
   Similarity2 S;
+  std::string why = motion.ok ? "" : "matching failed: " + motion.why;
+  if (motion.ok) {
+    S = keyframe_->mosaic_from_frame * motion.similarity.Inverse();
+    if (!Evidence(motion, S, prediction, frame.size(), &why)) motion.ok = false;
+  }
+  if (!motion.ok && options_.guided_matching && prediction) {
+    MotionPrior prior;
+    prior.to_from_from = prediction->mosaic_from_frame.Inverse() * keyframe_->mosaic_from_frame;
+    prior.gate_px = prediction->gate_px;
+    MotionEstimate guided = EstimateMotion(keyframe_->features, features, options_.matcher, &prior);
+    std::string guided_why = guided.ok ? "" : guided.why;
+    Similarity2 G;
+    if (guided.ok) {
+      G = keyframe_->mosaic_from_frame * guided.similarity.Inverse();
+      if (!Evidence(guided, G, prediction, frame.size(), &guided_why)) guided.ok = false;
+    }
+    if (guided.ok) {
+      motion = guided;
+      S = G;
+      ++summary_.guided;
+    } else {
+      why += "; guided by the " + std::string(prediction->from_gps ? "GPS" : "last motion") + ": " + guided_why;
+      if (guided.num_matches > motion.num_matches) motion.num_matches = guided.num_matches;
+    }
+  }
   bool ok = motion.ok;
   bool via_mosaic = false;
-  std::string why = motion.ok ? "" : "matching failed: " + motion.why;
   bool reregistered = false;
   if (ok) {
-    S = keyframe_->mosaic_from_frame * motion.similarity.Inverse();
     if (!lost_ && options_.reregister_every_n_frames > 0 &&
         ++frames_since_reregister_ >= options_.reregister_every_n_frames) {
       frames_since_reregister_ = 0;
@@ -454,21 +493,42 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
     }
   } else if (lost_) {
     MotionEstimate m2;
-    if (RegisterToMosaic(frame, features, &S, &m2, &why)) {
+    // Search the mosaic where the GPS says the frame is, else around the last good pose.
+    const Similarity2 saved = last_good_;
+    if (prediction && prediction->from_gps) last_good_ = prediction->mosaic_from_frame;
+    Similarity2 R;
+    if (RegisterToMosaic(frame, features, &R, &m2, &why) && Evidence(m2, R, prediction, frame.size(), &why)) {
       ok = true;
       via_mosaic = true;
       motion = m2;
+      S = R;
     }
+    last_good_ = saved;
   }
   state.num_matches = motion.num_matches;
   state.num_inliers = motion.num_inliers;
   state.num_foreground = motion.num_foreground;
+  state.guided = ok && motion.guided;
+  state.reseated = false;
+  state.spread = ok ? motion.spread : 0.0;
   if (!ok) {
     // Keep the last good state; say why.
     state.status = TrackStatus::kLost;
-    state.message = why;
     if (!lost_) ++summary_.lost;
     lost_ = true;
+    if (options_.reseat_by_gps && prediction && prediction->from_gps) {
+      // Restart from this frame at its GPS position (heading and scale of the
+      // last registered frame): the next frame is matched against it.
+      keyframe_ = Keyframe{features, prediction->mosaic_from_frame, utime};
+      last_good_ = prediction->mosaic_from_frame;
+      prev_good_.reset();
+      last_good_index_ = state.frame_index;
+      last_good_enu_ = GpsEnuAt(utime);
+      state.reseated = true;
+      ++summary_.reseats;
+      why += "; placed at its GPS position, tracking restarts from this frame";
+    }
+    state.message = why;
     summary_.last_problem = why;
     state.tracking_seconds = Seconds(t0);
     last_state_ = state;
@@ -489,8 +549,15 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
   state.scale = last_scale_ / s;
   state.height_raw = s * metres_per_pixel_ * focal_;
   state.height = height_filter_.UpdateVision(state.height_raw, utime);
+  if (last_good_index_ == state.frame_index - 1 && !was_lost) {
+    prev_good_ = last_good_;
+  } else {
+    prev_good_.reset();
+  }
   last_good_ = S;
   last_scale_ = s;
+  last_good_index_ = state.frame_index;
+  last_good_enu_ = GpsEnuAt(utime);
 
   // New keyframe?
   const double key_scale = motion.lambda;
@@ -519,6 +586,99 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
   return state;
 }
 
+std::optional<cv::Point2d> UavMosaicker::GpsEnuAt(int64_t utime, double* sigma) const {
+  if (!origin_fix_) return std::nullopt;
+  const GpsFix* fix = nullptr;
+  const int64_t gap = static_cast<int64_t>(options_.geo.max_time_gap * 1e6);
+  for (const auto& f : recent_fixes_)
+    if (std::llabs(f.utime - utime) <= gap && (!fix || std::llabs(f.utime - utime) < std::llabs(fix->utime - utime))) fix = &f;
+  if (!fix) return std::nullopt;
+  if (sigma) *sigma = fix->horizontal_sigma;
+  return LatLonToEnu(fix->latitude, fix->longitude, origin_fix_->latitude, origin_fix_->longitude);
+}
+
+std::optional<UavMosaicker::Prediction> UavMosaicker::Predict(int64_t utime, cv::Size size) const {
+  if (!keyframe_) return std::nullopt;
+  const double scale = last_good_.Scale();
+  const double width = static_cast<double>(size.width);
+  // GPS: the fix nearest in time (within max_time_gap) mapped through the tie.
+  const GpsFix* fix = nullptr;
+  const int64_t gap = static_cast<int64_t>(options_.geo.max_time_gap * 1e6);
+  for (const auto& f : recent_fixes_)
+    if (std::llabs(f.utime - utime) <= gap && (!fix || std::llabs(f.utime - utime) < std::llabs(fix->utime - utime))) fix = &f;
+  if (fix && enu_from_flipped_ && origin_fix_ && scale > 0) {
+    const cv::Point2d enu = LatLonToEnu(fix->latitude, fix->longitude, origin_fix_->latitude, origin_fix_->longitude);
+    const cv::Point2d flipped = enu_from_flipped_->Inverse().Apply(enu);
+    Prediction p;
+    p.from_gps = true;
+    p.gps_px = {flipped.x, -flipped.y};
+    if (last_good_enu_) {
+      // GPS motion since the last registered frame, from its registered centre
+      // (the tie is a global fit: its local bias cancels in a difference).
+      const Similarity2 lin{enu_from_flipped_->a, enu_from_flipped_->b, 0, 0};
+      const cv::Point2d d = lin.Inverse().Apply(enu - *last_good_enu_);
+      p.gps_px = last_good_.Apply({camera_.cx, camera_.cy}) + cv::Point2d(d.x, -d.y);
+    }
+    // Heading: the last registered frame's, turned by the change of the GPS course.
+    double angle = last_good_.Angle();
+    const double metres_per_frame_px = scale * std::abs(enu_from_flipped_->Scale());
+    const GpsFix* before = nullptr;
+    const GpsFix* older = nullptr;
+    for (const auto& f : recent_fixes_) {
+      if (f.utime < fix->utime) {
+        older = before;
+        before = &f;
+      }
+    }
+    if (before && older) {
+      const cv::Point2d e0 = LatLonToEnu(older->latitude, older->longitude, origin_fix_->latitude, origin_fix_->longitude);
+      const cv::Point2d e1 = LatLonToEnu(before->latitude, before->longitude, origin_fix_->latitude, origin_fix_->longitude);
+      const cv::Point2d d0 = e1 - e0, d1 = enu - e1;
+      if (cv::norm(d0) > 2 * fix->horizontal_sigma && cv::norm(d1) > 2 * fix->horizontal_sigma) {
+        const double turn = std::atan2(d0.x * d1.y - d0.y * d1.x, d0.dot(d1));  // CCW in ENU = CW in mosaic px
+        if (std::abs(turn) < M_PI / 3) angle -= turn;
+      }
+    }
+    p.mosaic_from_frame = Similarity2::FromScaleAngle(scale, angle, 0, 0);
+    const cv::Point2d c(camera_.cx, camera_.cy), moved = p.mosaic_from_frame.Apply(c);
+    p.mosaic_from_frame.tx = p.gps_px.x - moved.x;
+    p.mosaic_from_frame.ty = p.gps_px.y - moved.y;
+    const double sigma_px = fix->horizontal_sigma / std::max(1e-9, metres_per_frame_px);
+    p.gate_px = options_.guide_gate * width + 3 * sigma_px;
+    p.gps_tolerance_px = std::max(options_.gps_max_disagreement * width, 5 * sigma_px);
+    return p;
+  }
+  // Constant motion: the last frame-to-frame motion once more.
+  if (prev_good_ && last_good_index_ >= 0) {
+    Prediction p;
+    p.mosaic_from_frame = last_good_ * (prev_good_->Inverse() * last_good_);
+    p.gate_px = 1.5 * options_.guide_gate * width;
+    return p;
+  }
+  return std::nullopt;
+}
+
+bool UavMosaicker::Evidence(const MotionEstimate& motion, const Similarity2& mosaic_from_frame,
+                            const std::optional<Prediction>& p, cv::Size size, std::string* why) {
+  if (motion.spread < options_.min_spread) {
+    *why += "matches cover only " + std::to_string(motion.spread) + " of the frame (" +
+            std::to_string(motion.num_background) + " matches)";
+    return false;
+  }
+  if (p && p->from_gps) {
+    const cv::Point2d c(camera_.cx, camera_.cy);
+    const double off_px = cv::norm(mosaic_from_frame.Apply(c) - p->gps_px) / std::max(1e-9, mosaic_from_frame.Scale());
+    if (off_px > p->gps_tolerance_px) {
+      ++summary_.gps_rejections;
+      *why += "registration lands " + std::to_string(static_cast<int>(off_px)) + " px (frame) from the GPS position (" +
+              std::to_string(motion.num_background) + " matches)";
+      return false;
+    }
+  }
+  (void)size;
+  return true;
+}
+
 void UavMosaicker::FillRoute(FrameState* state) {
   state->route_px = history_.empty() ? cv::Point2d(0, 0) : history_.back().second;
   state->route_local = MosaicToLocal(state->route_px);
@@ -544,6 +704,8 @@ void UavMosaicker::AddGps(const GpsFix& fix) {
   }
   if (!fix.valid || !std::isfinite(fix.latitude) || !std::isfinite(fix.longitude)) return;
   if (!origin_fix_) origin_fix_ = fix;
+  recent_fixes_.push_back(fix);
+  while (recent_fixes_.size() > 64) recent_fixes_.pop_front();
   last_fix_utime_ = std::max(last_fix_utime_, fix.utime);
   pending_fixes_.push_back(fix);
   while (pending_fixes_.size() > 256) pending_fixes_.pop_front();
@@ -630,6 +792,12 @@ cv::Mat UavMosaicker::Preview(int max_side, bool draw_route) const {
   return preview;
 }
 
+bool UavMosaicker::ExportCanvas(cv::Mat* bgra, double* scale, cv::Point2d* origin, std::string* error) {
+  FlushMosaic();
+  std::lock_guard<std::mutex> lock(canvas_mutex_);
+  return canvas_->Export(bgra, scale, origin, error);
+}
+
 bool UavMosaicker::WriteMosaic(const std::string& png_path, std::string* error) {
   if (!canvas_) {
     if (error) *error = "no mosaic yet (not calibrated or no frame tracked)";
@@ -638,11 +806,7 @@ bool UavMosaicker::WriteMosaic(const std::string& png_path, std::string* error) 
   cv::Mat bgra;
   double scale = 1;
   cv::Point2d origin;
-  FlushMosaic();
-  {
-    std::lock_guard<std::mutex> lock(canvas_mutex_);
-    if (!canvas_->Export(&bgra, &scale, &origin, error)) return false;
-  }
+  if (!ExportCanvas(&bgra, &scale, &origin, error)) return false;
   std::error_code ec;
   const std::filesystem::path path(png_path);
   if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path(), ec);
@@ -678,6 +842,33 @@ bool UavMosaicker::WriteMosaic(const std::string& png_path, std::string* error) 
   LOG(INFO) << "mosaic written: " << png_path << " (" << bgra.cols << "x" << bgra.rows << ", "
             << metres_per_pixel_ / scale << " m/px" << (enu_from_flipped_ ? ", world file " + world.string() : "")
             << ")";
+  return true;
+}
+
+bool UavMosaicker::MosaicToLatLon(const cv::Point2d& mosaic_px, cv::Point2d* lat_lon) const {
+  if (!enu_from_flipped_ || !origin_fix_) return false;
+  EnuToLatLon(enu_from_flipped_->Apply({mosaic_px.x, -mosaic_px.y}), origin_fix_->latitude, origin_fix_->longitude,
+              &lat_lon->x, &lat_lon->y);
+  return true;
+}
+
+bool UavMosaicker::WriteGeoTiff(const std::string& tif_path, std::string* error) {
+  if (!canvas_ || !enu_from_flipped_ || !origin_fix_) {
+    if (error) *error = "no GeoTIFF for " + tif_path + ": the mosaic is not tied to GPS (no geotags or too few)";
+    return false;
+  }
+  cv::Mat bgra;
+  double scale = 1;
+  cv::Point2d origin;
+  if (!ExportCanvas(&bgra, &scale, &origin, error)) return false;
+  auto lat_lon_of_pixel = [&](const cv::Point2d& p) {
+    cv::Point2d ll;
+    MosaicToLatLon(origin + p * (1.0 / scale), &ll);
+    return ll;
+  };
+  const int epsg = UtmEpsg(origin_fix_->latitude, origin_fix_->longitude);
+  if (!vloc::mosaic::WriteGeoTiff(bgra, lat_lon_of_pixel, epsg, tif_path, error)) return false;
+  LOG(INFO) << "GeoTIFF written: " << tif_path << " (EPSG:" << epsg << ")";
   return true;
 }
 

@@ -29,6 +29,7 @@ struct MatcherOptions {
   std::string scale_model = "similarity";        // eq. 3 model: "similarity" (handles yaw), "axis_scale" (eq. 3 as printed), "affine"
   int min_inliers = 25;              // fewer background matches than this = matching failed
   double max_scale_change = 1.6;     // a scale change beyond [1/x, x] between two frames = failure
+  double guided_ratio = 0.9;         // ratio test among the candidates inside the gate (guided matching, MotionPrior)
   int num_threads = 2;               // OpenCV threads for A-KAZE and matching
 
   void Visit(OptionsReader& reader);
@@ -60,11 +61,23 @@ struct MotionEstimate {
   int num_foreground = 0;            // matches removed by equation 2
   int num_background = 0;            // matches used for the scale fit
   double fit_rms = 0.0;              // px, residual of the scale fit
+  double spread = 0.0;               // area of the background matches' convex hull / area of `to` (0..1)
+  bool guided = false;               // matched inside a MotionPrior's gate
   double seconds = 0.0;              // matching + estimation
   std::vector<cv::Point2f> from_background, to_background;
 };
 
-MotionEstimate EstimateMotion(const FrameFeatures& from, const FrameFeatures& to, const MatcherOptions& options);
+// Guided matching: where `to` should see `from`'s points (e.g. predicted
+// from the GPS motion). Only candidates within gate_px of the predicted
+// place compete, and the ratio test runs among them (guided_ratio).
+struct MotionPrior {
+  Similarity2 to_from_from;          // predicted `from` px -> `to` px
+  double gate_px = 100.0;            // px, search radius around the prediction
+};
+
+// `prior` null = unguided (every feature against every feature).
+MotionEstimate EstimateMotion(const FrameFeatures& from, const FrameFeatures& to, const MatcherOptions& options,
+                              const MotionPrior* prior = nullptr);
 
 // Equation 2 for each match (from[i] -> to[i]) under homography H (from -> to):
 // true = foreground (moving object). Rule as in MatcherOptions::foreground_rule.

@@ -72,6 +72,15 @@ struct MosaickerOptions {
                                         // heading only (the mosaic is coarser than low frames: its scale is noisier)
   double reregister_max_shift = 0.15;   // a mosaic registration moving the frame centre by more than this fraction
                                         // of the frame width, or its scale by more than this fraction, is rejected
+  // Evidence for a registration (real surveys: parallax, low texture, tilt).
+  double min_spread = 0.0;              // background matches must span this fraction of the frame (convex hull area)
+  bool guided_matching = true;          // when plain matching fails, match again inside a gate around the predicted
+                                        // pose (GPS motion when tied to GPS, else the last frame-to-frame motion)
+  double guide_gate = 0.12;             // gate radius as a fraction of the frame width (plus 3 GPS sigmas)
+  double gps_max_disagreement = 0.35;   // a registration whose frame centre lands farther than this fraction of the
+                                        // frame width (or 5 GPS sigmas, the larger) from the GPS position is rejected
+  bool reseat_by_gps = true;            // a frame no image registers is placed at its GPS position and becomes the
+                                        // keyframe (reported LOST, not registered), so the next frame re-acquires
   int num_threads = 2;                  // OpenCV threads (A-KAZE, matching, warping)
   bool async_mosaic = false;            // blend on a worker thread (real time: tracking never waits; a frame due while
                                         // the worker is busy replaces the queued one). false = blend inside ProcessFrame
@@ -111,6 +120,9 @@ struct FrameState {
   int num_matches = 0, num_inliers = 0, num_foreground = 0;
   bool keyframe = false;                // this frame became the keyframe
   bool reregistered = false;            // the pose came from a registration against the mosaic (periodic)
+  bool guided = false;                  // registered by guided matching (GPS or motion prediction)
+  bool reseated = false;                // not registered: placed at its GPS position to restart tracking
+  double spread = 0;                    // convex-hull area of the background matches / frame area
   bool mosaic_updated = false;          // blended into the mosaic (async_mosaic: queued for blending)
   double tracking_seconds = 0;          // s, features + matching + height
   double mosaic_seconds = 0;            // s, blending (0 when not blended or async_mosaic)
@@ -120,6 +132,9 @@ struct MosaickerSummary {
   int frames = 0, tracked = 0, lost = 0, recoveries = 0, keyframes = 0, blends = 0;
   int reregistrations = 0;              // frames whose pose came from a periodic registration against the mosaic
   int reregistrations_rejected = 0;     // such registrations that failed or disagreed too much with the chain
+  int guided = 0;                       // frames registered by guided matching
+  int gps_rejections = 0;               // registrations rejected because they disagreed with the GPS motion
+  int reseats = 0;                      // frames placed by GPS after every registration failed
   std::string last_problem;
   Calibration calibration;
   double metres_per_pixel = 0;          // mosaic ground resolution
@@ -145,6 +160,11 @@ class UavMosaicker {
   // Full mosaic as PNG (BGRA, alpha = covered) + world file `<stem>.pgw`
   // (lon/lat degrees, WGS84, linearised) when tied to GPS.
   bool WriteMosaic(const std::string& png_path, std::string* error);
+  // Full mosaic as a north-up GeoTIFF in the flight's UTM zone (GDAL). Needs
+  // the tie to GPS; false with one line in *error otherwise.
+  bool WriteGeoTiff(const std::string& tif_path, std::string* error);
+  // WGS84 lat/lon (deg, as x = lat, y = lon) of a mosaic pixel; false when not tied to GPS.
+  bool MosaicToLatLon(const cv::Point2d& mosaic_px, cv::Point2d* lat_lon) const;
 
   MosaickerSummary summary() const;
   const Calibration& calibration() const { return calibration_; }
@@ -173,6 +193,21 @@ class UavMosaicker {
   // Periodic re-registration: *mosaic_from_frame (the chain's pose) replaced by
   // the registration against the mosaic rendered there, when that agrees.
   bool Reregister(const cv::Mat& frame, const FrameFeatures& features, Similarity2* mosaic_from_frame);
+  struct Prediction {
+    Similarity2 mosaic_from_frame;      // predicted pose of the new frame
+    double gate_px = 0;                 // px of the frame, uncertainty of the prediction
+    bool from_gps = false;              // GPS motion (else the last frame-to-frame motion)
+    cv::Point2d gps_px;                 // mosaic px of the GPS position (from_gps)
+    double gps_tolerance_px = 0;        // frame px, largest believable disagreement with the GPS
+  };
+  // The pose of a frame at `utime` from the GPS (when tied and a fix is at
+  // that time) or from constant motion (the last two registered frames were consecutive).
+  std::optional<Prediction> Predict(int64_t utime, cv::Size size) const;
+  // GPS east/north (m) of the fix nearest to utime within geo.max_time_gap.
+  std::optional<cv::Point2d> GpsEnuAt(int64_t utime, double* sigma = nullptr) const;
+  // The evidence test: support, spread, agreement with the GPS position.
+  bool Evidence(const MotionEstimate& motion, const Similarity2& mosaic_from_frame, const std::optional<Prediction>& p,
+                cv::Size size, std::string* why);
   double KeyframeOverlap(const Similarity2& key_to_cur, cv::Size size) const;
   void PairPendingFixes();
   void RefitTie();
@@ -181,6 +216,8 @@ class UavMosaicker {
   bool BlendOrQueue(const cv::Mat& frame, const Similarity2& S, FrameState* state);
   void WorkerLoop();
   void FlushMosaic();  // waits until the worker has blended what is queued
+  // The whole canvas (after FlushMosaic) as BGRA; TiledCanvas::Export.
+  bool ExportCanvas(cv::Mat* bgra, double* scale, cv::Point2d* origin, std::string* error);
 
   MosaickerOptions options_;
   Calibration calibration_;
@@ -197,6 +234,9 @@ class UavMosaicker {
   std::optional<Keyframe> keyframe_;
   Similarity2 last_good_;                  // mosaic_from_frame of the last tracked frame
   double last_scale_ = 0;                  // its similarity scale
+  std::optional<Similarity2> prev_good_;   // mosaic_from_frame of the tracked frame before last_good_ (consecutive)
+  int last_good_index_ = -1;               // frame index of last_good_
+  std::optional<cv::Point2d> last_good_enu_;  // m, GPS east/north at last_good_'s time (when a fix was there)
   bool lost_ = false;
   int frames_since_blend_ = 0;
   int frames_since_reregister_ = 0;
@@ -210,6 +250,7 @@ class UavMosaicker {
   std::vector<double> marker_sides_, marker_heights_;       // calibration sightings being averaged
   int64_t last_fix_utime_ = INT64_MIN / 2;
   std::deque<GpsFix> pending_fixes_;
+  std::deque<GpsFix> recent_fixes_;                       // last fixes, for predictions
   std::deque<std::pair<int64_t, cv::Point2d>> history_;   // utime, route_px of tracked frames
   std::deque<TiePair> pairs_;
   std::optional<Similarity2> enu_from_flipped_;           // (x, -y) mosaic px -> ENU m
