@@ -18,6 +18,7 @@ void MatcherOptions::Visit(OptionsReader& r) {
   r.Optional("akaze_octaves", &akaze_octaves, "A-KAZE octaves");
   r.Optional("akaze_sublevels", &akaze_sublevels, "A-KAZE sublevels per octave");
   r.Optional("max_features", &max_features, "strongest keypoints kept per frame");
+  r.Optional("min_features", &min_features, "lower the A-KAZE threshold until this many keypoints (0 = off)");
   r.Optional("grid_cells", &grid_cells, "grid cells per side for spreading keypoints");
   r.Optional("ratio", &ratio, "Lowe ratio test");
   r.Optional("ransac_threshold", &ransac_threshold, "px, RANSAC reprojection threshold");
@@ -36,6 +37,7 @@ bool MatcherOptions::Check(std::string* error) const {
   if (akaze_octaves < 1 || akaze_octaves > 8) return Fail(error, "matcher.akaze_octaves must be in [1, 8]");
   if (akaze_sublevels < 1 || akaze_sublevels > 8) return Fail(error, "matcher.akaze_sublevels must be in [1, 8]");
   if (max_features < 20) return Fail(error, "matcher.max_features must be >= 20");
+  if (min_features < 0) return Fail(error, "matcher.min_features must be >= 0 (0 = off)");
   if (grid_cells < 1 || grid_cells > 64) return Fail(error, "matcher.grid_cells must be in [1, 64]");
   if (!(ratio > 0 && ratio <= 1)) return Fail(error, "matcher.ratio must be in (0, 1]");
   if (!(ransac_threshold > 0)) return Fail(error, "matcher.ransac_threshold must be > 0");
@@ -96,12 +98,16 @@ FrameFeatures ExtractFeatures(const cv::Mat& image, const MatcherOptions& option
   } else {
     small = gray;
   }
-  auto akaze = cv::AKAZE::create(cv::AKAZE::DESCRIPTOR_MLDB, 0, 3, static_cast<float>(options.akaze_threshold),
-                                 options.akaze_octaves, options.akaze_sublevels, cv::KAZE::DIFF_PM_G2);
   // One call: detect() and compute() separately would build the nonlinear scale space twice.
   std::vector<cv::KeyPoint> all;
   cv::Mat all_descriptors;
-  akaze->detectAndCompute(small, cv::noArray(), all, all_descriptors);
+  for (double threshold = options.akaze_threshold;; threshold /= 4) {
+    auto akaze = cv::AKAZE::create(cv::AKAZE::DESCRIPTOR_MLDB, 0, 3, static_cast<float>(threshold),
+                                   options.akaze_octaves, options.akaze_sublevels, cv::KAZE::DIFF_PM_G2);
+    all.clear();
+    akaze->detectAndCompute(small, cv::noArray(), all, all_descriptors);
+    if (static_cast<int>(all.size()) >= options.min_features || threshold < options.akaze_threshold / 60) break;
+  }
   for (size_t i = 0; i < all.size(); ++i) all[i].class_id = static_cast<int>(i);
   const std::vector<cv::KeyPoint> kps =
       SpreadKeypoints(std::move(all), small.size(), options.grid_cells, options.max_features);

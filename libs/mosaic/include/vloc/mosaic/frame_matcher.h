@@ -21,6 +21,8 @@ struct MatcherOptions {
   int akaze_octaves = 3;             // A-KAZE octaves
   int akaze_sublevels = 2;           // A-KAZE sublevels per octave (OpenCV default 4; 2 halves the scale-space cost)
   int max_features = 1200;           // strongest keypoints kept per frame (spread over a grid)
+  int min_features = 0;              // fewer keypoints than this: A-KAZE again at a quarter of the threshold (down to
+                                     // 1/64 of akaze_threshold; low-texture fields); 0 = off
   int grid_cells = 8;                // grid cells per image side for spreading the kept keypoints
   double ratio = 0.8;                // Lowe ratio test on Hamming distances
   double ransac_threshold = 3.0;     // px (full resolution), RANSAC reprojection threshold

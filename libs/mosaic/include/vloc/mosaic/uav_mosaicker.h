@@ -47,6 +47,8 @@ struct GeoOptions {
   int window_fixes = 2000;        // most recent pairs used for the mosaic -> local ENU fit
   double max_time_gap = 0.25;     // s, a fix pairs with the frames around it only within this gap
   double gps_timeout = 1.5;       // s, without a fix for this long the route is carried by vision alone
+  int predict_window = 0;         // most recent pairs of a local tie used only to predict where frames land
+                                  // (robust to a chain whose scale drifts); 0 = the tie itself
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
@@ -74,12 +76,25 @@ struct MosaickerOptions {
                                         // of the frame width, or its scale by more than this fraction, is rejected
   // Evidence for a registration (real surveys: parallax, low texture, tilt).
   double min_spread = 0.0;              // background matches must span this fraction of the frame (convex hull area)
-  bool guided_matching = true;          // when plain matching fails, match again inside a gate around the predicted
+  bool guided_matching = false;         // when plain matching fails, match again inside a gate around the predicted
                                         // pose (GPS motion when tied to GPS, else the last frame-to-frame motion)
   double guide_gate = 0.12;             // gate radius as a fraction of the frame width (plus 3 GPS sigmas)
   double gps_max_disagreement = 0.35;   // a registration whose frame centre lands farther than this fraction of the
                                         // frame width (or 5 GPS sigmas, the larger) from the GPS position is rejected
-  bool reseat_by_gps = true;            // a frame no image registers is placed at its GPS position and becomes the
+  std::string scale_source = "similarity";  // the frame's scale (height) from "similarity": the least-squares fit to
+                                        // the matches (eq. 3); "homography": the height ratio of the plane-induced
+                                        // homography, h/h_key = 1 + n.R^T t/d (unbiased when the camera tilts: the
+                                        // similarity then takes the scale of the overlap, not of the frame centre)
+  std::string route_point = "centre";   // "centre": the route is the frame centre (principal point) on the ground;
+                                        // "nadir": the point below the camera, from the ground-plane normal of the
+                                        // homography to the keyframe (cameras without a gimbal tilt: the centre is
+                                        // then h tan(tilt) away from the camera's position)
+  int gps_check_below_inliers = 60;     // the GPS agreement test applies to registrations with fewer background matches
+                                        // than this; stronger geometric evidence stands on its own (a GPS tie made
+                                        // from a short or poor track must not veto a clear registration)
+  bool reseat_only_new_ground = true;   // reseat only when the mosaic does not cover where the GPS puts the frame
+                                        // (new ground: nothing to re-acquire against); else keep searching the mosaic
+  bool reseat_by_gps = false;           // a frame no image registers is placed at its GPS position and becomes the
                                         // keyframe (reported LOST, not registered), so the next frame re-acquires
   int num_threads = 2;                  // OpenCV threads (A-KAZE, matching, warping)
   bool async_mosaic = false;            // blend on a worker thread (real time: tracking never waits; a frame due while
@@ -123,6 +138,7 @@ struct FrameState {
   bool guided = false;                  // registered by guided matching (GPS or motion prediction)
   bool reseated = false;                // not registered: placed at its GPS position to restart tracking
   double spread = 0;                    // convex-hull area of the background matches / frame area
+  double tilt = 0;                      // rad, camera tilt from the ground normal (homography), 0 when not known
   bool mosaic_updated = false;          // blended into the mosaic (async_mosaic: queued for blending)
   double tracking_seconds = 0;          // s, features + matching + height
   double mosaic_seconds = 0;            // s, blending (0 when not blended or async_mosaic)
@@ -179,6 +195,7 @@ class UavMosaicker {
     FrameFeatures features;
     Similarity2 mosaic_from_frame;
     int64_t utime = 0;
+    cv::Vec3d normal{0, 0, 1};          // ground-plane normal in its camera frame (scale_source homography)
   };
   struct TiePair {
     cv::Point2d mosaic_px;
@@ -203,11 +220,19 @@ class UavMosaicker {
   // The pose of a frame at `utime` from the GPS (when tied and a fix is at
   // that time) or from constant motion (the last two registered frames were consecutive).
   std::optional<Prediction> Predict(int64_t utime, cv::Size size) const;
+  // GPS course (rad, ENU, counter-clockwise from east) arriving at the fix
+  // nearest to utime, from the fix before it; nullopt when not moving.
+  std::optional<double> GpsCourseAt(int64_t utime) const;
+  // Learns the heading of the camera relative to the GPS course from a registered frame.
+  void UpdateYawOffset(const Similarity2& mosaic_from_frame, int64_t utime);
   // GPS east/north (m) of the fix nearest to utime within geo.max_time_gap.
   std::optional<cv::Point2d> GpsEnuAt(int64_t utime, double* sigma = nullptr) const;
   // The evidence test: support, spread, agreement with the GPS position.
   bool Evidence(const MotionEstimate& motion, const Similarity2& mosaic_from_frame, const std::optional<Prediction>& p,
                 cv::Size size, std::string* why);
+  // Height ratio frame / keyframe and the ground normal in the frame from
+  // the homography keyframe -> frame; false when no decomposition is plausible.
+  bool PlaneFromHomography(const cv::Matx33d& H, double* height_ratio, cv::Vec3d* normal) const;
   double KeyframeOverlap(const Similarity2& key_to_cur, cv::Size size) const;
   void PairPendingFixes();
   void RefitTie();
@@ -234,7 +259,10 @@ class UavMosaicker {
   std::optional<Keyframe> keyframe_;
   Similarity2 last_good_;                  // mosaic_from_frame of the last tracked frame
   double last_scale_ = 0;                  // its similarity scale
+  std::optional<cv::Point2d> yaw_offset_;  // mean (cos, sin) of frame heading minus GPS course (ENU), registered frames
+  cv::Vec3d ground_normal_{0, 0, 1};       // ground-plane normal in the last registered frame's camera frame
   std::optional<Similarity2> prev_good_;   // mosaic_from_frame of the tracked frame before last_good_ (consecutive)
+  double last_painted_ = 1.0;              // covered fraction of the last mosaic view searched (RegisterToMosaic)
   int last_good_index_ = -1;               // frame index of last_good_
   std::optional<cv::Point2d> last_good_enu_;  // m, GPS east/north at last_good_'s time (when a fix was there)
   bool lost_ = false;
@@ -254,6 +282,11 @@ class UavMosaicker {
   std::deque<std::pair<int64_t, cv::Point2d>> history_;   // utime, route_px of tracked frames
   std::deque<TiePair> pairs_;
   std::optional<Similarity2> enu_from_flipped_;           // (x, -y) mosaic px -> ENU m
+  std::optional<Similarity2> local_tie_;                  // the same over the last geo.predict_window pairs
+  // The tie for predictions: the local one when there is one.
+  const Similarity2* PredictionTie() const;
+  // Similarity over pairs_[first..] when their GPS spread is at least min_spread.
+  bool FitTie(size_t first, Similarity2* tie, double* rms) const;
   double tie_rms_ = 0;
   std::vector<cv::Point2d> route_;                        // for the preview
 
