@@ -315,16 +315,18 @@ void BM_RealStillsStitcherScans(benchmark::State& state) {
     state.SkipWithError("../shared/data/real/uav_caliterra absent");
     return;
   }
-  int status = -1;
+  int status = -1, joined = 0;
   for (auto _ : state) {
     cv::setNumThreads(2);
     auto stitcher = cv::Stitcher::create(cv::Stitcher::SCANS);
     cv::Mat pano;
     status = static_cast<int>(stitcher->stitch(s.images, pano));
+    joined = status == 0 ? static_cast<int>(stitcher->component().size()) : 0;
   }
   state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(s.images.size()) * state.iterations(),
                                                       benchmark::Counter::kIsRate);
   state.counters["stitch_ok"] = status == 0;
+  state.counters["joined"] = joined;  // photos in the panorama
 }
 BENCHMARK(BM_RealStillsStitcherScans)->Unit(benchmark::kSecond)->UseRealTime();
 
