@@ -399,6 +399,16 @@ int main(int argc, char** argv) {
     } else {
       std::cout << "route vs GPS: " << rc.why << "\n";
     }
+    // Without a relative altitude the GPS altitude is above sea level over
+    // unknown ground, and the first height may be a guess: the heights are
+    // put on the GPS track's scale (the tie's metres per mosaic px, h = s r f)
+    // and compared with the altitude minus a fitted ground level.
+    if (!relative && rc.ok && mosaicker.metres_per_pixel() > 0) {
+      const double k = rc.enu_from_flipped.Scale() / mosaicker.metres_per_pixel();
+      for (auto& h : heights) h *= k;
+      std::cout << "heights on the GPS track's scale: first height " << options.calibration.height * k << " m (x " << k
+                << ")\n";
+    }
     const vm::HeightComparison hc = vm::CompareHeights(heights, gps_heights, !relative);
     if (hc.ok) {
       std::cout << "height vs GPS " << (relative ? "relative altitude" : "altitude minus a fitted ground level (" + std::to_string(hc.offset_m) + " m)")

@@ -60,17 +60,17 @@ HeightComparison CompareHeights(const std::vector<double>& height, const std::ve
   if (h.pairs == 0) return h;
   h.offset_m = fit_offset ? diff / h.pairs : 0.0;
   h.error_m.assign(height.size(), std::numeric_limits<double>::quiet_NaN());
-  double sum = 0, rel = 0;
+  double sum = 0, mean_ref = 0;
   for (size_t i = 0; i < n; ++i) {
     if (!(std::isfinite(height[i]) && std::isfinite(gps[i]) && height[i] > 0)) continue;
     const double ref = gps[i] - h.offset_m;
     const double e = height[i] - ref;
     h.error_m[i] = e;
     sum += e * e;
-    if (ref > 0) rel += (e / ref) * (e / ref);
+    mean_ref += ref / h.pairs;
   }
   h.rms_m = std::sqrt(sum / h.pairs);
-  h.rms_percent = 100.0 * std::sqrt(rel / h.pairs);
+  h.rms_percent = mean_ref > 0 ? 100.0 * h.rms_m / mean_ref : std::numeric_limits<double>::quiet_NaN();
   h.ok = true;
   return h;
 }

@@ -38,7 +38,7 @@ struct HeightComparison {
   int pairs = 0;
   double offset_m = 0;                  // fitted ground level (reference = gps - offset); 0 when not fitted
   double rms_m = 0;
-  double rms_percent = 0;               // RMS of the error relative to the reference height, %
+  double rms_percent = 0;               // RMS of the error / mean reference height, % (NaN when that is <= 0)
   std::vector<double> error_m;          // per input frame (NaN when not usable)
 };
 
