@@ -83,6 +83,7 @@ void MosaickerOptions::Visit(OptionsReader& r) {
              "largest accepted change of a re-registration (fraction of frame width / of scale)");
   r.Optional("min_spread", &min_spread, "fraction of the frame the background matches must span");
   r.Optional("guided_matching", &guided_matching, "match again around the predicted pose when plain matching fails");
+  r.Optional("guide_turn", &guide_turn, "deg, heading hypotheses +-this beside the predicted one (0 = only it)");
   r.Optional("guide_gate", &guide_gate, "gate radius of guided matching, fraction of the frame width");
   r.Optional("gps_max_disagreement", &gps_max_disagreement, "largest distance from the GPS position, fraction of frame width");
   r.Optional("scale_source", &scale_source, "similarity | homography");
@@ -110,6 +111,7 @@ bool MosaickerOptions::Check(std::string* error) const {
   if (!(reregister_max_shift > 0 && reregister_max_shift <= 1)) return Fail(error, "reregister_max_shift must be in (0, 1]");
   if (!(min_spread >= 0 && min_spread < 1)) return Fail(error, "min_spread must be in [0, 1)");
   if (!(guide_gate > 0 && guide_gate <= 1)) return Fail(error, "guide_gate must be in (0, 1]");
+  if (!(guide_turn >= 0 && guide_turn < 90)) return Fail(error, "guide_turn must be in [0, 90) deg");
   if (!(gps_max_disagreement > 0)) return Fail(error, "gps_max_disagreement must be > 0");
   if (route_point != "centre" && route_point != "nadir") return Fail(error, "route_point must be 'centre' or 'nadir'");
   if (scale_source != "similarity" && scale_source != "homography")
@@ -512,24 +514,37 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
     if (!Evidence(motion, S, prediction, frame.size(), &why)) motion.ok = false;
   }
   if (!motion.ok && options_.guided_matching && prediction) {
-    MotionPrior prior;
-    prior.to_from_from = prediction->mosaic_from_frame.Inverse() * keyframe_->mosaic_from_frame;
-    prior.gate_px = prediction->gate_px;
-    MotionEstimate guided = EstimateMotion(keyframe_->features, features, options_.matcher, &prior);
-    std::string guided_why = guided.ok ? "" : guided.why;
-    Similarity2 G;
-    if (guided.ok) {
-      G = keyframe_->mosaic_from_frame * guided.similarity.Inverse();
-      if (!Evidence(guided, G, prediction, frame.size(), &guided_why)) guided.ok = false;
-    }
-    if (guided.ok) {
-      motion = guided;
-      S = G;
-      ++summary_.guided;
-    } else {
-      why += "; guided by the " + std::string(prediction->from_gps ? "GPS" : "last motion") + ": " + guided_why;
+    // Heading hypotheses: the predicted one, then turned by +-guide_turn
+    // (a fixed wing's heading between photos is the least certain part).
+    const cv::Point2d c(camera_.cx, camera_.cy);
+    const double turn = options_.guide_turn * M_PI / 180.0;
+    std::string guided_why;
+    for (const double dangle : {0.0, turn, -turn}) {
+      if (dangle != 0.0 && turn <= 0) break;
+      Similarity2 P = Similarity2::FromScaleAngle(prediction->mosaic_from_frame.Scale(),
+                                                  prediction->mosaic_from_frame.Angle() + dangle, 0, 0);
+      const cv::Point2d at = prediction->mosaic_from_frame.Apply(c), moved = P.Apply(c);
+      P.tx = at.x - moved.x;
+      P.ty = at.y - moved.y;
+      MotionPrior prior;
+      prior.to_from_from = P.Inverse() * keyframe_->mosaic_from_frame;
+      prior.gate_px = prediction->gate_px;
+      MotionEstimate guided = EstimateMotion(keyframe_->features, features, options_.matcher, &prior);
+      guided_why = guided.ok ? "" : guided.why;
+      Similarity2 G;
+      if (guided.ok) {
+        G = keyframe_->mosaic_from_frame * guided.similarity.Inverse();
+        if (!Evidence(guided, G, prediction, frame.size(), &guided_why)) guided.ok = false;
+      }
+      if (guided.ok) {
+        motion = guided;
+        S = G;
+        ++summary_.guided;
+        break;
+      }
       if (guided.num_matches > motion.num_matches) motion.num_matches = guided.num_matches;
     }
+    if (!motion.ok) why += "; guided by the " + std::string(prediction->from_gps ? "GPS" : "last motion") + ": " + guided_why;
   }
   bool ok = motion.ok;
   bool via_mosaic = false;

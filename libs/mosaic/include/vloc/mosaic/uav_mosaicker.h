@@ -79,6 +79,7 @@ struct MosaickerOptions {
   bool guided_matching = false;         // when plain matching fails, match again inside a gate around the predicted
                                         // pose (GPS motion when tied to GPS, else the last frame-to-frame motion)
   double guide_gate = 0.12;             // gate radius as a fraction of the frame width (plus 3 GPS sigmas)
+  double guide_turn = 0.0;              // deg: guided matching also tries the predicted heading turned by +-this
   double gps_max_disagreement = 0.35;   // a registration whose frame centre lands farther than this fraction of the
                                         // frame width (or 5 GPS sigmas, the larger) from the GPS position is rejected
   std::string scale_source = "similarity";  // the frame's scale (height) from "similarity": the least-squares fit to
