@@ -105,6 +105,12 @@ int main(int argc, char** argv) {
     return 1;
   }
   const std::vector<std::string> paths = args.Has("split") ? args.positional() : ExpandInputs(args.positional());
+  for (const auto& p : args.positional()) {
+    if (!std::filesystem::exists(p)) {
+      std::cerr << "uav_mosaic_files: " << p << ": no such image or folder\n";
+      return 1;
+    }
+  }
   if (paths.size() < (args.Has("split") ? 1u : 2u)) {
     std::cerr << "uav_mosaic_files: give at least two images (or a folder holding them)\n";
     return 1;
@@ -372,7 +378,8 @@ int main(int argc, char** argv) {
     }
   }
   if (!use_oblique) std::cout << "mosaic: " << args.Get("out") << " (" << mosaicker.summary().BriefReport() << ")\n";
-  std::cout << "registered " << registered << " of " << count << " frames; " << count / std::max(1e-9, processing_seconds)
+  if (!use_oblique)
+    std::cout << "registered " << registered << " of " << count << " frames; " << count / std::max(1e-9, processing_seconds)
             << " frames/s registering and mosaicking (" << processing_seconds << " s; decoding "
             << decode_seconds << " s more)\n";
 
