@@ -272,7 +272,7 @@ int main(int argc, char** argv) {
 
   vm::UavMosaicker mosaicker(options);
   int failures = 0;
-  double processing_seconds = 0, decode_seconds = 0;
+  double processing_seconds = 0, decode_seconds = 0, tracking_seconds = 0, blending_seconds = 0;
   for (size_t i = 0; i < count; ++i) {
     FrameRecord& rec = frames[i];
     const auto t_decode = std::chrono::steady_clock::now();
@@ -303,6 +303,8 @@ int main(int argc, char** argv) {
     }
     rec.state = mosaicker.ProcessFrame(image, utime);
     processing_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    tracking_seconds += rec.state.tracking_seconds;
+    blending_seconds += rec.state.mosaic_seconds;
     const auto& s = rec.state;
     rec.registered = s.status == vm::TrackStatus::kTracking || s.status == vm::TrackStatus::kRecovered;
     std::cout << names[i] << ": " << vm::ToString(s.status) << (s.guided ? " (guided)" : "") << ", scale change "
@@ -381,7 +383,8 @@ int main(int argc, char** argv) {
   if (!use_oblique)
     std::cout << "registered " << registered << " of " << count << " frames; " << count / std::max(1e-9, processing_seconds)
             << " frames/s registering and mosaicking (" << processing_seconds << " s; decoding "
-            << decode_seconds << " s more)\n";
+            << decode_seconds << " s more; features + matching " << tracking_seconds << " s, blending " << blending_seconds
+            << " s)\n";
 
   // Route and height against the GPS.
   if (origin && split_views.empty()) {
