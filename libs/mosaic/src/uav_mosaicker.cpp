@@ -511,7 +511,7 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
   std::string why = motion.ok ? "" : "matching failed: " + motion.why;
   if (motion.ok) {
     S = keyframe_->mosaic_from_frame * motion.similarity.Inverse();
-    if (!Evidence(motion, S, prediction, frame.size(), &why)) motion.ok = false;
+    if (!Evidence(motion, S, prediction, &why)) motion.ok = false;
   }
   if (!motion.ok && options_.guided_matching && prediction) {
     // Heading hypotheses: the predicted one, then turned by +-guide_turn
@@ -534,7 +534,7 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
       Similarity2 G;
       if (guided.ok) {
         G = keyframe_->mosaic_from_frame * guided.similarity.Inverse();
-        if (!Evidence(guided, G, prediction, frame.size(), &guided_why)) guided.ok = false;
+        if (!Evidence(guided, G, prediction, &guided_why)) guided.ok = false;
       }
       if (guided.ok) {
         motion = guided;
@@ -562,7 +562,7 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
     const Similarity2 saved = last_good_;
     if (prediction && prediction->from_gps) last_good_ = prediction->mosaic_from_frame;
     Similarity2 R;
-    if (RegisterToMosaic(frame, features, &R, &m2, &why) && Evidence(m2, R, prediction, frame.size(), &why)) {
+    if (RegisterToMosaic(frame, features, &R, &m2, &why) && Evidence(m2, R, prediction, &why)) {
       ok = true;
       via_mosaic = true;
       motion = m2;
@@ -785,7 +785,8 @@ std::optional<UavMosaicker::Prediction> UavMosaicker::Predict(int64_t utime, cv:
 }
 
 bool UavMosaicker::Evidence(const MotionEstimate& motion, const Similarity2& mosaic_from_frame,
-                            const std::optional<Prediction>& p, cv::Size size, std::string* why) {
+                            const std::optional<Prediction>& p, std::string* why) {
+  if (!why->empty()) *why += "; ";
   if (motion.spread < options_.min_spread) {
     *why += "matches cover only " + std::to_string(motion.spread) + " of the frame (" +
             std::to_string(motion.num_background) + " matches)";
@@ -801,7 +802,6 @@ bool UavMosaicker::Evidence(const MotionEstimate& motion, const Similarity2& mos
       return false;
     }
   }
-  (void)size;
   return true;
 }
 

@@ -230,7 +230,7 @@ class UavMosaicker {
   std::optional<cv::Point2d> GpsEnuAt(int64_t utime, double* sigma = nullptr) const;
   // The evidence test: support, spread, agreement with the GPS position.
   bool Evidence(const MotionEstimate& motion, const Similarity2& mosaic_from_frame, const std::optional<Prediction>& p,
-                cv::Size size, std::string* why);
+                std::string* why);
   // Height ratio frame / keyframe and the ground normal in the frame from
   // the homography keyframe -> frame; false when no decomposition is plausible.
   bool PlaneFromHomography(const cv::Matx33d& H, double* height_ratio, cv::Vec3d* normal) const;
