@@ -44,7 +44,7 @@ int main(int argc, char** argv) {
   if (!options.telemetry_csv.empty()) telemetry = vloc::ReadTelemetryCsv(options.telemetry_csv, options.telemetry_time_offset);
   if (options.telemetry_csv.empty() && options.geotags) {
     std::string how;
-    vloc::TelemetryCsv tags = video.GeotagTelemetry(options.default_horizontal_sigma, &how);
+    vloc::TelemetryCsv tags = video.GeotagTelemetry(options.geotag_horizontal_sigma, &how);
     if (tags.readable) {
       LOG(INFO) << "GPS from the photos' geotags: " << how;
       telemetry = std::move(tags);

@@ -4,8 +4,6 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include <cmath>
-
 #include "vloc/common/options.h"
 #include "vloc/lcm_io/convert.h"
 #include "vloc/lcm_io/typed.h"
@@ -26,8 +24,7 @@ void UavVideoDriverOptions::Visit(OptionsReader& r) {
   r.Optional("jpeg_quality", &jpeg_quality, "1..100");
   r.Optional("speed", &speed, "real-time factor, 0 = as fast as possible");
   r.Optional("geotags", &geotags, "publish the EXIF GPS of a folder of photos (no telemetry CSV)");
-  r.Optional("default_horizontal_sigma", &default_horizontal_sigma, "m, horizontal sigma when the source has none");
-  r.Optional("default_vertical_sigma", &default_vertical_sigma, "m, vertical sigma when the source has none");
+  r.Optional("geotag_horizontal_sigma", &geotag_horizontal_sigma, "m, sigma of geotag fixes");
 }
 
 bool UavVideoDriverOptions::Check(std::string* error) const {
@@ -39,8 +36,7 @@ bool UavVideoDriverOptions::Check(std::string* error) const {
   if (fps < 0) return Fail(error, "fps must be >= 0 (0 = from the video)");
   if (jpeg_quality < 1 || jpeg_quality > 100) return Fail(error, "jpeg_quality must be in [1, 100]");
   if (speed < 0) return Fail(error, "speed must be >= 0 (0 = as fast as possible)");
-  if (!(default_horizontal_sigma > 0 && default_vertical_sigma > 0))
-    return Fail(error, "default_horizontal_sigma and default_vertical_sigma must be > 0 m");
+  if (!(geotag_horizontal_sigma > 0)) return Fail(error, "geotag_horizontal_sigma must be > 0 m");
   return true;
 }
 
@@ -71,14 +67,12 @@ UavVideoReplaySummary ReplayUavVideo(const UavVideoDriverOptions& options, UavVi
       uav_gps_t msg;
       msg.utime = utime;
       msg.fix = static_cast<int8_t>(f.fix);
-      // uav_gps_t allows NaN only in height_above_ground: no position without a fix, default sigmas.
-      auto finite_or = [](double v, double fallback) { return std::isfinite(v) ? v : fallback; };
-      msg.latitude = finite_or(f.latitude, 0.0);
-      msg.longitude = finite_or(f.longitude, 0.0);
-      msg.altitude = finite_or(f.altitude, 0.0);
+      msg.latitude = f.latitude;
+      msg.longitude = f.longitude;
+      msg.altitude = f.altitude;
       msg.height_above_ground = f.height_above_ground;
-      msg.horizontal_sigma = finite_or(f.horizontal_sigma, options.default_horizontal_sigma);
-      msg.vertical_sigma = finite_or(f.vertical_sigma, options.default_vertical_sigma);
+      msg.horizontal_sigma = f.horizontal_sigma;
+      msg.vertical_sigma = f.vertical_sigma;
       Publish(transport, options.gps_channel, msg);
       ++summary.fixes_published;
     } else {

@@ -1,8 +1,7 @@
 #pragma once
 // LCM adapter of uav_video_driver: publishes video frames on UAV_CAMERA
 // (image_t, frame_id "uav_nadir") and telemetry fixes on UAV_GPS
-// (uav_gps_t; FIX_NONE rows carry position 0, sigmas a source lacks the
-// configured defaults: no NaN is published), merged in time order.
+// (uav_gps_t; FIX_NONE rows carry NaN position), merged in time order.
 // Times: start_utime + the video clock (frame i at i / fps).
 
 #include <cstdint>
@@ -29,8 +28,7 @@ struct UavVideoDriverOptions {
   int jpeg_quality = 90;                      // 1..100
   double speed = 1.0;                     // real-time factor; 0 = as fast as possible
   bool geotags = true;                    // folder of photos without a telemetry CSV: publish their EXIF GPS
-  double default_horizontal_sigma = 3.0;  // m, horizontal sigma of fixes whose source gives none (EXIF, CSV without it)
-  double default_vertical_sigma = 5.0;    // m, likewise vertical (UAV_GPS carries no NaN sigma)
+  double geotag_horizontal_sigma = 3.0;   // m, horizontal sigma given to geotag fixes (EXIF has none)
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
