@@ -831,6 +831,8 @@ void UavMosaicker::AddGps(const GpsFix& fix) {
   if (!fix.valid || !std::isfinite(fix.latitude) || !std::isfinite(fix.longitude)) return;
   if (!origin_fix_) origin_fix_ = fix;
   recent_fixes_.push_back(fix);
+  if (!(recent_fixes_.back().horizontal_sigma > 0 && std::isfinite(recent_fixes_.back().horizontal_sigma)))
+    recent_fixes_.back().horizontal_sigma = GpsFix().horizontal_sigma;  // unknown accuracy (NaN): the default
   while (recent_fixes_.size() > 64) recent_fixes_.pop_front();
   last_fix_utime_ = std::max(last_fix_utime_, fix.utime);
   pending_fixes_.push_back(fix);
