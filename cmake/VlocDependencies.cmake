@@ -15,6 +15,10 @@ find_file(LCM_JAR lcm.jar PATHS /usr/share/java REQUIRED)
 find_file(JCHART2D_JAR jchart2d.jar PATHS /usr/share/java)
 find_package(Java 11 COMPONENTS Development)
 
+# UAV stills: EXIF/XMP geotags (exiv2) and GIS products (GDAL).
+pkg_check_modules(EXIV2 REQUIRED IMPORTED_TARGET exiv2)
+find_package(GDAL REQUIRED)
+
 # MRPT: only the modules the pose graph needs.
 find_package(mrpt-graphslam REQUIRED)
 find_package(mrpt-graphs REQUIRED)

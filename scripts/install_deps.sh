@@ -13,6 +13,7 @@ PACKAGES=(
   googletest libgtest-dev libgmock-dev libbenchmark-dev
   default-jdk-headless libjchart2d-java
   python3-numpy python3-matplotlib
+  libexiv2-dev exiv2 libgdal-dev gdal-bin
   iproute2 procps
 )
 

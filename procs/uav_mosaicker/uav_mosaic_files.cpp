@@ -1,57 +1,137 @@
-// uav_mosaic_files: registers and mosaics a sequence of nadir images (e.g.
-// OpenCV's aero1.jpg, aero3.jpg) with the UAV mosaicker.
-//   uav_mosaic_files [--config config/procs/uav_mosaicker.yaml] [--height H] [--focal F]
-//                    --out out/mosaic.png IMAGE...
-// The camera is taken as undistorted with the principal point at the image
-// centre and focal F px (default: the image width); H (m, default 100) only
-// scales the reported heights.
+// uav_mosaic_files: registers and mosaics a sequence of nadir photos with
+// the UAV mosaicker: a geotagged survey folder (EXIF GPS, time, focal length;
+// DJI XMP relative altitude) or OpenCV's aero1.jpg, aero3.jpg.
+//   uav_mosaic_files [--config config/procs/uav_mosaic_files.yaml] [--calibration CAMERA.yaml]
+//                    [--focal F] [--height H] [--no-gps] [--drop-gps A-B]
+//                    [--geotiff OUT.tif] [--geojson OUT.geojson] [--report OUT.tsv]
+//                    --out out/mosaic.png (FOLDER | IMAGE...)
+// Focal length (px): the calibration file, else --focal, else EXIF (focal
+// length and sensor width, or the 35 mm equivalent), else the image width;
+// the tool says which. First height: an ArUco marker in the first photo
+// (calibration.marker_size, needs the focal), else the DJI relative altitude,
+// else --height, else 100 m (heights then relative); the tool says which.
+// With geotags the mosaic is tied to GPS, matching is guided by the GPS
+// motion, and the route and height are compared with the GPS per frame and
+// as RMS (route after a 2-D similarity fit). --drop-gps A-B drops the tags
+// of frames A..B (0-based): a simulated GPS drop-out, held out of the fit.
 //   uav_mosaic_files --split [--angle DEG] [--zoom Z] --out out/x.png IMAGE
 // instead cuts one real image into two overlapping views related by a known
 // similarity (rotation DEG, default 12; view 2 seen from Z times higher,
 // default 1.18) and checks the registration against that truth.
-// When the nadir mosaicker loses a frame (views too different: oblique
-// photos from other directions, like aero1/aero3), the sequence is
-// registered pairwise with the affine-invariant RegisterOblique (image i ->
-// image i-1, homographies chained to image 1) and mosaicked in image 1's
-// frame instead (--no-oblique turns this off).
+// When the nadir mosaicker loses a frame of a sequence without geotags
+// (views too different: oblique photos from other directions, like
+// aero1/aero3), the sequence is registered pairwise with the affine-invariant
+// RegisterOblique (image i -> image i-1, homographies chained to image 1) and
+// mosaicked in image 1's frame instead (--no-oblique turns this off).
 #include <glog/logging.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
-
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
 #include <iostream>
 
 #include "vloc/common/command_line.h"
 #include "vloc/common/logging.h"
 #include "vloc/common/options.h"
+#include "vloc/mosaic/calibration.h"
+#include "vloc/mosaic/geotag.h"
+#include "vloc/mosaic/gis_export.h"
 #include "vloc/mosaic/oblique_registration.h"
+#include "vloc/mosaic/survey_eval.h"
 #include "vloc/mosaic/uav_mosaicker.h"
+
+namespace {
+
+namespace vm = vloc::mosaic;
+
+// A folder argument becomes its images, sorted by name.
+std::vector<std::string> ExpandInputs(const std::vector<std::string>& args) {
+  namespace fs = std::filesystem;
+  std::vector<std::string> out;
+  for (const auto& a : args) {
+    if (!fs::is_directory(a)) {
+      out.push_back(a);
+      continue;
+    }
+    std::vector<std::string> files;
+    for (const auto& e : fs::directory_iterator(a)) {
+      std::string ext = e.path().extension().string();
+      std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+      if (e.is_regular_file() && (ext == ".jpg" || ext == ".jpeg" || ext == ".png" || ext == ".tif" || ext == ".tiff"))
+        files.push_back(e.path().string());
+    }
+    std::sort(files.begin(), files.end());
+    out.insert(out.end(), files.begin(), files.end());
+  }
+  return out;
+}
+
+struct FrameRecord {
+  std::string name;
+  vm::ImageGeotag tag;
+  bool gps_used = false;       // tag given to the mosaicker
+  bool dropped = false;        // tag withheld (--drop-gps): compared, not in the fit
+  vm::FrameState state;
+  bool registered = false;
+  cv::Point2d enu;             // GPS east/north of the frame (m, from the first tagged frame)
+};
+
+bool ParseRange(const std::string& text, int* a, int* b) {
+  return std::sscanf(text.c_str(), "%d-%d", a, b) == 2 && *a >= 0 && *b >= *a;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
   vloc::CommandLine args;
   std::string error;
-  if (!args.Parse(argc, argv, {"config", "height", "focal", "out", "help", "split", "angle", "zoom", "preview", "preview-side", "no-oblique"}, &error) || args.Has("help") ||
-      args.positional().size() < (args.Has("split") ? 1u : 2u) || !args.Has("out")) {
+  if (!args.Parse(argc, argv,
+                  {"config", "calibration", "height", "focal", "out", "help", "split", "angle", "zoom", "preview",
+                   "preview-side", "no-oblique", "no-gps", "drop-gps", "geotiff", "geojson", "report", "gps-sigma"},
+                  &error) ||
+      args.Has("help") || args.positional().empty() || !args.Has("out")) {
     std::cerr << (error.empty() ? "" : "uav_mosaic_files: " + error + "\n")
-              << "usage: uav_mosaic_files [--config config/procs/uav_mosaicker.yaml] [--height H] [--focal F] [--preview P.png --preview-side N] [--no-oblique] --out "
-                 "OUT.png IMAGE IMAGE...\n       uav_mosaic_files --split [--angle DEG] [--zoom Z] --out OUT.png IMAGE\n";
+              << "usage: uav_mosaic_files [--config config/procs/uav_mosaic_files.yaml] [--calibration CAMERA.yaml] "
+                 "[--focal F] [--height H] [--no-gps] [--drop-gps A-B] [--gps-sigma M] [--geotiff OUT.tif] "
+                 "[--geojson OUT.geojson] [--report OUT.tsv] [--preview P.png --preview-side N] [--no-oblique] "
+                 "--out OUT.png (FOLDER | IMAGE IMAGE...)\n"
+                 "       uav_mosaic_files --split [--angle DEG] [--zoom Z] --out OUT.png IMAGE\n";
     return 1;
   }
-  std::vector<cv::Mat> images;
-  for (const auto& path : args.positional()) {
-    images.push_back(cv::imread(path, cv::IMREAD_COLOR));
-    if (images.back().empty()) {
-      std::cerr << "uav_mosaic_files: cannot read image " << path << " (missing or not an image)\n";
+  const std::vector<std::string> paths = args.Has("split") ? args.positional() : ExpandInputs(args.positional());
+  for (const auto& p : args.positional()) {
+    if (!std::filesystem::exists(p)) {
+      std::cerr << "uav_mosaic_files: " << p << ": no such image or folder\n";
       return 1;
     }
   }
-  // --split: two views of one image with a known similarity between them.
+  if (paths.size() < (args.Has("split") ? 1u : 2u)) {
+    std::cerr << "uav_mosaic_files: give at least two images (or a folder holding them)\n";
+    return 1;
+  }
+  int drop_a = -1, drop_b = -2;
+  if (args.Has("drop-gps") && !ParseRange(args.Get("drop-gps"), &drop_a, &drop_b)) {
+    std::cerr << "uav_mosaic_files: --drop-gps wants a frame range A-B (0-based, A <= B), got '" << args.Get("drop-gps")
+              << "'\n";
+    return 1;
+  }
+  // Images are read one at a time (a survey can hold thousands); --split needs its one image.
+  cv::Mat first = cv::imread(paths[0], cv::IMREAD_COLOR);
+  if (first.empty()) {
+    std::cerr << "uav_mosaic_files: cannot read image " << paths[0] << " (missing or not an image)\n";
+    return 1;
+  }
+  std::vector<cv::Mat> split_views;
   double true_scale = 0;
-  std::vector<std::string> names = args.positional();
+  std::vector<std::string> names = paths;
   if (args.Has("split")) {
-    const cv::Mat src = images[0];
+    const cv::Mat src = first;
     const cv::Size view(static_cast<int>(src.cols * 0.62), static_cast<int>(src.rows * 0.62));
     const double angle = args.GetDouble("angle", 12.0) * M_PI / 180.0, zoom = args.GetDouble("zoom", 1.18);
     // src px = A(v) for view 1 (a plain crop) and B(v) for view 2 (rotated, zoomed out, shifted right).
@@ -63,44 +143,175 @@ int main(int argc, char** argv) {
     cv::Mat v1, v2;
     cv::warpAffine(src, v1, A, view, cv::INTER_LINEAR | cv::WARP_INVERSE_MAP);
     cv::warpAffine(src, v2, B, view, cv::INTER_AREA | cv::WARP_INVERSE_MAP);
-    images = {v1, v2};
-    names = {args.positional()[0] + " (view 1)", args.positional()[0] + " (view 2)"};
+    split_views = {v1, v2};
+    names = {paths[0] + " (view 1)", paths[0] + " (view 2)"};
     // View 1 px -> view 2 px is B^-1 A: scale 1/zoom (zoom out, lambda < 1), angle -angle.
     true_scale = 1.0 / zoom;
   }
-  vloc::mosaic::MosaickerOptions options;
+  auto load = [&](size_t i) -> cv::Mat {
+    if (!split_views.empty()) return split_views[i];
+    return i == 0 ? first : cv::imread(paths[i], cv::IMREAD_COLOR);
+  };
+  const size_t count = split_views.empty() ? paths.size() : split_views.size();
+
+  vm::MosaickerOptions options;
   try {
-    if (args.Has("config")) options = vloc::LoadOptionsFile<vloc::mosaic::MosaickerOptions>(args.Get("config"), "mosaicker");
+    if (args.Has("config")) options = vloc::LoadOptionsFile<vm::MosaickerOptions>(args.Get("config"), "mosaicker");
   } catch (const vloc::ConfigError& e) {
     std::cerr << "uav_mosaic_files: " << e.what() << "\n";
     return 1;
   }
-  const cv::Size size = images[0].size();
-  options.camera = vloc::PinholeCamera();
-  options.camera.width = size.width;
-  options.camera.height = size.height;
-  options.camera.fx = options.camera.fy = args.GetDouble("focal", size.width);
-  options.camera.cx = (size.width - 1) / 2.0;
-  options.camera.cy = (size.height - 1) / 2.0;
+  // Geotags.
+  std::vector<FrameRecord> frames(count);
+  int tagged = 0;
+  for (size_t i = 0; i < count; ++i) {
+    frames[i].name = names[i];
+    if (!split_views.empty()) continue;
+    std::string tag_error;
+    if (!vm::ReadGeotag(paths[i], &frames[i].tag, &tag_error)) {
+      std::cerr << "uav_mosaic_files: " << tag_error << " (geotags of this photo ignored)\n";
+      frames[i].tag = vm::ImageGeotag();
+    }
+    if (frames[i].tag.has_gps) ++tagged;
+  }
+  const bool use_gps = tagged >= 2 && !args.Has("no-gps");
+  const vm::ImageGeotag& tag0 = frames[0].tag;
+
+  // Focal length: calibration file, --focal, EXIF, image width.
+  const cv::Size size = split_views.empty() ? first.size() : split_views[0].size();
+  std::string focal_source;
+  if (args.Has("calibration")) {
+    try {
+      options.camera = vloc::LoadOptionsFile<vloc::PinholeCamera>(args.Get("calibration"));
+    } catch (const vloc::ConfigError& e) {
+      std::cerr << "uav_mosaic_files: " << e.what() << "\n";
+      return 1;
+    }
+    if (options.camera.width != size.width || options.camera.height != size.height) {
+      const double k = static_cast<double>(size.width) / options.camera.width;
+      std::cout << "calibration " << options.camera.width << " x " << options.camera.height << " scaled by " << k
+                << " to the photos' " << size.width << " x " << size.height << "\n";
+      options.camera.fx *= k, options.camera.fy *= k, options.camera.cx = (options.camera.cx + 0.5) * k - 0.5;
+      options.camera.cy = (options.camera.cy + 0.5) * k - 0.5;
+      options.camera.width = size.width, options.camera.height = size.height;
+    }
+    focal_source = "the calibration file " + args.Get("calibration");
+  } else {
+    options.camera = vloc::PinholeCamera();
+    options.camera.width = size.width;
+    options.camera.height = size.height;
+    options.camera.cx = (size.width - 1) / 2.0;
+    options.camera.cy = (size.height - 1) / 2.0;
+    std::string how;
+    const double exif_focal = vm::FocalPixelsFromExif(tag0, size.width, &how);
+    double f = size.width;
+    if (args.Has("focal")) {
+      f = args.GetDouble("focal", size.width);
+      focal_source = "--focal";
+    } else if (std::isfinite(exif_focal)) {
+      f = exif_focal;
+      focal_source = how;
+    } else {
+      focal_source = "the image width (no calibration file, no --focal, EXIF has no focal length and sensor size: "
+                     "heights are then only relative)";
+    }
+    options.camera.fx = options.camera.fy = f;
+  }
+  std::cout << "focal length " << options.camera.fx << " px from " << focal_source << "\n";
+
+  // First height: marker, relative altitude, --height, 100 m.
+  std::string height_source;
+  double height = 100.0;
   options.calibration.source = "config";
-  options.calibration.height = args.GetDouble("height", 100.0);
+  const vm::MarkerObservation marker = vm::DetectMarker(first, options.calibration);
+  if (marker.found && split_views.empty()) {
+    height = options.camera.fx * options.calibration.marker_size / marker.side_px;
+    height_source = "the marker (id " + std::to_string(marker.id) + ", " + std::to_string(marker.side_px) +
+                    " px for " + std::to_string(options.calibration.marker_size) + " m)";
+  } else if (std::isfinite(tag0.relative_altitude) && tag0.relative_altitude > 0 && !args.Has("no-gps")) {
+    height = tag0.relative_altitude;
+    height_source = "the DJI relative altitude (XMP) of the first photo";
+  } else if (args.Has("height")) {
+    height = args.GetDouble("height", 100.0);
+    height_source = "--height";
+  } else {
+    height_source = "the default (no marker, no relative altitude, no --height: heights are only relative)";
+  }
+  options.calibration.height = height;
+  std::cout << "first height " << height << " m from " << height_source << "\n";
   options.canvas.metres_per_pixel = 0;
-  options.canvas.resolution_factor = 1.0;
-  options.mosaic_every_n_frames = 1;
-  options.matcher.downscale = size.width > 1000 ? 0.5 : 1.0;
+  if (!args.Has("config")) {
+    options.canvas.resolution_factor = 1.0;
+    options.mosaic_every_n_frames = 1;
+    options.matcher.downscale = size.width > 1400 ? 1000.0 / size.width : 1.0;
+  }
   if (!options.Check(&error)) {
     std::cerr << "uav_mosaic_files: " << error << "\n";
     return 1;
   }
-  vloc::mosaic::UavMosaicker mosaicker(options);
+
+  // Times: EXIF capture times when they increase, else one second apart.
+  bool times_ok = split_views.empty();
+  for (size_t i = 0; i < count && times_ok; ++i)
+    times_ok = frames[i].tag.has_time && (i == 0 || frames[i].tag.utime > frames[i - 1].tag.utime);
+  auto utime_of = [&](size_t i) -> int64_t {
+    return times_ok ? frames[i].tag.utime - frames[0].tag.utime : static_cast<int64_t>(i) * 1000000;
+  };
+  const double gps_sigma = args.GetDouble("gps-sigma", 3.0);
+  const vm::ImageGeotag* origin = nullptr;
+  for (const auto& f : frames)
+    if (f.tag.has_gps) {
+      origin = &f.tag;
+      break;
+    }
+  if (use_gps) {
+    std::cout << tagged << " of " << count << " photos geotagged; " << (times_ok ? "EXIF capture times" : "one second per photo (EXIF times missing or not increasing)")
+              << (drop_a >= 0 ? "; GPS dropped for frames " + std::to_string(drop_a) + "-" + std::to_string(drop_b) : "")
+              << "\n";
+  }
+
+  vm::UavMosaicker mosaicker(options);
   int failures = 0;
-  for (size_t i = 0; i < images.size(); ++i) {
-    const auto s = mosaicker.ProcessFrame(images[i], static_cast<int64_t>(i) * 1000000);
-    std::cout << names[i] << ": " << vloc::mosaic::ToString(s.status) << ", scale change " << s.scale
-              << ", matches " << s.num_matches << ", inliers " << s.num_inliers << ", foreground " << s.num_foreground
-              << ", centre at mosaic px (" << s.route_px.x << ", " << s.route_px.y << "), height "
+  double processing_seconds = 0, decode_seconds = 0, tracking_seconds = 0, blending_seconds = 0;
+  for (size_t i = 0; i < count; ++i) {
+    FrameRecord& rec = frames[i];
+    const auto t_decode = std::chrono::steady_clock::now();
+    const cv::Mat image = load(i);
+    decode_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_decode).count();
+    if (image.empty()) {
+      std::cerr << "uav_mosaic_files: cannot read image " << paths[i] << " (missing or not an image); skipped\n";
+      ++failures;
+      continue;
+    }
+    const int64_t utime = utime_of(i);
+    if (origin && rec.tag.has_gps)
+      rec.enu = vm::LatLonToEnu(rec.tag.latitude, rec.tag.longitude, origin->latitude, origin->longitude);
+    const auto t0 = std::chrono::steady_clock::now();
+    const bool dropped = static_cast<int>(i) >= drop_a && static_cast<int>(i) <= drop_b;
+    rec.dropped = dropped;
+    if (use_gps && rec.tag.has_gps && !dropped) {
+      vm::GpsFix fix;
+      fix.utime = utime;
+      fix.valid = true;
+      fix.latitude = rec.tag.latitude;
+      fix.longitude = rec.tag.longitude;
+      fix.altitude = std::isfinite(rec.tag.altitude) ? rec.tag.altitude : 0.0;
+      fix.height_above_ground = rec.tag.relative_altitude;
+      fix.horizontal_sigma = gps_sigma;
+      mosaicker.AddGps(fix);
+      rec.gps_used = true;
+    }
+    rec.state = mosaicker.ProcessFrame(image, utime);
+    processing_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    tracking_seconds += rec.state.tracking_seconds;
+    blending_seconds += rec.state.mosaic_seconds;
+    const auto& s = rec.state;
+    rec.registered = s.status == vm::TrackStatus::kTracking || s.status == vm::TrackStatus::kRecovered;
+    std::cout << names[i] << ": " << vm::ToString(s.status) << (s.guided ? " (guided)" : "") << ", scale change "
+              << s.scale << ", matches " << s.num_matches << ", inliers " << s.num_inliers << ", foreground "
+              << s.num_foreground << ", centre at mosaic px (" << s.route_px.x << ", " << s.route_px.y << "), height "
               << s.height << " m" << (s.message.empty() ? "" : " (" + s.message + ")") << "\n";
-    if (s.status == vloc::mosaic::TrackStatus::kLost) ++failures;
+    if (s.status == vm::TrackStatus::kLost) ++failures;
     if (i == 1 && true_scale > 0) {
       const double h = options.calibration.height;
       std::cout << "truth: scale change " << true_scale << " (height " << h / true_scale << " m); measured "
@@ -108,15 +319,20 @@ int main(int argc, char** argv) {
                 << " %\n";
     }
   }
-  const bool use_oblique = failures > 0 && !args.Has("split") && !args.Has("no-oblique");
+  int registered = 0;
+  for (const auto& f : frames) registered += f.registered ? 1 : 0;
+
+  const bool use_oblique = failures > 0 && !use_gps && !args.Has("split") && !args.Has("no-oblique");
   if (use_oblique) {
     // Fallback: pairwise affine-invariant registration, mosaic in image 1's frame.
-    vloc::mosaic::ObliqueOptions oblique;
+    vm::ObliqueOptions oblique;
     oblique.num_threads = options.num_threads;
+    std::vector<cv::Mat> images;
+    for (size_t i = 0; i < count; ++i) images.push_back(load(i));
     std::vector<cv::Matx33d> ref_from_image{cv::Matx33d::eye()};
     failures = 0;
     for (size_t i = 1; i < images.size(); ++i) {
-      const auto r = vloc::mosaic::RegisterOblique(images[i], images[i - 1], oblique);
+      const auto r = vm::RegisterOblique(images[i], images[i - 1], oblique);
       std::cout << names[i] << " -> " << names[i - 1] << " (affine-invariant fallback): " << r.BriefReport() << "\n";
       if (!r.ok) {
         ++failures;
@@ -126,7 +342,7 @@ int main(int argc, char** argv) {
       std::cout << "homography " << names[i] << " -> " << names[0] << ": " << cv::Mat(ref_from_image.back()).reshape(1, 1) << "\n";
     }
     std::vector<cv::Mat> placed(images.begin(), images.begin() + static_cast<long>(ref_from_image.size()));
-    const cv::Mat mosaic = vloc::mosaic::MosaicByHomographies(placed, ref_from_image, images[0].size());
+    const cv::Mat mosaic = vm::MosaicByHomographies(placed, ref_from_image, images[0].size());
     if (mosaic.empty() || !cv::imwrite(args.Get("out"), mosaic)) {
       std::cerr << "uav_mosaic_files: cannot write mosaic " << args.Get("out") << "\n";
       return 1;
@@ -143,11 +359,122 @@ int main(int argc, char** argv) {
     const double f = args.GetInt("preview-side", 480) / static_cast<double>(std::max(full.cols, full.rows));
     cv::Mat preview;
     if (!full.empty()) cv::resize(full, preview, cv::Size(), std::min(1.0, f), std::min(1.0, f), cv::INTER_AREA);
-    if (preview.empty() || !cv::imwrite(args.Get("preview"), preview)) {
-      std::cerr << "uav_mosaic_files: cannot write preview " << args.Get("preview") << "\n";
+    std::vector<int> params;
+    const std::string pp = args.Get("preview");
+    if (pp.size() > 4 && (pp.substr(pp.size() - 4) == ".jpg" || pp.substr(pp.size() - 5) == ".jpeg")) {
+      // JPEG: no alpha; uncovered parts white.
+      if (!preview.empty() && preview.channels() == 4) {
+        cv::Mat bgr(preview.size(), CV_8UC3, cv::Scalar(255, 255, 255));
+        std::vector<cv::Mat> ch;
+        cv::split(preview, ch);
+        preview.copyTo(bgr);
+        cv::cvtColor(preview, bgr, cv::COLOR_BGRA2BGR);
+        bgr.setTo(cv::Scalar(255, 255, 255), ch[3] == 0);
+        preview = bgr;
+      }
+      params = {cv::IMWRITE_JPEG_QUALITY, 85};
+    }
+    if (preview.empty() || !cv::imwrite(pp, preview, params)) {
+      std::cerr << "uav_mosaic_files: cannot write preview " << pp << "\n";
       return 1;
     }
   }
   if (!use_oblique) std::cout << "mosaic: " << args.Get("out") << " (" << mosaicker.summary().BriefReport() << ")\n";
+  if (!use_oblique)
+    std::cout << "registered " << registered << " of " << count << " frames; " << count / std::max(1e-9, processing_seconds)
+            << " frames/s registering and mosaicking (" << processing_seconds << " s; decoding "
+            << decode_seconds << " s more; features + matching " << tracking_seconds << " s, blending " << blending_seconds
+            << " s)\n";
+
+  // Route and height against the GPS.
+  if (origin && split_views.empty()) {
+    std::vector<cv::Point2d> route, enu;
+    std::vector<bool> usable, in_fit;
+    std::vector<double> heights, gps_heights;
+    const bool relative = std::isfinite(tag0.relative_altitude);
+    for (const auto& f : frames) {
+      route.push_back(f.state.route_px);
+      enu.push_back(f.enu);
+      usable.push_back(f.registered && f.tag.has_gps);
+      in_fit.push_back(!f.dropped);
+      heights.push_back(f.registered ? f.state.height : std::nan(""));
+      gps_heights.push_back(relative ? f.tag.relative_altitude : f.tag.altitude);
+    }
+    const vm::RouteComparison rc = vm::CompareRouteToGps(route, enu, usable, in_fit);
+    if (rc.ok) {
+      std::cout << "route vs GPS (2-D similarity fit over " << rc.pairs << " frames): RMS " << rc.rms_m << " m = "
+                << rc.rms_percent() << " % of the " << rc.path_m << " m path";
+      if (rc.held_out > 0) std::cout << "; during the GPS drop-out (" << rc.held_out << " frames, not in the fit): RMS " << rc.held_out_rms_m << " m";
+      std::cout << "\n";
+    } else {
+      std::cout << "route vs GPS: " << rc.why << "\n";
+    }
+    // Without a relative altitude the GPS altitude is above sea level over
+    // unknown ground, and the first height may be a guess: the heights are
+    // put on the GPS track's scale (the tie's metres per mosaic px, h = s r f)
+    // and compared with the altitude minus a fitted ground level.
+    if (!relative && rc.ok && mosaicker.metres_per_pixel() > 0) {
+      const double k = rc.enu_from_flipped.Scale() / mosaicker.metres_per_pixel();
+      for (auto& h : heights) h *= k;
+      std::cout << "heights on the GPS track's scale: first height " << options.calibration.height * k << " m (x " << k
+                << ")\n";
+    }
+    const vm::HeightComparison hc = vm::CompareHeights(heights, gps_heights, !relative);
+    if (hc.ok) {
+      std::cout << "height vs GPS " << (relative ? "relative altitude" : "altitude minus a fitted ground level (" + std::to_string(hc.offset_m) + " m)")
+                << " over " << hc.pairs << " frames: RMS " << hc.rms_m << " m = " << hc.rms_percent << " %\n";
+    }
+    if (args.Has("report")) {
+      std::ofstream out(args.Get("report"));
+      out << "frame\tname\tstatus\tguided\tgps_used\troute_east_m\troute_north_m\tgps_east_m\tgps_north_m\tresidual_m\theight_m\tgps_height_m\tmatches\tinliers\tmessage\n";
+      out << std::setprecision(8);
+      for (size_t i = 0; i < frames.size(); ++i) {
+        const auto& f = frames[i];
+        const cv::Point2d e = rc.ok ? rc.enu_from_flipped.Apply({f.state.route_px.x, -f.state.route_px.y}) : cv::Point2d();
+        out << i << "\t" << std::filesystem::path(f.name).filename().string() << "\t" << vm::ToString(f.state.status) << "\t"
+            << f.state.guided << "\t" << f.gps_used << "\t" << e.x << "\t" << e.y << "\t" << f.enu.x << "\t" << f.enu.y
+            << "\t" << (rc.ok && i < rc.residual_m.size() ? rc.residual_m[i] : std::nan("")) << "\t" << heights[i]
+            << "\t" << (hc.ok ? gps_heights[i] - hc.offset_m : std::nan("")) << "\t" << f.state.num_matches << "\t"
+            << f.state.num_inliers << "\t" << f.state.message << "\n";
+      }
+      if (!out) {
+        std::cerr << "uav_mosaic_files: cannot write report " << args.Get("report") << "\n";
+        return 1;
+      }
+    }
+  }
+  if (args.Has("geotiff")) {
+    if (!mosaicker.WriteGeoTiff(args.Get("geotiff"), &error)) {
+      std::cerr << "uav_mosaic_files: " << error << "\n";
+      return 1;
+    }
+    std::cout << "GeoTIFF: " << args.Get("geotiff") << "\n";
+  }
+  if (args.Has("geojson")) {
+    std::vector<vm::GeoFrame> geo;
+    for (size_t i = 0; i < frames.size(); ++i) {
+      const auto& f = frames[i];
+      vm::GeoFrame g;
+      g.name = std::filesystem::path(f.name).filename().string();
+      g.index = static_cast<int>(i);
+      g.status = vm::ToString(f.state.status);
+      g.height = f.state.height;
+      g.registered = f.registered;
+      cv::Point2d ll;
+      if (f.registered && mosaicker.MosaicToLatLon(f.state.route_px, &ll)) {
+        g.latitude = ll.x, g.longitude = ll.y;
+      } else if (f.tag.has_gps) {
+        g.latitude = f.tag.latitude, g.longitude = f.tag.longitude;
+      } else {
+        continue;
+      }
+      geo.push_back(g);
+    }
+    if (geo.empty() || !vm::WriteRouteGeoJson(geo, args.Get("geojson"), &error)) {
+      std::cerr << "uav_mosaic_files: " << (geo.empty() ? "no GeoJSON: the flight is not tied to GPS" : error) << "\n";
+      return 1;
+    }
+    std::cout << "GeoJSON: " << args.Get("geojson") << "\n";
+  }
   return failures == 0 ? 0 : 2;
 }

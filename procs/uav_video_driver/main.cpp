@@ -2,6 +2,8 @@
 // images) and optional telemetry CSV (uav_video_input.h) on UAV_CAMERA and
 // UAV_GPS, at the recorded pace (x speed) or as fast as possible.
 //   uav_video_driver --config config/procs/uav_video_driver.yaml --video flight.mp4 [--telemetry gps.csv] [--speed 0]
+// A folder of geotagged photos without --telemetry publishes their EXIF GPS
+// (and DJI relative altitude) on UAV_GPS at their EXIF capture times.
 #include <iostream>
 
 #include "uav_video_replay.h"
@@ -40,11 +42,19 @@ int main(int argc, char** argv) {
   }
   vloc::TelemetryCsv telemetry;
   if (!options.telemetry_csv.empty()) telemetry = vloc::ReadTelemetryCsv(options.telemetry_csv, options.telemetry_time_offset);
+  if (options.telemetry_csv.empty() && options.geotags) {
+    std::string how;
+    vloc::TelemetryCsv tags = video.GeotagTelemetry(options.geotag_horizontal_sigma, &how);
+    if (tags.readable) {
+      LOG(INFO) << "GPS from the photos' geotags: " << how;
+      telemetry = std::move(tags);
+    }
+  }
   for (const auto& p : telemetry.problems) LOG(ERROR) << p;
   vloc::ReplayPacer pacer(options.speed);
   const auto summary = vloc::ReplayUavVideo(options, video, telemetry, *setup->transport, pacer);
-  LOG(INFO) << "uav_video_driver: published " << summary.frames_published << " frames (" << video.fps()
-            << " fps), " << summary.fixes_published << " GPS fixes; skipped " << summary.frames_skipped
+  LOG(INFO) << "uav_video_driver: published " << summary.frames_published << " frames ("
+            << (video.exif_times() ? std::string("at their EXIF capture times") : std::to_string(video.fps()) + " fps") << "), " << summary.fixes_published << " GPS fixes; skipped " << summary.frames_skipped
             << " frames and " << telemetry.problems.size() << " telemetry rows";
   return 0;
 }

@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "vloc/common/csv_table.h"
+#include "vloc/mosaic/geotag.h"
 
 namespace vloc {
 
@@ -27,6 +28,21 @@ bool UavVideoSource::Open(const std::string& path, double fps, std::string* erro
       return false;
     }
     fps_ = fps > 0 ? fps : 30.0;
+    if (fps <= 0) {
+      // Photos: their EXIF capture times when every one has one and they increase.
+      std::vector<int64_t> times;
+      for (const auto& file : files_) {
+        mosaic::ImageGeotag tag;
+        if (!mosaic::ReadGeotag(file, &tag, nullptr) || !tag.has_time || (!times.empty() && tag.utime <= times.back()))
+          break;
+        times.push_back(tag.utime);
+      }
+      if (times.size() == files_.size()) {
+        const int64_t first = times.front();
+        for (auto& t : times) t -= first;
+        file_utimes_ = times;
+      }
+    }
     return true;
   }
   if (path.find('%') == std::string::npos && !fs::exists(path)) {
@@ -46,6 +62,7 @@ UavVideoSource::Status UavVideoSource::Next(cv::Mat* frame, int64_t* utime, std:
   *utime = static_cast<int64_t>(std::llround(index_ * 1e6 / fps_));
   if (!files_.empty()) {
     if (next_file_ >= files_.size()) return Status::kEnd;
+    if (!file_utimes_.empty()) *utime = file_utimes_[next_file_];
     const std::string& file = files_[next_file_++];
     ++index_;
     *frame = cv::imread(file, cv::IMREAD_COLOR);
@@ -59,6 +76,38 @@ UavVideoSource::Status UavVideoSource::Next(cv::Mat* frame, int64_t* utime, std:
   ++index_;
   if (frame->channels() == 1) cv::cvtColor(*frame, *frame, cv::COLOR_GRAY2BGR);
   return Status::kFrame;
+}
+
+TelemetryCsv UavVideoSource::GeotagTelemetry(double horizontal_sigma, std::string* how) const {
+  TelemetryCsv out;
+  int tagged = 0, relative = 0;
+  for (size_t i = 0; i < files_.size(); ++i) {
+    mosaic::ImageGeotag tag;
+    std::string error;
+    if (!mosaic::ReadGeotag(files_[i], &tag, &error)) {
+      out.problems.push_back(error + "; no GPS for this photo");
+      continue;
+    }
+    if (!tag.has_gps) continue;
+    TelemetryFix f;
+    f.utime = file_utimes_.empty() ? static_cast<int64_t>(std::llround(i * 1e6 / fps_)) : file_utimes_[i];
+    f.fix = std::isfinite(tag.altitude) ? 2 : 1;
+    f.latitude = tag.latitude;
+    f.longitude = tag.longitude;
+    f.altitude = std::isfinite(tag.altitude) ? tag.altitude : 0.0;
+    f.height_above_ground = tag.relative_altitude;
+    f.horizontal_sigma = horizontal_sigma;
+    f.vertical_sigma = std::numeric_limits<double>::quiet_NaN();
+    out.fixes.push_back(f);
+    ++tagged;
+    relative += std::isfinite(tag.relative_altitude) ? 1 : 0;
+  }
+  out.readable = tagged > 0;
+  if (how)
+    *how = std::to_string(tagged) + " of " + std::to_string(files_.size()) + " photos geotagged (EXIF GPS)" +
+           (relative > 0 ? ", " + std::to_string(relative) + " with a DJI relative altitude (height above ground)" : "") +
+           (file_utimes_.empty() ? "; times i / fps" : "; EXIF capture times");
+  return out;
 }
 
 TelemetryCsv ReadTelemetryCsv(const std::string& path, double time_offset) {

@@ -3,7 +3,12 @@
 //  - UavVideoSource: frames from a video file or image-sequence pattern
 //    (anything cv::VideoCapture opens, e.g. flight.mp4 or frames/%05d.png) or
 //    from a folder of images (sorted by name; an unreadable image is
-//    reported in one line and skipped). Frame i is at i / fps seconds.
+//    reported in one line and skipped). Frame i is at i / fps seconds, or,
+//    for a folder of photos whose EXIF capture times increase (and no fps
+//    forced), at its capture time after the first photo's.
+//  - UavVideoSource::GeotagTelemetry: the folder's EXIF GPS (and DJI XMP
+//    relative altitude as height above ground) as telemetry fixes at the
+//    photos' times, for geotagged surveys without a telemetry CSV.
 //  - ReadTelemetryCsv: GPS telemetry, header row with named columns:
 //      time (s, video clock: 0 = first frame) or utime (us),
 //      latitude (deg), longitude (deg), altitude (m),
@@ -20,6 +25,8 @@
 
 namespace vloc {
 
+struct TelemetryCsv;
+
 class UavVideoSource {
  public:
   enum class Status { kFrame, kSkipped, kEnd };
@@ -31,10 +38,18 @@ class UavVideoSource {
   // kFrame: *frame (BGR) and *utime (us since the first frame) are set.
   // kSkipped: an unreadable image of a folder, described in *problem.
   Status Next(cv::Mat* frame, int64_t* utime, std::string* problem);
+  // Folder mode: true when the frame times are the photos' EXIF capture times.
+  bool exif_times() const { return !file_utimes_.empty(); }
+
+  // Folder mode: one fix per geotagged photo at the photo's frame time
+  // (horizontal_sigma m, as EXIF carries no accuracy). *how says how many
+  // photos were tagged and whether they carry a relative altitude.
+  TelemetryCsv GeotagTelemetry(double horizontal_sigma, std::string* how) const;
 
  private:
   cv::VideoCapture capture_;
   std::vector<std::string> files_;  // folder mode
+  std::vector<int64_t> file_utimes_;  // folder mode: EXIF capture times since the first photo (empty = i / fps)
   size_t next_file_ = 0;
   int64_t index_ = 0;
   double fps_ = 30.0;

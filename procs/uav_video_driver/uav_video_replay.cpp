@@ -23,6 +23,8 @@ void UavVideoDriverOptions::Visit(OptionsReader& r) {
   r.Optional("encoding", &encoding, "jpeg, png, rgb8 or gray8");
   r.Optional("jpeg_quality", &jpeg_quality, "1..100");
   r.Optional("speed", &speed, "real-time factor, 0 = as fast as possible");
+  r.Optional("geotags", &geotags, "publish the EXIF GPS of a folder of photos (no telemetry CSV)");
+  r.Optional("geotag_horizontal_sigma", &geotag_horizontal_sigma, "m, sigma of geotag fixes");
 }
 
 bool UavVideoDriverOptions::Check(std::string* error) const {
@@ -34,6 +36,7 @@ bool UavVideoDriverOptions::Check(std::string* error) const {
   if (fps < 0) return Fail(error, "fps must be >= 0 (0 = from the video)");
   if (jpeg_quality < 1 || jpeg_quality > 100) return Fail(error, "jpeg_quality must be in [1, 100]");
   if (speed < 0) return Fail(error, "speed must be >= 0 (0 = as fast as possible)");
+  if (!(geotag_horizontal_sigma > 0)) return Fail(error, "geotag_horizontal_sigma must be > 0 m");
   return true;
 }
 

@@ -27,6 +27,8 @@ struct UavVideoDriverOptions {
   std::string encoding = "jpeg";              // jpeg, png, rgb8 or gray8
   int jpeg_quality = 90;                      // 1..100
   double speed = 1.0;                     // real-time factor; 0 = as fast as possible
+  bool geotags = true;                    // folder of photos without a telemetry CSV: publish their EXIF GPS
+  double geotag_horizontal_sigma = 3.0;   // m, horizontal sigma given to geotag fixes (EXIF has none)
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;

@@ -18,6 +18,7 @@ void MatcherOptions::Visit(OptionsReader& r) {
   r.Optional("akaze_octaves", &akaze_octaves, "A-KAZE octaves");
   r.Optional("akaze_sublevels", &akaze_sublevels, "A-KAZE sublevels per octave");
   r.Optional("max_features", &max_features, "strongest keypoints kept per frame");
+  r.Optional("min_features", &min_features, "lower the A-KAZE threshold until this many keypoints (0 = off)");
   r.Optional("grid_cells", &grid_cells, "grid cells per side for spreading keypoints");
   r.Optional("ratio", &ratio, "Lowe ratio test");
   r.Optional("ransac_threshold", &ransac_threshold, "px, RANSAC reprojection threshold");
@@ -26,6 +27,7 @@ void MatcherOptions::Visit(OptionsReader& r) {
   r.Optional("scale_model", &scale_model, "similarity | axis_scale | affine");
   r.Optional("min_inliers", &min_inliers, "background matches needed");
   r.Optional("max_scale_change", &max_scale_change, "largest believable scale change between frames");
+  r.Optional("guided_ratio", &guided_ratio, "ratio test inside the gate of guided matching");
   r.Optional("num_threads", &num_threads, "OpenCV threads");
 }
 
@@ -35,6 +37,7 @@ bool MatcherOptions::Check(std::string* error) const {
   if (akaze_octaves < 1 || akaze_octaves > 8) return Fail(error, "matcher.akaze_octaves must be in [1, 8]");
   if (akaze_sublevels < 1 || akaze_sublevels > 8) return Fail(error, "matcher.akaze_sublevels must be in [1, 8]");
   if (max_features < 20) return Fail(error, "matcher.max_features must be >= 20");
+  if (min_features < 0) return Fail(error, "matcher.min_features must be >= 0 (0 = off)");
   if (grid_cells < 1 || grid_cells > 64) return Fail(error, "matcher.grid_cells must be in [1, 64]");
   if (!(ratio > 0 && ratio <= 1)) return Fail(error, "matcher.ratio must be in (0, 1]");
   if (!(ransac_threshold > 0)) return Fail(error, "matcher.ransac_threshold must be > 0");
@@ -45,6 +48,7 @@ bool MatcherOptions::Check(std::string* error) const {
     return Fail(error, "matcher.scale_model must be 'similarity', 'axis_scale' or 'affine'");
   if (min_inliers < 4) return Fail(error, "matcher.min_inliers must be >= 4");
   if (!(max_scale_change > 1)) return Fail(error, "matcher.max_scale_change must be > 1");
+  if (!(guided_ratio > 0 && guided_ratio <= 1)) return Fail(error, "matcher.guided_ratio must be in (0, 1]");
   if (num_threads < 1) return Fail(error, "matcher.num_threads must be >= 1");
   return true;
 }
@@ -94,12 +98,16 @@ FrameFeatures ExtractFeatures(const cv::Mat& image, const MatcherOptions& option
   } else {
     small = gray;
   }
-  auto akaze = cv::AKAZE::create(cv::AKAZE::DESCRIPTOR_MLDB, 0, 3, static_cast<float>(options.akaze_threshold),
-                                 options.akaze_octaves, options.akaze_sublevels, cv::KAZE::DIFF_PM_G2);
   // One call: detect() and compute() separately would build the nonlinear scale space twice.
   std::vector<cv::KeyPoint> all;
   cv::Mat all_descriptors;
-  akaze->detectAndCompute(small, cv::noArray(), all, all_descriptors);
+  for (double threshold = options.akaze_threshold;; threshold /= 4) {
+    auto akaze = cv::AKAZE::create(cv::AKAZE::DESCRIPTOR_MLDB, 0, 3, static_cast<float>(threshold),
+                                   options.akaze_octaves, options.akaze_sublevels, cv::KAZE::DIFF_PM_G2);
+    all.clear();
+    akaze->detectAndCompute(small, cv::noArray(), all, all_descriptors);
+    if (static_cast<int>(all.size()) >= options.min_features || threshold < options.akaze_threshold / 60) break;
+  }
   for (size_t i = 0; i < all.size(); ++i) all[i].class_id = static_cast<int>(i);
   const std::vector<cv::KeyPoint> kps =
       SpreadKeypoints(std::move(all), small.size(), options.grid_cells, options.max_features);
@@ -137,7 +145,8 @@ std::vector<bool> ForegroundFilter(const std::vector<cv::Point2f>& from, const s
   return fg;
 }
 
-MotionEstimate EstimateMotion(const FrameFeatures& from, const FrameFeatures& to, const MatcherOptions& options) {
+MotionEstimate EstimateMotion(const FrameFeatures& from, const FrameFeatures& to, const MatcherOptions& options,
+                              const MotionPrior* prior) {
   const auto t0 = std::chrono::steady_clock::now();
   MotionEstimate m;
   auto fail = [&](const std::string& why) {
@@ -151,11 +160,29 @@ MotionEstimate EstimateMotion(const FrameFeatures& from, const FrameFeatures& to
                 "): blank, blurred or featureless frame");
   cv::BFMatcher matcher(cv::NORM_HAMMING);
   std::vector<std::vector<cv::DMatch>> knn;
-  matcher.knnMatch(from.descriptors, to.descriptors, knn, 2);
+  double ratio = options.ratio;
+  if (prior) {
+    // Candidates only near the predicted place of each `from` point.
+    cv::Mat mask(static_cast<int>(from.points.size()), static_cast<int>(to.points.size()), CV_8U, cv::Scalar(0));
+    const double gate2 = prior->gate_px * prior->gate_px;
+    for (size_t i = 0; i < from.points.size(); ++i) {
+      const cv::Point2d p = prior->to_from_from.Apply(cv::Point2d(from.points[i]));
+      uchar* row = mask.ptr<uchar>(static_cast<int>(i));
+      for (size_t j = 0; j < to.points.size(); ++j) {
+        const double dx = to.points[j].x - p.x, dy = to.points[j].y - p.y;
+        row[j] = dx * dx + dy * dy <= gate2 ? 1 : 0;
+      }
+    }
+    matcher.knnMatch(from.descriptors, to.descriptors, knn, 2, mask);
+    ratio = options.guided_ratio;
+    m.guided = true;
+  } else {
+    matcher.knnMatch(from.descriptors, to.descriptors, knn, 2);
+  }
   std::vector<cv::Point2f> a, b;
   for (const auto& pair : knn) {
     if (pair.size() < 2) continue;
-    if (pair[0].distance < options.ratio * pair[1].distance) {
+    if (pair[0].distance < ratio * pair[1].distance) {
       a.push_back(from.points[pair[0].queryIdx]);
       b.push_back(to.points[pair[0].trainIdx]);
     }
@@ -204,6 +231,11 @@ MotionEstimate EstimateMotion(const FrameFeatures& from, const FrameFeatures& to
   }
   if (!(m.lambda > 1.0 / options.max_scale_change && m.lambda < options.max_scale_change))
     return fail("implausible scale change " + std::to_string(m.lambda));
+  {
+    std::vector<cv::Point2f> hull;
+    cv::convexHull(m.to_background, hull);
+    m.spread = cv::contourArea(hull) / std::max(1.0, static_cast<double>(to.size.area()));
+  }
   m.ok = true;
   m.seconds = Seconds(t0);
   return m;

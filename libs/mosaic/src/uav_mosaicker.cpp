@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "vloc/common/options.h"
+#include "vloc/mosaic/gis_export.h"
 
 namespace vloc::mosaic {
 
@@ -50,6 +51,7 @@ void GeoOptions::Visit(OptionsReader& r) {
   r.Optional("window_fixes", &window_fixes, "most recent pairs used in the tie");
   r.Optional("max_time_gap", &max_time_gap, "s, fix-to-frame pairing gap");
   r.Optional("gps_timeout", &gps_timeout, "s, after this without a fix the route is vision only");
+  r.Optional("predict_window", &predict_window, "pairs of the local tie used for predictions (0 = the tie)");
 }
 bool GeoOptions::Check(std::string* error) const {
   if (min_fixes < 2) return Fail(error, "geo.min_fixes must be >= 2");
@@ -57,6 +59,7 @@ bool GeoOptions::Check(std::string* error) const {
   if (window_fixes < min_fixes) return Fail(error, "geo.window_fixes must be >= geo.min_fixes");
   if (!(max_time_gap > 0)) return Fail(error, "geo.max_time_gap must be > 0 s");
   if (!(gps_timeout > 0)) return Fail(error, "geo.gps_timeout must be > 0 s");
+  if (predict_window != 0 && predict_window < 3) return Fail(error, "geo.predict_window must be 0 (off) or >= 3");
   return true;
 }
 
@@ -78,6 +81,16 @@ void MosaickerOptions::Visit(OptionsReader& r) {
   r.Optional("reregister_scale", &reregister_scale, "re-registration also sets the scale (height)");
   r.Optional("reregister_max_shift", &reregister_max_shift,
              "largest accepted change of a re-registration (fraction of frame width / of scale)");
+  r.Optional("min_spread", &min_spread, "fraction of the frame the background matches must span");
+  r.Optional("guided_matching", &guided_matching, "match again around the predicted pose when plain matching fails");
+  r.Optional("guide_turn", &guide_turn, "deg, heading hypotheses +-this beside the predicted one (0 = only it)");
+  r.Optional("guide_gate", &guide_gate, "gate radius of guided matching, fraction of the frame width");
+  r.Optional("gps_max_disagreement", &gps_max_disagreement, "largest distance from the GPS position, fraction of frame width");
+  r.Optional("scale_source", &scale_source, "similarity | homography");
+  r.Optional("route_point", &route_point, "centre | nadir");
+  r.Optional("gps_check_below_inliers", &gps_check_below_inliers, "GPS agreement tested below this many matches");
+  r.Optional("reseat_only_new_ground", &reseat_only_new_ground, "reseat only where the mosaic has nothing");
+  r.Optional("reseat_by_gps", &reseat_by_gps, "place an unregistered frame at its GPS position to restart tracking");
   r.Optional("num_threads", &num_threads, "OpenCV threads");
   r.Optional("async_mosaic", &async_mosaic, "blend on a worker thread");
 }
@@ -96,6 +109,13 @@ bool MosaickerOptions::Check(std::string* error) const {
   if (!(recovery_min_painted > 0 && recovery_min_painted <= 1)) return Fail(error, "recovery_min_painted must be in (0, 1]");
   if (reregister_every_n_frames < 0) return Fail(error, "reregister_every_n_frames must be >= 0 (0 = off)");
   if (!(reregister_max_shift > 0 && reregister_max_shift <= 1)) return Fail(error, "reregister_max_shift must be in (0, 1]");
+  if (!(min_spread >= 0 && min_spread < 1)) return Fail(error, "min_spread must be in [0, 1)");
+  if (!(guide_gate > 0 && guide_gate <= 1)) return Fail(error, "guide_gate must be in (0, 1]");
+  if (!(guide_turn >= 0 && guide_turn < 90)) return Fail(error, "guide_turn must be in [0, 90) deg");
+  if (!(gps_max_disagreement > 0)) return Fail(error, "gps_max_disagreement must be > 0");
+  if (route_point != "centre" && route_point != "nadir") return Fail(error, "route_point must be 'centre' or 'nadir'");
+  if (scale_source != "similarity" && scale_source != "homography")
+    return Fail(error, "scale_source must be 'similarity' or 'homography'");
   if (num_threads < 1) return Fail(error, "num_threads must be >= 1");
   return true;
 }
@@ -107,6 +127,8 @@ std::string MosaickerSummary::BriefReport() const {
     << canvas.tiles_total << " (" << canvas.tiles_in_memory << " in memory, peak " << canvas.peak_tiles_in_memory
     << ", spilled " << canvas.spills << "), " << (georeferenced ? "tied to GPS" : "not georeferenced");
   if (georeferenced) s << " (" << tie_pairs << " fixes, rms " << tie_rms << " m)";
+  if (guided + gps_rejections + reseats > 0)
+    s << ", guided " << guided << ", rejected by GPS " << gps_rejections << ", placed by GPS " << reseats;
   if (reregistrations + reregistrations_rejected > 0)
     s << ", re-registered against the mosaic " << reregistrations << " times (" << reregistrations_rejected
       << " rejected)";
@@ -298,6 +320,9 @@ void UavMosaicker::StartMosaic(const cv::Mat& frame, const FrameFeatures& featur
   keyframe_ = Keyframe{features, S, utime};
   last_good_ = S;
   last_scale_ = s;
+  prev_good_.reset();
+  last_good_index_ = state->frame_index;
+  last_good_enu_ = GpsEnuAt(utime);
   height_filter_.Reset(calibration_.height, utime);
   BlendOrQueue(frame, S, state);
   frames_since_blend_ = 0;
@@ -307,6 +332,37 @@ void UavMosaicker::StartMosaic(const cv::Mat& frame, const FrameFeatures& featur
   ++summary_.keyframes;
   LOG(INFO) << "mosaic started: " << metres_per_pixel_ << " m/px, first frame at height " << calibration_.height
             << " m, " << features.points.size() << " features";
+}
+
+bool UavMosaicker::PlaneFromHomography(const cv::Matx33d& H, double* height_ratio, cv::Vec3d* normal) const {
+  if (!keyframe_) return false;
+  std::vector<cv::Mat> rotations, translations, normals;
+  int n = 0;
+  try {
+    n = cv::decomposeHomographyMat(cv::Mat(H), cv::Mat(camera_.K()), rotations, translations, normals);
+  } catch (const cv::Exception&) {
+    return false;
+  }
+  // H = K (R + t n^T / d) K^-1, n^T X = d in the keyframe (OpenCV returns t / d).
+  // Of the solutions facing the camera, the one whose normal is nearest the keyframe's.
+  double best = 0.5;  // within 60 degrees
+  bool found = false;
+  for (int i = 0; i < n; ++i) {
+    const cv::Vec3d nk(normals[i]);
+    if (nk[2] <= 0) continue;
+    const double agree = nk.dot(keyframe_->normal) / cv::norm(nk);
+    if (agree <= best) continue;
+    const cv::Matx33d R(rotations[i]);
+    const cv::Vec3d t(translations[i]);
+    const double ratio = 1.0 + nk.dot(R.t() * t);
+    if (!(ratio > 0.2 && ratio < 5)) continue;
+    best = agree;
+    *height_ratio = ratio;
+    const cv::Vec3d nc = R * nk;
+    *normal = nc / cv::norm(nc);
+    found = true;
+  }
+  return found;
 }
 
 double UavMosaicker::KeyframeOverlap(const Similarity2& key_to_cur, cv::Size size) const {
@@ -334,6 +390,7 @@ bool UavMosaicker::RegisterToMosaic(const cv::Mat& frame, const FrameFeatures& f
     std::lock_guard<std::mutex> lock(canvas_mutex_);
     painted = canvas_->Render(mosaic_from_view, view_size, &view, &mask);
   }
+  last_painted_ = painted;
   if (painted < options_.recovery_min_painted) {
     *why += "; mosaic covers only " + std::to_string(painted) + " of the search area";
     return false;
@@ -351,6 +408,14 @@ bool UavMosaicker::RegisterToMosaic(const cv::Mat& frame, const FrameFeatures& f
     }
   }
   *motion = EstimateMotion(kept, features, options_.matcher);
+  if (!motion->ok && options_.guided_matching) {
+    // Guided: the view was rendered where the frame is expected (view px - offset = frame px).
+    MotionPrior prior;
+    prior.to_from_from = Similarity2{1, 0, -offset.x, -offset.y};
+    prior.gate_px = options_.guide_gate * frame.cols + offset.x;
+    MotionEstimate guided = EstimateMotion(kept, features, options_.matcher, &prior);
+    if (guided.ok) *motion = guided;
+  }
   if (!motion->ok) {
     *why += "; against the mosaic: " + motion->why;
     return false;
@@ -438,37 +503,98 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
     return state;
   }
 
-  // Track against the keyframe.
+  // Track against the keyframe: plain matching, then (when that fails or
+  // disagrees with the GPS) guided matching around the predicted pose.
+  const std::optional<Prediction> prediction = Predict(utime, frame.size());
   MotionEstimate motion = EstimateMotion(keyframe_->features, features, options_.matcher);
   Similarity2 S;
+  std::string why = motion.ok ? "" : "matching failed: " + motion.why;
+  if (motion.ok) {
+    S = keyframe_->mosaic_from_frame * motion.similarity.Inverse();
+    if (!Evidence(motion, S, prediction, &why)) motion.ok = false;
+  }
+  if (!motion.ok && options_.guided_matching && prediction) {
+    // Heading hypotheses: the predicted one, then turned by +-guide_turn
+    // (a fixed wing's heading between photos is the least certain part).
+    const cv::Point2d c(camera_.cx, camera_.cy);
+    const double turn = options_.guide_turn * M_PI / 180.0;
+    std::string guided_why;
+    for (const double dangle : {0.0, turn, -turn}) {
+      if (dangle != 0.0 && turn <= 0) break;
+      Similarity2 P = Similarity2::FromScaleAngle(prediction->mosaic_from_frame.Scale(),
+                                                  prediction->mosaic_from_frame.Angle() + dangle, 0, 0);
+      const cv::Point2d at = prediction->mosaic_from_frame.Apply(c), moved = P.Apply(c);
+      P.tx = at.x - moved.x;
+      P.ty = at.y - moved.y;
+      MotionPrior prior;
+      prior.to_from_from = P.Inverse() * keyframe_->mosaic_from_frame;
+      prior.gate_px = prediction->gate_px;
+      MotionEstimate guided = EstimateMotion(keyframe_->features, features, options_.matcher, &prior);
+      guided_why = guided.ok ? "" : guided.why;
+      Similarity2 G;
+      if (guided.ok) {
+        G = keyframe_->mosaic_from_frame * guided.similarity.Inverse();
+        if (!Evidence(guided, G, prediction, &guided_why)) guided.ok = false;
+      }
+      if (guided.ok) {
+        motion = guided;
+        S = G;
+        ++summary_.guided;
+        break;
+      }
+      if (guided.num_matches > motion.num_matches) motion.num_matches = guided.num_matches;
+    }
+    if (!motion.ok) why += "; guided by the " + std::string(prediction->from_gps ? "GPS" : "last motion") + ": " + guided_why;
+  }
   bool ok = motion.ok;
   bool via_mosaic = false;
-  std::string why = motion.ok ? "" : "matching failed: " + motion.why;
   bool reregistered = false;
   if (ok) {
-    S = keyframe_->mosaic_from_frame * motion.similarity.Inverse();
     if (!lost_ && options_.reregister_every_n_frames > 0 &&
         ++frames_since_reregister_ >= options_.reregister_every_n_frames) {
       frames_since_reregister_ = 0;
       reregistered = Reregister(frame, features, &S);
     }
   } else if (lost_) {
+    last_painted_ = 1.0;
     MotionEstimate m2;
-    if (RegisterToMosaic(frame, features, &S, &m2, &why)) {
+    // Search the mosaic where the GPS says the frame is, else around the last good pose.
+    const Similarity2 saved = last_good_;
+    if (prediction && prediction->from_gps) last_good_ = prediction->mosaic_from_frame;
+    Similarity2 R;
+    if (RegisterToMosaic(frame, features, &R, &m2, &why) && Evidence(m2, R, prediction, &why)) {
       ok = true;
       via_mosaic = true;
       motion = m2;
+      S = R;
     }
+    last_good_ = saved;
   }
   state.num_matches = motion.num_matches;
   state.num_inliers = motion.num_inliers;
   state.num_foreground = motion.num_foreground;
+  state.guided = ok && motion.guided;
+  state.reseated = false;
+  state.spread = ok ? motion.spread : 0.0;
   if (!ok) {
     // Keep the last good state; say why.
     state.status = TrackStatus::kLost;
-    state.message = why;
     if (!lost_) ++summary_.lost;
     lost_ = true;
+    const bool new_ground = last_painted_ < options_.recovery_min_painted;
+    if (options_.reseat_by_gps && prediction && prediction->from_gps && (new_ground || !options_.reseat_only_new_ground)) {
+      // Restart from this frame at its GPS position (heading and scale of the
+      // last registered frame): the next frame is matched against it.
+      keyframe_ = Keyframe{features, prediction->mosaic_from_frame, utime, ground_normal_};
+      last_good_ = prediction->mosaic_from_frame;
+      prev_good_.reset();
+      last_good_index_ = state.frame_index;
+      last_good_enu_ = GpsEnuAt(utime);
+      state.reseated = true;
+      ++summary_.reseats;
+      why += "; placed at its GPS position, tracking restarts from this frame";
+    }
+    state.message = why;
     summary_.last_problem = why;
     state.tracking_seconds = Seconds(t0);
     last_state_ = state;
@@ -484,13 +610,43 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
   lost_ = false;
   ++summary_.tracked;
 
+  // The ground plane from the homography: the camera's tilt and its height
+  // relative to the keyframe.
+  double height_ratio = 1;
+  cv::Vec3d normal;
+  const bool plane_ok = !via_mosaic && PlaneFromHomography(motion.homography, &height_ratio, &normal);
+  if (plane_ok) {
+    ground_normal_ = normal;
+    state.tilt = std::acos(std::clamp(normal[2], -1.0, 1.0));
+    if (options_.scale_source == "homography") {
+      // Scale from the height ratio; heading from the fit; placed so that the
+      // matches' centroid lands where the fit puts it.
+      cv::Point2d centroid(0, 0);
+      for (const auto& p : motion.to_background) centroid += cv::Point2d(p);
+      centroid *= 1.0 / std::max<size_t>(1, motion.to_background.size());
+      Similarity2 H = Similarity2::FromScaleAngle(keyframe_->mosaic_from_frame.Scale() * height_ratio, S.Angle(), 0, 0);
+      const cv::Point2d target = S.Apply(centroid), moved = H.Apply(centroid);
+      H.tx = target.x - moved.x;
+      H.ty = target.y - moved.y;
+      S = H;
+    }
+  }
+
   // Height (eqs. 4-5 chained through the similarity scale) and lambda.
   const double s = S.Scale();
   state.scale = last_scale_ / s;
   state.height_raw = s * metres_per_pixel_ * focal_;
   state.height = height_filter_.UpdateVision(state.height_raw, utime);
+  if (last_good_index_ == state.frame_index - 1 && !was_lost) {
+    prev_good_ = last_good_;
+  } else {
+    prev_good_.reset();
+  }
   last_good_ = S;
   last_scale_ = s;
+  last_good_index_ = state.frame_index;
+  last_good_enu_ = GpsEnuAt(utime);
+  UpdateYawOffset(S, utime);
 
   // New keyframe?
   const double key_scale = motion.lambda;
@@ -499,13 +655,18 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
                        key_scale > options_.keyframe_max_scale || key_scale < 1.0 / options_.keyframe_max_scale ||
                        (!via_mosaic && KeyframeOverlap(motion.similarity, frame.size()) < options_.keyframe_min_overlap);
   if (new_key) {
-    keyframe_ = Keyframe{features, S, utime};
+    keyframe_ = Keyframe{features, S, utime, plane_ok ? ground_normal_ : keyframe_->normal};
     state.keyframe = true;
     ++summary_.keyframes;
   }
   state.tracking_seconds = Seconds(t0);
 
-  history_.emplace_back(utime, S.Apply({camera_.cx, camera_.cy}));
+  cv::Point2d route_pixel(camera_.cx, camera_.cy);
+  if (options_.route_point == "nadir" && plane_ok) {
+    const cv::Vec3d& g = ground_normal_;  // the point below the camera is K n
+    route_pixel = {camera_.fx * g[0] / g[2] + camera_.cx, camera_.fy * g[1] / g[2] + camera_.cy};
+  }
+  history_.emplace_back(utime, S.Apply(route_pixel));
   while (history_.size() > 256) history_.pop_front();
   FillRoute(&state);
   PairPendingFixes();
@@ -517,6 +678,131 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
   }
   last_state_ = state;
   return state;
+}
+
+std::optional<cv::Point2d> UavMosaicker::GpsEnuAt(int64_t utime, double* sigma) const {
+  if (!origin_fix_) return std::nullopt;
+  const GpsFix* fix = nullptr;
+  const int64_t gap = static_cast<int64_t>(options_.geo.max_time_gap * 1e6);
+  for (const auto& f : recent_fixes_)
+    if (std::llabs(f.utime - utime) <= gap && (!fix || std::llabs(f.utime - utime) < std::llabs(fix->utime - utime))) fix = &f;
+  if (!fix) return std::nullopt;
+  if (sigma) *sigma = fix->horizontal_sigma;
+  return LatLonToEnu(fix->latitude, fix->longitude, origin_fix_->latitude, origin_fix_->longitude);
+}
+
+std::optional<double> UavMosaicker::GpsCourseAt(int64_t utime) const {
+  if (!origin_fix_) return std::nullopt;
+  const GpsFix* fix = nullptr;
+  const int64_t gap = static_cast<int64_t>(options_.geo.max_time_gap * 1e6);
+  for (const auto& f : recent_fixes_)
+    if (std::llabs(f.utime - utime) <= gap && (!fix || std::llabs(f.utime - utime) < std::llabs(fix->utime - utime))) fix = &f;
+  const GpsFix* before = nullptr;
+  for (const auto& f : recent_fixes_)
+    if (fix && f.utime < fix->utime) before = &f;
+  if (!fix || !before) return std::nullopt;
+  const cv::Point2d d = LatLonToEnu(fix->latitude, fix->longitude, before->latitude, before->longitude);
+  if (cv::norm(d) < 2 * fix->horizontal_sigma) return std::nullopt;
+  return std::atan2(d.y, d.x);
+}
+
+// Heading of a frame's "up" (-y) in ENU = pi/2 - angle + tie angle (the tie maps (x, -y) mosaic px to ENU).
+void UavMosaicker::UpdateYawOffset(const Similarity2& mosaic_from_frame, int64_t utime) {
+  const Similarity2* tie = PredictionTie();
+  if (!tie) return;
+  const std::optional<double> course = GpsCourseAt(utime);
+  if (!course) return;
+  const double heading = M_PI / 2 - mosaic_from_frame.Angle() + tie->Angle();
+  const cv::Point2d u(std::cos(heading - *course), std::sin(heading - *course));
+  yaw_offset_ = yaw_offset_ ? 0.7 * *yaw_offset_ + 0.3 * u : u;
+}
+
+std::optional<UavMosaicker::Prediction> UavMosaicker::Predict(int64_t utime, cv::Size size) const {
+  if (!keyframe_) return std::nullopt;
+  const double scale = last_good_.Scale();
+  const double width = static_cast<double>(size.width);
+  // GPS: the fix nearest in time (within max_time_gap) mapped through the tie.
+  const GpsFix* fix = nullptr;
+  const int64_t gap = static_cast<int64_t>(options_.geo.max_time_gap * 1e6);
+  for (const auto& f : recent_fixes_)
+    if (std::llabs(f.utime - utime) <= gap && (!fix || std::llabs(f.utime - utime) < std::llabs(fix->utime - utime))) fix = &f;
+  const Similarity2* tie = PredictionTie();
+  if (fix && tie && origin_fix_ && scale > 0) {
+    const cv::Point2d enu = LatLonToEnu(fix->latitude, fix->longitude, origin_fix_->latitude, origin_fix_->longitude);
+    const cv::Point2d flipped = tie->Inverse().Apply(enu);
+    Prediction p;
+    p.from_gps = true;
+    p.gps_px = {flipped.x, -flipped.y};
+    if (last_good_enu_) {
+      // GPS motion since the last registered frame, from its registered centre
+      // (the tie is a global fit: its local bias cancels in a difference).
+      const Similarity2 lin{tie->a, tie->b, 0, 0};
+      const cv::Point2d d = lin.Inverse().Apply(enu - *last_good_enu_);
+      p.gps_px = last_good_.Apply({camera_.cx, camera_.cy}) + cv::Point2d(d.x, -d.y);
+    }
+    // Heading: the last registered frame's, turned by the change of the GPS course.
+    double angle = last_good_.Angle();
+    const double metres_per_frame_px = scale * std::abs(tie->Scale());
+    const GpsFix* before = nullptr;
+    const GpsFix* older = nullptr;
+    for (const auto& f : recent_fixes_) {
+      if (f.utime < fix->utime) {
+        older = before;
+        before = &f;
+      }
+    }
+    const std::optional<double> course = GpsCourseAt(utime);
+    if (course && yaw_offset_ && cv::norm(*yaw_offset_) > 0.5) {
+      // The camera's heading relative to the course, learnt on registered frames (turns of a fixed wing).
+      const double heading = *course + std::atan2(yaw_offset_->y, yaw_offset_->x);
+      angle = M_PI / 2 + tie->Angle() - heading;
+    } else if (before && older) {
+      const cv::Point2d e0 = LatLonToEnu(older->latitude, older->longitude, origin_fix_->latitude, origin_fix_->longitude);
+      const cv::Point2d e1 = LatLonToEnu(before->latitude, before->longitude, origin_fix_->latitude, origin_fix_->longitude);
+      const cv::Point2d d0 = e1 - e0, d1 = enu - e1;
+      if (cv::norm(d0) > 2 * fix->horizontal_sigma && cv::norm(d1) > 2 * fix->horizontal_sigma) {
+        const double turn = std::atan2(d0.x * d1.y - d0.y * d1.x, d0.dot(d1));  // CCW in ENU = CW in mosaic px
+        if (std::abs(turn) < M_PI / 3) angle -= turn;
+      }
+    }
+    p.mosaic_from_frame = Similarity2::FromScaleAngle(scale, angle, 0, 0);
+    const cv::Point2d c(camera_.cx, camera_.cy), moved = p.mosaic_from_frame.Apply(c);
+    p.mosaic_from_frame.tx = p.gps_px.x - moved.x;
+    p.mosaic_from_frame.ty = p.gps_px.y - moved.y;
+    const double sigma_px = fix->horizontal_sigma / std::max(1e-9, metres_per_frame_px);
+    p.gate_px = options_.guide_gate * width + 3 * sigma_px;
+    p.gps_tolerance_px = std::max(options_.gps_max_disagreement * width, 5 * sigma_px);
+    return p;
+  }
+  // Constant motion: the last frame-to-frame motion once more.
+  if (prev_good_ && last_good_index_ >= 0) {
+    Prediction p;
+    p.mosaic_from_frame = last_good_ * (prev_good_->Inverse() * last_good_);
+    p.gate_px = 1.5 * options_.guide_gate * width;
+    return p;
+  }
+  return std::nullopt;
+}
+
+bool UavMosaicker::Evidence(const MotionEstimate& motion, const Similarity2& mosaic_from_frame,
+                            const std::optional<Prediction>& p, std::string* why) {
+  if (!why->empty()) *why += "; ";
+  if (motion.spread < options_.min_spread) {
+    *why += "matches cover only " + std::to_string(motion.spread) + " of the frame (" +
+            std::to_string(motion.num_background) + " matches)";
+    return false;
+  }
+  if (p && p->from_gps && motion.num_background < options_.gps_check_below_inliers) {
+    const cv::Point2d c(camera_.cx, camera_.cy);
+    const double off_px = cv::norm(mosaic_from_frame.Apply(c) - p->gps_px) / std::max(1e-9, mosaic_from_frame.Scale());
+    if (off_px > p->gps_tolerance_px) {
+      ++summary_.gps_rejections;
+      *why += "registration lands " + std::to_string(static_cast<int>(off_px)) + " px (frame) from the GPS position (" +
+              std::to_string(motion.num_background) + " matches)";
+      return false;
+    }
+  }
+  return true;
 }
 
 void UavMosaicker::FillRoute(FrameState* state) {
@@ -544,6 +830,10 @@ void UavMosaicker::AddGps(const GpsFix& fix) {
   }
   if (!fix.valid || !std::isfinite(fix.latitude) || !std::isfinite(fix.longitude)) return;
   if (!origin_fix_) origin_fix_ = fix;
+  recent_fixes_.push_back(fix);
+  if (!(recent_fixes_.back().horizontal_sigma > 0 && std::isfinite(recent_fixes_.back().horizontal_sigma)))
+    recent_fixes_.back().horizontal_sigma = GpsFix().horizontal_sigma;  // unknown accuracy (NaN): the default
+  while (recent_fixes_.size() > 64) recent_fixes_.pop_front();
   last_fix_utime_ = std::max(last_fix_utime_, fix.utime);
   pending_fixes_.push_back(fix);
   while (pending_fixes_.size() > 256) pending_fixes_.pop_front();
@@ -587,26 +877,42 @@ void UavMosaicker::PairPendingFixes() {
   if (added) RefitTie();
 }
 
-void UavMosaicker::RefitTie() {
-  if (static_cast<int>(pairs_.size()) < options_.geo.min_fixes) return;
+bool UavMosaicker::FitTie(size_t first, Similarity2* tie, double* rms) const {
   std::vector<cv::Point2d> from, to;
   cv::Point2d mean(0, 0);
-  for (const auto& p : pairs_) {
-    from.emplace_back(p.mosaic_px.x, -p.mosaic_px.y);
-    to.push_back(p.enu);
-    mean += p.enu;
+  for (size_t i = first; i < pairs_.size(); ++i) {
+    from.emplace_back(pairs_[i].mosaic_px.x, -pairs_[i].mosaic_px.y);
+    to.push_back(pairs_[i].enu);
+    mean += pairs_[i].enu;
   }
+  if (to.size() < 2) return false;
   mean *= 1.0 / to.size();
   double spread = 0;
   for (const auto& e : to) spread += (e - mean).dot(e - mean);
   spread = std::sqrt(spread / to.size());
-  if (spread < options_.geo.min_spread) return;
+  if (spread < options_.geo.min_spread) return false;
+  return FitSimilarity(from, to, tie, rms);
+}
+
+const Similarity2* UavMosaicker::PredictionTie() const {
+  if (local_tie_) return &*local_tie_;
+  return enu_from_flipped_ ? &*enu_from_flipped_ : nullptr;
+}
+
+void UavMosaicker::RefitTie() {
+  if (static_cast<int>(pairs_.size()) < options_.geo.min_fixes) return;
   Similarity2 T;
   double rms = 0;
-  if (FitSimilarity(from, to, &T, &rms)) {
+  if (FitTie(0, &T, &rms)) {
     if (!enu_from_flipped_) LOG(INFO) << "mosaic tied to GPS: " << pairs_.size() << " fixes, rms " << rms << " m";
     enu_from_flipped_ = T;
     tie_rms_ = rms;
+  }
+  const int w = options_.geo.predict_window;
+  if (w > 0 && static_cast<int>(pairs_.size()) >= std::min(w, options_.geo.min_fixes)) {
+    Similarity2 L;
+    const size_t first = pairs_.size() > static_cast<size_t>(w) ? pairs_.size() - w : 0;
+    if (FitTie(first, &L, nullptr)) local_tie_ = L;
   }
 }
 
@@ -630,6 +936,12 @@ cv::Mat UavMosaicker::Preview(int max_side, bool draw_route) const {
   return preview;
 }
 
+bool UavMosaicker::ExportCanvas(cv::Mat* bgra, double* scale, cv::Point2d* origin, std::string* error) {
+  FlushMosaic();
+  std::lock_guard<std::mutex> lock(canvas_mutex_);
+  return canvas_->Export(bgra, scale, origin, error);
+}
+
 bool UavMosaicker::WriteMosaic(const std::string& png_path, std::string* error) {
   if (!canvas_) {
     if (error) *error = "no mosaic yet (not calibrated or no frame tracked)";
@@ -638,11 +950,7 @@ bool UavMosaicker::WriteMosaic(const std::string& png_path, std::string* error) 
   cv::Mat bgra;
   double scale = 1;
   cv::Point2d origin;
-  FlushMosaic();
-  {
-    std::lock_guard<std::mutex> lock(canvas_mutex_);
-    if (!canvas_->Export(&bgra, &scale, &origin, error)) return false;
-  }
+  if (!ExportCanvas(&bgra, &scale, &origin, error)) return false;
   std::error_code ec;
   const std::filesystem::path path(png_path);
   if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path(), ec);
@@ -678,6 +986,33 @@ bool UavMosaicker::WriteMosaic(const std::string& png_path, std::string* error) 
   LOG(INFO) << "mosaic written: " << png_path << " (" << bgra.cols << "x" << bgra.rows << ", "
             << metres_per_pixel_ / scale << " m/px" << (enu_from_flipped_ ? ", world file " + world.string() : "")
             << ")";
+  return true;
+}
+
+bool UavMosaicker::MosaicToLatLon(const cv::Point2d& mosaic_px, cv::Point2d* lat_lon) const {
+  if (!enu_from_flipped_ || !origin_fix_) return false;
+  EnuToLatLon(enu_from_flipped_->Apply({mosaic_px.x, -mosaic_px.y}), origin_fix_->latitude, origin_fix_->longitude,
+              &lat_lon->x, &lat_lon->y);
+  return true;
+}
+
+bool UavMosaicker::WriteGeoTiff(const std::string& tif_path, std::string* error) {
+  if (!canvas_ || !enu_from_flipped_ || !origin_fix_) {
+    if (error) *error = "no GeoTIFF for " + tif_path + ": the mosaic is not tied to GPS (no geotags or too few)";
+    return false;
+  }
+  cv::Mat bgra;
+  double scale = 1;
+  cv::Point2d origin;
+  if (!ExportCanvas(&bgra, &scale, &origin, error)) return false;
+  auto lat_lon_of_pixel = [&](const cv::Point2d& p) {
+    cv::Point2d ll;
+    MosaicToLatLon(origin + p * (1.0 / scale), &ll);
+    return ll;
+  };
+  const int epsg = UtmEpsg(origin_fix_->latitude, origin_fix_->longitude);
+  if (!vloc::mosaic::WriteGeoTiff(bgra, lat_lon_of_pixel, epsg, tif_path, error)) return false;
+  LOG(INFO) << "GeoTIFF written: " << tif_path << " (EPSG:" << epsg << ")";
   return true;
 }
 

@@ -15,6 +15,12 @@
 #include <memory>
 
 #include "../../unit/mosaic/synthetic_nadir.h"
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/stitching.hpp>
+
+#include "vloc/common/options.h"
+#include "vloc/mosaic/geotag.h"
 #include "vloc/mosaic/uav_mosaicker.h"
 
 namespace {
@@ -243,5 +249,85 @@ void BM_TenMinuteFlightMemory(benchmark::State& state) {
 BENCHMARK(BM_TenMinuteFlightMemory)->Unit(benchmark::kSecond)->Iterations(1);
 
 }  // namespace
+
+// Real stills (../shared/data/real/uav_caliterra, 1000 x 750): the first
+// kStills photos through the mosaicker (geotags in, stills config) and, in
+// the same run, OpenCV's Stitcher in SCANS mode on the same photos.
+constexpr int kStills = 12;
+const char* kStillsDir = "../shared/data/real/uav_caliterra/images";
+
+struct Stills {
+  std::vector<cv::Mat> images;
+  std::vector<vm::ImageGeotag> tags;
+};
+const Stills& RealStills() {
+  static const auto* stills = [] {
+    auto* s = new Stills;
+    if (!std::filesystem::is_directory(kStillsDir)) return s;
+    std::vector<std::string> files;
+    for (const auto& e : std::filesystem::directory_iterator(kStillsDir)) files.push_back(e.path().string());
+    std::sort(files.begin(), files.end());
+    for (int i = 0; i < kStills && i < static_cast<int>(files.size()); ++i) {
+      s->images.push_back(cv::imread(files[i], cv::IMREAD_COLOR));
+      s->tags.emplace_back();
+      vm::ReadGeotag(files[i], &s->tags.back(), nullptr);
+    }
+    return s;
+  }();
+  return *stills;
+}
+
+void BM_RealStillsMosaicker(benchmark::State& state) {
+  const Stills& s = RealStills();
+  if (s.images.empty()) {
+    state.SkipWithError("../shared/data/real/uav_caliterra absent");
+    return;
+  }
+  int registered = 0;
+  for (auto _ : state) {
+    vm::MosaickerOptions o = vloc::LoadOptionsFile<vm::MosaickerOptions>("config/procs/uav_mosaic_files.yaml", "mosaicker");
+    o.camera.width = s.images[0].cols, o.camera.height = s.images[0].rows;
+    o.camera.fx = o.camera.fy = vm::FocalPixelsFromExif(s.tags[0], s.images[0].cols, nullptr);
+    o.camera.cx = (o.camera.width - 1) / 2.0, o.camera.cy = (o.camera.height - 1) / 2.0;
+    o.calibration.source = "config";
+    o.calibration.height = 50;
+    vm::UavMosaicker m(o);
+    registered = 0;
+    for (size_t i = 0; i < s.images.size(); ++i) {
+      vm::GpsFix fix;
+      fix.utime = s.tags[i].utime - s.tags[0].utime;
+      fix.valid = s.tags[i].has_gps;
+      fix.latitude = s.tags[i].latitude, fix.longitude = s.tags[i].longitude;
+      m.AddGps(fix);
+      const auto st = m.ProcessFrame(s.images[i], fix.utime);
+      registered += st.status == vm::TrackStatus::kTracking || st.status == vm::TrackStatus::kRecovered;
+    }
+  }
+  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(s.images.size()) * state.iterations(),
+                                                      benchmark::Counter::kIsRate);
+  state.counters["registered"] = registered;
+}
+BENCHMARK(BM_RealStillsMosaicker)->Unit(benchmark::kSecond)->UseRealTime();
+
+void BM_RealStillsStitcherScans(benchmark::State& state) {
+  const Stills& s = RealStills();
+  if (s.images.empty()) {
+    state.SkipWithError("../shared/data/real/uav_caliterra absent");
+    return;
+  }
+  int status = -1, joined = 0;
+  for (auto _ : state) {
+    cv::setNumThreads(2);
+    auto stitcher = cv::Stitcher::create(cv::Stitcher::SCANS);
+    cv::Mat pano;
+    status = static_cast<int>(stitcher->stitch(s.images, pano));
+    joined = status == 0 ? static_cast<int>(stitcher->component().size()) : 0;
+  }
+  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(s.images.size()) * state.iterations(),
+                                                      benchmark::Counter::kIsRate);
+  state.counters["stitch_ok"] = status == 0;
+  state.counters["joined"] = joined;  // photos in the panorama
+}
+BENCHMARK(BM_RealStillsStitcherScans)->Unit(benchmark::kSecond)->UseRealTime();
 
 BENCHMARK_MAIN();

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <exiv2/exiv2.hpp>
 
 #include "driver_fixtures.h"
 #include "navcam_manifest.h"
@@ -119,6 +120,60 @@ TEST(UavVideoInput, FolderFramesInOrderWithTheCorruptOneSkipped) {
   EXPECT_LT(levels[2], levels[3]);
   ASSERT_EQ(problems.size(), 1u);
   EXPECT_NE(problems[0].find("frame_2.png cannot be decoded"), std::string::npos) << problems[0];
+  std::filesystem::remove_all(dir);
+}
+
+// Three JPEG photos with EXIF GPS and capture times 2 s and 5 s apart (written
+// here with exiv2); the second carries a DJI relative altitude.
+TEST(UavVideoInput, GeotaggedPhotoFolderGivesExifTimesAndGpsFixes) {
+  const std::string dir = testing::MakeFixtureDir("geotagged");
+  const char* times[3] = {"2020:05:01 10:00:00", "2020:05:01 10:00:02", "2020:05:01 10:00:07"};
+  for (int i = 0; i < 3; ++i) {
+    const std::string path = dir + "/IMG_" + std::to_string(i) + ".jpg";
+    ASSERT_TRUE(cv::imwrite(path, testing::FixtureImage(20 + 40 * i)));
+    auto image = Exiv2::ImageFactory::open(path);
+    image->readMetadata();
+    Exiv2::ExifData& exif = image->exifData();
+    exif["Exif.Photo.DateTimeOriginal"] = times[i];
+    exif["Exif.GPSInfo.GPSLatitudeRef"] = "N";
+    exif["Exif.GPSInfo.GPSLatitude"] = "41/1 2/1 " + std::to_string(500 + i * 10) + "/100";
+    exif["Exif.GPSInfo.GPSLongitudeRef"] = "W";
+    exif["Exif.GPSInfo.GPSLongitude"] = "83/1 18/1 20/1";
+    exif["Exif.GPSInfo.GPSAltitude"] = Exiv2::URational(2800 + i, 10);
+    if (i == 1) {
+      Exiv2::XmpProperties::registerNs("http://www.dji.com/drone-dji/1.0/", "drone-dji");
+      image->xmpData()["Xmp.drone-dji.RelativeAltitude"] = "+35.5";
+    }
+    image->writeMetadata();
+  }
+  UavVideoSource source;
+  std::string error;
+  ASSERT_TRUE(source.Open(dir, 0.0, &error)) << error;
+  EXPECT_TRUE(source.exif_times());
+  std::vector<int64_t> frame_times;
+  cv::Mat frame;
+  int64_t utime = 0;
+  std::string problem;
+  while (source.Next(&frame, &utime, &problem) == UavVideoSource::Status::kFrame) frame_times.push_back(utime);
+  EXPECT_EQ(frame_times, (std::vector<int64_t>{0, 2000000, 7000000}));
+  std::string how;
+  const TelemetryCsv gps = source.GeotagTelemetry(2.5, &how);
+  ASSERT_TRUE(gps.readable) << how;
+  ASSERT_EQ(gps.fixes.size(), 3u);
+  EXPECT_NE(how.find("3 of 3 photos geotagged"), std::string::npos) << how;
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(gps.fixes[i].utime, frame_times[i]);
+    EXPECT_NEAR(gps.fixes[i].latitude, 41 + 2 / 60.0 + (5.0 + 0.1 * i) / 3600.0, 1e-9);
+    EXPECT_NEAR(gps.fixes[i].longitude, -(83 + 18 / 60.0 + 20 / 3600.0), 1e-9);
+    EXPECT_NEAR(gps.fixes[i].altitude, 280.0 + 0.1 * i, 1e-9);
+    EXPECT_EQ(gps.fixes[i].horizontal_sigma, 2.5);
+  }
+  EXPECT_TRUE(std::isnan(gps.fixes[0].height_above_ground));
+  EXPECT_NEAR(gps.fixes[1].height_above_ground, 35.5, 1e-9);
+  // A forced frame rate wins over the EXIF times.
+  UavVideoSource forced;
+  ASSERT_TRUE(forced.Open(dir, 10.0, &error)) << error;
+  EXPECT_FALSE(forced.exif_times());
   std::filesystem::remove_all(dir);
 }
 

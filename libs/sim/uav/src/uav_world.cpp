@@ -84,12 +84,32 @@ PinholeCamera UavWorldOptions::DefaultUavCamera() {
   return c;
 }
 
+void UavTreesOptions::Visit(OptionsReader& r) {
+  r.Optional("num_trees", &num_trees, "crowns in the wooded area (0 = none)");
+  r.Optional("centre", &centre, "m, world x/y of the wooded area's centre");
+  r.Optional("area_radius", &area_radius, "m, crowns within this distance of the centre");
+  r.Optional("min_height", &min_height, "m, lowest crown top");
+  r.Optional("max_height", &max_height, "m, highest crown top");
+  r.Optional("min_radius", &min_radius, "m, smallest crown radius");
+  r.Optional("max_radius", &max_radius, "m, largest crown radius");
+  r.Optional("seed", &seed, "placement and texture seed");
+}
+
+bool UavTreesOptions::Check(std::string* error) const {
+  if (num_trees < 0 || num_trees > 100000) return Fail(error, "trees.num_trees must be in [0, 100000]");
+  if (!(area_radius > 0)) return Fail(error, "trees.area_radius must be > 0 m");
+  if (!(min_height > 0 && max_height >= min_height)) return Fail(error, "trees: need 0 < min_height <= max_height");
+  if (!(min_radius > 0 && max_radius >= min_radius)) return Fail(error, "trees: need 0 < min_radius <= max_radius");
+  return true;
+}
+
 void UavWorldOptions::Visit(OptionsReader& r) {
   r.Child("camera", [&](OptionsReader& c) { camera.Visit(c); });
   r.Optional("fps", &fps, "frames/s");
   r.Child("orthomap", [&](OptionsReader& c) { orthomap.Visit(c); });
   r.Child("marker", [&](OptionsReader& c) { marker.Visit(c); });
   r.Child("objects", [&](OptionsReader& c) { objects.Visit(c); });
+  r.Child("trees", [&](OptionsReader& c) { trees.Visit(c); });
   r.Child("flight", [&](OptionsReader& c) { flight.Visit(c); });
   r.Child("gps", [&](OptionsReader& c) { gps.Visit(c); });
   r.Child("render", [&](OptionsReader& c) { render.Visit(c); });
@@ -98,7 +118,7 @@ void UavWorldOptions::Visit(OptionsReader& r) {
 bool UavWorldOptions::Check(std::string* error) const {
   if (!camera.Check(error)) return false;
   if (!(fps > 0 && fps <= 240)) return Fail(error, "fps must be in (0, 240]");
-  return orthomap.Check(error) && marker.Check(error) && objects.Check(error) && flight.Check(error) &&
+  return orthomap.Check(error) && marker.Check(error) && objects.Check(error) && trees.Check(error) && flight.Check(error) &&
          gps.Check(error) && render.Check(error);
 }
 
@@ -159,7 +179,17 @@ struct UavWorld::Impl {
   cv::Mat map_x, map_y;
   // Per detail level: the periodic tile repeated to cover a whole frame footprint.
   std::vector<cv::Mat> detail_tiled;
+  // Tree crowns, lowest first (drawn in that order: higher crowns hide lower ones).
+  struct Tree {
+    double x = 0, y = 0, height = 0, radius = 0;  // m
+    cv::Mat texture, mask;                        // BGR crown and its disc (kCrownPx square)
+  };
+  std::vector<Tree> trees;
 };
+
+namespace {
+constexpr int kCrownPx = 256;  // crown texture side
+}
 
 UavWorld::UavWorld(const UavWorldOptions& options)
     : options_(options), flight_(options.flight), impl_(std::make_unique<Impl>()) {
@@ -169,6 +199,44 @@ UavWorld::UavWorld(const UavWorldOptions& options)
   gps_ = std::make_unique<UavGps>(options_.gps, flight_);
   Impl& im = *impl_;
   const PinholeCamera& cam = options_.camera;
+
+  // Tree crowns: textured discs (leaf clumps at several scales, darker rim).
+  if (options_.trees.num_trees > 0) {
+    const UavTreesOptions& to = options_.trees;
+    cv::RNG rng(static_cast<uint64_t>(to.seed) * 7919 + 17);
+    for (int i = 0; i < to.num_trees; ++i) {
+      Impl::Tree tree;
+      const double a = rng.uniform(0.0, 2 * M_PI), d = to.area_radius * std::sqrt(rng.uniform(0.0, 1.0));
+      tree.x = to.centre.x() + d * std::cos(a);
+      tree.y = to.centre.y() + d * std::sin(a);
+      tree.height = rng.uniform(to.min_height, to.max_height);
+      tree.radius = rng.uniform(to.min_radius, to.max_radius);
+      cv::Mat tex(kCrownPx, kCrownPx, CV_32F, cv::Scalar(0));
+      for (const int cell : {2, 4, 8, 16, 32}) {
+        cv::Mat n(kCrownPx / cell + 1, kCrownPx / cell + 1, CV_32F);
+        rng.fill(n, cv::RNG::NORMAL, 0.0, 1.0);
+        cv::Mat up;
+        cv::resize(n, up, cv::Size(kCrownPx, kCrownPx), 0, 0, cv::INTER_CUBIC);
+        tex += up * (cell / 32.0);
+      }
+      cv::Mat shade(kCrownPx, kCrownPx, CV_32F);
+      for (int r = 0; r < kCrownPx; ++r)
+        for (int c = 0; c < kCrownPx; ++c) {
+          const double u = (c - kCrownPx / 2.0) / (kCrownPx / 2.0), v = (r - kCrownPx / 2.0) / (kCrownPx / 2.0);
+          shade.at<float>(r, c) = static_cast<float>(1.0 - 0.45 * (u * u + v * v));
+        }
+      const double base = rng.uniform(70.0, 110.0);
+      cv::Mat green = (tex * 22.0 + base).mul(shade);
+      std::vector<cv::Mat> ch = {green * 0.45, green, green * 0.55};
+      cv::Mat bgr;
+      cv::merge(ch, bgr);
+      bgr.convertTo(tree.texture, CV_8UC3);
+      tree.mask = cv::Mat(kCrownPx, kCrownPx, CV_8U, cv::Scalar(0));
+      cv::circle(tree.mask, cv::Point(kCrownPx / 2, kCrownPx / 2), kCrownPx / 2 - 1, cv::Scalar(255), cv::FILLED);
+      im.trees.push_back(std::move(tree));
+    }
+    std::sort(im.trees.begin(), im.trees.end(), [](const Impl::Tree& a, const Impl::Tree& b) { return a.height < b.height; });
+  }
 
   // Marker texture: 6-cell marker (incl. its black border) in an 8-cell white square.
   if (options_.marker.enabled) {
@@ -422,6 +490,26 @@ cv::Mat UavWorld::Render(const Pose3& world_from_camera, double t) const {
       cv::warpPerspective(im.marker_texture, view, Translation(-roi.x, -roi.y) * m, roi.size(), cv::INTER_LINEAR,
                           cv::BORDER_TRANSPARENT);
     }
+  }
+
+  // Tree crowns: each a disc in the plane z = its height (the camera seen
+  // from that plane is the camera lowered by it).
+  for (const Impl::Tree& tree : im.trees) {
+    Pose3 lowered = world_from_camera;
+    lowered.translation().z() -= tree.height;
+    if (lowered.translation().z() < 1.0) continue;
+    const double k = 2 * tree.radius / kCrownPx;  // m per texture px
+    const cv::Matx33d world_from_tex(k, 0, tree.x - tree.radius, 0, -k, tree.y + tree.radius, 0, 0, 1);
+    const cv::Matx33d m = Translation(im.margin_x, im.margin_y) * ImageFromGround(lowered) * world_from_tex;
+    std::vector<cv::Point2f> src = {{0, 0}, {kCrownPx, 0}, {kCrownPx, kCrownPx}, {0, kCrownPx}}, dst;
+    cv::perspectiveTransform(src, dst, cv::Mat(m));
+    const cv::Rect roi = cv::boundingRect(dst) & cv::Rect(0, 0, im.canvas.width, im.canvas.height);
+    if (roi.area() <= 0) continue;
+    cv::Mat crown, mask;
+    const cv::Matx33d to_roi = Translation(-roi.x, -roi.y) * m;
+    cv::warpPerspective(tree.texture, crown, to_roi, roi.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+    cv::warpPerspective(tree.mask, mask, to_roi, roi.size(), cv::INTER_NEAREST, cv::BORDER_CONSTANT);
+    crown.copyTo(canvas(roi), mask);
   }
 
   // Moving objects: cars (with a dark windscreen) and people.

@@ -21,6 +21,8 @@ struct MatcherOptions {
   int akaze_octaves = 3;             // A-KAZE octaves
   int akaze_sublevels = 2;           // A-KAZE sublevels per octave (OpenCV default 4; 2 halves the scale-space cost)
   int max_features = 1200;           // strongest keypoints kept per frame (spread over a grid)
+  int min_features = 0;              // fewer keypoints than this: A-KAZE again at a quarter of the threshold (down to
+                                     // 1/64 of akaze_threshold; low-texture fields); 0 = off
   int grid_cells = 8;                // grid cells per image side for spreading the kept keypoints
   double ratio = 0.8;                // Lowe ratio test on Hamming distances
   double ransac_threshold = 3.0;     // px (full resolution), RANSAC reprojection threshold
@@ -29,6 +31,7 @@ struct MatcherOptions {
   std::string scale_model = "similarity";        // eq. 3 model: "similarity" (handles yaw), "axis_scale" (eq. 3 as printed), "affine"
   int min_inliers = 25;              // fewer background matches than this = matching failed
   double max_scale_change = 1.6;     // a scale change beyond [1/x, x] between two frames = failure
+  double guided_ratio = 0.9;         // ratio test among the candidates inside the gate (guided matching, MotionPrior)
   int num_threads = 2;               // OpenCV threads for A-KAZE and matching
 
   void Visit(OptionsReader& reader);
@@ -60,11 +63,23 @@ struct MotionEstimate {
   int num_foreground = 0;            // matches removed by equation 2
   int num_background = 0;            // matches used for the scale fit
   double fit_rms = 0.0;              // px, residual of the scale fit
+  double spread = 0.0;               // area of the background matches' convex hull / area of `to` (0..1)
+  bool guided = false;               // matched inside a MotionPrior's gate
   double seconds = 0.0;              // matching + estimation
   std::vector<cv::Point2f> from_background, to_background;
 };
 
-MotionEstimate EstimateMotion(const FrameFeatures& from, const FrameFeatures& to, const MatcherOptions& options);
+// Guided matching: where `to` should see `from`'s points (e.g. predicted
+// from the GPS motion). Only candidates within gate_px of the predicted
+// place compete, and the ratio test runs among them (guided_ratio).
+struct MotionPrior {
+  Similarity2 to_from_from;          // predicted `from` px -> `to` px
+  double gate_px = 100.0;            // px, search radius around the prediction
+};
+
+// `prior` null = unguided (every feature against every feature).
+MotionEstimate EstimateMotion(const FrameFeatures& from, const FrameFeatures& to, const MatcherOptions& options,
+                              const MotionPrior* prior = nullptr);
 
 // Equation 2 for each match (from[i] -> to[i]) under homography H (from -> to):
 // true = foreground (moving object). Rule as in MatcherOptions::foreground_rule.

@@ -66,6 +66,22 @@ struct UavObjectsOptions {
   bool Check(std::string* error) const;
 };
 
+// Trees whose crowns stand above the ground (real parallax for the nadir
+// camera: a crown at height h is seen from H - h, not H). 0 trees = none.
+struct UavTreesOptions {
+  int num_trees = 0;                 // crowns placed at random in the area (0 = no trees)
+  Eigen::Vector2d centre = Eigen::Vector2d(0.0, 0.0);  // m, world x/y of the wooded area's centre
+  double area_radius = 120.0;        // m, crowns within this distance of the centre
+  double min_height = 15.0;          // m, crown top above the ground
+  double max_height = 20.0;          // m
+  double min_radius = 2.5;           // m, crown radius
+  double max_radius = 5.0;           // m
+  int seed = 11;                     // placement and crown texture
+
+  void Visit(OptionsReader& reader);
+  bool Check(std::string* error) const;
+};
+
 struct UavRenderOptions {
   double noise_sigma = 2.0;   // grey levels, 1-sigma sensor noise per pixel and channel (0 = none)
   bool moving_objects = true; // draw cars and people
@@ -81,6 +97,7 @@ struct UavWorldOptions {
   OrthomapOptions orthomap;
   UavMarkerOptions marker;
   UavObjectsOptions objects;
+  UavTreesOptions trees;
   UavFlightOptions flight;
   UavGpsOptions gps;
   UavRenderOptions render;

@@ -1,0 +1,50 @@
+#pragma once
+// Route and height of a flight against its GPS (real surveys): the route
+// (mosaic px of the frame centres) is fitted to the GPS track by a 2-D
+// similarity (the mosaic has no absolute position, heading or scale of its
+// own) and the horizontal residual is reported per frame, as RMS and as a
+// percentage of the path length. Heights are compared with a GPS height
+// (relative altitude, or altitude minus a fitted ground level).
+
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "vloc/mosaic/geometry.h"
+
+namespace vloc::mosaic {
+
+struct RouteComparison {
+  bool ok = false;
+  std::string why;                      // when !ok
+  int pairs = 0;                        // frames in the fit
+  Similarity2 enu_from_flipped;         // (x, -y) mosaic px -> east/north m
+  std::vector<double> residual_m;       // per input frame, m (NaN when not usable)
+  double rms_m = 0;                     // over the frames in the fit
+  double held_out_rms_m = 0;            // over usable frames not in the fit (e.g. a GPS drop-out), 0 if none
+  int held_out = 0;
+  double path_m = 0;                    // GPS path length through the usable frames, m
+  double rms_percent() const { return path_m > 0 ? 100.0 * rms_m / path_m : 0.0; }
+};
+
+// route_px[i] mosaic px of frame i, gps_enu[i] its GPS east/north (m);
+// usable[i] false = no registration or no GPS; in_fit[i] false = compared
+// but not used in the fit (held out).
+RouteComparison CompareRouteToGps(const std::vector<cv::Point2d>& route_px, const std::vector<cv::Point2d>& gps_enu,
+                                  const std::vector<bool>& usable, const std::vector<bool>& in_fit);
+
+struct HeightComparison {
+  bool ok = false;
+  int pairs = 0;
+  double offset_m = 0;                  // fitted ground level (reference = gps - offset); 0 when not fitted
+  double rms_m = 0;
+  double rms_percent = 0;               // RMS of the error / mean reference height, % (NaN when that is <= 0)
+  std::vector<double> error_m;          // per input frame (NaN when not usable)
+};
+
+// height[i] estimate, gps[i] reference (NaN = none). fit_offset: the
+// reference is gps - ground with the ground level fitted (mean difference),
+// for GPS altitudes above sea level over unknown ground.
+HeightComparison CompareHeights(const std::vector<double>& height, const std::vector<double>& gps, bool fit_offset);
+
+}  // namespace vloc::mosaic

@@ -1,0 +1,107 @@
+// The mosaicker on a real geotagged survey (../shared/data, see its README):
+// uav_caliterra, 75 photos of a construction site, EXIF GPS. Every frame
+// must register, the route must follow the GPS track after a 2-D similarity
+// fit, and a GPS drop-out over a stretch of frames must not stop the route.
+// Skipped with a message when the data is absent.
+#include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+
+#include "vloc/common/options.h"
+#include "vloc/mosaic/geotag.h"
+#include "vloc/mosaic/survey_eval.h"
+#include "vloc/mosaic/uav_mosaicker.h"
+
+namespace vloc::mosaic {
+namespace {
+
+const char* kCaliterra = "../shared/data/real/uav_caliterra/images";
+
+struct SurveyRun {
+  int frames = 0, registered = 0;
+  RouteComparison route;
+  std::vector<FrameState> states;
+};
+
+// Every photo through the mosaicker with its geotag (except frames in
+// [drop_a, drop_b]), focal length from EXIF, stills options from the config.
+SurveyRun RunSurvey(const std::string& folder, int drop_a, int drop_b) {
+  std::vector<std::string> files;
+  for (const auto& e : std::filesystem::directory_iterator(folder)) files.push_back(e.path().string());
+  std::sort(files.begin(), files.end());
+  MosaickerOptions options = LoadOptionsFile<MosaickerOptions>("config/procs/uav_mosaic_files.yaml", "mosaicker");
+  const cv::Mat first = cv::imread(files[0], cv::IMREAD_COLOR);
+  ImageGeotag tag0;
+  EXPECT_TRUE(ReadGeotag(files[0], &tag0, nullptr));
+  const double focal = FocalPixelsFromExif(tag0, first.cols, nullptr);
+  EXPECT_NEAR(focal, 729.3, 0.5);  // 4.5 mm on a 6.17 mm sensor at 1000 px (the data's README)
+  options.camera = PinholeCamera();
+  options.camera.width = first.cols, options.camera.height = first.rows;
+  options.camera.fx = options.camera.fy = focal;
+  options.camera.cx = (first.cols - 1) / 2.0, options.camera.cy = (first.rows - 1) / 2.0;
+  options.calibration.source = "config";
+  options.calibration.height = 50.0;  // unknown: scales the heights only
+  options.async_mosaic = false;
+  std::string error;
+  EXPECT_TRUE(options.Check(&error)) << error;
+  UavMosaicker mosaicker(options);
+  SurveyRun run;
+  std::vector<cv::Point2d> route, enu;
+  std::vector<bool> usable, in_fit;
+  for (size_t i = 0; i < files.size(); ++i) {
+    ImageGeotag tag;
+    EXPECT_TRUE(ReadGeotag(files[i], &tag, nullptr));
+    const int64_t utime = tag.utime - tag0.utime;
+    const bool dropped = static_cast<int>(i) >= drop_a && static_cast<int>(i) <= drop_b;
+    if (!dropped) {
+      GpsFix fix;
+      fix.utime = utime;
+      fix.valid = tag.has_gps;
+      fix.latitude = tag.latitude, fix.longitude = tag.longitude, fix.altitude = tag.altitude;
+      fix.horizontal_sigma = 3.0;
+      mosaicker.AddGps(fix);
+    }
+    const FrameState s = mosaicker.ProcessFrame(cv::imread(files[i], cv::IMREAD_COLOR), utime);
+    const bool ok = s.status == TrackStatus::kTracking || s.status == TrackStatus::kRecovered;
+    run.registered += ok ? 1 : 0;
+    run.states.push_back(s);
+    route.push_back(s.route_px);
+    enu.push_back(LatLonToEnu(tag.latitude, tag.longitude, tag0.latitude, tag0.longitude));
+    usable.push_back(ok && tag.has_gps);
+    in_fit.push_back(!dropped);
+  }
+  run.frames = static_cast<int>(files.size());
+  run.route = CompareRouteToGps(route, enu, usable, in_fit);
+  return run;
+}
+
+TEST(RealSurvey, CaliterraEveryFrameRegisteredRouteFollowsGpsThroughADropOut) {
+  if (!std::filesystem::is_directory(kCaliterra))
+    GTEST_SKIP() << kCaliterra << " absent (real data lives beside the repo, see ../shared/data/README.md): skipped";
+  // GPS tags of frames 30-39 dropped (about 100 m of flight).
+  const SurveyRun run = RunSurvey(kCaliterra, 30, 39);
+  EXPECT_EQ(run.frames, 75);
+  EXPECT_EQ(run.registered, 75);
+  for (const auto& s : run.states)
+    if (s.status == TrackStatus::kLost) ADD_FAILURE() << "frame " << s.frame_index << " LOST: " << s.message;
+  ASSERT_TRUE(run.route.ok) << run.route.why;
+  std::cout << "uav_caliterra: " << run.registered << " of " << run.frames << " registered; route RMS " << run.route.rms_m
+            << " m = " << run.route.rms_percent() << " % of " << run.route.path_m << " m; GPS drop-out (frames 30-39): RMS "
+            << run.route.held_out_rms_m << " m\n";
+  EXPECT_GT(run.route.path_m, 600);
+  // Measured 2.2 % of the path (a camera GPS good to several metres, an
+  // ungimballed camera); the target is 2 %. 3.5 % catches a broken chain
+  // (a misregistered frame moves the route by a frame width, ~50-150 m here).
+  EXPECT_LT(run.route.rms_percent(), 3.5) << "route RMS " << run.route.rms_m << " m over " << run.route.path_m << " m";
+  // Through the drop-out the route is vision alone: within the same bound.
+  EXPECT_EQ(run.route.held_out, 10);
+  EXPECT_LT(run.route.held_out_rms_m, 0.035 * run.route.path_m);
+}
+
+}  // namespace
+}  // namespace vloc::mosaic
