@@ -57,9 +57,13 @@ function(vloc_add_test name)
   endif()
   set_tests_properties(${name} PROPERTIES TIMEOUT ${ARG_TIMEOUT}
     ENVIRONMENT "VLOC_BIN_DIR=${CMAKE_BINARY_DIR}/bin;VLOC_SOURCE_DIR=${CMAKE_SOURCE_DIR};VLOC_BUILD_DIR=${CMAKE_BINARY_DIR}")
-  if(ARG_LABELS)
-    set_tests_properties(${name} PROPERTIES LABELS "${ARG_LABELS}")
-  endif()
+  # Every test carries the label of its folder under tests/ (unit, procs,
+  # integration), so `ctest -L unit` runs every unit test; LABELS add more.
+  file(RELATIVE_PATH rel ${CMAKE_SOURCE_DIR}/tests ${CMAKE_CURRENT_SOURCE_DIR})
+  string(REGEX REPLACE "/.*" "" folder "${rel}")
+  set(labels ${folder} ${ARG_LABELS})
+  list(REMOVE_DUPLICATES labels)
+  set_tests_properties(${name} PROPERTIES LABELS "${labels}")
 endfunction()
 
 # vloc_add_benchmark(NAME SOURCES b.cpp ... DEPS target ...)
@@ -76,8 +80,8 @@ function(vloc_add_benchmark name)
   vloc_target_flags(${name})
 endfunction()
 
-# Adds each listed subdirectory that exists (parts of the tree land at
-# different times; a missing folder is skipped, not an error).
+# Adds each listed subdirectory; a listed folder without a CMakeLists.txt
+# is an error (a silent skip would drop its tests from CI unnoticed).
 # VLOC_ONLY_DIRS (cache, optional): when set, only these folder names are
 # added - for building one part of the tree while others are mid-change.
 function(vloc_add_subdirectories)
@@ -85,8 +89,10 @@ function(vloc_add_subdirectories)
     if(VLOC_ONLY_DIRS AND NOT dir IN_LIST VLOC_ONLY_DIRS)
       continue()
     endif()
-    if(EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/${dir}/CMakeLists.txt)
-      add_subdirectory(${dir})
+    if(NOT EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/${dir}/CMakeLists.txt)
+      message(FATAL_ERROR "${CMAKE_CURRENT_SOURCE_DIR}/${dir}/CMakeLists.txt is missing: "
+                          "add it or take '${dir}' out of the list in ${CMAKE_CURRENT_LIST_FILE}")
     endif()
+    add_subdirectory(${dir})
   endforeach()
 endfunction()
