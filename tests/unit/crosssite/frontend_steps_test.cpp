@@ -1,0 +1,438 @@
+// The front end's steps (internal/frontend_steps.h) on small synthetic
+// inputs: options checking, overlap matching, the grid LSM with its relief
+// gates, cross-site refinement's duplicate merge, and verification. Fast:
+// no rendering, fixed seeds.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <functional>
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+#include "vloc/crosssite/internal/frontend_steps.h"
+
+namespace vloc {
+namespace {
+
+using namespace frontend_internal;
+
+// ---- options
+
+TEST(FrontendOptions, DefaultsPassCheck) {
+  std::string error;
+  EXPECT_TRUE(FrontendOptions().Check(&error)) << error;
+}
+
+// Every bad value is caught, and the message names the field and the value.
+TEST(FrontendOptions, CheckNamesTheFieldAndTheBadValue) {
+  struct Case {
+    const char* field;
+    const char* value;
+    std::function<void(FrontendOptions&)> set;
+  };
+  const std::vector<Case> cases = {
+      {"ground_grid_px", "4", [](FrontendOptions& o) { o.ground_grid_px = 4; }},
+      {"ground_min_points", "2", [](FrontendOptions& o) { o.ground_min_points = 2; }},
+      {"ground_tolerance_m", "0", [](FrontendOptions& o) { o.ground_tolerance_m = 0; }},
+      {"ground_max_slope_deg", "95", [](FrontendOptions& o) { o.ground_max_slope_deg = 95; }},
+      {"min_zoom", "0", [](FrontendOptions& o) { o.min_zoom = 0; }},
+      {"max_zoom", "0.5", [](FrontendOptions& o) { o.max_zoom = 0.5; }},
+      {"max_motion_sigmas", "-1", [](FrontendOptions& o) { o.max_motion_sigmas = -1; }},
+      {"sigma_unrefined_px", "0", [](FrontendOptions& o) { o.sigma_unrefined_px = 0; }},
+      {"warp_max_tilt", "0.5", [](FrontendOptions& o) { o.warp_max_tilt = 0.5; }},
+      {"max_overlaps_per_image", "-1", [](FrontendOptions& o) { o.max_overlaps_per_image = -1; }},
+      {"grid_min_zncc", "1.5", [](FrontendOptions& o) { o.grid_min_zncc = 1.5; }},
+      {"grid_min_margin", "-0.1", [](FrontendOptions& o) { o.grid_min_margin = -0.1; }},
+      {"grid_back_check_px", "-1", [](FrontendOptions& o) { o.grid_back_check_px = -1; }},
+      {"grid_max_shear", "-0.5", [](FrontendOptions& o) { o.grid_max_shear = -0.5; }},
+      {"grid_search_px", "0", [](FrontendOptions& o) { o.grid_search_px = 0; }},
+      {"min_tile_inliers", "3", [](FrontendOptions& o) { o.min_tile_inliers = 3; }},
+      {"tile_inlier_px", "0", [](FrontendOptions& o) { o.tile_inlier_px = 0; }},
+      {"refine_homography_threshold_px", "0", [](FrontendOptions& o) { o.refine_homography_threshold_px = 0; }},
+      {"stage1_cluster_fraction", "1.5", [](FrontendOptions& o) { o.stage1_cluster_fraction = 1.5; }},
+      {"refine_gate_px", "0", [](FrontendOptions& o) { o.refine_gate_px = 0; }},
+      {"max_gate_px", "-3", [](FrontendOptions& o) { o.max_gate_px = -3; }},
+      {"min_stage1_inliers", "2", [](FrontendOptions& o) { o.min_stage1_inliers = 2; }},
+      {"refine_ratio", "0", [](FrontendOptions& o) { o.refine_ratio = 0; }},
+      {"tilt_margin", "0.9", [](FrontendOptions& o) { o.tilt_margin = 0.9; }},
+      {"longitude_margin_deg", "-5", [](FrontendOptions& o) { o.longitude_margin_deg = -5; }},
+      {"gate_margin_px", "-1", [](FrontendOptions& o) { o.gate_margin_px = -1; }},
+      {"fundamental_threshold_px", "-2", [](FrontendOptions& o) { o.fundamental_threshold_px = -2; }},
+      {"max_points_per_overlap", "0", [](FrontendOptions& o) { o.max_points_per_overlap = 0; }},
+      {"stereo_min_depth", "0", [](FrontendOptions& o) { o.stereo_min_depth = 0; }},
+      {"stereo_max_depth", "0.5", [](FrontendOptions& o) { o.stereo_max_depth = 0.5; }},
+      {"cross_sigma_floor_px", "-1", [](FrontendOptions& o) { o.cross_sigma_floor_px = -1; }},
+      {"stereo_sigma_floor_px", "-1", [](FrontendOptions& o) { o.stereo_sigma_floor_px = -1; }},
+      {"sigma_angle_px", "-1", [](FrontendOptions& o) { o.sigma_angle_px = -1; }},
+      {"min_sigma_parallax", "0", [](FrontendOptions& o) { o.min_sigma_parallax = 0; }},
+      {"min_region_std", "-1", [](FrontendOptions& o) { o.min_region_std = -1; }},
+      {"duplicate_radius", "-1", [](FrontendOptions& o) { o.duplicate_radius = -1; }},
+      {"min_tie_points", "0", [](FrontendOptions& o) { o.min_tie_points = 0; }},
+      {"num_threads", "0", [](FrontendOptions& o) { o.num_threads = 0; }},
+      {"grid_lsm", "", [](FrontendOptions& o) { o.grid_lsm.half_window = 1; }},
+      {"cross_lsm", "", [](FrontendOptions& o) { o.cross_lsm.max_iterations = 0; }},
+      {"tiles", "", [](FrontendOptions& o) { o.tiles.reduction = 0; }},
+      {"regions", "", [](FrontendOptions& o) { o.regions.grid_step = 1; }},
+  };
+  for (const Case& c : cases) {
+    FrontendOptions o;
+    c.set(o);
+    std::string error;
+    EXPECT_FALSE(o.Check(&error)) << c.field;
+    EXPECT_NE(error.find(c.field), std::string::npos) << c.field << ": " << error;
+    EXPECT_NE(error.find(c.value), std::string::npos) << c.field << ": " << error;
+  }
+  FrontendOptions nan;
+  nan.tile_inlier_px = std::nan("");
+  std::string error;
+  EXPECT_FALSE(nan.Check(&error));
+}
+
+// ---- overlap matching
+
+// Random SIFT-like descriptors (128 floats in [0, 100)).
+cv::Mat RandomDescriptors(int n, std::mt19937& rng) {
+  cv::Mat d(n, 128, CV_32F);
+  std::uniform_real_distribution<float> u(0, 100);
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < 128; ++c) d.at<float>(r, c) = u(rng);
+  return d;
+}
+
+FeatureSet MakeFeatures(const std::vector<Eigen::Vector2d>& points, const cv::Mat& descriptors) {
+  FeatureSet f;
+  f.views = {{1.0, 0.0}};
+  f.points = points;
+  f.keypoints.resize(points.size());
+  f.view.assign(points.size(), 0);
+  f.descriptors = descriptors.clone();
+  return f;
+}
+
+// A previous and a current region whose features are the same points
+// shifted by the DR error `offset` (px) plus a random parallax along x of
+// up to +-`parallax` px (a camera moved sideways over relief: the epipolar
+// lines are the rows y' = y + offset.y), with descriptor noise and clutter.
+struct OverlapScene {
+  SitePairState state;
+  PairOverlap overlap;
+  OverlapWork work;
+  Eigen::Vector2d offset;
+  int num_true = 0;
+  std::vector<Eigen::Vector2d> truth;  // current px of each previous feature
+};
+
+OverlapScene MakeOverlapScene(const Eigen::Vector2d& offset, int num_true, int num_clutter, unsigned seed,
+                              double parallax = 0) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(100, 900), dx(-parallax, parallax);
+  std::normal_distribution<float> noise(0, 2);
+  OverlapScene s;
+  s.offset = offset;
+  s.num_true = num_true;
+  std::vector<Eigen::Vector2d> prev_pts, cur_pts;
+  for (int i = 0; i < num_true; ++i) {
+    prev_pts.emplace_back(u(rng), u(rng));
+    cur_pts.push_back(prev_pts.back() + offset + Eigen::Vector2d(dx(rng), 0));
+  }
+  s.truth = cur_pts;
+  const cv::Mat d = RandomDescriptors(num_true, rng);
+  cv::Mat dc = d.clone();
+  for (int r = 0; r < dc.rows; ++r)
+    for (int c = 0; c < dc.cols; ++c) dc.at<float>(r, c) += noise(rng);
+  for (int i = 0; i < num_clutter; ++i) cur_pts.emplace_back(u(rng), u(rng));
+  cv::vconcat(dc, RandomDescriptors(num_clutter, rng), dc);
+  s.state.previous_regions.resize(1);
+  s.state.current_regions.resize(1);
+  s.state.previous_regions[0].features = MakeFeatures(prev_pts, d);
+  s.state.current_regions[0].features = MakeFeatures(cur_pts, dc);
+  s.overlap.previous_region = cv::Rect(0, 0, 1024, 1024);
+  s.overlap.growth_px = 40;  // the DR gate: 40 / scale + gate_margin_px
+  // The unwarped mode: train image = current image, predicted by identity.
+  s.work.train_from_previous = cv::Matx33d::eye();
+  s.work.current_from_train = cv::Matx33d::eye();
+  return s;
+}
+
+FrontendOptions UnwarpedOptions() {
+  FrontendOptions o;
+  o.warp_current = false;
+  return o;
+}
+
+TEST(OverlapMatching, DensestOffsetClusterIsTheDrError) {
+  OverlapScene s = MakeOverlapScene({17.0, -9.0}, 60, 0, 3);
+  const FeatureSet& fp = s.state.previous_regions[0].features;
+  const FeatureSet& fc = s.state.current_regions[0].features;
+  std::vector<FeatureMatch> matches;
+  for (int i = 0; i < s.num_true; ++i) matches.push_back({i, i, 1.0});
+  // Wrong matches scattered over the gate.
+  std::mt19937 rng(5);
+  std::uniform_int_distribution<int> any(0, s.num_true - 1);
+  for (int i = 0; i < 30; ++i) matches.push_back({any(rng), any(rng), 2.0});
+  Eigen::Vector2d mode;
+  int count = 0;
+  const auto cluster = DensestOffsetCluster(matches, fc, fp.points, 3.0, &mode, &count);
+  EXPECT_NEAR((mode - s.offset).norm(), 0.0, 1e-9);
+  EXPECT_GE(count, s.num_true);
+  for (const auto& m : cluster) EXPECT_NEAR((fc.points[m.train] - fp.points[m.query] - s.offset).norm(), 0.0, 6.0);
+  EXPECT_GE(static_cast<int>(cluster.size()), s.num_true);
+  EXPECT_LT(static_cast<int>(cluster.size()), s.num_true + 5);
+}
+
+TEST(OverlapMatching, SpreadSelectTakesOnePerCellFirst) {
+  std::vector<Candidate> c(6);
+  // Three in one 24 px cell (best first), three in three other cells.
+  const double x[6] = {5, 6, 7, 50, 100, 150}, dist[6] = {1, 2, 3, 4, 5, 6};
+  for (int k = 0; k < 6; ++k) c[k].cur_left = {x[k], 5}, c[k].descriptor_distance = dist[k];
+  const std::vector<int> idx = {0, 1, 2, 3, 4, 5};
+  EXPECT_EQ(SpreadSelect(c, idx, 4, kSpreadCellPx), (std::vector<int>{0, 3, 4, 5}));
+  EXPECT_EQ(SpreadSelect(c, idx, 10, kSpreadCellPx), (std::vector<int>{0, 3, 4, 5, 1, 2}));
+}
+
+// The DR error (a 27 px shift) within the stage-1 gate: stage 1 finds the
+// offset cluster, stage 2 matches within the refined gate, the epipolar
+// RANSAC keeps them, and every candidate is a true match.
+TEST(OverlapMatching, RefinedGateFindsTheTrueMatches) {
+  OverlapScene s = MakeOverlapScene({25.0, 10.0}, 150, 150, 11, 3.0);
+  const FrontendOptions o = UnwarpedOptions();
+  MatchOverlap(4, s.overlap, s.state, o, &s.work);
+  const auto& cands = s.work.candidates;
+  const FeatureSet& fp = s.state.previous_regions[0].features;
+  EXPECT_GE(static_cast<int>(cands.size()), 0.9 * s.num_true);
+  for (const Candidate& c : cands) {
+    EXPECT_EQ(c.overlap, 4);
+    int q = 0;
+    while (q < s.num_true && (fp.points[q] - c.prev_left).norm() > 1e-9) ++q;
+    ASSERT_LT(q, s.num_true);
+    EXPECT_NEAR((c.cur_left - s.truth[q]).norm(), 0.0, 1e-6);
+  }
+  // Without the epipolar RANSAC's 12 matches nothing passes the epipolar test.
+  OverlapScene few = MakeOverlapScene({25.0, 10.0}, 11, 0, 11, 3.0);
+  FrontendOptions o2 = o;
+  o2.min_stage1_inliers = 4;
+  MatchOverlap(0, few.overlap, few.state, o2, &few.work);
+  EXPECT_TRUE(few.work.candidates.empty());
+}
+
+// A DR error beyond the gate: no cluster of min_stage1_inliers, no candidates.
+TEST(OverlapMatching, ErrorBeyondTheGateGivesNoCandidates) {
+  OverlapScene s = MakeOverlapScene({250.0, 0.0}, 150, 150, 13);
+  MatchOverlap(0, s.overlap, s.state, UnwarpedOptions(), &s.work);
+  EXPECT_TRUE(s.work.candidates.empty());
+}
+
+// ---- grid LSM and its relief gates
+
+// Smooth random texture, CV_8UC1.
+cv::Mat Texture(cv::Size size, unsigned seed) {
+  cv::Mat noise(size, CV_32F);
+  cv::theRNG().state = seed;
+  cv::randu(noise, 0, 255);
+  cv::GaussianBlur(noise, noise, cv::Size(0, 0), 2.0);
+  cv::Mat out;
+  cv::normalize(noise, noise, 0, 255, cv::NORM_MINMAX);
+  noise.convertTo(out, CV_8U);
+  return out;
+}
+
+// The previous crop and the warped current image: the crop moved by the
+// affine x' = A x + t about the centre.
+OverlapWork GridScene(const Eigen::Matrix2d& A, const Eigen::Vector2d& t) {
+  OverlapWork w;
+  w.previous_crop = Texture({200, 160}, 21);
+  const Eigen::Vector2d c(100, 80);
+  const Eigen::Vector2d b = c + t - A * c;
+  const cv::Matx23d M(A(0, 0), A(0, 1), b.x(), A(1, 0), A(1, 1), b.y());
+  cv::warpAffine(w.previous_crop, w.warped, M, w.previous_crop.size(), cv::INTER_CUBIC, cv::BORDER_REFLECT);
+  w.coverage = cv::Mat(w.warped.size(), CV_8UC1, cv::Scalar(255));
+  return w;  // train_from_previous = current_from_train = identity
+}
+
+bool GridRefine(const OverlapWork& w, const FrontendOptions& o, Candidate* c) {
+  const LsmImage lt = MakeLsmImage(w.previous_crop), lw = MakeLsmImage(w.warped);
+  return RefineOnGrid(w, lt, lw, o, c);
+}
+
+TEST(GridLsm, RefinesASubPixelShift) {
+  const Eigen::Vector2d t(0.37, -0.21);
+  const OverlapWork w = GridScene(Eigen::Matrix2d::Identity(), t);
+  Candidate c;
+  c.prev_left = {100, 80};
+  c.cur_left = {102, 79};  // the features' positions differ by a few px
+  ASSERT_TRUE(GridRefine(w, FrontendOptions(), &c));
+  EXPECT_TRUE(c.grid_refined);
+  // Within 0.1 px: the shift is made by cubic interpolation, which the LSM's
+  // bilinear model does not reproduce exactly (it finds 0.06 px here).
+  EXPECT_NEAR((c.cur_left - (c.prev_left + t)).norm(), 0.0, 0.1);
+  EXPECT_GT(c.grid_correlation, 0.9);
+}
+
+// Relief gate: a window whose x shift changes along its rows (shear 0.7)
+// is the parallax of relief; dropped with grid_max_shear 0.5, kept without.
+TEST(GridLsm, ShearGateDropsReliefParallax) {
+  Eigen::Matrix2d A = Eigen::Matrix2d::Identity();
+  A(0, 1) = 0.7;
+  const OverlapWork w = GridScene(A, {0.2, 0.1});
+  FrontendOptions o;
+  o.grid_back_check_px = 0;
+  Candidate c;
+  c.prev_left = c.cur_left = {100, 80};
+  EXPECT_FALSE(GridRefine(w, o, &c));
+  EXPECT_FALSE(c.grid_refined);
+  o.grid_max_shear = 0;
+  Candidate d;
+  d.prev_left = d.cur_left = {100, 80};
+  ASSERT_TRUE(GridRefine(w, o, &d));
+  EXPECT_NEAR(d.grid_affine(0, 1), 0.7, 0.05);
+}
+
+// Another texture: no correlation peak, nothing refined.
+TEST(GridLsm, UnrelatedTextureIsNotRefined) {
+  OverlapWork w = GridScene(Eigen::Matrix2d::Identity(), {0, 0});
+  w.warped = Texture(w.previous_crop.size(), 99);
+  Candidate c;
+  c.prev_left = c.cur_left = {100, 80};
+  EXPECT_FALSE(GridRefine(w, FrontendOptions(), &c));
+}
+
+TEST(GridLsm, OverlapRefinementCountsTheRefined) {
+  OverlapWork w = GridScene(Eigen::Matrix2d::Identity(), {0.25, 0.0});
+  for (double x : {60.0, 100.0, 140.0}) {
+    Candidate c;
+    c.prev_left = c.cur_left = {x, 80};
+    w.candidates.push_back(c);
+  }
+  Candidate edge;  // too close to the border for the 53 x 11 window
+  edge.prev_left = edge.cur_left = {10, 80};
+  w.candidates.push_back(edge);
+  EXPECT_EQ(RefineOverlapOnGrid(FrontendOptions(), &w), 3);
+  FrontendOptions off;
+  off.grid_lsm_enabled = false;
+  EXPECT_EQ(RefineOverlapOnGrid(off, &w), 0);
+}
+
+// ---- cross-site refinement
+
+TEST(CrossSiteRefinement, DuplicatesMergeToTheMostPrecise) {
+  std::vector<Candidate> c(4);
+  c[0].cur_left = {100, 100}, c[0].sigma_cross = 0.3;
+  c[1].cur_left = {100.8, 100.5}, c[1].sigma_cross = 0.1;  // the same point, more precise
+  c[2].cur_left = {100.8, 100.5}, c[2].sigma_cross = 0.2, c[2].cur_pair = 1;  // another image
+  c[3].cur_left = {110, 100}, c[3].sigma_cross = 0.4;
+  MergeDuplicates(1.5, &c);
+  ASSERT_EQ(c.size(), 3u);
+  EXPECT_DOUBLE_EQ(c[0].sigma_cross, 0.1);
+  EXPECT_EQ(c[1].cur_pair, 1);
+  EXPECT_DOUBLE_EQ(c[2].sigma_cross, 0.4);
+}
+
+// With the grid LSM on, forward matches it did not refine are dropped
+// (keep_grid_unrefined false) and refined ones kept as they are.
+TEST(CrossSiteRefinement, GridUnrefinedForwardMatchesAreDropped) {
+  SitePairState s;
+  s.prediction.overlaps.resize(1);
+  s.candidates.resize(3);
+  for (int k = 0; k < 3; ++k) s.candidates[k].cur_left = {100.0 + 10 * k, 50}, s.candidates[k].sigma_cross = 0.1;
+  s.candidates[1].grid_refined = true;
+  EXPECT_EQ(RefineCrossSite(FrontendOptions(), &s), 1);
+  EXPECT_TRUE(s.candidates[0].grid_refined);
+  EXPECT_DOUBLE_EQ(s.candidates[0].cur_left.x(), 110);
+}
+
+// ---- verification
+
+// Points seen from two sites related by a known motion; `num_outliers` of
+// them are moved by 1 m at the current site.
+std::vector<Candidate> VerificationScene(const Eigen::Isometry3d& previous_from_current, int n, int num_outliers) {
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> x(4, 20), y(-8, 8), z(-1.6, -1.2);
+  std::vector<Candidate> c(n);
+  for (int k = 0; k < n; ++k) {
+    c[k].p_prev = {x(rng), y(rng), z(rng)};
+    c[k].p_cur = previous_from_current.inverse() * c[k].p_prev;
+    if (k < num_outliers) c[k].p_cur += Eigen::Vector3d(0.0, 1.0, 0.0);
+    c[k].cov_prev = c[k].cov_cur = Eigen::Matrix3d::Identity() * 1e-4;  // 1 cm
+    c[k].sigma_cross = 0.2;
+  }
+  return c;
+}
+
+RegionPrediction PredictionOf(const Eigen::Isometry3d& previous_from_current) {
+  RegionPrediction p;
+  p.previous_from_current.linear() = previous_from_current.linear();
+  p.previous_from_current.translation() = previous_from_current.translation();
+  p.relative_sigma << 0.5, 0.5, 0.2, 0.01, 0.01, 0.03;
+  p.overlaps.resize(1);
+  p.overlaps[0].scale = 0.5;
+  return p;
+}
+
+TEST(Verification, OutliersFailTheConsistencyChecks) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(9.5, 1.0, 0.1);
+  const std::vector<Candidate> c = VerificationScene(T, 60, 5);
+  const FrontendOptions o;
+  Verification v = CheckConsistency(c, o);
+  CheckMotion(c, o, &v);
+  for (int k = 0; k < 60; ++k) EXPECT_EQ(v.keep[k], k >= 5) << k;
+  EXPECT_EQ(v.num_kept, 55);
+  TiePointSet tps;
+  MakeTiePoints(c, v, PredictionOf(T), o, &tps);
+  ASSERT_EQ(tps.points.size(), 55u);
+  // Sigmas: the cross-site error split over the two left observations,
+  // floored (previous px; current px = previous px / scale).
+  const TiePoint& tp = tps.points[0];
+  ASSERT_EQ(tp.observations.size(), 4u);
+  EXPECT_NEAR(tp.observations[0].sigma, o.cross_sigma_floor_px / std::sqrt(2.0), 1e-12);
+  EXPECT_NEAR(tp.observations[2].sigma, o.cross_sigma_floor_px * 2 / std::sqrt(2.0), 1e-12);
+  EXPECT_FALSE(CheckAgainstDeadReckoning(PredictionOf(T), o, &tps).has_value());
+  EXPECT_EQ(tps.points.size(), 55u);
+}
+
+// Without motion_consistency the rigid-motion check is skipped.
+TEST(Verification, MotionConsistencyCanBeSwitchedOff) {
+  const std::vector<Candidate> c = VerificationScene(Eigen::Isometry3d::Identity(), 30, 0);
+  FrontendOptions o;
+  o.motion_consistency = false;
+  Verification v = CheckConsistency(c, o);
+  v.keep.assign(c.size(), false);  // left as they are when the check is off
+  CheckMotion(c, o, &v);
+  EXPECT_EQ(std::count(v.keep.begin(), v.keep.end(), true), 0);
+}
+
+// Tie points consistent among themselves but 5 m from dead reckoning
+// (sigma 0.5 m): one wrong rigid motion (repeated texture); cleared.
+TEST(Verification, MotionFarFromDeadReckoningIsRejected) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = Eigen::Vector3d(10, 0, 0);
+  const std::vector<Candidate> c = VerificationScene(T, 40, 0);
+  const FrontendOptions o;
+  Verification v = CheckConsistency(c, o);
+  CheckMotion(c, o, &v);
+  TiePointSet tps;
+  MakeTiePoints(c, v, PredictionOf(T), o, &tps);
+  ASSERT_EQ(tps.points.size(), 40u);
+  Eigen::Isometry3d dr = T;
+  dr.translation().x() += 5;
+  const auto problem = CheckAgainstDeadReckoning(PredictionOf(dr), o, &tps);
+  ASSERT_TRUE(problem.has_value());
+  EXPECT_NE(problem->find("dead reckoning"), std::string::npos);
+  EXPECT_TRUE(tps.points.empty());
+}
+
+// ---- ground planes
+
+TEST(GroundPlanes, OffGivesNoPlanes) {
+  SitePairState s;
+  s.current.pairs.resize(3);
+  FrontendOptions o;
+  o.fit_ground_planes = false;
+  EXPECT_EQ(FitGroundPlanes(NavcamModel(), TiePointSet(), o, &s), 0);
+  ASSERT_EQ(s.ground_planes.size(), 3u);
+  for (const auto& p : s.ground_planes) EXPECT_TRUE(p.isZero());
+}
+
+}  // namespace
+}  // namespace vloc
