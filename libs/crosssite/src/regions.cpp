@@ -7,6 +7,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "vloc/common/homography.h"
 #include "vloc/common/options.h"
 
 namespace vloc {
@@ -65,11 +66,6 @@ struct Sample {
   Eigen::Vector2d px;          // current left ideal px
   Eigen::Vector3d p_current;   // ground point, current body
 };
-
-Eigen::Vector2d Apply(const cv::Matx33d& H, const Eigen::Vector2d& p) {
-  const double w = H(2, 0) * p.x() + H(2, 1) * p.y() + H(2, 2);
-  return {(H(0, 0) * p.x() + H(0, 1) * p.y() + H(0, 2)) / w, (H(1, 0) * p.x() + H(1, 1) * p.y() + H(1, 2)) / w};
-}
 
 cv::Rect ClipRect(double x0, double y0, double x1, double y1, const PinholeCamera& cam) {
   const int a = std::max(0, static_cast<int>(std::floor(x0))), b = std::max(0, static_cast<int>(std::floor(y0)));
@@ -218,10 +214,10 @@ RegionPrediction PredictRegions(const NavcamModel& navcam, const PoseWithCovaria
       std::nth_element(vs.begin(), vs.begin() + vs.size() / 2, vs.end());
       const Eigen::Vector2d c(us[us.size() / 2], vs[vs.size() / 2]);
       ov.median_current_px = c;
-      const Eigen::Vector2d f0 = Apply(ov.previous_from_current, c);
+      const Eigen::Vector2d f0 = ApplyHomography(ov.previous_from_current, c);
       Eigen::Matrix2d J;
-      J.col(0) = Apply(ov.previous_from_current, c + Eigen::Vector2d(1, 0)) - f0;
-      J.col(1) = Apply(ov.previous_from_current, c + Eigen::Vector2d(0, 1)) - f0;
+      J.col(0) = ApplyHomography(ov.previous_from_current, c + Eigen::Vector2d(1, 0)) - f0;
+      J.col(1) = ApplyHomography(ov.previous_from_current, c + Eigen::Vector2d(0, 1)) - f0;
       Eigen::JacobiSVD<Eigen::Matrix2d> svd(J, Eigen::ComputeFullV);
       const Eigen::Vector2d sv = svd.singularValues();
       ov.scale = std::sqrt(std::max(sv(0) * sv(1), 1e-12));
