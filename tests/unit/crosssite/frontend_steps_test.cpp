@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 #include <random>
 
+#include "vloc/common/homography.h"
 #include "vloc/crosssite/internal/frontend_steps.h"
 
 namespace vloc {
@@ -222,14 +223,80 @@ TEST(OverlapMatching, ErrorBeyondTheGateGivesNoCandidates) {
   EXPECT_TRUE(s.work.candidates.empty());
 }
 
+// ---- the warp and its tile registration
+
+// The current image is the previous one moved by s = (10, 5) px; the DR
+// prediction is off by (6, -4) px. Warped with the prediction, the current
+// image is misaligned by that error; the tile registration finds it.
+struct WarpScene {
+  SitePairState state;
+  PairOverlap overlap;
+  Eigen::Vector2d s{10, 5};
+};
+
+cv::Mat Texture(cv::Size size, unsigned seed, double blur = 2.0);
+
+WarpScene MakeWarpScene() {
+  WarpScene w;
+  const cv::Mat texture = Texture({512, 512}, 31, 3.0);
+  cv::Mat current;
+  const cv::Matx23d shift(1, 0, w.s.x(), 0, 1, w.s.y());
+  cv::warpAffine(texture, current, shift, texture.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT);
+  SitePairState& st = w.state;
+  st.previous_regions.resize(1);
+  st.previous_regions[0].region = cv::Rect(0, 0, 512, 512);
+  st.previous_regions[0].image = texture;
+  st.current_filtered = {current};
+  st.current_left.resize(1);
+  st.current_left[0].gray = current;
+  const Eigen::Vector2d e(6, -4);  // DR error, px
+  w.overlap.previous_from_current = cv::Matx33d(1, 0, -w.s.x() + e.x(), 0, 1, -w.s.y() + e.y(), 0, 0, 1);
+  w.overlap.previous_region = cv::Rect(40, 40, 432, 432);
+  w.overlap.median_current_px = {256, 256};
+  w.overlap.growth_px = 20;  // gate: 20 + gate_margin_px (20) px
+  return w;
+}
+
+TEST(OverlapWarp, TileRegistrationCorrectsTheDrError) {
+  const WarpScene w = MakeWarpScene();
+  const OverlapWork work = WarpOverlap(w.overlap, w.state, FrontendOptions());
+  ASSERT_FALSE(work.skipped);
+  EXPECT_TRUE(work.registered);
+  EXPECT_GE(work.tile_inliers, FrontendOptions().min_tile_inliers);
+  // Previous px -> grid -> current px is the true motion within a fraction of a px.
+  for (const Eigen::Vector2d p : {Eigen::Vector2d(150, 150), Eigen::Vector2d(350, 300)}) {
+    const Eigen::Vector2d c = ApplyHomography(work.current_from_train, ApplyHomography(work.train_from_previous, p));
+    EXPECT_NEAR((c - (p + w.s)).norm(), 0.0, 0.3) << p.transpose();
+  }
+  EXPECT_EQ(work.warped.size(), cv::Size(432, 432));
+  EXPECT_EQ(work.previous_crop.size(), cv::Size(432, 432));
+}
+
+TEST(OverlapWarp, WithoutTileRegistrationTheWarpIsThePrediction) {
+  const WarpScene w = MakeWarpScene();
+  FrontendOptions o;
+  o.tile_registration = false;
+  const OverlapWork work = WarpOverlap(w.overlap, w.state, o);
+  EXPECT_FALSE(work.registered);
+  const Eigen::Vector2d p(200, 200);
+  const Eigen::Vector2d c = ApplyHomography(work.current_from_train, ApplyHomography(work.train_from_previous, p));
+  EXPECT_NEAR((c - (p + w.s - Eigen::Vector2d(6, -4))).norm(), 0.0, 1e-9);
+}
+
+TEST(OverlapWarp, NoCommonRegionIsSkipped) {
+  WarpScene w = MakeWarpScene();
+  w.overlap.previous_region = cv::Rect(600, 600, 50, 50);
+  EXPECT_TRUE(WarpOverlap(w.overlap, w.state, FrontendOptions()).skipped);
+}
+
 // ---- grid LSM and its relief gates
 
 // Smooth random texture, CV_8UC1.
-cv::Mat Texture(cv::Size size, unsigned seed) {
+cv::Mat Texture(cv::Size size, unsigned seed, double blur) {
   cv::Mat noise(size, CV_32F);
   cv::theRNG().state = seed;
   cv::randu(noise, 0, 255);
-  cv::GaussianBlur(noise, noise, cv::Size(0, 0), 2.0);
+  cv::GaussianBlur(noise, noise, cv::Size(0, 0), blur);
   cv::Mat out;
   cv::normalize(noise, noise, 0, 255, cv::NORM_MINMAX);
   noise.convertTo(out, CV_8U);
@@ -338,6 +405,36 @@ TEST(CrossSiteRefinement, GridUnrefinedForwardMatchesAreDropped) {
   EXPECT_EQ(RefineCrossSite(FrontendOptions(), &s), 1);
   EXPECT_TRUE(s.candidates[0].grid_refined);
   EXPECT_DOUBLE_EQ(s.candidates[0].cur_left.x(), 110);
+}
+
+// keep_grid_unrefined: a forward match the grid LSM could not refine goes
+// to the full-resolution cross-site LSM instead of being dropped; with
+// keep_unrefined_cross a failed LSM keeps the feature position at
+// sigma_unrefined_px.
+TEST(CrossSiteRefinement, UnrefinedMatchesCanBeKept) {
+  SitePairState s;
+  s.prediction.overlaps.resize(1);
+  const cv::Mat texture = Texture({160, 160}, 41);
+  s.previous_left = {PreparedImage{texture, MakeLsmImage(texture)}};
+  cv::Mat moved;
+  cv::warpAffine(texture, moved, cv::Matx23d(1, 0, 0.3, 0, 1, 0), texture.size(), cv::INTER_CUBIC, cv::BORDER_REFLECT);
+  const cv::Mat flat(160, 160, CV_8UC1, cv::Scalar(128));
+  s.current_left = {PreparedImage{moved, MakeLsmImage(moved)}, PreparedImage{flat, MakeLsmImage(flat)}};
+  s.candidates.resize(2);
+  s.candidates[0].prev_left = s.candidates[0].cur_left = {80, 80};
+  s.candidates[1].prev_left = s.candidates[1].cur_left = {80, 80};
+  s.candidates[1].cur_pair = 1;  // nothing to match in a flat image
+  FrontendOptions o;
+  o.keep_grid_unrefined = true;
+  o.keep_unrefined_cross = false;
+  SitePairState refined = s;
+  ASSERT_EQ(RefineCrossSite(o, &refined), 1);
+  EXPECT_NEAR(refined.candidates[0].cur_left.x(), 80.3, 0.1);
+  EXPECT_LT(refined.candidates[0].sigma_cross, o.sigma_unrefined_px);
+  o.keep_unrefined_cross = true;
+  ASSERT_EQ(RefineCrossSite(o, &s), 2);
+  EXPECT_DOUBLE_EQ(s.candidates[1].sigma_cross, o.sigma_unrefined_px);
+  EXPECT_EQ(s.candidates[1].cur_left, Eigen::Vector2d(80, 80));
 }
 
 // ---- verification
