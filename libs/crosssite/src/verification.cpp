@@ -1,4 +1,4 @@
-// Step 12: verification (Wan et al. 2.3). Distance consistency (eq. 2)
+// Step 12: verification (Wan et al. 2.2). Distance consistency (eq. 2)
 // with thresholds from the points' covariances (eq. 7), then one rigid
 // motion within each point's anisotropic covariance, then the tie points
 // with their sigmas; finally the motion they imply against dead reckoning

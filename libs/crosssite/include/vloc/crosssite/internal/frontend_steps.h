@@ -14,8 +14,8 @@
 //   RefineOnGrid                  grid_lsm.cpp                2.2, cross-site least-squares matching
 //   MatchBackwardOverlap          backward_overlaps.cpp       2.2, opposite views on the ground plane
 //   RefineCrossSite               cross_site_refinement.cpp   2.2, cross-site LSM at full resolution
-//   MatchStereo                   stereo.cpp                  2.2, ZNCC + median filter + LSM at both sites
-//   Verify                        verification.cpp            2.3, eq. 2 and 7, and the DR check
+//   CorrelateStereo ..            stereo.cpp                  2.2, ZNCC + median filter + LSM at both sites
+//   CheckConsistency .. DR check  verification.cpp            2.2 eq. 2 (thresholds from eq. 7, 3.1)
 //
 // One SitePairState carries everything between the steps.
 
