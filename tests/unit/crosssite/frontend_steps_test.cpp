@@ -89,6 +89,65 @@ TEST(FrontendOptions, CheckNamesTheFieldAndTheBadValue) {
   EXPECT_FALSE(nan.Check(&error));
 }
 
+// ---- work regions
+
+// One forward overlap: the previous site sees the region at half the
+// current site's scale (scale 0.5 previous px per current px).
+SitePairState WorkRegionScene(const cv::Mat& previous, const cv::Mat& current, bool backward = false) {
+  SitePairState s;
+  s.previous.pairs.resize(1);
+  s.current.pairs.resize(1);
+  s.previous_left = {PreparedImage{previous, LsmImage()}};
+  s.current_left = {PreparedImage{current, LsmImage()}};
+  PairOverlap ov;
+  ov.backward = backward;
+  ov.current_region = cv::Rect(20, 20, 100, 100);
+  ov.previous_region = cv::Rect(50, 50, 60, 60);
+  ov.scale = 0.5;
+  ov.tilt = 1.7;
+  ov.num_samples = 10;
+  s.prediction.overlaps = {ov};
+  return s;
+}
+
+cv::Mat Texture(cv::Size size, unsigned seed, double blur);
+
+TEST(WorkRegions, ZoomEqualisesTheTwoSitesResolution) {
+  const cv::Mat prev = Texture({200, 200}, 51, 2.0), cur = Texture({200, 200}, 52, 2.0);
+  struct Mode {
+    bool warp_current, zoom_previous;
+    double previous_zoom, current_zoom;
+  };
+  // Warped (default): the previous region is zoomed up (the warp's grid),
+  // and the current one down (used only without the warp). Unwarped: one
+  // or the other (zoom_previous).
+  for (const Mode m : {Mode{true, false, 2.0, 0.5}, Mode{false, true, 2.0, 1.0}, Mode{false, false, 1.0, 0.5}}) {
+    SitePairState s = WorkRegionScene(prev, cur);
+    FrontendOptions o;
+    o.warp_current = m.warp_current;
+    o.zoom_previous = m.zoom_previous;
+    EXPECT_EQ(MakeWorkRegions(o, &s), 2);
+    EXPECT_DOUBLE_EQ(s.previous_regions[0].zoom, m.previous_zoom);
+    EXPECT_DOUBLE_EQ(s.current_regions[0].zoom, m.current_zoom);
+    EXPECT_EQ(s.previous_regions[0].image.cols, static_cast<int>(60 * m.previous_zoom));
+    EXPECT_EQ(s.current_regions[0].image.cols, static_cast<int>(100 * m.current_zoom));
+    EXPECT_DOUBLE_EQ(s.current_regions[0].max_tilt, 1.7);
+    // The previous site's Wallis targets are the current site's filtered statistics.
+    EXPECT_NE(s.previous_wallis.target_std, o.wallis.target_std);
+  }
+}
+
+TEST(WorkRegions, FlatRegionsAndBackwardOverlapsGiveNone) {
+  const cv::Mat flat(200, 200, CV_8UC1, cv::Scalar(90));
+  SitePairState s = WorkRegionScene(flat, flat);
+  EXPECT_EQ(MakeWorkRegions(FrontendOptions(), &s), 0);
+  EXPECT_LT(s.largest_region_std, FrontendOptions().min_region_std);
+  SitePairState b = WorkRegionScene(Texture({200, 200}, 53, 2.0), Texture({200, 200}, 54, 2.0), true);
+  MakeWorkRegions(FrontendOptions(), &b);
+  EXPECT_EQ(b.previous_regions[0].region.area(), 0);  // backward overlaps are matched on the ground
+  EXPECT_TRUE(b.current_regions[0].image.empty());
+}
+
 // ---- overlap matching
 
 // Random SIFT-like descriptors (128 floats in [0, 100)).
@@ -236,9 +295,9 @@ struct WarpScene {
 
 cv::Mat Texture(cv::Size size, unsigned seed, double blur = 2.0);
 
-WarpScene MakeWarpScene() {
+WarpScene MakeWarpScene(double blur = 3.0) {
   WarpScene w;
-  const cv::Mat texture = Texture({512, 512}, 31, 3.0);
+  const cv::Mat texture = Texture({512, 512}, 31, blur);
   cv::Mat current;
   const cv::Matx23d shift(1, 0, w.s.x(), 0, 1, w.s.y());
   cv::warpAffine(texture, current, shift, texture.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT);
@@ -287,6 +346,28 @@ TEST(OverlapWarp, NoCommonRegionIsSkipped) {
   WarpScene w = MakeWarpScene();
   w.overlap.previous_region = cv::Rect(600, 600, 50, 50);
   EXPECT_TRUE(WarpOverlap(w.overlap, w.state, FrontendOptions()).skipped);
+}
+
+// match_previous_resolution: with the previous region zoomed up 2x the
+// warped current image is blurred to its resolution (less fine detail).
+TEST(OverlapWarp, WarpedImageIsBlurredToTheZoomedPreviousResolution) {
+  WarpScene w = MakeWarpScene(0.7);
+  w.state.previous_regions[0].zoom = 2.0;
+  cv::resize(w.state.previous_regions[0].image, w.state.previous_regions[0].image, cv::Size(), 2.0, 2.0);
+  FrontendOptions o;
+  o.tile_registration = false;
+  auto detail = [](const cv::Mat& m) {
+    cv::Mat lap;
+    cv::Laplacian(m, lap, CV_32F);
+    cv::Scalar mean, sd;
+    cv::meanStdDev(lap, mean, sd);
+    return sd[0];
+  };
+  const OverlapWork blurred = WarpOverlap(w.overlap, w.state, o);
+  o.match_previous_resolution = false;
+  const OverlapWork sharp = WarpOverlap(w.overlap, w.state, o);
+  EXPECT_EQ(blurred.warped.size(), cv::Size(864, 864));
+  EXPECT_LT(detail(blurred.warped), 0.7 * detail(sharp.warped));  // 7.1 vs 17.3
 }
 
 // ---- grid LSM and its relief gates
