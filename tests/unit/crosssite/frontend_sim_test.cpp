@@ -146,7 +146,18 @@ void ExpectTiePointFigures(const PairRun& run) {
   for (const auto& tp : r.tie_points.points) EXPECT_EQ(tp.observations.size(), 4u);
 }
 
-TEST(FrontendSim, SitePairMeetsTheTiePointFigures) { ExpectTiePointFigures(RunPair()); }
+TEST(FrontendSim, SitePairMeetsTheTiePointFigures) {
+  const PairRun run = RunPair();
+  ExpectTiePointFigures(run);
+  // Every step reports, under its name (these go out in FRONTEND_STATUS).
+  std::vector<std::string> names;
+  for (const StageReport& st : run.result.summary.stages) names.push_back(st.name);
+  EXPECT_EQ(names, (std::vector<std::string>{
+                       "prepare_images", "ground_planes", "region_prediction", "region_wallis_zoom", "current_wallis",
+                       "region_asift", "overlap_warp_tiles", "overlap_asift", "overlap_matching", "overlap_grid_lsm",
+                       "backward_matching", "cross_lsm_merge", "stereo_zncc", "median_filter", "stereo_lsm",
+                       "distance_consistency", "motion_consistency", "dr_check"}));
+}
 
 // The same with a 20 deg turn between the sites (8 deg above).
 TEST(FrontendSim, TurnedSitePairMeetsTheTiePointFigures) {
