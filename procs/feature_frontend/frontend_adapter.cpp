@@ -85,13 +85,8 @@ FrontendOptions LoopFrontendOptions(const FeatureFrontendProcOptions& o) {
 }  // namespace
 
 RevisitOptions RevisitOptionsOf(const FeatureFrontendProcOptions& o) {
-  RevisitOptions r;
-  r.max_distance_m = o.loop_max_distance_m;
-  r.min_site_gap = o.loop_min_site_gap;
-  r.max_matches = o.loop_max_matches;
-  r.max_sites_in_memory = o.max_sites_in_memory;
-  r.cache_dir = o.site_cache_dir;
-  return r;
+  return RevisitOptions{o.loop_max_distance_m, o.loop_min_site_gap, o.loop_max_matches, o.max_sites_in_memory,
+                        o.site_cache_dir};
 }
 
 FeatureFrontendAdapter::FeatureFrontendAdapter(const FeatureFrontendProcOptions& options, Transport& transport)

@@ -24,13 +24,8 @@ Verification CheckConsistency(const std::vector<Candidate>& cands, const Fronten
     c2.push_back(c.cov_cur);
   }
   const ConsistencyResult cons = DistanceConsistencyCheck(p1, c1, p2, c2, o.consistency);
-  Verification v;
-  v.consistent = cons.inlier;
-  v.weights = cons.weights;
-  v.num_consistent = cons.num_inliers;
-  v.keep = cons.inlier;
-  v.num_kept = cons.num_inliers;
-  return v;
+  // Until the motion check: kept = consistent.
+  return Verification{cons.inlier, cons.weights, cons.num_inliers, cons.inlier, cons.num_inliers};
 }
 
 void CheckMotion(const std::vector<Candidate>& cands, const FrontendOptions& o, Verification* v) {
