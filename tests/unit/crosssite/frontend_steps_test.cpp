@@ -148,6 +148,56 @@ TEST(WorkRegions, FlatRegionsAndBackwardOverlapsGiveNone) {
   EXPECT_TRUE(b.current_regions[0].image.empty());
 }
 
+// ---- ASIFT on the regions
+
+// Without the warp, a current region is described on the views its
+// predicted tilt allows (t <= max_tilt * tilt_margin, longitudes within
+// longitude_margin_deg of the predicted one); previous regions at t = 1.
+TEST(RegionFeatures, ViewsAreRestrictedByThePrediction) {
+  SitePairState s;
+  s.previous_regions.resize(1);
+  s.current_regions.resize(1);
+  WorkRegion& cur = s.current_regions[0];
+  cur.region = cv::Rect(100, 200, 160, 160);
+  cur.image = Texture({160, 160}, 71, 1.5);
+  cur.max_tilt = 1.7;  // * 1.25: tilts 1, sqrt 2 and 2 (not 2 sqrt 2)
+  cur.longitude = 0.3;
+  WorkRegion& prev = s.previous_regions[0];
+  prev.region = cv::Rect(400, 300, 120, 120);
+  prev.zoom = 2.0;
+  prev.image = Texture({240, 240}, 72, 1.5);
+  FrontendOptions o;
+  o.warp_current = false;
+  EXPECT_GT(DetectRegionFeatures(o, &s), 0);
+  ASSERT_EQ(cur.views.size(), 3u);  // 72 / t deg steps: one longitude per tilt within 30 deg
+  EXPECT_DOUBLE_EQ(cur.views[1].longitude, 0.3);
+  EXPECT_DOUBLE_EQ(cur.views[2].tilt, 2.0);
+  EXPECT_EQ(prev.views.size(), 1u);
+  EXPECT_EQ(s.num_current_features, cur.features.size());
+  // Features in px of the full image: inside the region (zoom undone for the previous one).
+  for (const auto& p : cur.features.points) EXPECT_TRUE(cv::Rect2d(99.5, 199.5, 161, 161).contains({p.x(), p.y()}));
+  for (const auto& p : prev.features.points) EXPECT_TRUE(cv::Rect2d(399.5, 299.5, 121, 121).contains({p.x(), p.y()}));
+  // Wider longitude margin: three longitudes per tilt.
+  SitePairState wide = s;
+  wide.current_regions[0].views.clear();
+  wide.current_regions[0].features = FeatureSet();
+  wide.previous_regions[0].views.clear();
+  wide.previous_regions[0].features = FeatureSet();
+  o.longitude_margin_deg = 60;
+  DetectRegionFeatures(o, &wide);
+  EXPECT_EQ(wide.current_regions[0].views.size(), 7u);
+  // With the warp the current regions are not described here (the warped images are).
+  SitePairState warped = s;
+  warped.current_regions[0].views.clear();
+  warped.current_regions[0].features = FeatureSet();
+  warped.previous_regions[0].views.clear();
+  warped.previous_regions[0].features = FeatureSet();
+  warped.num_current_features = 0;
+  DetectRegionFeatures(FrontendOptions(), &warped);
+  EXPECT_TRUE(warped.current_regions[0].views.empty());
+  EXPECT_EQ(warped.num_current_features, 0u);
+}
+
 // ---- overlap matching
 
 // Random SIFT-like descriptors (128 floats in [0, 100)).
@@ -516,6 +566,75 @@ TEST(CrossSiteRefinement, UnrefinedMatchesCanBeKept) {
   ASSERT_EQ(RefineCrossSite(o, &s), 2);
   EXPECT_DOUBLE_EQ(s.candidates[1].sigma_cross, o.sigma_unrefined_px);
   EXPECT_EQ(s.candidates[1].cur_left, Eigen::Vector2d(80, 80));
+}
+
+// ---- stereo at both sites
+
+// A textured wall at depth 10 m in front of both sites' cameras (the same
+// images at both): the right image is the left one moved by f b / Z px.
+struct StereoScene {
+  NavcamModel navcam;
+  SitePairState state;
+  TiePointSet tps;
+  double depth = 10.0;
+  double disparity = 0;
+};
+
+StereoScene MakeStereoScene() {
+  StereoScene sc;
+  const PinholeCamera& cam = sc.navcam.rig.left;
+  sc.disparity = cam.fx * sc.navcam.rig.Baseline() / sc.depth;
+  const cv::Mat left = Texture({cam.width, cam.height}, 61, 2.0);
+  cv::Mat right;
+  cv::warpAffine(left, right, cv::Matx23d(1, 0, -sc.disparity, 0, 1, 0), left.size(), cv::INTER_CUBIC,
+                 cv::BORDER_REFLECT);
+  SitePairState& s = sc.state;
+  s.previous_left = s.current_left = {PreparedImage{left, MakeLsmImage(left)}};
+  s.previous_right = s.current_right = {PreparedImage{right, MakeLsmImage(right)}};
+  sc.tps.previous_pointing = sc.tps.current_pointing = {MastPointing{}};
+  for (double u : {300.0, 420.0, 540.0, 660.0, 780.0}) {
+    for (double v : {400.0, 500.0, 600.0}) {
+      Candidate c;
+      c.prev_left = c.cur_left = {u, v};
+      c.sigma_cross = 0.1;
+      s.candidates.push_back(c);
+    }
+  }
+  return sc;
+}
+
+TEST(Stereo, CorrelationAndLsmFindTheDisparityAndTheDepth) {
+  StereoScene sc = MakeStereoScene();
+  const FrontendOptions o;
+  const int n = static_cast<int>(sc.state.candidates.size());
+  ASSERT_EQ(CorrelateStereo(sc.navcam, o, &sc.state), n);
+  for (const Candidate& c : sc.state.candidates)
+    EXPECT_NEAR(c.prev_left.x() - c.prev_right.x(), sc.disparity, 1.0);  // ZNCC: to the px
+  EXPECT_EQ(MedianFilterDisparities(o, &sc.state), n);
+  ASSERT_EQ(RefineStereoAndIntersect(sc.navcam, sc.tps, o, &sc.state), n);
+  const Pose3 body_from_left = sc.navcam.mast.BodyFromLeft(0, 0, sc.navcam.rig);
+  for (const Candidate& c : sc.state.candidates) {
+    EXPECT_NEAR(c.prev_left.x() - c.prev_right.x(), sc.disparity, 0.05);  // LSM: sub-pixel
+    // 0.05 px of disparity is 0.016 m of depth at 10 m.
+    EXPECT_NEAR((body_from_left.inverse() * c.p_prev).z(), sc.depth, 0.03);
+    EXPECT_NEAR((c.p_prev - c.p_cur).norm(), 0.0, 1e-9);  // the same images at both sites
+    EXPECT_GT(c.cov_prev(0, 0) + c.cov_prev(1, 1) + c.cov_prev(2, 2), 0.0);
+  }
+}
+
+// A disparity unlike its neighbours' (a wrong stereo match) is dropped.
+TEST(Stereo, MedianFilterDropsADisparityUnlikeItsNeighbours) {
+  StereoScene sc = MakeStereoScene();
+  // 15 points 20 px apart (neighbours within the filter's 50 px radius).
+  for (size_t k = 0; k < sc.state.candidates.size(); ++k) {
+    Candidate& c = sc.state.candidates[k];
+    c.prev_left = c.cur_left = Eigen::Vector2d(500 + 20.0 * (k % 5), 500 + 20.0 * (k / 5));
+    c.prev_right = c.cur_right = c.prev_left - Eigen::Vector2d(sc.disparity, 0);
+  }
+  sc.state.candidates[7].prev_right.x() -= 15;  // at the previous site only
+  const int n = static_cast<int>(sc.state.candidates.size());
+  EXPECT_EQ(MedianFilterDisparities(FrontendOptions(), &sc.state), n - 1);
+  for (const Candidate& c : sc.state.candidates) EXPECT_NEAR(c.prev_left.x() - c.prev_right.x(), sc.disparity, 1e-9);
 }
 
 // ---- verification
