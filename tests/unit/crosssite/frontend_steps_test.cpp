@@ -721,6 +721,52 @@ TEST(Verification, MotionFarFromDeadReckoningIsRejected) {
 
 // ---- ground planes
 
+// Stereo images of a textured ground plane n . p + e = 0 (body frame): the
+// right image is the left one mapped by the plane-induced homography.
+void GroundStereo(const NavcamModel& navcam, const MastPointing& mp, const Eigen::Vector4d& plane, cv::Mat* left,
+                  cv::Mat* right) {
+  const PinholeCamera& cam = navcam.rig.left;
+  const Pose3 bl = navcam.mast.BodyFromLeft(mp.pan, mp.tilt, navcam.rig);
+  const Eigen::Vector3d n_l = bl.linear().transpose() * plane.head<3>();
+  const double d_l = plane.head<3>().dot(bl.translation()) + plane(3);
+  const Pose3 right_from_left = navcam.rig.left_from_right.inverse();
+  Eigen::Matrix3d K;
+  K << cam.fx, 0, cam.cx, 0, cam.fy, cam.cy, 0, 0, 1;
+  const Eigen::Matrix3d H =
+      K * (right_from_left.linear() - right_from_left.translation() * n_l.transpose() / d_l) * K.inverse();
+  *left = Texture({cam.width, cam.height}, 81, 1.5);
+  cv::Matx33d Hcv;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) Hcv(r, c) = H(r, c);
+  cv::warpPerspective(*left, *right, cv::Mat(Hcv), left->size(), cv::INTER_CUBIC, cv::BORDER_REFLECT);
+}
+
+TEST(GroundPlanes, FittedToSparseStereoOfTheGround) {
+  const NavcamModel navcam;
+  const MastPointing mp{0.0, 0.25};  // looking 14 deg down: ground from ~2 to ~20 m
+  const double slope = 5 * M_PI / 180;
+  for (const Eigen::Vector4d truth : {Eigen::Vector4d(0, 0, 1, 0),
+                                      Eigen::Vector4d(-std::sin(slope), 0, std::cos(slope), 0.1)}) {
+    cv::Mat left, right;
+    GroundStereo(navcam, mp, truth, &left, &right);
+    const LsmImage l = MakeLsmImage(left), r = MakeLsmImage(right);
+    const Eigen::Vector4d plane = FitGroundPlane(navcam, mp, l.gray, r.gray, FrontendOptions());
+    ASSERT_GT(plane.head<3>().norm(), 0.5) << truth.transpose();
+    EXPECT_GT(plane.head<3>().dot(truth.head<3>()), std::cos(0.5 * M_PI / 180)) << plane.transpose();
+    EXPECT_NEAR(plane(3), truth(3), 0.03) << plane.transpose();
+  }
+}
+
+// A camera looking at the sky (no ground within range): no plane.
+TEST(GroundPlanes, NoGroundNoPlane) {
+  const NavcamModel navcam;
+  const MastPointing up{0.0, -0.6};
+  cv::Mat left, right;
+  GroundStereo(navcam, up, Eigen::Vector4d(0, 0, 1, 0), &left, &right);
+  const LsmImage l = MakeLsmImage(left), r = MakeLsmImage(right);
+  EXPECT_TRUE(FitGroundPlane(navcam, up, l.gray, r.gray, FrontendOptions()).isZero());
+}
+
 TEST(GroundPlanes, OffGivesNoPlanes) {
   SitePairState s;
   s.current.pairs.resize(3);
