@@ -5,7 +5,6 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -356,7 +355,7 @@ void TraverseGraph::RebuildEdges() {
 }
 
 PoseGraphSummary TraverseGraph::Optimize() {
-  const auto start = std::chrono::steady_clock::now();
+  const Stopwatch total;
   PoseGraphSummary s;
   s.num_sites = num_sites();
   s.num_edges = static_cast<int>(edges_.size());
@@ -381,21 +380,21 @@ PoseGraphSummary TraverseGraph::Optimize() {
     s.optimize_seconds = r.seconds;
   } catch (const std::exception& e) {
     s.message = e.what();
-    s.total_seconds = SecondsSince(start);
+    s.total_seconds = total.Seconds();
     summary_ = s;
     return s;
   }
   marginals_.clear();
   if (options_.compute_marginals) {
-    const auto m_start = std::chrono::steady_clock::now();
+    const Stopwatch marginals;
     std::string error;
     s.marginals_valid = LocalMarginals(graph_, &marginals_, &error, options_.optimizer.num_threads);
     if (!s.marginals_valid) s.message = error;
-    s.marginal_seconds = SecondsSince(m_start);
+    s.marginal_seconds = marginals.Seconds();
   }
   s.usable = std::isfinite(s.final_chi2);
   if (!s.usable) s.message = "chi2 is not finite";
-  s.total_seconds = SecondsSince(start);
+  s.total_seconds = total.Seconds();
   summary_ = s;
   return s;
 }
