@@ -4,27 +4,26 @@
 // points for the bundle adjustment. Run() is a table of contents of named
 // steps (internal/frontend_steps.h, one file each); each step is timed under
 // the name below and reported in FrontendSummary::stages (FRONTEND_STATUS)
-// with a count:
+// with a count (in brackets):
 //
-//   stage                 times                                                        count
-//   prepare_images        undistortion, LSM gradients of every image                   images
-//   ground_planes         each current image's ground plane from sparse stereo          planes fitted
-//   region_prediction     predicted overlaps (current x previous pair), grown by the DR uncertainty  overlaps
-//   region_wallis_zoom    Wallis filter and zoom of the regions (previous targets from the current site)  regions
-//   current_wallis        Wallis filter of the whole current images (for the warp), overlap choice  images
-//   region_asift          ASIFT on the regions (current: tilts/longitudes restricted by the prediction)  features
-//   overlap_warp_tiles    current image warped onto the previous region's grid, registered by tiles  overlaps registered
-//   overlap_asift         ASIFT on the warped current images                           features
-//   overlap_matching      gated matching (DR gate, then refined gate), epipolar RANSAC, spread  matches
-//   overlap_grid_lsm      cross-site LSM on the previous region's grid, with the relief gates  matches refined
-//   backward_matching     opposite views matched on ground-plane ortho images          matches
-//   cross_lsm_merge       cross-site LSM of what the grid LSM did not refine, duplicates merged  matches left
-//   stereo_zncc           ZNCC along the epipolar segment at both sites                matches left
-//   median_filter         median filter of the disparities against the neighbours      matches left
-//   stereo_lsm            least-squares matching left -> right at both sites, intersection  matches left
-//   distance_consistency  distance-consistency voting (eq. 2) with thresholds from eq. 7  consistent points
-//   motion_consistency    one rigid motion for all points within each point's anisotropic covariance  points kept
-//   dr_check              the motion the tie points imply against dead reckoning       tie points
+//   prepare_images (images)              undistortion, LSM gradients of every image
+//   ground_planes (planes)               each current image's ground plane from sparse stereo
+//   region_prediction (overlaps)         predicted overlaps (current x previous pair), grown by the DR uncertainty
+//   region_wallis_zoom (regions)         Wallis filter and zoom of the regions (previous targets from the current)
+//   current_wallis (images)              Wallis filter of the whole current images (for the warp), overlap choice
+//   region_asift (features)              ASIFT on the regions (current: tilts/longitudes the prediction allows)
+//   overlap_warp_tiles (registered)      current image warped onto the previous region's grid, tile registration
+//   overlap_asift (features)             ASIFT on the warped current images
+//   overlap_matching (matches)           gated matching (DR gate, then refined gate), epipolar RANSAC, spread
+//   overlap_grid_lsm (refined)           cross-site LSM on the previous region's grid, with the relief gates
+//   backward_matching (matches)          opposite views matched on ground-plane ortho images
+//   cross_lsm_merge (matches)            cross-site LSM of what the grid LSM did not refine; duplicates merged
+//   stereo_zncc (matches)                ZNCC along the epipolar segment at both sites
+//   median_filter (matches)              median filter of the disparities against the neighbours
+//   stereo_lsm (matches)                 least-squares matching left -> right at both sites, intersection
+//   distance_consistency (points)        distance-consistency voting (eq. 2) with thresholds from eq. 7
+//   motion_consistency (points)          one rigid motion within each point's anisotropic covariance
+//   dr_check (tie points)                the motion the tie points imply against dead reckoning
 //
 // VLOC_FRONTEND_DUMP=<dir> writes each forward overlap's warped current
 // image and previous region (PNG) there, to look at what was matched.
