@@ -199,6 +199,48 @@ TEST(RegionFeatures, ViewsAreRestrictedByThePrediction) {
   EXPECT_EQ(warped.num_current_features, 0u);
 }
 
+// ---- input and preparation
+
+TEST(PrepareImages, InputSortedCheckedAndUndistorted) {
+  NavcamModel navcam;
+  navcam.rig.left.width = navcam.rig.right.width = 64;
+  navcam.rig.left.height = navcam.rig.right.height = 48;
+  navcam.rig.left.cx = navcam.rig.right.cx = 31.5;
+  navcam.rig.left.cy = navcam.rig.right.cy = 23.5;
+  navcam.rig.left.fx = navcam.rig.left.fy = navcam.rig.right.fx = navcam.rig.right.fy = 50;
+  navcam.rig.left.k1 = -0.2;  // the left camera is distorted (2.6 px at the corners)
+  const cv::Mat image = Texture({64, 48}, 5, 1.0);
+  SiteImages previous, current;
+  for (int k : {2, 0, 1}) {
+    StereoPair p;
+    p.pair_index = k;
+    p.utime = 100 + k;
+    p.left = p.right = image;
+    previous.pairs.push_back(p);
+    current.pairs.push_back(p);
+  }
+  SitePairState s;
+  ASSERT_FALSE(CheckInput(previous, current, navcam, &s).has_value());
+  EXPECT_EQ(s.current.pairs[0].pair_index, 0);
+  EXPECT_EQ(s.current.pairs[2].pair_index, 2);
+  TiePointSet tps;
+  InitTiePointSet(s, &tps);
+  EXPECT_EQ(tps.utime, 102);
+  EXPECT_EQ(tps.current_pointing.size(), 3u);
+  FrontendOptions o;
+  PrepareImages(navcam, o, &s);
+  ASSERT_EQ(s.previous_right.size(), 3u);
+  EXPECT_EQ(cv::norm(s.previous_right[1].gray, image, cv::NORM_INF), 0.0);  // no distortion: as it came
+  EXPECT_GT(cv::norm(s.previous_left[1].gray, image, cv::NORM_INF), 0.0);   // undistorted
+  EXPECT_EQ(s.current_left[2].lsm.gx.size(), image.size());
+  // A wrong size names the site and pair.
+  current.pairs[2].right = cv::Mat(10, 10, CV_8UC1);  // pair_index 1
+  current.site_id = 7;
+  const auto problem = CheckInput(previous, current, navcam, &s);
+  ASSERT_TRUE(problem.has_value());
+  EXPECT_NE(problem->find("site 7 pair 1"), std::string::npos) << *problem;
+}
+
 // ---- overlap matching
 
 // Random SIFT-like descriptors (128 floats in [0, 100)).
