@@ -3,8 +3,6 @@
 #include <glog/logging.h>
 
 #include <algorithm>
-#include <filesystem>
-#include <opencv2/imgcodecs.hpp>
 
 #include "vloc/common/options.h"
 #include "vloc/lcm_io/convert.h"
@@ -84,25 +82,19 @@ FrontendOptions LoopFrontendOptions(const FeatureFrontendProcOptions& o) {
   return f;
 }
 
-std::string CachePath(const std::string& dir, int site, int pair, const char* side) {
-  return dir + "/site" + std::to_string(site) + "_pair" + std::to_string(pair) + "_" + side + ".png";
-}
-
 }  // namespace
+
+RevisitOptions RevisitOptionsOf(const FeatureFrontendProcOptions& o) {
+  return RevisitOptions{o.loop_max_distance_m, o.loop_min_site_gap, o.loop_max_matches, o.max_sites_in_memory,
+                        o.site_cache_dir};
+}
 
 FeatureFrontendAdapter::FeatureFrontendAdapter(const FeatureFrontendProcOptions& options, Transport& transport)
     : options_(options),
       transport_(transport),
       frontend_(options.navcam, options.frontend),
-      loop_frontend_(options.navcam, LoopFrontendOptions(options)) {
-  if (options_.loop_max_distance_m > 0 && !options_.site_cache_dir.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(options_.site_cache_dir, ec);
-    if (ec)
-      LOG(ERROR) << "site_cache_dir " << options_.site_cache_dir << ": " << ec.message()
-                 << "; older sites cannot be revisited (fix the path or its permissions)";
-  }
-}
+      loop_frontend_(options.navcam, LoopFrontendOptions(options)),
+      archive_(RevisitOptionsOf(options)) {}
 
 void FeatureFrontendAdapter::Subscribe() {
   stats_.push_back(vloc::Subscribe<stereo_image_t>(
@@ -136,7 +128,7 @@ void FeatureFrontendAdapter::Subscribe() {
 }
 
 void FeatureFrontendAdapter::OnTraverse(std::map<int, PoseWithCovariance> optimised) {
-  optimised_ = std::move(optimised);
+  archive_.SetOptimised(std::move(optimised));
 }
 
 std::optional<int> FeatureFrontendAdapter::previous_site_id() const {
@@ -218,11 +210,11 @@ void FeatureFrontendAdapter::Process(int site_id, Collecting& c) {
   }
   RunPair(frontend_, *previous_, site, "sites");
   ++sites_processed_;
-  dr_[previous_->site_id] = previous_->world_from_body;
-  dr_[site_id] = site.world_from_body;
+  archive_.SetDrPose(previous_->site_id, previous_->world_from_body);
+  archive_.SetDrPose(site_id, site.world_from_body);
   if (options_.loop_max_distance_m > 0) {
     TryRevisits(site);
-    Archive(std::move(*previous_));
+    archive_.Add(std::move(*previous_));
   }
   previous_ = std::move(site);  // without revisits the older site's images are released here
 }
@@ -238,103 +230,20 @@ void FeatureFrontendAdapter::RunPair(const CrossSiteFrontend& frontend, const Si
           FrontendStatusToMessage(r.summary, r.tie_points.utime, previous.site_id, current.site_id));
 }
 
-void FeatureFrontendAdapter::Archive(SiteImages site) {
-  Archived& a = archive_[site.site_id];
-  a.dr = site.world_from_body;
-  a.pairs = std::move(site.pairs);
-  // Older sites leave memory: to the cache folder, or gone (index kept).
-  int in_memory = 0;
-  for (auto it = archive_.rbegin(); it != archive_.rend(); ++it) {
-    Archived& old = it->second;
-    if (old.pairs.empty()) continue;
-    if (++in_memory <= options_.max_sites_in_memory) continue;
-    bool written = !options_.site_cache_dir.empty();
-    for (const StereoPair& p : old.pairs) {
-      if (!written) break;
-      written = cv::imwrite(CachePath(options_.site_cache_dir, p.site_id, p.pair_index, "left"), p.left) &&
-                cv::imwrite(CachePath(options_.site_cache_dir, p.site_id, p.pair_index, "right"), p.right);
-    }
-    if (written) {
-      old.meta = old.pairs;
-      for (StereoPair& m : old.meta) m.left = m.right = cv::Mat();
-      old.on_disk = true;
-    } else if (!options_.site_cache_dir.empty()) {
-      LOG(ERROR) << "cannot write site " << it->first << "'s images to " << options_.site_cache_dir
-                 << "; that site cannot be revisited (check the folder and free space)";
-    }
-    old.pairs.clear();
-  }
-}
-
-std::optional<SiteImages> FeatureFrontendAdapter::Restore(int site_id) const {
-  const auto it = archive_.find(site_id);
-  if (it == archive_.end()) return std::nullopt;
-  SiteImages s;
-  s.site_id = site_id;
-  s.world_from_body = it->second.dr;
-  if (!it->second.pairs.empty()) {
-    s.pairs = it->second.pairs;  // cv::Mat headers: shared, not copied
-    return s;
-  }
-  if (!it->second.on_disk) return std::nullopt;
-  for (StereoPair p : it->second.meta) {
-    p.left = cv::imread(CachePath(options_.site_cache_dir, site_id, p.pair_index, "left"), cv::IMREAD_UNCHANGED);
-    p.right = cv::imread(CachePath(options_.site_cache_dir, site_id, p.pair_index, "right"), cv::IMREAD_UNCHANGED);
-    if (p.left.empty() || p.right.empty()) {
-      LOG(ERROR) << "site " << site_id << " pair " << p.pair_index << ": cached images missing in "
-                 << options_.site_cache_dir << "; not revisited";
-      return std::nullopt;
-    }
-    s.pairs.push_back(std::move(p));
-  }
-  return s;
-}
-
-std::optional<PoseWithCovariance> FeatureFrontendAdapter::BestPose(int site_id) const {
-  if (const auto it = optimised_.find(site_id); it != optimised_.end()) return it->second;
-  const auto dr = dr_.find(site_id);
-  if (dr == dr_.end()) return std::nullopt;
-  // The newest earlier site the graph has, carried forward by dead reckoning.
-  for (auto it = optimised_.rbegin(); it != optimised_.rend(); ++it) {
-    if (it->first >= site_id) continue;
-    const auto base = dr_.find(it->first);
-    if (base == dr_.end()) continue;
-    PoseWithCovariance p;
-    p.utime = dr->second.utime;
-    p.pose = it->second.pose * base->second.pose.inverse() * dr->second.pose;
-    const Matrix6d growth = dr->second.covariance - base->second.covariance;
-    p.covariance = it->second.covariance;
-    for (int k = 0; k < 6; ++k) p.covariance(k, k) += std::max(growth(k, k), 0.0);
-    return p;
-  }
-  return dr->second;
-}
-
 void FeatureFrontendAdapter::TryRevisits(const SiteImages& current) {
-  const auto here = BestPose(current.site_id);
+  const auto here = archive_.BestPose(current.site_id);
   if (!here) return;
-  std::vector<std::pair<double, int>> candidates;  // distance, site
-  for (const auto& [id, a] : archive_) {
-    if (current.site_id - id < options_.loop_min_site_gap) continue;
-    const auto there = BestPose(id);
-    if (!there) continue;
-    const double d = (there->pose.translation() - here->pose.translation()).head<2>().norm();
-    if (d <= options_.loop_max_distance_m) candidates.emplace_back(d, id);
-  }
-  std::sort(candidates.begin(), candidates.end());
-  if (candidates.size() > static_cast<size_t>(options_.loop_max_matches))
-    candidates.resize(static_cast<size_t>(options_.loop_max_matches));
-  for (const auto& [d, id] : candidates) {
-    std::optional<SiteImages> earlier = Restore(id);
+  for (const Revisit& r : archive_.ChooseRevisits(current.site_id)) {
+    std::optional<SiteImages> earlier = archive_.Restore(r.site_id);
     if (!earlier) {
-      LOG(INFO) << "site " << current.site_id << " is " << d << " m from site " << id
+      LOG(INFO) << "site " << current.site_id << " is " << r.distance_m << " m from site " << r.site_id
                 << " but that site's images are no longer kept (set site_cache_dir); not revisited";
       continue;
     }
     ++loops_tried_;
-    LOG(INFO) << "site " << current.site_id << ": revisit of site " << id << " (" << d << " m apart, poses from "
-              << (optimised_.count(id) ? "the pose graph" : "dead reckoning") << ")";
-    earlier->world_from_body = *BestPose(id);
+    LOG(INFO) << "site " << current.site_id << ": revisit of site " << r.site_id << " (" << r.distance_m
+              << " m apart, poses from " << (r.pose_from_graph ? "the pose graph" : "dead reckoning") << ")";
+    earlier->world_from_body = *archive_.BestPose(r.site_id);
     SiteImages now;
     now.site_id = current.site_id;
     now.world_from_body = *here;

@@ -4,17 +4,10 @@
 // and the previous site is known, and publishes TIE_POINTS and
 // FRONTEND_STATUS. Only the previous site's images are kept once a site
 // pair has been processed, unless revisits are on (loop_max_distance_m > 0):
-//
-// Revisits. Every processed site stays in an index (id, DR pose, mast
-// pointings); the images of the newest `max_sites_in_memory` stay in memory,
-// older ones are written to `site_cache_dir` (PNG) when it is set, else
-// dropped. When a new site's best pose lies within loop_max_distance_m
-// (horizontal) of an earlier site at least loop_min_site_gap ids back whose
-// images are kept, the front end also runs on (earlier, new) and publishes
-// TIE_POINTS / FRONTEND_STATUS with previous_site_id = the earlier site.
-// Best pose: the pose graph's optimised pose from TRAVERSE when it has the
-// site, else the newest optimised site chained with dead reckoning, else
-// dead reckoning (the graph's poses predict a revisit far better than DR).
+// then earlier sites go to a vloc::SiteArchive (libs/crosssite, which
+// chooses the revisits), and for each revisit the front end also runs on
+// (earlier, new) and publishes TIE_POINTS / FRONTEND_STATUS with
+// previous_site_id = the earlier site.
 
 #include <map>
 #include <memory>
@@ -24,6 +17,7 @@
 
 #include "vloc/common/camera.h"
 #include "vloc/crosssite/frontend.h"
+#include "vloc/crosssite/site_archive.h"
 #include "vloc/frontend_status_t.hpp"
 #include "vloc/lcm_io/transport.h"
 #include "vloc/lcm_io/typed.h"
@@ -53,6 +47,9 @@ struct FeatureFrontendProcOptions {
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
 };
+
+// The revisit options of the process options.
+RevisitOptions RevisitOptionsOf(const FeatureFrontendProcOptions& options);
 
 frontend_status_t FrontendStatusToMessage(const FrontendSummary& summary, int64_t utime, int previous_site_id,
                                           int current_site_id);
@@ -85,19 +82,9 @@ class FeatureFrontendAdapter {
     bool imaging_done = false;
     std::optional<PoseWithCovariance> dr_pose;
   };
-  // An earlier site for revisits: its images in memory, on disk, or gone.
-  struct Archived {
-    PoseWithCovariance dr;
-    std::vector<StereoPair> pairs;  // in memory (empty when cached on disk or dropped)
-    std::vector<StereoPair> meta;   // pair metadata without images, when on disk
-    bool on_disk = false;
-  };
   bool Complete(const Collecting& c) const;
   void TryProcess();
   void Process(int site_id, Collecting& site);
-  void Archive(SiteImages site);
-  std::optional<SiteImages> Restore(int site_id) const;
-  std::optional<PoseWithCovariance> BestPose(int site_id) const;
   void TryRevisits(const SiteImages& current);
   void RunPair(const CrossSiteFrontend& frontend, const SiteImages& previous, const SiteImages& current,
                const char* what);
@@ -109,9 +96,7 @@ class FeatureFrontendAdapter {
   std::map<int, Collecting> collecting_;
   static constexpr int kMaxSitesCollecting = 8;  // sites waiting for their images at once; beyond, the oldest goes
   std::optional<SiteImages> previous_;
-  std::map<int, Archived> archive_;                    // sites before previous_ (revisits on)
-  std::map<int, PoseWithCovariance> dr_;               // DR pose of every processed site
-  std::map<int, PoseWithCovariance> optimised_;        // last TRAVERSE
+  SiteArchive archive_;                                // sites before previous_, poses (revisits on)
   int sites_processed_ = 0, loops_tried_ = 0, loops_published_ = 0;
   std::vector<std::shared_ptr<SubscriptionStats>> stats_;
 };

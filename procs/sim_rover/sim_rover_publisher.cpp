@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "vloc/common/options.h"
+#include "vloc/common/stopwatch.h"
 #include "vloc/lcm_io/convert.h"
 #include "vloc/lcm_io/convert_rover.h"
 #include "vloc/lcm_io/process.h"
@@ -95,7 +96,7 @@ void SimRoverPublisher::EmitNext(const Sink& sink) {
     const sim::Exposure& e = traverse_.exposures[exposure_++];
     const auto start = std::chrono::steady_clock::now();
     const StereoPair pair = world_.RenderExposure(e);
-    summary_.render_seconds_total += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    summary_.render_seconds_total += SecondsSince(start);
     stereo_image_t msg = StereoPairToMessage(pair, ParseImageEncoding(options_.image_encoding));
     sink(options_.stereo_channel, Encode(msg), e.utime);
     ++summary_.stereo_pairs;
@@ -131,7 +132,7 @@ int WriteSimRoverSample(const sim::RoverWorld& world, const std::string& dir) {
   const sim::Exposure& e = exposures[exposures.size() / 2];
   const auto start = std::chrono::steady_clock::now();
   const StereoPair pair = world.RenderExposure(e);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double seconds = SecondsSince(start);
   const Eigen::Vector3d p = e.world_from_body.translation();
   const cv::Mat ortho = terrain.RenderOrthoimage({p.x() - 10, p.y() - 20, p.x() + 30, p.y() + 20}, 0.04);
   for (const auto& [name, image] : {std::pair<std::string, cv::Mat>{"navcam_left.png", pair.left},

@@ -12,6 +12,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "vloc/common/options.h"
+#include "vloc/common/stopwatch.h"
 #include "vloc/sim/terrain.h"
 
 namespace vloc::eval {
@@ -59,7 +60,7 @@ bool WriteOrthoimage(const Summary& s, const OrthoOptions& o, const std::string&
   } catch (const std::exception& e) {
     return Fail(error, o.terrain_config + ": " + e.what());
   }
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double seconds = SecondsSince(start);
   const std::string png = dir + "/ortho.png", pgw = dir + "/ortho.pgw";
   if (!cv::imwrite(png, image)) return Fail(error, "cannot write " + png + " (check the folder is writable)");
   std::ofstream f(pgw);

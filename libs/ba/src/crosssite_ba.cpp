@@ -13,6 +13,7 @@
 #include "reprojection.h"
 #include "vloc/ba/geometry.h"
 #include "vloc/common/options.h"
+#include "vloc/common/stopwatch.h"
 
 namespace vloc {
 
@@ -313,7 +314,7 @@ CrossSiteBaSummary SolveCrossSiteBa(const TiePointSet& set, const NavcamModel& n
                     &s.world_from_right_previous);
     SiteCameraPoses(s.world_from_current.pose, set.current_pointing, navcam, &s.world_from_left_current,
                     &s.world_from_right_current);
-    s.solve_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    s.solve_seconds = SecondsSince(t0);
     return s;
   };
 

@@ -7,6 +7,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "vloc/common/homography.h"
 #include "vloc/common/options.h"
 
 namespace vloc {
@@ -66,17 +67,80 @@ struct Sample {
   Eigen::Vector3d p_current;   // ground point, current body
 };
 
-Eigen::Vector2d Apply(const cv::Matx33d& H, const Eigen::Vector2d& p) {
-  const double w = H(2, 0) * p.x() + H(2, 1) * p.y() + H(2, 2);
-  return {(H(0, 0) * p.x() + H(0, 1) * p.y() + H(0, 2)) / w, (H(1, 0) * p.x() + H(1, 1) * p.y() + H(1, 2)) / w};
-}
-
 cv::Rect ClipRect(double x0, double y0, double x1, double y1, const PinholeCamera& cam) {
   const int a = std::max(0, static_cast<int>(std::floor(x0))), b = std::max(0, static_cast<int>(std::floor(y0)));
   const int c = std::min(cam.width, static_cast<int>(std::ceil(x1)) + 1);
   const int d = std::min(cam.height, static_cast<int>(std::ceil(y1)) + 1);
   if (c <= a || d <= b) return cv::Rect();
   return cv::Rect(a, b, c - a, d - b);
+}
+
+// Perturbed relative poses: 0 = nominal, then +-k sigma per axis (world frame).
+std::vector<Pose3> PerturbedPoses(const Pose3& previous_from_world, const Pose3& world_from_current,
+                                  const RegionPrediction& out, const RegionOptions& o) {
+  std::vector<Pose3> perturbed{out.previous_from_current};
+  for (int axis = 0; axis < 6; ++axis) {
+    for (int sign = -1; sign <= 1; sign += 2) {
+      const double delta = sign * o.sigma_scale * out.relative_sigma(axis);
+      if (delta == 0) continue;
+      Pose3 w = world_from_current;
+      if (axis < 3) {
+        w.translation()(axis) += delta;
+      } else {
+        Eigen::Vector3d rv = Eigen::Vector3d::Zero();
+        rv(axis - 3) = delta;
+        w.linear() = ExpSO3(rv) * w.linear();
+      }
+      perturbed.push_back(previous_from_world * w);
+    }
+  }
+  return perturbed;
+}
+
+// The current image's footprint: grid samples whose ray meets the ground
+// plane (n . p + e = 0, body frame) within the current range limits.
+std::vector<Sample> GroundSamples(const Pose3& body_from_cur, const Eigen::Vector4d& plane, const PinholeCamera& cam_l,
+                                  const RegionOptions& o) {
+  std::vector<Sample> samples;
+  const Eigen::Vector3d n = plane.head<3>();
+  for (double v = o.image_margin; v < cam_l.height - o.image_margin; v += o.grid_step) {
+    for (double u = o.image_margin; u < cam_l.width - o.image_margin; u += o.grid_step) {
+      const Eigen::Vector3d d = body_from_cur.linear() * cam_l.Ray({u, v});
+      const Eigen::Vector3d c = body_from_cur.translation();
+      if (n.dot(d) >= -1e-9) continue;
+      const double lambda = -(n.dot(c) + plane(3)) / n.dot(d);
+      if (lambda <= 0) continue;
+      const Eigen::Vector3d p = c + lambda * d;
+      const double range = (p - c).norm();
+      if (range > o.max_range_current || range < o.min_range_current) continue;
+      samples.push_back({{u, v}, p});
+    }
+  }
+  return samples;
+}
+
+// Scale, tilt and tilt longitude of the overlap's homography at the median
+// member sample (the region centre can be a grazing point near the horizon).
+void SetViewpointChange(const std::vector<cv::Point2d>& cur_px, PairOverlap* ov) {
+  std::vector<double> us, vs;
+  for (const auto& p : cur_px) us.push_back(p.x), vs.push_back(p.y);
+  std::nth_element(us.begin(), us.begin() + us.size() / 2, us.end());
+  std::nth_element(vs.begin(), vs.begin() + vs.size() / 2, vs.end());
+  const Eigen::Vector2d c(us[us.size() / 2], vs[vs.size() / 2]);
+  ov->median_current_px = c;
+  const Eigen::Vector2d f0 = ApplyHomography(ov->previous_from_current, c);
+  Eigen::Matrix2d J;
+  J.col(0) = ApplyHomography(ov->previous_from_current, c + Eigen::Vector2d(1, 0)) - f0;
+  J.col(1) = ApplyHomography(ov->previous_from_current, c + Eigen::Vector2d(0, 1)) - f0;
+  Eigen::JacobiSVD<Eigen::Matrix2d> svd(J, Eigen::ComputeFullV);
+  const Eigen::Vector2d sv = svd.singularValues();
+  ov->scale = std::sqrt(std::max(sv(0) * sv(1), 1e-12));
+  ov->tilt = sv(1) > 1e-9 ? sv(0) / sv(1) : 1.0;
+  const Eigen::Vector2d v2 = svd.matrixV().col(1);
+  double lon = std::atan2(v2.y(), v2.x());
+  if (lon < 0) lon += M_PI;
+  if (lon >= M_PI) lon -= M_PI;
+  ov->tilt_longitude = lon;
 }
 
 }  // namespace
@@ -90,23 +154,7 @@ RegionPrediction PredictRegions(const NavcamModel& navcam, const PoseWithCovaria
   const Pose3 previous_from_world = world_from_previous.pose.inverse();
   out.previous_from_current = previous_from_world * world_from_current.pose;
   out.relative_sigma = RelativePoseSigma(world_from_previous, world_from_current, o);
-  // Perturbed relative poses: 0 = nominal, then +-k sigma per axis (world frame).
-  std::vector<Pose3> perturbed{out.previous_from_current};
-  for (int axis = 0; axis < 6; ++axis) {
-    for (int sign = -1; sign <= 1; sign += 2) {
-      const double delta = sign * o.sigma_scale * out.relative_sigma(axis);
-      if (delta == 0) continue;
-      Pose3 w = world_from_current.pose;
-      if (axis < 3) {
-        w.translation()(axis) += delta;
-      } else {
-        Eigen::Vector3d rv = Eigen::Vector3d::Zero();
-        rv(axis - 3) = delta;
-        w.linear() = ExpSO3(rv) * w.linear();
-      }
-      perturbed.push_back(previous_from_world * w);
-    }
-  }
+  const std::vector<Pose3> perturbed = PerturbedPoses(previous_from_world, world_from_current.pose, out, o);
   const PinholeCamera& cam_l = navcam.rig.left;
   std::vector<Pose3> prev_cams, prev_cams_inv;
   for (const auto& pt : previous_pointing) {
@@ -116,24 +164,10 @@ RegionPrediction PredictRegions(const NavcamModel& navcam, const PoseWithCovaria
   const double cos_backward = std::cos(o.backward_angle_deg * M_PI / 180);
   for (size_t i = 0; i < current_pointing.size(); ++i) {
     const Pose3 body_from_cur = navcam.mast.BodyFromLeft(current_pointing[i].pan, current_pointing[i].tilt, navcam.rig);
-    std::vector<Sample> samples;
     Eigen::Vector4d plane(0, 0, 1, -o.ground_height);
     if (i < current_ground_planes.size() && current_ground_planes[i].head<3>().norm() > 0.5)
       plane = current_ground_planes[i];
-    const Eigen::Vector3d n = plane.head<3>();
-    for (double v = o.image_margin; v < cam_l.height - o.image_margin; v += o.grid_step) {
-      for (double u = o.image_margin; u < cam_l.width - o.image_margin; u += o.grid_step) {
-        const Eigen::Vector3d d = body_from_cur.linear() * cam_l.Ray({u, v});
-        const Eigen::Vector3d c = body_from_cur.translation();
-        if (n.dot(d) >= -1e-9) continue;
-        const double lambda = -(n.dot(c) + plane(3)) / n.dot(d);
-        if (lambda <= 0) continue;
-        const Eigen::Vector3d p = c + lambda * d;
-        const double range = (p - c).norm();
-        if (range > o.max_range_current || range < o.min_range_current) continue;
-        samples.push_back({{u, v}, p});
-      }
-    }
+    const std::vector<Sample> samples = GroundSamples(body_from_cur, plane, cam_l, o);
     if (samples.empty()) continue;
     const Eigen::Vector3d cur_axis = out.previous_from_current.linear() * body_from_cur.linear().col(2);
     for (size_t j = 0; j < prev_cams.size(); ++j) {
@@ -210,27 +244,7 @@ RegionPrediction PredictRegions(const NavcamModel& navcam, const PoseWithCovaria
       cv::Mat H = cv::findHomography(cur_px, prev_px, 0);
       if (H.empty()) continue;
       ov.previous_from_current = cv::Matx33d(H);
-      // Jacobian at the median member sample (the region centre can be a
-      // grazing point near the horizon).
-      std::vector<double> us, vs;
-      for (const auto& p : cur_px) us.push_back(p.x), vs.push_back(p.y);
-      std::nth_element(us.begin(), us.begin() + us.size() / 2, us.end());
-      std::nth_element(vs.begin(), vs.begin() + vs.size() / 2, vs.end());
-      const Eigen::Vector2d c(us[us.size() / 2], vs[vs.size() / 2]);
-      ov.median_current_px = c;
-      const Eigen::Vector2d f0 = Apply(ov.previous_from_current, c);
-      Eigen::Matrix2d J;
-      J.col(0) = Apply(ov.previous_from_current, c + Eigen::Vector2d(1, 0)) - f0;
-      J.col(1) = Apply(ov.previous_from_current, c + Eigen::Vector2d(0, 1)) - f0;
-      Eigen::JacobiSVD<Eigen::Matrix2d> svd(J, Eigen::ComputeFullV);
-      const Eigen::Vector2d sv = svd.singularValues();
-      ov.scale = std::sqrt(std::max(sv(0) * sv(1), 1e-12));
-      ov.tilt = sv(1) > 1e-9 ? sv(0) / sv(1) : 1.0;
-      const Eigen::Vector2d v2 = svd.matrixV().col(1);
-      double lon = std::atan2(v2.y(), v2.x());
-      if (lon < 0) lon += M_PI;
-      if (lon >= M_PI) lon -= M_PI;
-      ov.tilt_longitude = lon;
+      SetViewpointChange(cur_px, &ov);
       out.overlaps.push_back(ov);
     }
   }

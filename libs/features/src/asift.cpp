@@ -202,18 +202,13 @@ std::vector<FeatureMatch> GatedMatch(const FeatureSet& query, const std::vector<
   }
   const int nq = static_cast<int>(query.size());
   std::vector<FeatureMatch> best_of(nq, FeatureMatch{-1, -1, 0});
-  const double r2 = o.gate_radius * o.gate_radius, dr2 = o.distinct_radius * o.distinct_radius;
-  const double ratio2 = o.ratio * o.ratio;
+  const double r2 = o.gate_radius * o.gate_radius;
 #pragma omp parallel for schedule(dynamic, 64) num_threads(o.num_threads)
   for (int q = 0; q < nq; ++q) {
     const Eigen::Vector2d& pr = predicted[q];
     if (!pr.allFinite()) continue;
     const int cx = static_cast<int>(std::floor(pr.x() / cell)), cy = static_cast<int>(std::floor(pr.y() / cell));
     const float* dq = query.descriptors.ptr<float>(q);
-    // Keep the best two distinct locations.
-    double d1 = 1e300, d2 = 1e300;
-    int j1 = -1;
-    Eigen::Vector2d p1(0, 0);
     std::vector<std::pair<double, int>> cands;
     for (int dx = -1; dx <= 1; ++dx) {
       for (int dy = -1; dy <= 1; ++dy) {
@@ -227,16 +222,9 @@ std::vector<FeatureMatch> GatedMatch(const FeatureSet& query, const std::vector<
     }
     if (cands.empty()) continue;
     std::sort(cands.begin(), cands.end());
-    d1 = cands[0].first;
-    j1 = cands[0].second;
-    p1 = train.points[j1];
-    for (size_t k = 1; k < cands.size(); ++k) {
-      if ((train.points[cands[k].second] - p1).squaredNorm() > dr2) {
-        d2 = cands[k].first;
-        break;
-      }
-    }
-    if (d1 > ratio2 * d2) continue;
+    if (!DistinctRatioTest(cands, train.points, o.ratio, o.distinct_radius)) continue;
+    const double d1 = cands[0].first;
+    const int j1 = cands[0].second;
     if (o.max_descriptor_distance > 0 && d1 > o.max_descriptor_distance * o.max_descriptor_distance) continue;
     best_of[q] = FeatureMatch{q, j1, std::sqrt(d1)};
   }

@@ -11,6 +11,8 @@
 #include <type_traits>
 #include <vector>
 
+#include "vloc/common/stopwatch.h"
+
 namespace vloc::posegraph {
 
 void OptimizerOptions::Visit(OptionsReader& r) {
@@ -86,7 +88,7 @@ OptimizerResult OptimizeImpl(Graph& graph, const OptimizerOptions& options, int 
   }
   result.iterations = static_cast<int>(info.num_iters);
   result.final_chi2 = Chi2Impl(graph);
-  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.seconds = SecondsSince(start);
   return result;
 }
 
@@ -282,7 +284,7 @@ OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const O
   if (options.verbose) std::printf("[vloc] MRPT stage %.3f s\n", result.seconds);
   result.iterations += RefineWeighted(graph, options);
   result.final_chi2 = Chi2Impl(graph);
-  result.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.seconds += SecondsSince(start);
   return result;
 }
 OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses2DInf& graph, const OptimizerOptions& options) {

@@ -5,13 +5,14 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iomanip>
 #include <mrpt/poses/CPose3DPDFGaussianInf.h>
 #include <sstream>
+
+#include "vloc/common/stopwatch.h"
 
 namespace vloc::posegraph {
 
@@ -41,9 +42,6 @@ bool RepairInformation(mrpt::poses::CPose3DPDFGaussianInf* edge, double* smalles
   if (*smallest > 0) *smallest = 0;  // repaired though positive: report as repaired
   return true;
 }
-
-using Clock = std::chrono::steady_clock;
-double Since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
 bool IsZero(const Matrix6d& m) { return (m.array() == 0.0).all(); }
 
@@ -357,7 +355,7 @@ void TraverseGraph::RebuildEdges() {
 }
 
 PoseGraphSummary TraverseGraph::Optimize() {
-  const auto start = Clock::now();
+  const Stopwatch total;
   PoseGraphSummary s;
   s.num_sites = num_sites();
   s.num_edges = static_cast<int>(edges_.size());
@@ -382,21 +380,21 @@ PoseGraphSummary TraverseGraph::Optimize() {
     s.optimize_seconds = r.seconds;
   } catch (const std::exception& e) {
     s.message = e.what();
-    s.total_seconds = Since(start);
+    s.total_seconds = total.Seconds();
     summary_ = s;
     return s;
   }
   marginals_.clear();
   if (options_.compute_marginals) {
-    const auto m_start = Clock::now();
+    const Stopwatch marginals;
     std::string error;
     s.marginals_valid = LocalMarginals(graph_, &marginals_, &error, options_.optimizer.num_threads);
     if (!s.marginals_valid) s.message = error;
-    s.marginal_seconds = Since(m_start);
+    s.marginal_seconds = marginals.Seconds();
   }
   s.usable = std::isfinite(s.final_chi2);
   if (!s.usable) s.message = "chi2 is not finite";
-  s.total_seconds = Since(start);
+  s.total_seconds = total.Seconds();
   summary_ = s;
   return s;
 }

@@ -148,6 +148,11 @@ TEST(Frontend, TexturelessImagesGiveLowTextureStatus) {
   EXPECT_EQ(r.summary.status, FrontendStatus::kLowTexture) << r.summary.BriefReport();
   EXPECT_NE(r.summary.message.find("texture"), std::string::npos);
   EXPECT_TRUE(r.tie_points.points.empty());
+  // The steps run up to the one that found the regions flat.
+  std::vector<std::string> names;
+  for (const StageReport& st : r.summary.stages) names.push_back(st.name);
+  EXPECT_EQ(names, (std::vector<std::string>{"prepare_images", "ground_planes", "region_prediction",
+                                             "region_wallis_zoom"}));
 }
 
 TEST(Frontend, MissingOrBadImagesGiveMissingInput) {

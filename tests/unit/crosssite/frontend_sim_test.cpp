@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <fstream>
 #include <iostream>
 #include <sstream>
 
@@ -16,13 +17,26 @@ namespace {
 // LSM 0.1 px or better. Env knobs for measuring: VLOC_SIM_CACHE=<dir> caches
 // the renders, VLOC_TEST_FRONTEND_CONFIG=<yaml> overrides options,
 // VLOC_TEST_PRINT_ERRORS=1 lists every point's error (also along / across
-// the cross-site epipolar line), VLOC_TEST_HEADING_DEG, VLOC_TEST_DISTANCE,
+// the cross-site epipolar line), VLOC_TEST_DUMP_TIE_POINTS=<file> writes the
+// tie points (to compare builds), VLOC_TEST_HEADING_DEG, VLOC_TEST_DISTANCE,
 // VLOC_TEST_TERRAIN_SEED, VLOC_TEST_DR_SCALE, VLOC_TEST_DR_ROTATION_DEG (turns
 // the DR position error), VLOC_TEST_NO_RELIEF=1 (a textured plane) vary the pair.
 struct PairRun {
   FrontendResult result;
   testing::TruthCheck truth;
 };
+
+// Writes every tie point's four observations (site, pair, side, px, sigma)
+// one per line at full precision, to compare two builds' outputs.
+void DumpTiePoints(const FrontendResult& r, const std::string& path) {
+  std::ofstream out(path);
+  out.precision(17);
+  out << "status " << FrontendStatusName(r.summary.status) << " points " << r.tie_points.points.size() << "\n";
+  for (const auto& tp : r.tie_points.points)
+    for (const auto& ob : tp.observations)
+      out << tp.id << " " << static_cast<int>(ob.site) << " " << ob.pair_index << " " << static_cast<int>(ob.camera)
+          << " " << ob.uv.x() << " " << ob.uv.y() << " " << ob.sigma << "\n";
+}
 
 // Runs the front end on the default simulated pair and prints the figures.
 PairRun RunPair(testing::SimSitePairOptions so = testing::SimSitePairOptions()) {
@@ -61,6 +75,7 @@ PairRun RunPair(testing::SimSitePairOptions so = testing::SimSitePairOptions()) 
       std::cout << "cross-site error percentiles 10/50/90: " << e[e.size() / 10] << " " << e[e.size() / 2] << " "
                 << e[9 * e.size() / 10] << " px\n";
   }
+  if (const char* path = std::getenv("VLOC_TEST_DUMP_TIE_POINTS")) DumpTiePoints(r, path);
   if (std::getenv("VLOC_TEST_PRINT_ERRORS"))
     for (size_t k = 0; k < t.cross_error_vec.size(); ++k)
       std::cout << "error " << t.cross_error_vec[k].transpose() << " at " << r.tie_points.points[k].observations[0].uv.transpose()
@@ -131,7 +146,18 @@ void ExpectTiePointFigures(const PairRun& run) {
   for (const auto& tp : r.tie_points.points) EXPECT_EQ(tp.observations.size(), 4u);
 }
 
-TEST(FrontendSim, SitePairMeetsTheTiePointFigures) { ExpectTiePointFigures(RunPair()); }
+TEST(FrontendSim, SitePairMeetsTheTiePointFigures) {
+  const PairRun run = RunPair();
+  ExpectTiePointFigures(run);
+  // Every step reports, under its name (these go out in FRONTEND_STATUS).
+  std::vector<std::string> names;
+  for (const StageReport& st : run.result.summary.stages) names.push_back(st.name);
+  EXPECT_EQ(names, (std::vector<std::string>{
+                       "prepare_images", "ground_planes", "region_prediction", "region_wallis_zoom", "current_wallis",
+                       "region_asift", "overlap_warp_tiles", "overlap_asift", "overlap_matching", "overlap_grid_lsm",
+                       "backward_matching", "cross_lsm_merge", "stereo_zncc", "median_filter", "stereo_lsm",
+                       "distance_consistency", "motion_consistency", "dr_check"}));
+}
 
 // The same with a 20 deg turn between the sites (8 deg above).
 TEST(FrontendSim, TurnedSitePairMeetsTheTiePointFigures) {

@@ -456,5 +456,18 @@ TEST(TileRegistration, FlatImageGivesNoTiles) {
   EXPECT_TRUE(RegisterTiles(flat, cv::Mat(), flat, 40.0, TileRegistrationOptions()).empty());
 }
 
+// The rival of the ratio test is the best candidate at another place: the
+// same point repeated by other ASIFT views (within distinct_radius) is no rival.
+TEST(Asift, DistinctRatioTestIgnoresCopiesOfTheSamePoint) {
+  const std::vector<Eigen::Vector2d> points = {{10, 10}, {11, 10}, {40, 10}};
+  // Best at (10, 10), a copy 1 px away almost as good, a rival 30 px away.
+  const std::vector<std::pair<double, int>> sorted = {{1.0, 0}, {1.1, 1}, {4.0, 2}};
+  EXPECT_TRUE(DistinctRatioTest(sorted, points, 0.8, 4.0));    // 1 <= 0.64 * 4
+  EXPECT_FALSE(DistinctRatioTest(sorted, points, 0.8, 0.5));   // the copy counts as a rival: 1 > 0.64 * 1.1
+  EXPECT_FALSE(DistinctRatioTest(sorted, points, 0.45, 4.0));  // 1 > 0.2025 * 4
+  EXPECT_TRUE(DistinctRatioTest({{1.0, 0}, {1.1, 1}}, points, 0.8, 4.0));  // no rival
+  EXPECT_FALSE(DistinctRatioTest({}, points, 0.8, 4.0));
+}
+
 }  // namespace
 }  // namespace vloc

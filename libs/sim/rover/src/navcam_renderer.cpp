@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "vloc/common/options.h"
+#include "vloc/common/stopwatch.h"
 #include "vloc/sim/noise.h"
 
 namespace vloc::sim {
@@ -140,7 +141,7 @@ RenderedImage NavcamRenderer::Render(const PinholeCamera& camera, const Pose3& w
     }
   }
   out.sky_pixels = sky;
-  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  out.seconds = SecondsSince(start);
   return out;
 }
 

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "vloc/common/options.h"
+#include "vloc/common/stopwatch.h"
 #include "vloc/sim/noise.h"
 
 namespace vloc::sim {
@@ -121,7 +122,7 @@ Terrain::Terrain(const TerrainOptions& options) : options_(options) {
   summary_.min_height = *lo;
   summary_.max_height = *hi;
   summary_.build_seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      SecondsSince(start);
 }
 
 Region Terrain::Bounds() const {

@@ -1,18 +1,32 @@
 #pragma once
 // The cross-site feature front end (Wan et al. 2.1-2.2): from the stereo
 // panoramas of two adjacent sites and their dead-reckoning poses to tie
-// points for the bundle adjustment.
+// points for the bundle adjustment. Run() is a table of contents of named
+// steps (internal/frontend_steps.h, one file each); each step is timed under
+// the name below and reported in FrontendSummary::stages (FRONTEND_STATUS)
+// with a count (in brackets):
 //
-//   regions      predicted overlaps (current pair x previous pair), grown by the DR uncertainty
-//   wallis       Wallis filter of the regions, previous site's targets from the current site, zoom
-//   asift        ASIFT on the current regions (tilts/longitudes restricted by the prediction),
-//                SIFT on the zoomed previous regions, gated matching, RANSAC on the fundamental matrix
-//   cross_lsm    least-squares matching previous-left -> current-left from the predicted affine
-//   stereo       ZNCC along the epipolar segment at both sites
-//   median       median filter of the disparities against the neighbours
-//   lsm          least-squares matching left -> right at both sites
-//   consistency  distance-consistency voting (eq. 2) with thresholds from eq. 7
-//   motion       one rigid motion for all points within each point's anisotropic covariance
+//   prepare_images (images)              undistortion, LSM gradients of every image
+//   ground_planes (planes)               each current image's ground plane from sparse stereo
+//   region_prediction (overlaps)         predicted overlaps (current x previous pair), grown by the DR uncertainty
+//   region_wallis_zoom (regions)         Wallis filter and zoom of the regions (previous targets from the current)
+//   current_wallis (images)              Wallis filter of the whole current images (for the warp), overlap choice
+//   region_asift (features)              ASIFT on the regions (current: tilts/longitudes the prediction allows)
+//   overlap_warp_tiles (registered)      current image warped onto the previous region's grid, tile registration
+//   overlap_asift (features)             ASIFT on the warped current images
+//   overlap_matching (matches)           gated matching (DR gate, then refined gate), epipolar RANSAC, spread
+//   overlap_grid_lsm (refined)           cross-site LSM on the previous region's grid, with the relief gates
+//   backward_matching (matches)          opposite views matched on ground-plane ortho images
+//   cross_lsm_merge (matches)            cross-site LSM of what the grid LSM did not refine; duplicates merged
+//   stereo_zncc (matches)                ZNCC along the epipolar segment at both sites
+//   median_filter (matches)              median filter of the disparities against the neighbours
+//   stereo_lsm (matches)                 least-squares matching left -> right at both sites, intersection
+//   distance_consistency (points)        distance-consistency voting (eq. 2) with thresholds from eq. 7
+//   motion_consistency (points)          one rigid motion within each point's anisotropic covariance
+//   dr_check (tie points)                the motion the tie points imply against dead reckoning
+//
+// VLOC_FRONTEND_DUMP=<dir> writes each forward overlap's warped current
+// image and previous region (PNG) there, to look at what was matched.
 //
 // Observations are ideal (undistorted) pixels; images with distortion are
 // undistorted first.

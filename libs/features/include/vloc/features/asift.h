@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace vloc {
@@ -73,6 +74,27 @@ struct GatedMatchOptions {
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
 };
+
+// Lowe's ratio test against a rival at a distinct place. `sorted` holds
+// one query's candidates as (squared descriptor distance, index into
+// `points`), by increasing distance. The rival is the best candidate more
+// than `distinct_radius` px from the best one: ASIFT repeats a point once
+// per simulated view, and those copies are the same place, not rivals.
+// True when best <= ratio * rival (or there is no rival).
+inline bool DistinctRatioTest(const std::vector<std::pair<double, int>>& sorted,
+                              const std::vector<Eigen::Vector2d>& points, double ratio, double distinct_radius) {
+  if (sorted.empty()) return false;
+  const Eigen::Vector2d& best = points[sorted[0].second];
+  const double radius_sq = distinct_radius * distinct_radius;
+  double rival = 1e300;
+  for (size_t k = 1; k < sorted.size(); ++k) {
+    if ((points[sorted[k].second] - best).squaredNorm() > radius_sq) {
+      rival = sorted[k].first;
+      break;
+    }
+  }
+  return !(sorted[0].first > ratio * ratio * rival);
+}
 
 struct FeatureMatch {
   int query = 0;         // index in the query set

@@ -1,0 +1,230 @@
+#pragma once
+// The steps of the cross-site front end (Wan et al. 2.1-2.2), for
+// CrossSiteFrontend::Run (frontend.cpp, which calls them in this order) and
+// for their unit tests. Internal: not an API, it changes with the steps.
+//
+//   step                          file                        paper
+//   PrepareImages                 prepare_images.cpp          (undistortion)
+//   FitGroundPlanes               ground_planes.cpp           2.1, the ground the regions are projected on
+//   PredictRegions                regions.cpp                 2.1, initial matching regions
+//   MakeWorkRegions               work_regions.cpp            2.2, Wallis filter and zoom of the regions
+//   DetectRegionFeatures          region_features.cpp         2.2, ASIFT with restricted tilts/longitudes
+//   WarpOverlap                   overlap_warp.cpp            (ground-plane warp + tile registration)
+//   MatchOverlap                  overlap_matching.cpp        2.2, gated matching + epipolar RANSAC
+//   RefineOnGrid                  grid_lsm.cpp                2.2, cross-site least-squares matching
+//   MatchBackwardOverlap          backward_overlaps.cpp       2.2, opposite views on the ground plane
+//   RefineCrossSite               cross_site_refinement.cpp   2.2, cross-site LSM at full resolution
+//   CorrelateStereo ..            stereo.cpp                  2.2, ZNCC + median filter + LSM at both sites
+//   CheckConsistency .. DR check  verification.cpp            2.2 eq. 2 (thresholds from eq. 7, 3.1)
+//
+// One SitePairState carries everything between the steps.
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "vloc/crosssite/frontend.h"
+
+namespace vloc::frontend_internal {
+
+// ---- constants (not worth an option; named so a reader can find them)
+constexpr int kGroundRansacIterations = 300;       // 3-point samples of the ground-plane RANSAC
+constexpr unsigned kGroundRansacSeed = 7;          // its fixed seed (the front end is deterministic)
+constexpr double kGroundMinInlierFraction = 0.3;   // of the stereo points, for a plane to be accepted
+constexpr int kGroundMinGridPx = 8;                // px, finest grid of the ground-plane stereo points
+constexpr int kTileRansacIterations = 5000;        // iterations of the tile-registration homography RANSAC
+constexpr double kRansacConfidence = 0.999;        // of the tile homography and the epipolar RANSAC
+constexpr int kTileRegistrationPasses = 2;         // whole gate, then a few px around the correction
+constexpr double kSecondPassRadiusTiles = 3.0;     // reduced px, search radius of the second pass
+constexpr int kCoverageErodePx = 9;                // px, the warped image's coverage mask is eroded by this box
+constexpr int kMinEpipolarMatches = 12;            // stage-2 matches needed for the epipolar RANSAC
+constexpr double kMinClusterRadiusPx = 8.0;        // current px, smallest radius of the stage-1 offset cluster
+constexpr double kSpreadCellPx = 24.0;             // px, grid cell of the spread selection per overlap
+constexpr double kOrthoResolutionM = 0.02;         // m per ortho pixel, backward overlaps
+constexpr int kMaxOrthoPx = 2000;                  // px, largest side of a backward overlap's ortho image
+constexpr int kMinOrthoPx = 32;                    // px, smaller ortho images are not matched
+constexpr double kBackwardImageMarginPx = 10;      // px, backward matches this close to a border are dropped
+constexpr int kMinCurrentFeatures = 20;            // fewer ASIFT features in the current regions: low texture
+constexpr double kMinPlaneNormal = 0.5;            // |n| of a fitted plane; zero vector = no plane
+
+// One image as the steps use it: ideal (undistorted) 8-bit and LSM form.
+struct PreparedImage {
+  cv::Mat gray;  // CV_8UC1, ideal pixels
+  LsmImage lsm;  // float + gradients
+};
+
+// One image's part in the matching: the union of its overlaps' regions,
+// Wallis-filtered and zoomed, and the features found on it (ideal px of the
+// full image).
+struct WorkRegion {
+  cv::Rect region;                 // px, union of the forward overlaps' regions (empty: not used)
+  double zoom = 1.0;               // work px per region px
+  cv::Mat image;                   // Wallis-filtered region, zoomed
+  double max_tilt = 1.0;           // current images: largest predicted tilt of its overlaps
+  double longitude = 0.0;          // rad, current images: sample-weighted axial mean tilt longitude
+  std::vector<AffineView> views;   // ASIFT views simulated on it
+  FeatureSet features;             // in ideal px of the full image
+};
+
+// A cross-site candidate on its way through the steps.
+struct Candidate {
+  int overlap = 0;
+  int prev_pair = 0, cur_pair = 0;
+  Eigen::Vector2d prev_left = Eigen::Vector2d::Zero(), cur_left = Eigen::Vector2d::Zero();
+  Eigen::Vector2d prev_right = Eigen::Vector2d::Zero(), cur_right = Eigen::Vector2d::Zero();
+  double descriptor_distance = 0;
+  double sigma_cross = 0, sigma_prev_right = 0, sigma_cur_right = 0;
+  Eigen::Vector3d p_prev = Eigen::Vector3d::Zero(), p_cur = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d cov_prev = Eigen::Matrix3d::Zero(), cov_cur = Eigen::Matrix3d::Zero();
+  bool ok = true;
+  bool grid_refined = false;  // cross-site position already refined by LSM on the previous region's grid
+  double grid_correlation = 0, grid_sigma_max = 0;                 // of the grid LSM (grid px)
+  Eigen::Matrix2d grid_affine = Eigen::Matrix2d::Identity();       // its shape
+  const char* why = "";
+  Eigen::Matrix2d initial_affine = Eigen::Matrix2d::Identity();  // current px per previous px
+};
+
+// One forward overlap on the previous region's grid ("train" image): the
+// current image warped there by the predicted (and tile-corrected) ground
+// homography. Without warp_current the train image is the current region.
+struct OverlapWork {
+  bool skipped = false;                 // nothing to match (empty region, no features, stage 1 failed)
+  cv::Mat warped;                       // warped current image (warp_current)
+  cv::Mat coverage;                     // CV_8UC1, where `warped` holds current pixels
+  cv::Mat previous_crop;                // the previous work region on the same grid
+  cv::Matx33d current_from_train = cv::Matx33d::eye();  // train px -> current-left px
+  cv::Matx33d train_from_previous = cv::Matx33d::eye(); // previous-left px -> train px
+  bool registered = false;              // the warp was corrected by tile registration
+  int tile_inliers = 0;                 // tiles agreeing on that correction
+  FeatureSet warped_features;           // ASIFT on `warped`
+  std::vector<Candidate> candidates;    // matches of this overlap
+};
+
+struct SitePairState {
+  SiteImages previous, current;  // pairs sorted by pair_index
+  std::vector<PreparedImage> previous_left, previous_right, current_left, current_right;
+  std::vector<Eigen::Vector4d> ground_planes;  // per current pair, body frame; zero = none
+  RegionPrediction prediction;
+  std::vector<WorkRegion> previous_regions, current_regions;
+  WallisOptions previous_wallis;            // Wallis targets of the previous site (from the current regions)
+  double largest_region_std = 0;            // grey level, raw std of the most textured region
+  std::vector<cv::Mat> current_filtered;    // whole current left images, Wallis-filtered (warp_current)
+  std::vector<bool> overlap_used;           // per overlap: matched (max_overlaps_per_image)
+  std::vector<OverlapWork> overlaps;        // per overlap
+  std::vector<Candidate> candidates;        // after the overlaps, then through the remaining steps
+  size_t num_current_features = 0;          // ASIFT features in the current regions and warped images
+};
+
+// ---- geometry shared by the steps (stereo_geometry.cpp)
+
+// Epipolar segment in the right image for depths [z0, z1] of the left
+// pixel, clipped to the image; false if it misses the image.
+bool EpipolarSegment(const StereoRig& rig, const Eigen::Vector2d& left_px, double z0, double z1, Eigen::Vector2d* a,
+                     Eigen::Vector2d* b);
+// Midpoint triangulation of two rays (origins o, directions d) in one frame;
+// false when parallel or behind either origin.
+bool Triangulate(const Eigen::Vector3d& o1, const Eigen::Vector3d& d1, const Eigen::Vector3d& o2,
+                 const Eigen::Vector3d& d2, Eigen::Vector3d* p);
+
+// ---- steps
+
+// Sorts the pairs and checks every image (8-bit grey of the calibrated
+// size); the problem when not usable.
+std::optional<std::string> CheckInput(const SiteImages& previous, const SiteImages& current, const NavcamModel& navcam,
+                                      SitePairState* state);
+// The tie point set's header: site ids, poses, pointings, time.
+void InitTiePointSet(const SitePairState& state, TiePointSet* tie_points);
+// Undistorts all images and makes their LSM form.
+void PrepareImages(const NavcamModel& navcam, const FrontendOptions& options, SitePairState* state);
+
+// The ground seen by one current pair as a plane n . p + e = 0 (n up, unit)
+// in the body frame, from ZNCC stereo on a coarse grid and RANSAC; zero
+// when there are too few points or the plane is implausible.
+Eigen::Vector4d FitGroundPlane(const NavcamModel& navcam, const MastPointing& pointing, const cv::Mat& left,
+                               const cv::Mat& right, const FrontendOptions& options);
+// Every current pair's ground plane (fit_ground_planes); returns how many.
+int FitGroundPlanes(const NavcamModel& navcam, const TiePointSet& tie_points, const FrontendOptions& options,
+                    SitePairState* state);
+
+// Regions per image, Wallis filter, zoom, previous site's Wallis targets.
+// Returns the number of regions; state->largest_region_std says whether
+// there is texture at all.
+int MakeWorkRegions(const FrontendOptions& options, SitePairState* state);
+// Per current image the overlaps with the most ground samples
+// (max_overlaps_per_image), and the current images filtered whole (warp_current).
+void ChooseOverlaps(const FrontendOptions& options, SitePairState* state);
+
+// ASIFT on the work regions (previous: t = 1; current, without
+// warp_current: the tilts and longitudes the prediction allows). Returns
+// the number of features.
+int DetectRegionFeatures(const FrontendOptions& options, SitePairState* state);
+
+// Warps the current image of a forward overlap onto the previous
+// region's grid and registers it by tile correlation (two passes).
+OverlapWork WarpOverlap(const PairOverlap& overlap, const SitePairState& state, const FrontendOptions& options);
+// ASIFT on a warped overlap (tilts up to warp_max_tilt).
+void DetectWarpedFeatures(const FrontendOptions& options, OverlapWork* work);
+
+// Stage 1: the densest cluster of match offsets (current - predicted, train
+// px) within radius r of one offset, kept within 2r of its mean.
+std::vector<FeatureMatch> DensestOffsetCluster(const std::vector<FeatureMatch>& matches, const FeatureSet& train,
+                                               const std::vector<Eigen::Vector2d>& predicted, double r,
+                                               Eigen::Vector2d* mode = nullptr, int* mode_count = nullptr);
+// Keeps the `cap` best (by descriptor distance) of `idx`, spread over a grid of `cell` px in the current image.
+std::vector<int> SpreadSelect(const std::vector<Candidate>& candidates, const std::vector<int>& idx, int cap,
+                              double cell);
+// Gated matching of forward overlap k: DR prediction (stage 1), refined
+// prediction (stage 2), epipolar test, spread selection. Fills work->candidates.
+void MatchOverlap(int k, const PairOverlap& overlap, const SitePairState& state, const FrontendOptions& options,
+                  OverlapWork* work);
+
+// The correlation peak of the window around templ_px of `templ` within
+// +-radius px of *target_px in `target` (both CV_8UC1), sub-pixel by a
+// parabola fit; false without a clear peak of at least min_score.
+bool ZnccPeakNear(const cv::Mat& templ, const Eigen::Vector2d& templ_px, const cv::Mat& target, int radius, int half,
+                  int half_y, double min_score, double min_margin, Eigen::Vector2d* target_px);
+// Cross-site LSM of one candidate on the previous region's grid, with the
+// relief gates (back match, shear). `previous` and `warped` are the LSM
+// forms of work.previous_crop and work.warped. False: not refined.
+bool RefineOnGrid(const OverlapWork& work, const LsmImage& previous, const LsmImage& warped,
+                  const FrontendOptions& options, Candidate* candidate);
+// RefineOnGrid on every candidate of the overlap; returns how many were refined.
+int RefineOverlapOnGrid(const FrontendOptions& options, OverlapWork* work);
+
+// A backward overlap matched on the ground plane (ortho images of both sites).
+std::vector<Candidate> MatchBackwardOverlap(int k, const NavcamModel& navcam, const TiePointSet& tie_points,
+                                            const SitePairState& state, const FrontendOptions& options);
+
+// Cross-site LSM of the candidates the grid LSM did not refine (full
+// resolution, or dropped), then duplicates merged. Returns the count left.
+int RefineCrossSite(const FrontendOptions& options, SitePairState* state);
+// Of candidates sorted by sigma_cross, drops those within `radius` px of a kept one in the same current image.
+void MergeDuplicates(double radius, std::vector<Candidate>* candidates);
+
+// Stereo at both sites, in three steps.
+int CorrelateStereo(const NavcamModel& navcam, const FrontendOptions& options, SitePairState* state);
+int MedianFilterDisparities(const FrontendOptions& options, SitePairState* state);
+int RefineStereoAndIntersect(const NavcamModel& navcam, const TiePointSet& tie_points, const FrontendOptions& options,
+                             SitePairState* state);
+
+// Verification: distance consistency (eq. 2), one rigid motion, the tie
+// points with their sigmas, and the check against dead reckoning.
+struct Verification {
+  std::vector<bool> consistent;  // per candidate, eq. 2
+  std::vector<int> weights;      // per candidate, consistency votes
+  int num_consistent = 0;
+  std::vector<bool> keep;        // per candidate, also one rigid motion
+  int num_kept = 0;
+};
+Verification CheckConsistency(const std::vector<Candidate>& candidates, const FrontendOptions& options);
+void CheckMotion(const std::vector<Candidate>& candidates, const FrontendOptions& options, Verification* v);
+void MakeTiePoints(const std::vector<Candidate>& candidates, const Verification& v, const RegionPrediction& prediction,
+                   const FrontendOptions& options, TiePointSet* tie_points);
+// The motion the tie points imply against the DR prediction; the problem
+// (and the points cleared) when it is beyond max_motion_sigmas.
+std::optional<std::string> CheckAgainstDeadReckoning(const RegionPrediction& prediction,
+                                                     const FrontendOptions& options, TiePointSet* tie_points);
+
+}  // namespace vloc::frontend_internal

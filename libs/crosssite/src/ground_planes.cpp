@@ -1,0 +1,107 @@
+// Step 2: the ground each current image sees, as a plane fitted to sparse
+// stereo. The rover's own footprint (z = 0 in the body frame) is a poor
+// model of ground 5-30 m away when it stands on a slope or a crater rim;
+// region prediction projects onto these planes instead.
+#include <omp.h>
+
+#include <Eigen/Eigenvalues>
+#include <cmath>
+#include <random>
+
+#include "vloc/crosssite/internal/frontend_steps.h"
+
+namespace vloc::frontend_internal {
+
+namespace {
+
+// Sparse stereo points of one current pair within the region ranges, body frame.
+std::vector<Eigen::Vector3d> GroundStereoPoints(const NavcamModel& navcam, const Pose3& bl, const Pose3& br,
+                                                const cv::Mat& left, const cv::Mat& right, const FrontendOptions& o) {
+  const PinholeCamera& cam = navcam.rig.left;
+  std::vector<Eigen::Vector3d> pts;
+  const int step = std::max(kGroundMinGridPx, o.ground_grid_px);
+  for (int v = step / 2; v < cam.height; v += step) {
+    for (int u = step / 2; u < cam.width; u += step) {
+      const Eigen::Vector2d px(u, v);
+      Eigen::Vector2d a, b;
+      if (!EpipolarSegment(navcam.rig, px, 0.5 * o.regions.min_range_current, 1.5 * o.regions.max_range_current, &a, &b))
+        continue;
+      const ZnccMatch z = ZnccAlongSegment(left, right, px, a, b, o.zncc);
+      if (!z.ok) continue;
+      Eigen::Vector3d p;
+      if (!Triangulate(bl.translation(), bl.linear() * cam.Ray(px), br.translation(),
+                       br.linear() * navcam.rig.right.Ray(z.right), &p))
+        continue;
+      const double range = (p - bl.translation()).norm();
+      if (range < 0.5 * o.regions.min_range_current || range > o.regions.max_range_current) continue;
+      pts.push_back(p);
+    }
+  }
+  return pts;
+}
+
+}  // namespace
+
+Eigen::Vector4d FitGroundPlane(const NavcamModel& navcam, const MastPointing& pointing, const cv::Mat& left,
+                               const cv::Mat& right, const FrontendOptions& o) {
+  const Pose3 bl = navcam.mast.BodyFromLeft(pointing.pan, pointing.tilt, navcam.rig);
+  const Pose3 br = bl * navcam.rig.left_from_right;
+  const std::vector<Eigen::Vector3d> pts = GroundStereoPoints(navcam, bl, br, left, right, o);
+  const int n = static_cast<int>(pts.size());
+  if (n < o.ground_min_points) return Eigen::Vector4d::Zero();
+  // Inlier tolerance grows with range (stereo range error, eq. 7).
+  auto tolerance = [&](const Eigen::Vector3d& p) {
+    const double r = (p - bl.translation()).norm();
+    return o.ground_tolerance_m + 3 * RangeSigma(r, navcam.rig.Baseline(), navcam.rig.left.fx, 0.5) * 0.2;
+  };
+  const double min_up = std::cos(o.ground_max_slope_deg * M_PI / 180);
+  std::mt19937 rng(kGroundRansacSeed);
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  Eigen::Vector4d best = Eigen::Vector4d::Zero();
+  int best_n = 0;
+  for (int it = 0; it < kGroundRansacIterations; ++it) {
+    const Eigen::Vector3d &a = pts[pick(rng)], &b = pts[pick(rng)], &c = pts[pick(rng)];
+    Eigen::Vector3d nrm = (b - a).cross(c - a);
+    if (nrm.norm() < 1e-6) continue;
+    nrm.normalize();
+    if (nrm.z() < 0) nrm = -nrm;
+    if (nrm.z() < min_up) continue;
+    const double e = -nrm.dot(a);
+    int k = 0;
+    for (const auto& p : pts) k += std::abs(nrm.dot(p) + e) <= tolerance(p) ? 1 : 0;
+    if (k > best_n) best_n = k, best << nrm, e;
+  }
+  if (best_n < o.ground_min_points || best_n < kGroundMinInlierFraction * n) return Eigen::Vector4d::Zero();
+  // Least squares on the inliers.
+  std::vector<Eigen::Vector3d> in;
+  for (const auto& p : pts)
+    if (std::abs(best.head<3>().dot(p) + best(3)) <= tolerance(p)) in.push_back(p);
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : in) mean += p;
+  mean /= in.size();
+  Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+  for (const auto& p : in) C += (p - mean) * (p - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
+  Eigen::Vector3d nrm = es.eigenvectors().col(0);
+  if (nrm.z() < 0) nrm = -nrm;
+  if (nrm.z() < min_up) return Eigen::Vector4d::Zero();
+  Eigen::Vector4d plane;
+  plane << nrm, -nrm.dot(mean);
+  return plane;
+}
+
+int FitGroundPlanes(const NavcamModel& navcam, const TiePointSet& tps, const FrontendOptions& o, SitePairState* s) {
+  const int nc = static_cast<int>(s->current.pairs.size());
+  s->ground_planes.assign(nc, Eigen::Vector4d::Zero());
+  if (!o.fit_ground_planes) return 0;
+  int num_planes = 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads) reduction(+ : num_planes)
+  for (int i = 0; i < nc; ++i) {
+    s->ground_planes[i] =
+        FitGroundPlane(navcam, tps.current_pointing[i], s->current_left[i].lsm.gray, s->current_right[i].lsm.gray, o);
+    num_planes += s->ground_planes[i].head<3>().norm() > kMinPlaneNormal ? 1 : 0;
+  }
+  return num_planes;
+}
+
+}  // namespace vloc::frontend_internal

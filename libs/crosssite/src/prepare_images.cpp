@@ -1,0 +1,80 @@
+// Step 1: the input checked and sorted, the tie point set's header, and
+// every image undistorted into its matching and LSM forms.
+#include <omp.h>
+
+#include <algorithm>
+#include <opencv2/calib3d.hpp>
+#include <sstream>
+
+#include "vloc/crosssite/internal/frontend_steps.h"
+
+namespace vloc::frontend_internal {
+
+std::optional<std::string> CheckInput(const SiteImages& previous, const SiteImages& current, const NavcamModel& navcam,
+                                      SitePairState* state) {
+  state->previous = previous;
+  state->current = current;
+  auto by_index = [](const StereoPair& a, const StereoPair& b) { return a.pair_index < b.pair_index; };
+  std::sort(state->previous.pairs.begin(), state->previous.pairs.end(), by_index);
+  std::sort(state->current.pairs.begin(), state->current.pairs.end(), by_index);
+  if (state->previous.pairs.empty()) return std::string("no stereo pairs of the previous site");
+  if (state->current.pairs.empty()) return std::string("no stereo pairs of the current site");
+  const PinholeCamera& cam = navcam.rig.left;
+  for (const SiteImages* s : {&state->previous, &state->current}) {
+    for (const auto& p : s->pairs) {
+      for (const cv::Mat* m : {&p.left, &p.right}) {
+        if (m->empty() || m->type() != CV_8UC1 || m->cols != cam.width || m->rows != cam.height) {
+          std::ostringstream os;
+          os << "site " << s->site_id << " pair " << p.pair_index << ": image is not " << cam.width << "x"
+             << cam.height << " 8-bit grey (check the Navcam calibration file)";
+          return os.str();
+        }
+      }
+    }
+  }
+  return std::nullopt;
+}
+
+void InitTiePointSet(const SitePairState& state, TiePointSet* tps) {
+  tps->previous_site_id = state.previous.site_id;
+  tps->current_site_id = state.current.site_id;
+  tps->previous_site_pose = state.previous.world_from_body;
+  tps->current_site_pose_dr = state.current.world_from_body;
+  for (const auto& p : state.previous.pairs) tps->previous_pointing.push_back({p.mast_pan, p.mast_tilt});
+  for (const auto& p : state.current.pairs) {
+    tps->current_pointing.push_back({p.mast_pan, p.mast_tilt});
+    tps->utime = std::max(tps->utime, p.utime);
+  }
+}
+
+namespace {
+
+PreparedImage Prepare(const cv::Mat& raw, const PinholeCamera& cam) {
+  PreparedImage p;
+  if (cam.HasDistortion()) {
+    cv::undistort(raw, p.gray, cv::Mat(cam.K()), cam.DistortionCoeffs(), cv::Mat(cam.K()));
+  } else {
+    p.gray = raw;
+  }
+  p.lsm = MakeLsmImage(p.gray);
+  return p;
+}
+
+}  // namespace
+
+void PrepareImages(const NavcamModel& navcam, const FrontendOptions& o, SitePairState* s) {
+  const int np = static_cast<int>(s->previous.pairs.size()), nc = static_cast<int>(s->current.pairs.size());
+  s->previous_left.assign(np, {});
+  s->previous_right.assign(np, {});
+  s->current_left.assign(nc, {});
+  s->current_right.assign(nc, {});
+#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
+  for (int k = 0; k < 2 * (np + nc); ++k) {
+    if (k < np) s->previous_left[k] = Prepare(s->previous.pairs[k].left, navcam.rig.left);
+    else if (k < 2 * np) s->previous_right[k - np] = Prepare(s->previous.pairs[k - np].right, navcam.rig.right);
+    else if (k < 2 * np + nc) s->current_left[k - 2 * np] = Prepare(s->current.pairs[k - 2 * np].left, navcam.rig.left);
+    else s->current_right[k - 2 * np - nc] = Prepare(s->current.pairs[k - 2 * np - nc].right, navcam.rig.right);
+  }
+}
+
+}  // namespace vloc::frontend_internal

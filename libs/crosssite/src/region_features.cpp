@@ -1,0 +1,101 @@
+// Step 5: ASIFT on the work regions (Wan et al. 2.2). Previous regions at
+// t = 1; current regions (without warp_current) on the views the predicted
+// viewpoint change allows: tilts up to the predicted tilt times
+// tilt_margin, longitudes within longitude_margin_deg of the predicted one.
+// One flat job list of (image, view) over both sites keeps the threads busy.
+#include <omp.h>
+
+#include <cmath>
+#include <opencv2/core.hpp>
+
+#include <glog/logging.h>
+
+#include "vloc/crosssite/internal/frontend_steps.h"
+
+namespace vloc::frontend_internal {
+
+namespace {
+
+struct Job {
+  bool current;
+  int image;
+  AffineView view;
+};
+
+// The restricted views of one current region.
+std::vector<AffineView> CurrentViews(const WorkRegion& w, const FrontendOptions& o) {
+  std::vector<AffineView> views{{1.0, 0.0}};
+  const double lon_margin = o.longitude_margin_deg * M_PI / 180;
+  for (double t : o.asift.tilts) {
+    if (t <= 1.0 + 1e-6 || t > w.max_tilt * o.tilt_margin) continue;
+    const double step = o.asift.longitude_step_deg * M_PI / 180 / t;
+    const int kmax = static_cast<int>(std::floor(lon_margin / step + 1e-9));
+    for (int k = -kmax; k <= kmax; ++k) views.push_back({t, w.longitude + k * step});
+  }
+  return views;
+}
+
+// Appends one view's features to the region's set, in ideal px of the full image.
+void AddViewFeatures(const AffineView& view, const FeatureSet& s, WorkRegion* w) {
+  FeatureSet& f = w->features;
+  const int view_index = static_cast<int>(f.views.size());
+  f.views.push_back(view);
+  for (size_t q = 0; q < s.size(); ++q) {
+    f.keypoints.push_back(s.keypoints[q]);
+    // cv::resize maps pixel centres: work px u is region px (u + 0.5) / zoom - 0.5.
+    f.points.push_back(Eigen::Vector2d(w->region.x, w->region.y) +
+                       (s.points[q] + Eigen::Vector2d::Constant(0.5)) / w->zoom - Eigen::Vector2d::Constant(0.5));
+    f.view.push_back(view_index);
+  }
+  if (!s.descriptors.empty()) {
+    if (f.descriptors.empty()) f.descriptors = s.descriptors.clone();
+    else cv::vconcat(f.descriptors, s.descriptors, f.descriptors);
+  }
+}
+
+}  // namespace
+
+int DetectRegionFeatures(const FrontendOptions& o, SitePairState* s) {
+  std::vector<Job> jobs;
+  for (int i = 0; i < static_cast<int>(s->current_regions.size()); ++i) {
+    WorkRegion& w = s->current_regions[i];
+    if (w.image.empty() || o.warp_current) continue;
+    w.views = CurrentViews(w, o);
+    for (const auto& v : w.views) jobs.push_back({true, i, v});
+  }
+  for (int j = 0; j < static_cast<int>(s->previous_regions.size()); ++j) {
+    WorkRegion& w = s->previous_regions[j];
+    if (w.image.empty()) continue;
+    w.views.push_back({1.0, 0.0});
+    jobs.push_back({false, j, {1.0, 0.0}});
+  }
+  for (size_t i = 0; i < s->current_regions.size(); ++i) {
+    const WorkRegion& w = s->current_regions[i];
+    if (!w.image.empty())
+      VLOG(1) << "current image " << i << ": region " << w.region << " zoom " << w.zoom << " views " << w.views.size()
+              << " (max tilt " << w.max_tilt << ")";
+  }
+  for (size_t j = 0; j < s->previous_regions.size(); ++j) {
+    const WorkRegion& w = s->previous_regions[j];
+    if (!w.image.empty()) VLOG(1) << "previous image " << j << ": region " << w.region << " zoom " << w.zoom;
+  }
+  std::vector<FeatureSet> job_sets(jobs.size());
+  AsiftOptions single = o.asift;
+  single.num_threads = 1;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
+  for (int k = 0; k < static_cast<int>(jobs.size()); ++k) {
+    const Job& jb = jobs[k];
+    const cv::Mat& img = jb.current ? s->current_regions[jb.image].image : s->previous_regions[jb.image].image;
+    job_sets[k] = DetectAsift(img, cv::Mat(), {jb.view}, single);
+  }
+  for (size_t k = 0; k < jobs.size(); ++k)
+    AddViewFeatures(jobs[k].view, job_sets[k],
+                    jobs[k].current ? &s->current_regions[jobs[k].image] : &s->previous_regions[jobs[k].image]);
+  int n = 0;
+  for (const auto& w : s->previous_regions) n += static_cast<int>(w.features.size());
+  for (const auto& w : s->current_regions) n += static_cast<int>(w.features.size());
+  for (const auto& w : s->current_regions) s->num_current_features += w.features.size();
+  return n;
+}
+
+}  // namespace vloc::frontend_internal
