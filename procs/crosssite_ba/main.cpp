@@ -13,13 +13,14 @@ int main(int argc, char** argv) {
       vloc::SetupProcess(argc, argv, {"crosssite_ba", {"state-dir"}, true,
                                       "--config config/procs/crosssite_ba.yaml [--state-dir DIR] [--lcm-url URL]"});
   if (!setup) return 1;
-  vloc::CrossSiteBaProcOptions options;
+  const auto loaded = vloc::LoadProcessOptions<vloc::CrossSiteBaProcOptions>(*setup);
+  if (!loaded) return 1;
+  const vloc::CrossSiteBaProcOptions& options = *loaded;
   vloc::NavcamModel navcam;
   try {
-    std::string echo, navcam_echo;
-    options = vloc::LoadOptions<vloc::CrossSiteBaProcOptions>(setup->config, setup->config_path, &echo);
+    std::string navcam_echo;
     navcam = vloc::LoadOptionsFile<vloc::NavcamModel>(options.navcam_config, "", &navcam_echo);
-    LOG(INFO) << "crosssite_ba options:\n" << echo << "\nNavcam (" << options.navcam_config << "):\n" << navcam_echo;
+    LOG(INFO) << "Navcam (" << options.navcam_config << "):\n" << navcam_echo;
   } catch (const vloc::ConfigError& e) {
     std::cerr << "crosssite_ba: " << e.what() << "\n";
     return 1;

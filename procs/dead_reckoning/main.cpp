@@ -12,15 +12,9 @@ int main(int argc, char** argv) {
   auto setup = vloc::SetupProcess(argc, argv,
                                   {"dead_reckoning", {}, true, "--config config/procs/dead_reckoning.yaml [--lcm-url URL]"});
   if (!setup) return 1;
-  vloc::DeadReckoningProcOptions options;
-  try {
-    std::string echo;
-    options = vloc::LoadOptions<vloc::DeadReckoningProcOptions>(setup->config, setup->config_path, &echo);
-    LOG(INFO) << "dead_reckoning options:\n" << echo;
-  } catch (const vloc::ConfigError& e) {
-    std::cerr << "dead_reckoning: " << e.what() << "\n";
-    return 1;
-  }
+  const auto loaded = vloc::LoadProcessOptions<vloc::DeadReckoningProcOptions>(*setup);
+  if (!loaded) return 1;
+  const vloc::DeadReckoningProcOptions& options = *loaded;
   vloc::DeadReckoningAdapter adapter(*setup->transport, options);
   const int rc = vloc::RunUntilSignal(*setup->transport, 200);
   LOG(INFO) << "dead_reckoning: " << adapter.StatusLine();

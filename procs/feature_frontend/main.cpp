@@ -17,19 +17,11 @@ int main(int argc, char** argv) {
                                   {"feature_frontend", {"site-cache"}, true,
                                    "--config config/procs/feature_frontend.yaml [--site-cache DIR]"});
   if (!setup) return 1;
-  vloc::FeatureFrontendProcOptions options;
-  try {
-    std::string echo;
-    options = vloc::LoadOptions<vloc::FeatureFrontendProcOptions>(setup->config, setup->config_path, &echo);
-    if (setup->args.Has("site-cache")) {
-      options.site_cache_dir = setup->args.Get("site-cache");
-      echo += "\n(override: site_cache_dir " + options.site_cache_dir + ")";
-    }
-    LOG(INFO) << "feature_frontend options:\n" << echo;
-  } catch (const vloc::ConfigError& e) {
-    std::cerr << "feature_frontend: " << e.what() << "\n";
-    return 1;
-  }
+  const auto loaded = vloc::LoadProcessOptions<vloc::FeatureFrontendProcOptions>(*setup, [&](vloc::FeatureFrontendProcOptions& o) {
+    if (setup->args.Has("site-cache")) o.site_cache_dir = setup->args.Get("site-cache");
+  });
+  if (!loaded) return 1;
+  const vloc::FeatureFrontendProcOptions& options = *loaded;
   cv::setNumThreads(options.frontend.num_threads);
   vloc::FeatureFrontendAdapter adapter(options, *setup->transport);
   adapter.Subscribe();

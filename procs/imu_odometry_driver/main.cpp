@@ -16,19 +16,13 @@ int main(int argc, char** argv) {
       {"imu_odometry_driver", {"imu", "wheel", "speed"}, false,
        "[--config config/procs/imu_odometry_driver.yaml] [--imu imu.csv] [--wheel wheel.csv] [--speed X]"});
   if (!setup) return 1;
-  vloc::ImuOdometryDriverOptions options;
-  try {
-    std::string echo;
-    options = vloc::LoadOptions<vloc::ImuOdometryDriverOptions>(setup->config, setup->config_path, &echo);
-    if (setup->args.Has("imu")) options.imu_csv = setup->args.Get("imu");
-    if (setup->args.Has("wheel")) options.wheel_csv = setup->args.Get("wheel");
-    if (setup->args.Has("speed")) options.speed = setup->args.GetDouble("speed", options.speed);
-    LOG(INFO) << "imu_odometry_driver options:\n" << echo << "\n(effective imu " << options.imu_csv << ", wheel "
-              << options.wheel_csv << ", speed " << options.speed << ")";
-  } catch (const vloc::ConfigError& e) {
-    std::cerr << "imu_odometry_driver: " << e.what() << "\n";
-    return 1;
-  }
+  const auto loaded = vloc::LoadProcessOptions<vloc::ImuOdometryDriverOptions>(*setup, [&](vloc::ImuOdometryDriverOptions& o) {
+    if (setup->args.Has("imu")) o.imu_csv = setup->args.Get("imu");
+    if (setup->args.Has("wheel")) o.wheel_csv = setup->args.Get("wheel");
+    if (setup->args.Has("speed")) o.speed = setup->args.GetDouble("speed", o.speed);
+  });
+  if (!loaded) return 1;
+  const vloc::ImuOdometryDriverOptions& options = *loaded;
   if (options.imu_csv.empty() && options.wheel_csv.empty()) {
     std::cerr << "imu_odometry_driver: nothing to replay (give --imu FILE.csv and/or --wheel FILE.csv)\n";
     return 1;

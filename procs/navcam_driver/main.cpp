@@ -15,18 +15,12 @@ int main(int argc, char** argv) {
                                   {"navcam_driver", {"manifest", "speed"}, false,
                                    "[--config config/procs/navcam_driver.yaml] --manifest FILE.yaml [--speed X]"});
   if (!setup) return 1;
-  vloc::NavcamDriverOptions options;
-  try {
-    std::string echo;
-    options = vloc::LoadOptions<vloc::NavcamDriverOptions>(setup->config, setup->config_path, &echo);
-    if (setup->args.Has("manifest")) options.manifest = setup->args.Get("manifest");
-    if (setup->args.Has("speed")) options.speed = setup->args.GetDouble("speed", options.speed);
-    LOG(INFO) << "navcam_driver options:\n" << echo << "\n(effective manifest " << options.manifest << ", speed "
-              << options.speed << ")";
-  } catch (const vloc::ConfigError& e) {
-    std::cerr << "navcam_driver: " << e.what() << "\n";
-    return 1;
-  }
+  const auto loaded = vloc::LoadProcessOptions<vloc::NavcamDriverOptions>(*setup, [&](vloc::NavcamDriverOptions& o) {
+    if (setup->args.Has("manifest")) o.manifest = setup->args.Get("manifest");
+    if (setup->args.Has("speed")) o.speed = setup->args.GetDouble("speed", o.speed);
+  });
+  if (!loaded) return 1;
+  const vloc::NavcamDriverOptions& options = *loaded;
   if (options.manifest.empty()) {
     std::cerr << "navcam_driver: no manifest given (--manifest FILE.yaml or manifest: in the config)\n";
     return 1;

@@ -13,18 +13,12 @@ int main(int argc, char** argv) {
                                   {"traverse_graph", {"state-dir"}, true,
                                    "--config config/procs/traverse_graph.yaml [--state-dir DIR] [--lcm-url URL]"});
   if (!setup) return 1;
-  vloc::TraverseGraphProcOptions options;
-  try {
-    std::string echo;
-    options = vloc::LoadOptions<vloc::TraverseGraphProcOptions>(setup->config, setup->config_path, &echo);
-    LOG(INFO) << "traverse_graph options:\n" << echo;
-    std::string note;
-    options.graph_path = vloc::ResolveStatePath(options.graph_path, setup->args, &note);
-    if (!note.empty()) LOG(WARNING) << "traverse_graph: " << note;
-  } catch (const vloc::ConfigError& e) {
-    std::cerr << "traverse_graph: " << e.what() << "\n";
-    return 1;
-  }
+  std::string note;
+  const auto loaded = vloc::LoadProcessOptions<vloc::TraverseGraphProcOptions>(
+      *setup, [&](vloc::TraverseGraphProcOptions& o) { o.graph_path = vloc::ResolveStatePath(o.graph_path, setup->args, &note); });
+  if (!loaded) return 1;
+  const vloc::TraverseGraphProcOptions& options = *loaded;
+  if (!note.empty()) LOG(WARNING) << "traverse_graph: " << note;
   vloc::TraverseGraphAdapter adapter(*setup->transport, options);
   std::string error;
   if (!adapter.Restore(&error)) {

@@ -27,16 +27,11 @@ int main(int argc, char** argv) {
                                   {"uav_mosaicker", {"output"}, true,
                                    "--config config/procs/uav_mosaicker.yaml [--lcm-url URL] [--output FILE.png]"});
   if (!setup) return 1;
-  vloc::UavMosaickerProcOptions options;
-  try {
-    std::string echo;
-    options = vloc::LoadOptions<vloc::UavMosaickerProcOptions>(setup->config, setup->config_path, &echo);
-    if (setup->args.Has("output")) options.output = setup->args.Get("output");
-    LOG(INFO) << "uav_mosaicker options:\n" << echo << "\n(output " << options.output << ")";
-  } catch (const vloc::ConfigError& e) {
-    std::cerr << "uav_mosaicker: " << e.what() << "\n";
-    return 1;
-  }
+  const auto loaded = vloc::LoadProcessOptions<vloc::UavMosaickerProcOptions>(*setup, [&](vloc::UavMosaickerProcOptions& o) {
+    if (setup->args.Has("output")) o.output = setup->args.Get("output");
+  });
+  if (!loaded) return 1;
+  const vloc::UavMosaickerProcOptions& options = *loaded;
   vloc::UavMosaickerAdapter adapter(options, *setup->transport);
   adapter.Subscribe();
   const int code = vloc::RunUntilSignal(*setup->transport, 100, [&] {

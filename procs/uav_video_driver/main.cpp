@@ -18,22 +18,14 @@ int main(int argc, char** argv) {
       {"uav_video_driver", {"video", "telemetry", "speed", "fps"}, false,
        "[--config config/procs/uav_video_driver.yaml] --video FILE|PATTERN|FOLDER [--telemetry CSV] [--speed X] [--fps F]"});
   if (!setup) return 1;
-  vloc::UavVideoDriverOptions options;
-  try {
-    std::string echo;
-    options = vloc::LoadOptions<vloc::UavVideoDriverOptions>(setup->config, setup->config_path, &echo);
-    if (setup->args.Has("video")) options.video = setup->args.Get("video");
-    if (setup->args.Has("telemetry")) options.telemetry_csv = setup->args.Get("telemetry");
-    if (setup->args.Has("speed")) options.speed = setup->args.GetDouble("speed", options.speed);
-    if (setup->args.Has("fps")) options.fps = setup->args.GetDouble("fps", options.fps);
-    std::string error;
-    if (!options.Check(&error)) throw vloc::ConfigError("command line: " + error);
-    LOG(INFO) << "uav_video_driver options:\n" << echo << "\n(effective video " << options.video << ", telemetry "
-              << options.telemetry_csv << ", speed " << options.speed << ", fps " << options.fps << ")";
-  } catch (const vloc::ConfigError& e) {
-    std::cerr << "uav_video_driver: " << e.what() << "\n";
-    return 1;
-  }
+  const auto loaded = vloc::LoadProcessOptions<vloc::UavVideoDriverOptions>(*setup, [&](vloc::UavVideoDriverOptions& o) {
+    if (setup->args.Has("video")) o.video = setup->args.Get("video");
+    if (setup->args.Has("telemetry")) o.telemetry_csv = setup->args.Get("telemetry");
+    if (setup->args.Has("speed")) o.speed = setup->args.GetDouble("speed", o.speed);
+    if (setup->args.Has("fps")) o.fps = setup->args.GetDouble("fps", o.fps);
+  });
+  if (!loaded) return 1;
+  const vloc::UavVideoDriverOptions& options = *loaded;
   vloc::UavVideoSource video;
   std::string error;
   if (options.video.empty() || !video.Open(options.video, options.fps, &error)) {

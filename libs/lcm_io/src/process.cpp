@@ -31,6 +31,7 @@ bool StopSignalPending() {
 
 std::optional<ProcessSetup> SetupProcess(int argc, char** argv, const ProcessSetupOptions& options) {
   ProcessSetup setup;
+  setup.name = options.name;
   std::vector<std::string> known = {"config", "lcm-url", "help"};
   known.insert(known.end(), options.extra_flags.begin(), options.extra_flags.end());
   std::string error;

@@ -2,18 +2,23 @@
 // The common start-up and main loop of every vloc process:
 //   auto setup = vloc::SetupProcess(argc, argv, {...});
 //   if (!setup) return 1;
+//   auto options = vloc::LoadProcessOptions<XOptions>(*setup);
+//   if (!options) return 1;
 //   ... build library objects and subscribe on *setup->transport ...
 //   return vloc::RunUntilSignal(*setup->transport, 100, on_idle);
 
+#include <glog/logging.h>
 #include <yaml-cpp/yaml.h>
 
 #include <functional>
+#include <iostream>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "vloc/common/command_line.h"
+#include "vloc/common/options.h"
 #include "vloc/lcm_io/transport.h"
 
 namespace vloc {
@@ -28,6 +33,7 @@ struct ProcessSetupOptions {
 };
 
 struct ProcessSetup {
+  std::string name;                       // process name, for messages
   CommandLine args;
   std::string config_path;                // empty when no --config
   YAML::Node config;                      // the config file without its lcm_url key
@@ -42,6 +48,31 @@ struct ProcessSetup {
 // nullopt; the caller exits with status 1. Blocks SIGINT and SIGTERM so
 // RunUntilSignal can wait for them.
 std::optional<ProcessSetup> SetupProcess(int argc, char** argv, const ProcessSetupOptions& options);
+
+// Loads the process's options from its config (unknown keys rejected,
+// ranges checked), lets `adjust` apply command-line overrides (it may throw
+// ConfigError; Check() runs again after it and names what the command line
+// broke), and logs the effective values. On an error prints one line
+// "<name>: <what>" and returns nullopt; the caller exits with status 1.
+template <class Options>
+std::optional<Options> LoadProcessOptions(const ProcessSetup& setup,
+                                          const std::function<void(Options&)>& adjust = {}) {
+  try {
+    std::string echo;
+    Options options = LoadOptions<Options>(setup.config, setup.config_path.empty() ? "defaults" : setup.config_path,
+                                           &echo);
+    if (adjust) {
+      adjust(options);
+      std::string error;
+      if (!options.Check(&error)) throw ConfigError("command line: " + error);
+    }
+    LOG(INFO) << setup.name << " options:\n" << echo;
+    return options;
+  } catch (const ConfigError& e) {
+    std::cerr << setup.name << ": " << e.what() << "\n";
+    return std::nullopt;
+  }
+}
 
 // Where a process keeps the state it reloads after a restart. An absolute
 // `configured` path is used as is; a relative one is placed in the folder
