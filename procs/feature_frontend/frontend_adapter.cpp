@@ -104,7 +104,7 @@ void FeatureFrontendAdapter::Subscribe() {
   stats_.push_back(vloc::Subscribe<site_event_t>(
       transport_, options_.site_channel,
       [this](const std::string&, const site_event_t& m) { OnSiteEvent(SiteEventFromMessage(m)); },
-      options_.queue_capacity));
+      kSmallMessageQueue));
   stats_.push_back(vloc::Subscribe<site_pose_t>(
       transport_, options_.dr_channel,
       [this](const std::string&, const site_pose_t& m) {
@@ -114,7 +114,7 @@ void FeatureFrontendAdapter::Subscribe() {
         }
         OnSitePoseDr(m.site_id, PoseFromMessage(m.pose));
       },
-      options_.queue_capacity));
+      kSmallMessageQueue));
   if (options_.loop_max_distance_m > 0 && !options_.traverse_channel.empty())
     stats_.push_back(vloc::Subscribe<traverse_t>(
         transport_, options_.traverse_channel,
@@ -124,7 +124,7 @@ void FeatureFrontendAdapter::Subscribe() {
             poses[m.site_ids[i]] = PoseFromMessage(m.poses[i]);
           OnTraverse(std::move(poses));
         },
-        options_.queue_capacity));
+        kSmallMessageQueue));
 }
 
 void FeatureFrontendAdapter::OnTraverse(std::map<int, PoseWithCovariance> optimised) {

@@ -32,7 +32,7 @@ struct FeatureFrontendProcOptions {
   std::string dr_channel = "SITE_POSE_DR";            // subscribed: site_pose_t (dead reckoning)
   std::string tie_points_channel = "TIE_POINTS";      // published: tie_points_t
   std::string status_channel = "FRONTEND_STATUS";     // published: frontend_status_t
-  int queue_capacity = 64;                            // messages queued per subscription
+  int queue_capacity = 64;                            // stereo pairs (about 2 MB each) queued while a pair is matched
   bool publish_unusable = false;                      // publish TIE_POINTS also when the status is not OK
   NavcamModel navcam;                                 // calibration (include ../navcam.yaml)
   FrontendOptions frontend;                           // the pipeline
@@ -94,6 +94,7 @@ class FeatureFrontendAdapter {
   CrossSiteFrontend frontend_;
   CrossSiteFrontend loop_frontend_;  // regions allowed to grow more (graph-predicted revisits)
   std::map<int, Collecting> collecting_;
+  static constexpr int kSmallMessageQueue = 1000;  // site events, DR poses, traverses: small, and none may be lost
   static constexpr int kMaxSitesCollecting = 8;  // sites waiting for their images at once; beyond, the oldest goes
   std::optional<SiteImages> previous_;
   SiteArchive archive_;                                // sites before previous_, poses (revisits on)

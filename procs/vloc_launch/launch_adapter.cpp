@@ -17,7 +17,8 @@ LaunchLcmAdapter::LaunchLcmAdapter(Supervisor& supervisor, Transport& transport,
 void LaunchLcmAdapter::Subscribe() {
   order_stats_ = vloc::Subscribe<procman_order_t>(
       transport_, kProcmanOrdersChannel,
-      [this](const std::string&, const procman_order_t& order) { HandleOrder(order); });
+      [this](const std::string&, const procman_order_t& order) { HandleOrder(order); },
+      kOrderQueue);
 }
 
 void LaunchLcmAdapter::HandleOrder(const procman_order_t& order) {

@@ -44,6 +44,7 @@ class LaunchLcmAdapter {
   std::chrono::steady_clock::duration period_;
   std::chrono::steady_clock::time_point next_status_;
   bool shutting_down_ = false;
+  static constexpr int kOrderQueue = 200;  // orders are small and an operator's burst must not be lost
   std::shared_ptr<SubscriptionStats> order_stats_;
 };
 
