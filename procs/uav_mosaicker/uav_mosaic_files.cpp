@@ -400,11 +400,20 @@ int main(int argc, char** argv) {
       heights.push_back(f.registered ? f.state.height : std::nan(""));
       gps_heights.push_back(relative ? f.tag.relative_altitude : f.tag.altitude);
     }
+    vm::RouteFitOptions least_squares;
+    least_squares.robust = false;
+    const vm::RouteComparison ls = vm::CompareRouteToGps(route, enu, usable, in_fit, least_squares);
     const vm::RouteComparison rc = vm::CompareRouteToGps(route, enu, usable, in_fit);
     if (rc.ok) {
-      std::cout << "route vs GPS (2-D similarity fit over " << rc.pairs << " frames): RMS " << rc.rms_m << " m = "
-                << rc.rms_percent() << " % of the " << rc.path_m << " m path";
-      if (rc.held_out > 0) std::cout << "; during the GPS drop-out (" << rc.held_out << " frames, not in the fit): RMS " << rc.held_out_rms_m << " m";
+      std::cout << "route vs GPS (2-D similarity fit over " << ls.pairs << " frames): RMS " << ls.rms_m << " m = "
+                << ls.rms_percent() << " % of the " << ls.path_m << " m path";
+      if (ls.held_out > 0) std::cout << "; during the GPS drop-out (" << ls.held_out << " frames, not in the fit): RMS " << ls.held_out_rms_m << " m";
+      std::cout << "\nroute vs GPS, robust fit: " << rc.gps_outliers << " GPS fixes off the route by more than 3 robust sigmas"
+                << " (frames";
+      for (int i : rc.outlier_frames) std::cout << " " << i;
+      std::cout << "), RMS over the other " << rc.pairs - rc.gps_outliers << " " << rc.inlier_rms_m << " m = "
+                << rc.inlier_rms_percent() << " %, over all " << rc.rms_m << " m = " << rc.rms_percent() << " %";
+      if (rc.held_out > 0) std::cout << "; drop-out RMS " << rc.held_out_rms_m << " m";
       std::cout << "\n";
     } else {
       std::cout << "route vs GPS: " << rc.why << "\n";

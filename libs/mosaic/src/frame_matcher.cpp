@@ -13,12 +13,14 @@
 namespace vloc::mosaic {
 
 void MatcherOptions::Visit(OptionsReader& r) {
-  r.Optional("downscale", &downscale, "A-KAZE runs on the frame resized by this factor");
+  r.Optional("detector", &detector, "akaze | sift");
+  r.Optional("downscale", &downscale, "the detector runs on the frame resized by this factor");
   r.Optional("akaze_threshold", &akaze_threshold, "A-KAZE detector response threshold");
   r.Optional("akaze_octaves", &akaze_octaves, "A-KAZE octaves");
   r.Optional("akaze_sublevels", &akaze_sublevels, "A-KAZE sublevels per octave");
   r.Optional("max_features", &max_features, "strongest keypoints kept per frame");
   r.Optional("min_features", &min_features, "lower the A-KAZE threshold until this many keypoints (0 = off)");
+  r.Optional("sift_contrast", &sift_contrast, "SIFT contrast threshold");
   r.Optional("grid_cells", &grid_cells, "grid cells per side for spreading keypoints");
   r.Optional("ratio", &ratio, "Lowe ratio test");
   r.Optional("ransac_threshold", &ransac_threshold, "px, RANSAC reprojection threshold");
@@ -27,11 +29,14 @@ void MatcherOptions::Visit(OptionsReader& r) {
   r.Optional("scale_model", &scale_model, "similarity | axis_scale | affine");
   r.Optional("min_inliers", &min_inliers, "background matches needed");
   r.Optional("max_scale_change", &max_scale_change, "largest believable scale change between frames");
+  r.Optional("loose_ratio", &loose_ratio, "second try: looser ratio test + MAGSAC++ (0 = off)");
   r.Optional("guided_ratio", &guided_ratio, "ratio test inside the gate of guided matching");
   r.Optional("num_threads", &num_threads, "OpenCV threads");
 }
 
 bool MatcherOptions::Check(std::string* error) const {
+  if (detector != "akaze" && detector != "sift") return Fail(error, "matcher.detector must be 'akaze' or 'sift'");
+  if (!(sift_contrast > 0 && sift_contrast < 1)) return Fail(error, "matcher.sift_contrast must be in (0, 1)");
   if (!(downscale >= 0.1 && downscale <= 1.0)) return Fail(error, "matcher.downscale must be in [0.1, 1]");
   if (!(akaze_threshold > 0)) return Fail(error, "matcher.akaze_threshold must be > 0");
   if (akaze_octaves < 1 || akaze_octaves > 8) return Fail(error, "matcher.akaze_octaves must be in [1, 8]");
@@ -48,6 +53,7 @@ bool MatcherOptions::Check(std::string* error) const {
     return Fail(error, "matcher.scale_model must be 'similarity', 'axis_scale' or 'affine'");
   if (min_inliers < 4) return Fail(error, "matcher.min_inliers must be >= 4");
   if (!(max_scale_change > 1)) return Fail(error, "matcher.max_scale_change must be > 1");
+  if (!(loose_ratio >= 0 && loose_ratio <= 1)) return Fail(error, "matcher.loose_ratio must be in [0, 1] (0 = off)");
   if (!(guided_ratio > 0 && guided_ratio <= 1)) return Fail(error, "matcher.guided_ratio must be in (0, 1]");
   if (num_threads < 1) return Fail(error, "matcher.num_threads must be >= 1");
   return true;
@@ -79,6 +85,54 @@ std::vector<cv::KeyPoint> SpreadKeypoints(std::vector<cv::KeyPoint> kps, cv::Siz
   for (size_t i = 0; i < rest.size() && static_cast<int>(kept.size()) < budget; ++i) kept.push_back(rest[i]);
   return kept;
 }
+// A-KAZE (lowering its threshold until min_features) or SIFT over the whole image.
+void DetectAndDescribe(const cv::Mat& gray, const MatcherOptions& options, std::vector<cv::KeyPoint>* keypoints,
+                       cv::Mat* descriptors) {
+  if (options.detector == "sift") {
+    // Twice the budget by response; SpreadKeypoints then keeps the strongest per grid cell.
+    auto sift = cv::SIFT::create(2 * options.max_features, 3, options.sift_contrast);
+    sift->detectAndCompute(gray, cv::noArray(), *keypoints, *descriptors);
+    // RootSIFT (Arandjelovic & Zisserman 2012): L1-normalise, square root; L2 then compares like the Hellinger kernel.
+    for (int i = 0; i < descriptors->rows; ++i) {
+      cv::Mat row = descriptors->row(i);
+      const double l1 = cv::norm(row, cv::NORM_L1);
+      if (l1 > 0) row /= l1;
+      cv::sqrt(row, row);
+    }
+    return;
+  }
+  // One call: detect() and compute() separately would build the nonlinear scale space twice.
+  for (double threshold = options.akaze_threshold;; threshold /= 4) {
+    auto akaze = cv::AKAZE::create(cv::AKAZE::DESCRIPTOR_MLDB, 0, 3, static_cast<float>(threshold),
+                                   options.akaze_octaves, options.akaze_sublevels, cv::KAZE::DIFF_PM_G2);
+    keypoints->clear();
+    akaze->detectAndCompute(gray, cv::noArray(), *keypoints, *descriptors);
+    if (static_cast<int>(keypoints->size()) >= options.min_features || threshold < options.akaze_threshold / 60) break;
+  }
+}
+
+// Matches passing the ratio test, as point pairs.
+void RatioMatches(const std::vector<std::vector<cv::DMatch>>& knn, const FrameFeatures& from, const FrameFeatures& to,
+                  double ratio, std::vector<cv::Point2f>* a, std::vector<cv::Point2f>* b) {
+  for (const auto& pair : knn) {
+    if (pair.size() < 2 || !(pair[0].distance < ratio * pair[1].distance)) continue;
+    a->push_back(from.points[pair[0].queryIdx]);
+    b->push_back(to.points[pair[0].trainIdx]);
+  }
+}
+
+// Robust homography a -> b; returns the number of inliers (0 when none was found).
+int FitHomography(const std::vector<cv::Point2f>& a, const std::vector<cv::Point2f>& b, int method, double threshold,
+                  cv::Matx33d* H) {
+  if (a.size() < 4) return 0;
+  std::vector<uchar> inlier_mask;
+  const cv::Mat h = cv::findHomography(a, b, method, threshold, inlier_mask, method == cv::RANSAC ? 2000 : 5000,
+                                       method == cv::RANSAC ? 0.995 : 0.999);
+  if (h.empty()) return 0;
+  *H = cv::Matx33d(h);
+  return cv::countNonZero(inlier_mask);
+}
+
 }  // namespace
 
 FrameFeatures ExtractFeatures(const cv::Mat& image, const MatcherOptions& options) {
@@ -98,16 +152,9 @@ FrameFeatures ExtractFeatures(const cv::Mat& image, const MatcherOptions& option
   } else {
     small = gray;
   }
-  // One call: detect() and compute() separately would build the nonlinear scale space twice.
   std::vector<cv::KeyPoint> all;
   cv::Mat all_descriptors;
-  for (double threshold = options.akaze_threshold;; threshold /= 4) {
-    auto akaze = cv::AKAZE::create(cv::AKAZE::DESCRIPTOR_MLDB, 0, 3, static_cast<float>(threshold),
-                                   options.akaze_octaves, options.akaze_sublevels, cv::KAZE::DIFF_PM_G2);
-    all.clear();
-    akaze->detectAndCompute(small, cv::noArray(), all, all_descriptors);
-    if (static_cast<int>(all.size()) >= options.min_features || threshold < options.akaze_threshold / 60) break;
-  }
+  DetectAndDescribe(small, options, &all, &all_descriptors);
   for (size_t i = 0; i < all.size(); ++i) all[i].class_id = static_cast<int>(i);
   const std::vector<cv::KeyPoint> kps =
       SpreadKeypoints(std::move(all), small.size(), options.grid_cells, options.max_features);
@@ -158,7 +205,9 @@ MotionEstimate EstimateMotion(const FrameFeatures& from, const FrameFeatures& to
   if (from.points.size() < 8 || to.points.size() < 8)
     return fail("too few features (" + std::to_string(std::min(from.points.size(), to.points.size())) +
                 "): blank, blurred or featureless frame");
-  cv::BFMatcher matcher(cv::NORM_HAMMING);
+  if (from.descriptors.type() != to.descriptors.type())
+    return fail("descriptors of different kinds (detector changed between frames)");
+  cv::BFMatcher matcher(from.descriptors.depth() == CV_32F ? cv::NORM_L2 : cv::NORM_HAMMING);
   std::vector<std::vector<cv::DMatch>> knn;
   double ratio = options.ratio;
   if (prior) {
@@ -180,21 +229,32 @@ MotionEstimate EstimateMotion(const FrameFeatures& from, const FrameFeatures& to
     matcher.knnMatch(from.descriptors, to.descriptors, knn, 2);
   }
   std::vector<cv::Point2f> a, b;
-  for (const auto& pair : knn) {
-    if (pair.size() < 2) continue;
-    if (pair[0].distance < ratio * pair[1].distance) {
-      a.push_back(from.points[pair[0].queryIdx]);
-      b.push_back(to.points[pair[0].trainIdx]);
+  RatioMatches(knn, from, to, ratio, &a, &b);
+  m.num_matches = static_cast<int>(a.size());
+  const bool loose_allowed = options.loose_ratio > ratio;
+  if (m.num_matches < options.min_inliers && !loose_allowed)
+    return fail("too few matches (" + std::to_string(m.num_matches) + ")");
+  // RANSAC, then Levenberg-Marquardt refinement of the inliers' reprojection error (OpenCV does both).
+  if (m.num_matches >= options.min_inliers)
+    m.num_inliers = FitHomography(a, b, cv::RANSAC, options.ransac_threshold, &m.homography);
+  if (m.num_inliers < options.min_inliers && loose_allowed) {
+    // Low texture: few distinctive matches. A looser ratio test keeps more candidates, and MAGSAC++ (which
+    // scores by likelihood, not by a count inside one threshold) still finds the plane among them.
+    std::vector<cv::Point2f> a2, b2;
+    RatioMatches(knn, from, to, options.loose_ratio, &a2, &b2);
+    cv::Matx33d H2;
+    const int n2 = FitHomography(a2, b2, cv::USAC_MAGSAC, options.ransac_threshold, &H2);
+    if (n2 > m.num_inliers) {
+      a.swap(a2);
+      b.swap(b2);
+      m.num_matches = static_cast<int>(a.size());
+      m.num_inliers = n2;
+      m.homography = H2;
+      m.loose = true;
     }
   }
-  m.num_matches = static_cast<int>(a.size());
   if (m.num_matches < options.min_inliers) return fail("too few matches (" + std::to_string(m.num_matches) + ")");
-  std::vector<uchar> inlier_mask;
-  // RANSAC, then Levenberg-Marquardt refinement of the inliers' reprojection error (OpenCV does both).
-  cv::Mat H = cv::findHomography(a, b, cv::RANSAC, options.ransac_threshold, inlier_mask, 2000, 0.995);
-  if (H.empty()) return fail("no homography (matches inconsistent)");
-  m.homography = cv::Matx33d(H);
-  m.num_inliers = cv::countNonZero(inlier_mask);
+  if (m.num_inliers == 0) return fail("no homography (matches inconsistent)");
   if (m.num_inliers < options.min_inliers)
     return fail("too few RANSAC inliers (" + std::to_string(m.num_inliers) + " of " + std::to_string(m.num_matches) + ")");
   const std::vector<bool> fg = ForegroundFilter(a, b, m.homography, options.foreground_rho, options.foreground_rule);

@@ -90,12 +90,16 @@ void MosaickerOptions::Visit(OptionsReader& r) {
   r.Optional("route_point", &route_point, "centre | nadir");
   r.Optional("gps_check_below_inliers", &gps_check_below_inliers, "GPS agreement tested below this many matches");
   r.Optional("reseat_only_new_ground", &reseat_only_new_ground, "reseat only where the mosaic has nothing");
+  r.Optional("neighbour_frames", &neighbour_frames, "registered frames kept for matching a frame the keyframe misses");
+  r.Optional("neighbour_tries", &neighbour_tries, "nearest kept frames tried");
   r.Optional("reseat_by_gps", &reseat_by_gps, "place an unregistered frame at its GPS position to restart tracking");
   r.Optional("num_threads", &num_threads, "OpenCV threads");
   r.Optional("async_mosaic", &async_mosaic, "blend on a worker thread");
 }
 
 bool MosaickerOptions::Check(std::string* error) const {
+  if (neighbour_frames < 0 || neighbour_frames > 1000) return Fail(error, "neighbour_frames must be in [0, 1000]");
+  if (neighbour_tries < 1) return Fail(error, "neighbour_tries must be >= 1");
   if (!camera.Check(error) || !calibration.Check(error) || !matcher.Check(error) || !height_filter.Check(error) ||
       !canvas.Check(error) || !geo.Check(error))
     return false;
@@ -334,8 +338,8 @@ void UavMosaicker::StartMosaic(const cv::Mat& frame, const FrameFeatures& featur
             << " m, " << features.points.size() << " features";
 }
 
-bool UavMosaicker::PlaneFromHomography(const cv::Matx33d& H, double* height_ratio, cv::Vec3d* normal) const {
-  if (!keyframe_) return false;
+bool UavMosaicker::PlaneFromHomography(const cv::Matx33d& H, const Keyframe& reference, double* height_ratio,
+                                       cv::Vec3d* normal) const {
   std::vector<cv::Mat> rotations, translations, normals;
   int n = 0;
   try {
@@ -350,7 +354,7 @@ bool UavMosaicker::PlaneFromHomography(const cv::Matx33d& H, double* height_rati
   for (int i = 0; i < n; ++i) {
     const cv::Vec3d nk(normals[i]);
     if (nk[2] <= 0) continue;
-    const double agree = nk.dot(keyframe_->normal) / cv::norm(nk);
+    const double agree = nk.dot(reference.normal) / cv::norm(nk);
     if (agree <= best) continue;
     const cv::Matx33d R(rotations[i]);
     const cv::Vec3d t(translations[i]);
@@ -422,6 +426,48 @@ bool UavMosaicker::RegisterToMosaic(const cv::Mat& frame, const FrameFeatures& f
   }
   *mosaic_from_frame = mosaic_from_view * motion->similarity.Inverse();
   return true;
+}
+
+void UavMosaicker::KeepNeighbour(const FrameFeatures& features, const Similarity2& mosaic_from_frame, int64_t utime) {
+  if (options_.neighbour_frames <= 0) return;
+  neighbours_.push_back(Keyframe{features, mosaic_from_frame, utime, ground_normal_});
+  while (static_cast<int>(neighbours_.size()) > options_.neighbour_frames) neighbours_.pop_front();
+}
+
+bool UavMosaicker::RegisterToNeighbours(const FrameFeatures& features, const std::optional<Prediction>& prediction,
+                                        MotionEstimate* motion, Similarity2* mosaic_from_frame,
+                                        const Keyframe** matched, std::string* why) {
+  // Where the frame centre is expected in the mosaic, and how far a frame that overlaps it can be.
+  const cv::Point2d c(camera_.cx, camera_.cy);
+  const Similarity2& expected = prediction ? prediction->mosaic_from_frame : last_good_;
+  const cv::Point2d at = expected.Apply(c);
+  const double reach = expected.Scale() * features.size.width;
+  std::vector<std::pair<double, const Keyframe*>> near;
+  for (const auto& n : neighbours_) {
+    if (keyframe_ && n.utime == keyframe_->utime) continue;  // tried already
+    const double d = cv::norm(n.mosaic_from_frame.Apply(c) - at);
+    if (d < reach) near.emplace_back(d, &n);
+  }
+  std::sort(near.begin(), near.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  if (near.size() > static_cast<size_t>(options_.neighbour_tries)) near.resize(options_.neighbour_tries);
+  std::string tried;
+  for (const auto& [d, n] : near) {
+    MotionEstimate m = EstimateMotion(n->features, features, options_.matcher);
+    std::string reason = m.ok ? "" : m.why;
+    Similarity2 S;
+    if (m.ok) {
+      S = n->mosaic_from_frame * m.similarity.Inverse();
+      if (Evidence(m, S, prediction, &reason)) {
+        *motion = m;
+        *mosaic_from_frame = S;
+        *matched = n;
+        return true;
+      }
+    }
+    tried = reason;
+  }
+  if (!near.empty()) *why += "; " + std::to_string(near.size()) + " earlier frames nearby: " + tried;
+  return false;
 }
 
 bool UavMosaicker::Reregister(const cv::Mat& frame, const FrameFeatures& features, Similarity2* mosaic_from_frame) {
@@ -547,6 +593,17 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
     if (!motion.ok) why += "; guided by the " + std::string(prediction->from_gps ? "GPS" : "last motion") + ": " + guided_why;
   }
   bool ok = motion.ok;
+  bool via_neighbour = false;
+  const Keyframe* reference = &*keyframe_;  // the frame `motion` is relative to
+  if (!ok && !neighbours_.empty()) {
+    Similarity2 N;
+    MotionEstimate m2;
+    if (RegisterToNeighbours(features, prediction, &m2, &N, &reference, &why)) {
+      ok = via_neighbour = true;
+      motion = m2;
+      S = N;
+    }
+  }
   bool via_mosaic = false;
   bool reregistered = false;
   if (ok) {
@@ -555,7 +612,7 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
       frames_since_reregister_ = 0;
       reregistered = Reregister(frame, features, &S);
     }
-  } else if (lost_) {
+  } else if (lost_ && !ok) {
     last_painted_ = 1.0;
     MotionEstimate m2;
     // Search the mosaic where the GPS says the frame is, else around the last good pose.
@@ -603,7 +660,9 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
   state.status = lost_ ? TrackStatus::kRecovered : TrackStatus::kTracking;
   if (lost_) {
     ++summary_.recoveries;
-    state.message = via_mosaic ? "re-acquired against the mosaic" : "re-acquired against the last keyframe";
+    state.message = via_mosaic      ? "re-acquired against the mosaic"
+                    : via_neighbour ? "re-acquired against an earlier frame"
+                                    : "re-acquired against the last keyframe";
     LOG(INFO) << "frame " << state.frame_index << ": " << state.message;
   }
   const bool was_lost = lost_;
@@ -614,7 +673,7 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
   // relative to the keyframe.
   double height_ratio = 1;
   cv::Vec3d normal;
-  const bool plane_ok = !via_mosaic && PlaneFromHomography(motion.homography, &height_ratio, &normal);
+  const bool plane_ok = !via_mosaic && PlaneFromHomography(motion.homography, *reference, &height_ratio, &normal);
   if (plane_ok) {
     ground_normal_ = normal;
     state.tilt = std::acos(std::clamp(normal[2], -1.0, 1.0));
@@ -624,7 +683,7 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
       cv::Point2d centroid(0, 0);
       for (const auto& p : motion.to_background) centroid += cv::Point2d(p);
       centroid *= 1.0 / std::max<size_t>(1, motion.to_background.size());
-      Similarity2 H = Similarity2::FromScaleAngle(keyframe_->mosaic_from_frame.Scale() * height_ratio, S.Angle(), 0, 0);
+      Similarity2 H = Similarity2::FromScaleAngle(reference->mosaic_from_frame.Scale() * height_ratio, S.Angle(), 0, 0);
       const cv::Point2d target = S.Apply(centroid), moved = H.Apply(centroid);
       H.tx = target.x - moved.x;
       H.ty = target.y - moved.y;
@@ -651,7 +710,8 @@ FrameState UavMosaicker::ProcessFrame(const cv::Mat& image_in, int64_t utime) {
   // New keyframe?
   const double key_scale = motion.lambda;
   state.reregistered = reregistered;
-  const bool new_key = was_lost || via_mosaic || reregistered || motion.num_background < options_.keyframe_min_inliers ||
+  KeepNeighbour(features, S, utime);
+  const bool new_key = was_lost || via_mosaic || via_neighbour || reregistered || motion.num_background < options_.keyframe_min_inliers ||
                        key_scale > options_.keyframe_max_scale || key_scale < 1.0 / options_.keyframe_max_scale ||
                        (!via_mosaic && KeyframeOverlap(motion.similarity, frame.size()) < options_.keyframe_min_overlap);
   if (new_key) {

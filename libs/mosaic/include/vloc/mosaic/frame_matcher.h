@@ -16,13 +16,16 @@ class OptionsReader;
 namespace vloc::mosaic {
 
 struct MatcherOptions {
-  double downscale = 0.5;            // A-KAZE runs on the frame resized by this factor (0.1..1)
+  std::string detector = "akaze";    // "akaze" (the paper's: binary MLDB descriptors, fast on video) or "sift" (float
+                                     // descriptors; finds 1.3-2x the consistent matches on low-texture fields)
+  double downscale = 0.5;            // the detector runs on the frame resized by this factor (0.1..1)
   double akaze_threshold = 0.0005;   // A-KAZE detector response threshold
   int akaze_octaves = 3;             // A-KAZE octaves
   int akaze_sublevels = 2;           // A-KAZE sublevels per octave (OpenCV default 4; 2 halves the scale-space cost)
   int max_features = 1200;           // strongest keypoints kept per frame (spread over a grid)
   int min_features = 0;              // fewer keypoints than this: A-KAZE again at a quarter of the threshold (down to
                                      // 1/64 of akaze_threshold; low-texture fields); 0 = off
+  double sift_contrast = 0.01;       // SIFT contrast threshold (OpenCV default 0.04; low texture needs less)
   int grid_cells = 8;                // grid cells per image side for spreading the kept keypoints
   double ratio = 0.8;                // Lowe ratio test on Hamming distances
   double ransac_threshold = 3.0;     // px (full resolution), RANSAC reprojection threshold
@@ -31,6 +34,8 @@ struct MatcherOptions {
   std::string scale_model = "similarity";        // eq. 3 model: "similarity" (handles yaw), "axis_scale" (eq. 3 as printed), "affine"
   int min_inliers = 25;              // fewer background matches than this = matching failed
   double max_scale_change = 1.6;     // a scale change beyond [1/x, x] between two frames = failure
+  double loose_ratio = 0.0;          // when the homography has too few inliers: again with this looser ratio test and
+                                     // MAGSAC++ (low-texture fields); 0 = off
   double guided_ratio = 0.9;         // ratio test among the candidates inside the gate (guided matching, MotionPrior)
   int num_threads = 2;               // OpenCV threads for A-KAZE and matching
 
@@ -41,7 +46,7 @@ struct MatcherOptions {
 // Keypoints (full-resolution pixel coordinates) and their descriptors.
 struct FrameFeatures {
   std::vector<cv::Point2f> points;   // px, full resolution
-  cv::Mat descriptors;               // one row per point (A-KAZE MLDB, binary)
+  cv::Mat descriptors;               // one row per point: A-KAZE MLDB (CV_8U, Hamming) or SIFT (CV_32F, L2)
   cv::Size size;                     // full-resolution frame size
   double seconds = 0.0;              // time spent extracting
   bool empty() const { return points.empty(); }
@@ -65,6 +70,7 @@ struct MotionEstimate {
   double fit_rms = 0.0;              // px, residual of the scale fit
   double spread = 0.0;               // area of the background matches' convex hull / area of `to` (0..1)
   bool guided = false;               // matched inside a MotionPrior's gate
+  bool loose = false;                // found by the second try (loose_ratio, MAGSAC++)
   double seconds = 0.0;              // matching + estimation
   std::vector<cv::Point2f> from_background, to_background;
 };

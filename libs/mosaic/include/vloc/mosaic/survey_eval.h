@@ -24,14 +24,29 @@ struct RouteComparison {
   double held_out_rms_m = 0;            // over usable frames not in the fit (e.g. a GPS drop-out), 0 if none
   int held_out = 0;
   double path_m = 0;                    // GPS path length through the usable frames, m
+  // Robust fit: fixes whose residual exceeds max(outlier_sigmas x 1.4826 x median residual, min_outlier_m) are
+  // GPS outliers (consumer receivers jump tens of metres for a fix or two); the fit is repeated without them.
+  int gps_outliers = 0;                 // fixes left out of the final fit
+  std::vector<int> outlier_frames;      // their input indices
+  double inlier_rms_m = 0;              // over the frames in the final fit
   double rms_percent() const { return path_m > 0 ? 100.0 * rms_m / path_m : 0.0; }
+  double inlier_rms_percent() const { return path_m > 0 ? 100.0 * inlier_rms_m / path_m : 0.0; }
+};
+
+struct RouteFitOptions {
+  bool robust = true;                   // reject GPS outliers (else one least-squares fit over every pair)
+  double outlier_sigmas = 3.0;          // threshold in robust sigmas (1.4826 x median residual)
+  double min_outlier_m = 10.0;          // m, a residual below this is never an outlier (GPS noise of a few metres)
+  double max_outlier_fraction = 0.1;    // at most this fraction of the fixes is rejected (the worst first)
 };
 
 // route_px[i] mosaic px of frame i, gps_enu[i] its GPS east/north (m);
 // usable[i] false = no registration or no GPS; in_fit[i] false = compared
 // but not used in the fit (held out).
+// rms_m is over every frame in the fit, under the (robust) final similarity.
 RouteComparison CompareRouteToGps(const std::vector<cv::Point2d>& route_px, const std::vector<cv::Point2d>& gps_enu,
-                                  const std::vector<bool>& usable, const std::vector<bool>& in_fit);
+                                  const std::vector<bool>& usable, const std::vector<bool>& in_fit,
+                                  const RouteFitOptions& options = RouteFitOptions());
 
 struct HeightComparison {
   bool ok = false;

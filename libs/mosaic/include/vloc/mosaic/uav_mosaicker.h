@@ -97,6 +97,10 @@ struct MosaickerOptions {
                                         // (new ground: nothing to re-acquire against); else keep searching the mosaic
   bool reseat_by_gps = false;           // a frame no image registers is placed at its GPS position and becomes the
                                         // keyframe (reported LOST, not registered), so the next frame re-acquires
+  int neighbour_frames = 0;             // registered frames whose features are kept (most recent first): a frame the
+                                        // keyframe does not register is matched against the nearest of them (the
+                                        // neighbour on the adjacent strip of a survey, the frame before a bad one)
+  int neighbour_tries = 3;              // nearest kept frames (by predicted position) tried, within one frame width
   int num_threads = 2;                  // OpenCV threads (A-KAZE, matching, warping)
   bool async_mosaic = false;            // blend on a worker thread (real time: tracking never waits; a frame due while
                                         // the worker is busy replaces the queued one). false = blend inside ProcessFrame
@@ -218,6 +222,11 @@ class UavMosaicker {
     cv::Point2d gps_px;                 // mosaic px of the GPS position (from_gps)
     double gps_tolerance_px = 0;        // frame px, largest believable disagreement with the GPS
   };
+  // Matches the frame against the kept registered frames nearest to where it is expected (neighbour_frames).
+  bool RegisterToNeighbours(const FrameFeatures& features, const std::optional<Prediction>& prediction,
+                            MotionEstimate* motion, Similarity2* mosaic_from_frame, const Keyframe** matched,
+                            std::string* why);
+  void KeepNeighbour(const FrameFeatures& features, const Similarity2& mosaic_from_frame, int64_t utime);
   // The pose of a frame at `utime` from the GPS (when tied and a fix is at
   // that time) or from constant motion (the last two registered frames were consecutive).
   std::optional<Prediction> Predict(int64_t utime, cv::Size size) const;
@@ -233,7 +242,10 @@ class UavMosaicker {
                 std::string* why);
   // Height ratio frame / keyframe and the ground normal in the frame from
   // the homography keyframe -> frame; false when no decomposition is plausible.
-  bool PlaneFromHomography(const cv::Matx33d& H, double* height_ratio, cv::Vec3d* normal) const;
+  // The ground plane of homography H (reference frame -> this frame): this frame's height relative to the
+  // reference's and the ground normal in this frame's camera.
+  bool PlaneFromHomography(const cv::Matx33d& H, const Keyframe& reference, double* height_ratio,
+                           cv::Vec3d* normal) const;
   double KeyframeOverlap(const Similarity2& key_to_cur, cv::Size size) const;
   void PairPendingFixes();
   void RefitTie();
@@ -258,6 +270,7 @@ class UavMosaicker {
   bool camera_scaled_warned_ = false;
 
   std::optional<Keyframe> keyframe_;
+  std::deque<Keyframe> neighbours_;        // the last neighbour_frames registered frames (RegisterToNeighbours)
   Similarity2 last_good_;                  // mosaic_from_frame of the last tracked frame
   double last_scale_ = 0;                  // its similarity scale
   std::optional<cv::Point2d> yaw_offset_;  // mean (cos, sin) of frame heading minus GPS course (ENU), registered frames
