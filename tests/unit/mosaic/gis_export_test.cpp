@@ -163,6 +163,42 @@ TEST(SurveyEval, RouteResidualAfterSimilarityFitMatchesTheNoise) {
   EXPECT_TRUE(std::isnan(r.residual_m[59]));
 }
 
+TEST(SurveyEval, RobustRouteFitFlagsGpsJumpsAndKeepsTheNoiseFigure) {
+  // The same lawnmower with 1.5 m of noise, and three fixes thrown 40-60 m
+  // off (a consumer receiver's jumps): the robust fit names exactly those,
+  // and its RMS over the rest matches the noise; least squares is pulled off.
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0.0, 1.5);
+  std::vector<cv::Point2d> enu, route;
+  const Similarity2 px_from_enu = Similarity2::FromScaleAngle(5.0, -1.1, -40, 75);
+  for (int i = 0; i < 60; ++i) {
+    const cv::Point2d e((i % 20) * 12.0 * ((i / 20) % 2 ? -1 : 1), (i / 20) * 40.0);
+    const cv::Point2d f = px_from_enu.Apply(e + cv::Point2d(noise(rng), noise(rng)));
+    route.emplace_back(f.x, -f.y);
+    enu.push_back(e);
+  }
+  enu[12] += cv::Point2d(40, 0);
+  enu[13] += cv::Point2d(0, -55);
+  enu[41] += cv::Point2d(-42, 42);
+  const std::vector<bool> all(60, true);
+  RouteFitOptions plain;
+  plain.robust = false;
+  const RouteComparison ls = CompareRouteToGps(route, enu, all, all, plain);
+  const RouteComparison robust = CompareRouteToGps(route, enu, all, all);
+  ASSERT_TRUE(ls.ok && robust.ok);
+  EXPECT_EQ(ls.gps_outliers, 0);
+  EXPECT_EQ(robust.outlier_frames, (std::vector<int>{12, 13, 41}));
+  EXPECT_NEAR(robust.inlier_rms_m, 1.5 * std::sqrt(2.0), 0.5);
+  EXPECT_GT(ls.rms_m, 10.0);
+  EXPECT_NEAR(robust.enu_from_flipped.Scale(), 1.0 / 5.0, 0.01 / 5.0);
+  // Clean GPS: nothing is flagged (the 10 m floor is far above 1.5 m noise).
+  std::vector<cv::Point2d> clean = enu;
+  clean[12] -= cv::Point2d(40, 0);
+  clean[13] -= cv::Point2d(0, -55);
+  clean[41] -= cv::Point2d(-42, 42);
+  EXPECT_EQ(CompareRouteToGps(route, clean, all, all).gps_outliers, 0);
+}
+
 TEST(SurveyEval, HeightsWithAndWithoutAFittedGround) {
   std::vector<double> h = {40, 50, 60, std::nan("")}, gps = {340.4, 349.6, 360.0, 380};
   const HeightComparison a = CompareHeights(h, gps, true);
