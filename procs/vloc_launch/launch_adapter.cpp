@@ -6,19 +6,52 @@
 namespace vloc {
 
 LaunchLcmAdapter::LaunchLcmAdapter(Supervisor& supervisor, Transport& transport, std::string host,
-                                   double status_period_s)
+                                   double status_period_s, PeerTrackerOptions peer_options,
+                                   const GroupFile* whole_file)
     : supervisor_(supervisor),
       transport_(transport),
       host_(std::move(host)),
       period_(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
           std::chrono::duration<double>(status_period_s))),
-      next_status_(std::chrono::steady_clock::now()) {}
+      next_status_(std::chrono::steady_clock::now()),
+      peer_options_(peer_options),
+      peers_(host_, static_cast<int>(getpid()), peer_options),
+      whole_file_(whole_file) {}
 
 void LaunchLcmAdapter::Subscribe() {
   order_stats_ = vloc::Subscribe<procman_order_t>(
       transport_, kProcmanOrdersChannel,
       [this](const std::string&, const procman_order_t& order) { HandleOrder(order); },
       kOrderQueue);
+  status_stats_ = vloc::Subscribe<procman_status_t>(
+      transport_, kProcmanStatusChannel,
+      [this](const std::string&, const procman_status_t& status) { HandleStatus(status); }, kStatusQueue);
+}
+
+void LaunchLcmAdapter::HandleStatus(const procman_status_t& status) {
+  PeerReport report;
+  report.host = status.host;
+  report.launcher_pid = status.launcher_pid;
+  for (const auto& p : status.procs) {
+    ProcessStatus s;
+    s.name = p.name;
+    s.group = p.group;
+    s.pid = p.pid;
+    s.state = static_cast<ProcState>(p.state);
+    s.restarts = p.restarts;
+    s.last_exit_code = p.last_exit_code;
+    s.has_exited = p.last_exit_code != 0 || p.state == proc_status_t::STATE_EXITED;
+    report.procs.push_back(s);
+  }
+  for (const PeerEvent& e : peers_.OnReport(report, std::chrono::steady_clock::now()))
+    LOG(INFO) << "peers: " << e.text;
+}
+
+bool LaunchLcmAdapter::OwnedElsewhere(const std::string& target, bool is_group) const {
+  if (!whole_file_) return false;
+  for (const auto& p : whole_file_->processes)
+    if (p.host != host_ && (is_group ? p.group == target : p.name == target)) return true;
+  return false;
 }
 
 void LaunchLcmAdapter::HandleOrder(const procman_order_t& order) {
@@ -37,8 +70,19 @@ void LaunchLcmAdapter::HandleOrder(const procman_order_t& order) {
     LOG(WARNING) << "order to " << action << " '" << order.target << "' ignored: shutting down";
     return;
   }
-  LOG(INFO) << "order: " << action << (is_group ? " group '" : " process '") << order.target << "'";
   std::string error;
+  if (OwnedElsewhere(order.target, is_group)) {
+    // Part (a group) or all (a process) of the target runs on another host:
+    // apply the order to what is here, if anything, without an error.
+    bool mine = false;
+    for (const auto& p : supervisor_.file().processes)
+      mine = mine || (is_group ? p.group == order.target : p.name == order.target);
+    if (!mine) {
+      LOG(INFO) << "order to " << action << " '" << order.target << "' is for another host's launcher; not mine";
+      return;
+    }
+  }
+  LOG(INFO) << "order: " << action << (is_group ? " group '" : " process '") << order.target << "'";
   bool ok = false;
   if (order.action == procman_order_t::ACTION_START) ok = supervisor_.Start(order.target, is_group, &error);
   else if (order.action == procman_order_t::ACTION_STOP) ok = supervisor_.Stop(order.target, is_group, &error);
@@ -49,6 +93,7 @@ void LaunchLcmAdapter::HandleOrder(const procman_order_t& order) {
 
 void LaunchLcmAdapter::Tick() {
   const auto now = std::chrono::steady_clock::now();
+  for (const PeerEvent& e : peers_.Check(now)) LOG(WARNING) << "peers: " << e.text;
   if (now < next_status_) return;
   PublishStatus();
   next_status_ = now + period_;
@@ -76,6 +121,27 @@ void LaunchLcmAdapter::PublishStatus() {
   }
   msg.num_procs = static_cast<int32_t>(msg.procs.size());
   Publish(transport_, kProcmanStatusChannel, msg);
+  PublishPeers(msg.utime);
+}
+
+void LaunchLcmAdapter::PublishPeers(int64_t utime) {
+  procman_peers_t msg;
+  msg.utime = utime;
+  msg.host = host_;
+  msg.launcher_pid = static_cast<int32_t>(getpid());
+  msg.lost_after_seconds = peer_options_.lost_after_s;
+  for (const PeerView& v : peers_.Peers(std::chrono::steady_clock::now())) {
+    procman_peer_t p;
+    p.host = v.host;
+    p.launcher_pid = v.launcher_pid;
+    p.state = v.lost ? procman_peer_t::STATE_LOST : procman_peer_t::STATE_ALIVE;
+    p.seconds_since_heard = v.seconds_since_heard;
+    p.reports = v.reports;
+    p.times_lost = v.times_lost;
+    msg.peers.push_back(p);
+  }
+  msg.num_peers = static_cast<int32_t>(msg.peers.size());
+  Publish(transport_, kProcmanPeersChannel, msg);
 }
 
 }  // namespace vloc

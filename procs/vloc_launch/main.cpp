@@ -2,6 +2,9 @@
 // crashes, logs each process's output, publishes PROCMAN_STATUS at 1 Hz and
 // obeys PROCMAN_ORDERS. SIGINT/SIGTERM stops every child (its stop signal,
 // then SIGKILL after its stop_timeout). See libs/launch/include/vloc/launch/group_file.h.
+// With --host NAME it runs only the processes of host (role) NAME of a
+// group split across machines, names itself NAME in PROCMAN_STATUS and
+// reports the other hosts' launchers (PROCMAN_PEERS; LOST after --lost-after s).
 
 #include <unistd.h>
 
@@ -26,10 +29,10 @@ int main(int argc, char** argv) {
   auto setup = vloc::SetupProcess(
       static_cast<int>(args.size()), args.data(),
       {"vloc_launch",
-       {"group", "log-dir", "bin-dir", "exit-when-done", "exit-grace", "echo"},
+       {"group", "log-dir", "bin-dir", "exit-when-done", "exit-grace", "echo", "host", "lost-after"},
        true,
-       "--config config/groups/rover_sim.yaml [--group NAME[,NAME] ...] [--log-dir DIR] [--lcm-url URL] "
-       "[--bin-dir DIR] [--exit-when-done[=NAME,...]] [--exit-grace S] [--echo]"});
+       "--config config/groups/rover_sim.yaml [--host NAME] [--group NAME[,NAME] ...] [--log-dir DIR] "
+       "[--lcm-url URL] [--bin-dir DIR] [--exit-when-done[=NAME,...]] [--exit-grace S] [--lost-after S] [--echo]"});
   if (!setup) return 1;
 
   vloc::LaunchPaths paths;
@@ -38,9 +41,16 @@ int main(int argc, char** argv) {
     std::cerr << "vloc_launch: " << error << "\n";
     return 1;
   }
-  vloc::GroupFile file;
+  const std::string host = setup->args.Get("host", "");
+  vloc::PeerTrackerOptions peer_options;
+  peer_options.lost_after_s = setup->args.GetDouble("lost-after", peer_options.lost_after_s);
+  vloc::GroupFile whole, file;
   try {
-    file = vloc::ParseGroupFile(setup->config_path);
+    whole = file = vloc::ParseGroupFile(setup->config_path);
+    std::vector<std::string> dropped;
+    if (!host.empty()) file = vloc::SelectHost(whole, host, &dropped);
+    for (const auto& d : dropped) LOG(INFO) << "host " << host << ": depends_on " << d << " is not checked here";
+    if (!peer_options.Check(&error)) throw vloc::ConfigError("--lost-after: " + error);
   } catch (const vloc::ConfigError& e) {
     std::cerr << "vloc_launch: " << e.what() << "\n";
     return 1;
@@ -54,7 +64,9 @@ int main(int argc, char** argv) {
       return 1;
     }
   }
-  LOG(INFO) << "group file " << file.path << ": " << file.processes.size() << " processes; VLOC_BIN="
+  LOG(INFO) << "group file " << file.path << ": " << file.processes.size() << " processes"
+            << (host.empty() ? "" : " of host " + host + " (" + std::to_string(whole.processes.size()) + " in all)")
+            << "; VLOC_BIN="
             << paths.bin_dir << " VLOC_ROOT=" << paths.root << " logs in " << paths.log_dir;
 
   vloc::Supervisor supervisor(file, {paths.log_dir, setup->args.Has("echo")});
@@ -63,9 +75,10 @@ int main(int argc, char** argv) {
     std::cerr << "vloc_launch: " << error << "\n";
     return 1;
   }
-  char host[256] = {};
-  gethostname(host, sizeof(host) - 1);
-  vloc::LaunchLcmAdapter adapter(supervisor, *setup->transport, host);
+  char machine[256] = {};
+  gethostname(machine, sizeof(machine) - 1);
+  vloc::LaunchLcmAdapter adapter(supervisor, *setup->transport, host.empty() ? std::string(machine) : host, 1.0,
+                                 peer_options, host.empty() ? nullptr : &whole);
   adapter.Subscribe();
 
   std::optional<int> outcome;

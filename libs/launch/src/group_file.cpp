@@ -1,5 +1,6 @@
 #include "vloc/launch/group_file.h"
 
+#include <algorithm>
 #include <csignal>
 #include <cstdlib>
 #include <functional>
@@ -26,6 +27,41 @@ std::vector<std::string> GroupFile::Groups() const {
     if (!seen) groups.push_back(p.group);
   }
   return groups;
+}
+
+std::vector<std::string> GroupFile::Hosts() const {
+  std::vector<std::string> hosts;
+  for (const auto& p : processes)
+    if (!p.host.empty() && std::find(hosts.begin(), hosts.end(), p.host) == hosts.end()) hosts.push_back(p.host);
+  return hosts;
+}
+
+GroupFile SelectHost(const GroupFile& file, const std::string& host, std::vector<std::string>* dropped) {
+  const std::vector<std::string> hosts = file.Hosts();
+  std::string list;
+  for (const auto& h : hosts) list += " " + h;
+  if (hosts.empty())
+    throw ConfigError(file.path + ": no process names a host, so there is no part for host '" + host +
+                      "'; add host: keys or run without --host");
+  if (std::find(hosts.begin(), hosts.end(), host) == hosts.end())
+    throw ConfigError(file.path + ": no process runs on host '" + host + "'; hosts in the file:" + list);
+  GroupFile part;
+  part.path = file.path;
+  for (const auto& p : file.processes) {
+    if (p.host != host) continue;
+    ProcessSpec spec = p;
+    spec.depends_on.clear();
+    for (const auto& d : p.depends_on) {
+      const ProcessSpec* dep = file.Find(d);
+      if (dep && dep->host != host) {
+        if (dropped) dropped->push_back(p.name + " -> " + d + " (host " + dep->host + ")");
+        continue;
+      }
+      spec.depends_on.push_back(d);
+    }
+    part.processes.push_back(spec);
+  }
+  return part;
 }
 
 const ProcessSpec* GroupFile::Find(const std::string& name) const {
@@ -118,6 +154,7 @@ struct RawProcess {
     r.Optional("autostart", &spec.autostart, "start with its group");
     r.Optional("exit_when_done", &spec.exit_when_done, "its end ends the launcher (--exit-when-done)");
     r.Optional("exit_grace", &spec.exit_grace, "s, after that end, before stopping the rest");
+    r.Optional("host", &spec.host, "host or role it runs on (vloc_launch --host)");
   }
 };
 
@@ -229,6 +266,8 @@ GroupFile ParseGroupYaml(const YAML::Node& root, const std::string& context, con
     if (spec.command.empty())
       throw ConfigError(where + ": no 'command'; add command: <program path or name on PATH>");
     if (spec.group.empty()) spec.group = default_group;
+    if (spec.host.find_first_of(" /,") != std::string::npos)
+      throw ConfigError(where + ".host: '" + spec.host + "' must not contain spaces, '/' or ','");
 
     if (raw.restart == "never") spec.restart = RestartPolicy::kNever;
     else if (raw.restart == "on-failure") spec.restart = RestartPolicy::kOnFailure;
@@ -252,6 +291,14 @@ GroupFile ParseGroupYaml(const YAML::Node& root, const std::string& context, con
     for (auto& [k, v] : spec.env) Expand(&v, lookup, where + ".env." + k);
     Expand(&spec.working_dir, lookup, where + ".working_dir");
     file.processes.push_back(spec);
+  }
+
+  // Hosts: none (one machine) or every process.
+  const auto hosts = file.Hosts();
+  for (const auto& p : file.processes) {
+    if (!hosts.empty() && p.host.empty())
+      throw ConfigError(context + ": process '" + p.name + "' has no 'host' while others have (" + hosts.front() +
+                        "); give every process a host, or set defaults.host");
   }
 
   // Dependencies: known names, no self or cycle.

@@ -202,5 +202,73 @@ TEST(GroupFile, ShippedGroupFilesParse) {
   }
 }
 
+// A group split across hosts: each launcher's part, dependencies on the
+// other host left out, and the mistakes a split file can have.
+TEST(GroupFile, SelectHostGivesEachLauncherItsPart) {
+  const GroupFile file = Parse(R"(
+defaults: {host: ground}
+processes:
+  - {name: log_v, command: /bin/true, host: vehicle}
+  - {name: dr, command: /bin/true, host: vehicle, depends_on: [log_v]}
+  - {name: log_g, command: /bin/true}
+  - {name: frontend, command: /bin/true, depends_on: [log_g]}
+  - {name: sim, command: /bin/true, host: vehicle, depends_on: [dr, frontend]}
+)");
+  EXPECT_EQ(file.Hosts(), (std::vector<std::string>{"vehicle", "ground"}));
+  std::vector<std::string> dropped;
+  const GroupFile vehicle = SelectHost(file, "vehicle", &dropped);
+  std::vector<std::string> names;
+  for (const auto& p : vehicle.processes) names.push_back(p.name);
+  EXPECT_EQ(names, (std::vector<std::string>{"log_v", "dr", "sim"}));
+  EXPECT_EQ(vehicle.Find("sim")->depends_on, std::vector<std::string>{"dr"});
+  EXPECT_EQ(dropped, std::vector<std::string>{"sim -> frontend (host ground)"});
+  const GroupFile ground = SelectHost(file, "ground");
+  ASSERT_EQ(ground.processes.size(), 2u);
+  EXPECT_EQ(ground.processes[1].name, "frontend");
+  EXPECT_EQ(ground.processes[1].depends_on, std::vector<std::string>{"log_g"});
+
+  try {
+    SelectHost(file, "laptop");
+    ADD_FAILURE() << "no error for an unknown host";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("no process runs on host 'laptop'; hosts in the file: vehicle ground"),
+              std::string::npos) << e.what();
+  }
+  const GroupFile single = Parse("processes: [{name: a, command: /bin/true}]");
+  EXPECT_TRUE(single.Hosts().empty());
+  EXPECT_THROW(SelectHost(single, "vehicle"), ConfigError);
+  EXPECT_NE(ErrorOf("processes: [{name: a, command: /bin/true, host: v}, {name: b, command: /bin/true}]")
+                .find("process 'b' has no 'host' while others have (v)"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("processes: [{name: a, command: /bin/true, host: 'a b'}]").find(".host: 'a b' must not"),
+            std::string::npos);
+}
+
+// The shipped split group: every process has a host, the vehicle part
+// holds the simulator and dead reckoning, the ground part the pipeline,
+// and run whole it is the same pipeline as rover_sim.
+TEST(GroupFile, ShippedSplitGroupParts) {
+  const VariableLookup vars = Vars({{"VLOC_BIN", "/bin_dir"}, {"VLOC_ROOT", "/root_dir"},
+                                    {"VLOC_LCM_URL", "udpm://239.255.76.67:7667?ttl=1"}, {"VLOC_LOG_DIR", "/logs"}});
+  const GroupFile file = ParseGroupFile("config/groups/rover_split.yaml", vars);
+  EXPECT_EQ(file.Hosts(), (std::vector<std::string>{"vehicle", "ground"}));
+  auto names = [](const GroupFile& f) {
+    std::vector<std::string> out;
+    for (const auto& p : f.processes) out.push_back(p.name);
+    return out;
+  };
+  EXPECT_EQ(names(SelectHost(file, "vehicle")),
+            (std::vector<std::string>{"logger_vehicle", "dead_reckoning", "sim_rover"}));
+  EXPECT_EQ(names(SelectHost(file, "ground")),
+            (std::vector<std::string>{"logger", "feature_frontend", "crosssite_ba", "traverse_graph"}));
+  const GroupFile whole = ParseGroupFile("config/groups/rover_sim.yaml", vars);
+  for (const auto& p : whole.processes) {
+    const ProcessSpec* split = file.Find(p.name);
+    ASSERT_TRUE(split) << p.name;
+    EXPECT_EQ(split->command, p.command);
+  }
+  EXPECT_TRUE(SelectHost(file, "vehicle").Find("sim_rover")->exit_when_done);
+}
+
 }  // namespace
 }  // namespace vloc

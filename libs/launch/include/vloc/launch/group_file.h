@@ -25,7 +25,16 @@
 //       autostart: true             # start with its group
 //       exit_when_done: true        # with --exit-when-done: its end ends the launcher
 //       exit_grace: 10              # s, after that end, before the others are stopped
+//       host: vehicle               # host or role it runs on (see below)
 //
+// Groups across machines (one LCM bus, a launcher per machine, after
+// libbot2's procman deputies): `host` names the machine or role a process
+// runs on. Either no process names one (a single-machine file) or every
+// process does (directly or through `defaults`). `vloc_launch --host
+// vehicle` then starts only the processes of host `vehicle` (SelectHost);
+// without --host a launcher runs the whole file on one machine. A
+// depends_on on another host's process cannot be checked locally and is
+// left out of that launcher's part.
 // ${VAR} and ${VAR:-fallback} in command, args, env values and working_dir
 // are expanded from the launcher's environment when the file is read; $$
 // is a literal $. Errors are ConfigError with one line naming the file, the
@@ -64,6 +73,7 @@ struct ProcessSpec {
   bool autostart = true;                     // started when its group is started at launch
   bool exit_when_done = false;               // with --exit-when-done, the launcher ends when it ends
   double exit_grace = 0.0;                   // s, after an exit_when_done end, before stopping the rest
+  std::string host;                          // host or role it runs on; empty = wherever the file is launched
 };
 
 // A parsed group file: processes in file order (the start order when no
@@ -74,8 +84,18 @@ struct GroupFile {
 
   // Distinct group names in file order.
   std::vector<std::string> Groups() const;
+  // Distinct host names in file order; empty for a single-machine file.
+  std::vector<std::string> Hosts() const;
   const ProcessSpec* Find(const std::string& name) const;
 };
+
+// The part of `file` that runs on `host`: its processes, with depends_on
+// entries naming another host's process removed (`dropped`, when given,
+// receives one "a -> b (host h)" line for each). Throws ConfigError (one
+// line naming the hosts the file has) when `host` has no process in the
+// file or the file names no hosts.
+GroupFile SelectHost(const GroupFile& file, const std::string& host,
+                     std::vector<std::string>* dropped = nullptr);
 
 // Returns the value of an environment-like variable, or nullopt when unset.
 using VariableLookup = std::function<std::optional<std::string>(const std::string&)>;

@@ -1,0 +1,91 @@
+#pragma once
+// What one launcher knows of the others on its LCM bus (libbot2's sheriff
+// view of its deputies), with no LCM in it: fed every status report the
+// launcher hears, it names launchers that join, fall silent for
+// lost_after_s (LOST), come back, restart (new pid), and the processes of
+// other hosts that change state or restart.
+//
+//   PeerTracker peers("ground", getpid(), {});
+//   for (const PeerEvent& e : peers.OnReport(report, now)) LOG(INFO) << e.text;
+//   for (const PeerEvent& e : peers.Check(now)) LOG(WARNING) << e.text;
+
+#include <sys/types.h>
+
+#include <chrono>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "vloc/launch/supervisor.h"
+
+namespace vloc {
+
+struct PeerTrackerOptions {
+  double lost_after_s = 3.0;  // s without a status report before a launcher is LOST (3 missed 1 Hz reports)
+
+  // Returns false with one line in *error for a bad value.
+  bool Check(std::string* error) const;
+};
+
+// One launcher's status report, as received.
+struct PeerReport {
+  std::string host;                     // the launcher's host (or role) name
+  int launcher_pid = 0;
+  std::vector<ProcessStatus> procs;     // name, state, pid, restarts, last_exit_code are used
+};
+
+enum class PeerEventKind {
+  kJoined,            // first report from this host
+  kLost,              // no report for lost_after_s
+  kBack,              // reports again after being lost
+  kLauncherRestarted, // same host, new launcher pid
+  kProcessChanged,    // one of its processes changed state, pid or restart count
+};
+
+struct PeerEvent {
+  PeerEventKind kind;
+  std::string host;
+  std::string process;  // kProcessChanged only
+  std::string text;     // one line for the log, naming host, process and what changed
+};
+
+// A launcher as currently seen.
+struct PeerView {
+  std::string host;
+  int launcher_pid = 0;
+  bool lost = false;
+  double seconds_since_heard = 0.0;  // s
+  int reports = 0;                   // reports received from it
+  int times_lost = 0;                // times it went LOST
+};
+
+class PeerTracker {
+ public:
+  using Clock = std::chrono::steady_clock;
+
+  // `own_host` / `own_pid`: this launcher, whose own reports are ignored.
+  PeerTracker(std::string own_host, int own_pid, PeerTrackerOptions options);
+
+  std::vector<PeerEvent> OnReport(const PeerReport& report, Clock::time_point now);
+  // Launchers that have just become LOST.
+  std::vector<PeerEvent> Check(Clock::time_point now);
+  // Every launcher heard from, by host name.
+  std::vector<PeerView> Peers(Clock::time_point now) const;
+
+ private:
+  struct Peer {
+    int launcher_pid = 0;
+    Clock::time_point last_heard;
+    Clock::time_point lost_since;
+    bool lost = false;
+    int reports = 0;
+    int times_lost = 0;
+    std::map<std::string, ProcessStatus> procs;
+  };
+  std::string own_host_;
+  int own_pid_;
+  PeerTrackerOptions options_;
+  std::map<std::string, Peer> peers_;
+};
+
+}  // namespace vloc

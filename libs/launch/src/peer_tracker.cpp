@@ -1,0 +1,110 @@
+#include "vloc/launch/peer_tracker.h"
+
+#include <cmath>
+#include <sstream>
+
+namespace vloc {
+
+namespace {
+
+double Seconds(PeerTracker::Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+
+std::string Fmt(double seconds) {
+  std::ostringstream out;
+  out.precision(2);
+  out << std::fixed << seconds;
+  return out.str();
+}
+
+}  // namespace
+
+bool PeerTrackerOptions::Check(std::string* error) const {
+  if (!(lost_after_s > 0 && std::isfinite(lost_after_s))) {
+    if (error) *error = "lost_after_s must be > 0 s (a launcher reports at 1 Hz; 3 s is three missed reports)";
+    return false;
+  }
+  return true;
+}
+
+PeerTracker::PeerTracker(std::string own_host, int own_pid, PeerTrackerOptions options)
+    : own_host_(std::move(own_host)), own_pid_(own_pid), options_(options) {}
+
+std::vector<PeerEvent> PeerTracker::OnReport(const PeerReport& report, Clock::time_point now) {
+  std::vector<PeerEvent> events;
+  if (report.host == own_host_ && report.launcher_pid == own_pid_) return events;
+  const std::string& host = report.host;
+  auto found = peers_.find(host);
+  const bool is_new = found == peers_.end();
+  Peer& peer = peers_[host];
+  if (is_new) {
+    events.push_back({PeerEventKind::kJoined, host, "",
+                      "launcher '" + host + "' (pid " + std::to_string(report.launcher_pid) + ") joined with " +
+                          std::to_string(report.procs.size()) + " processes"});
+  } else if (peer.lost) {
+    events.push_back({PeerEventKind::kBack, host, "",
+                      "launcher '" + host + "' is back after " + Fmt(Seconds(now - peer.last_heard)) +
+                          " s without a report (lost for " + Fmt(Seconds(now - peer.lost_since)) + " s)"});
+  }
+  if (!is_new && peer.launcher_pid != report.launcher_pid) {
+    events.push_back({PeerEventKind::kLauncherRestarted, host, "",
+                      "launcher '" + host + "' restarted: pid " + std::to_string(peer.launcher_pid) + " -> " +
+                          std::to_string(report.launcher_pid)});
+  }
+  if (!is_new) {
+    for (const auto& p : report.procs) {
+      auto it = peer.procs.find(p.name);
+      if (it == peer.procs.end()) continue;
+      const ProcessStatus& was = it->second;
+      if (was.state == p.state && was.pid == p.pid && was.restarts == p.restarts) continue;
+      std::string text = "launcher '" + host + "': process '" + p.name + "' " + ProcStateName(was.state) + " -> " +
+                         ProcStateName(p.state);
+      if (was.pid != p.pid) text += ", pid " + std::to_string(was.pid) + " -> " + std::to_string(p.pid);
+      if (was.restarts != p.restarts) text += ", restarts " + std::to_string(p.restarts);
+      if (p.has_exited && p.state != ProcState::kRunning) text += ", last exit " + std::to_string(p.last_exit_code);
+      events.push_back({PeerEventKind::kProcessChanged, host, p.name, text});
+    }
+  }
+  peer.procs.clear();
+  for (const auto& p : report.procs) peer.procs[p.name] = p;
+  peer.launcher_pid = report.launcher_pid;
+  peer.last_heard = now;
+  peer.lost = false;
+  ++peer.reports;
+  return events;
+}
+
+std::vector<PeerEvent> PeerTracker::Check(Clock::time_point now) {
+  std::vector<PeerEvent> events;
+  for (auto& [host, peer] : peers_) {
+    const double silent = Seconds(now - peer.last_heard);
+    if (peer.lost || silent < options_.lost_after_s) continue;
+    peer.lost = true;
+    peer.lost_since = now;
+    ++peer.times_lost;
+    std::string procs;
+    for (const auto& [name, p] : peer.procs)
+      if (p.state == ProcState::kRunning) procs += (procs.empty() ? "" : ", ") + name;
+    events.push_back({PeerEventKind::kLost, host, "",
+                      "launcher '" + host + "' (pid " + std::to_string(peer.launcher_pid) + ") LOST: no report for " +
+                          Fmt(silent) + " s; its processes (last seen running: " +
+                          (procs.empty() ? "none" : procs) + ") are in an unknown state"});
+  }
+  return events;
+}
+
+std::vector<PeerView> PeerTracker::Peers(Clock::time_point now) const {
+  std::vector<PeerView> views;
+  for (const auto& [host, peer] : peers_) {
+    PeerView v;
+    v.host = host;
+    v.launcher_pid = peer.launcher_pid;
+    v.lost = peer.lost;
+    v.seconds_since_heard = Seconds(now - peer.last_heard);
+    v.reports = peer.reports;
+    v.times_lost = peer.times_lost;
+    views.push_back(v);
+  }
+  return views;
+}
+
+}  // namespace vloc
