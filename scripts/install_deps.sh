@@ -14,7 +14,7 @@ PACKAGES=(
   default-jdk-headless libjchart2d-java
   python3-numpy python3-matplotlib
   libexiv2-dev exiv2 libgdal-dev gdal-bin
-  iproute2 procps
+  iproute2 procps nftables
 )
 
 missing=()
