@@ -15,6 +15,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 namespace vloc::testing {
@@ -102,18 +103,22 @@ class NetnsLink {
     }
     // No sch_netem in this kernel: drop a random loss_percent of the frames
     // arriving at each end (IP fragments, as a lossy radio loses them).
+    // Only frames from the other end: a host's own multicast, looped back
+    // to its local receivers, passes the ingress hook too.
     const int per_mille = static_cast<int>(loss_percent * 10 + 0.5);
-    for (const auto& [ns, dev] : {std::pair{vehicle_, vehicle_dev_}, std::pair{ground_, ground_dev_}}) {
+    for (const auto& [ns, dev, peer] : {std::tuple{vehicle_, vehicle_dev_, std::string("10.218.0.2")},
+                                        std::tuple{ground_, ground_dev_, std::string("10.218.0.1")}}) {
       const std::string rules_path = "/tmp/" + ns + "_loss.nft";
       std::ofstream(rules_path) << "table netdev vloc_loss {\n  chain ingress {\n    type filter hook ingress device "
-                                << dev << " priority 0;\n    numgen random mod 1000 < " << per_mille
+                                << dev << " priority 0;\n    ip saddr " << peer << " numgen random mod 1000 < " << per_mille
                                 << " counter drop\n  }\n}\n";
       const int rc = Shell("ip netns exec " + ns + " nft -f " + rules_path, &error_);
       std::remove(rules_path.c_str());
       if (rc != 0) return "";
     }
     loss_kind_ = "nft";
-    return "nftables random drop " + Num(loss_percent) + "% of frames at each end's ingress (no sch_netem: no delay)";
+    return "nftables random drop of " + Num(loss_percent) + "% of the frames from the other end, at each end's ingress "
+           "(no sch_netem in this kernel: no delay)";
   }
   void ClearLoss() {
     if (loss_kind_ == "netem") {

@@ -1,4 +1,4 @@
-// vloc_launch as a real process over real LCM (ports 7822-7831), with
+// vloc_launch as a real process over real LCM (ports 7822-7832), with
 // /bin/sh and sleep as its children: starting a group, restarting after
 // SIGKILL, giving up, SIGTERM leaving no process, orders over LCM, log
 // files, bad group files, --exit-when-done. Every wait has a timeout.
@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -370,6 +371,102 @@ processes:
     EXPECT_EQ(watcher.Find("sim")->last_exit_code, sim_exit);
   }
   unsetenv("SIM_EXIT");
+}
+
+// One group split over two launchers on one bus (--host vehicle / ground,
+// as on two machines): each runs its part and names its host; an order is
+// applied by the launcher that owns the target and left alone by the
+// other; a launcher killed is reported LOST by the other.
+TEST(VlocLaunch, SplitGroupOneLauncherPerHost) {
+  Scratch vehicle_dir("split_vehicle"), ground_dir("split_ground");
+  const int port = 7832;
+  const std::string group = R"(
+defaults: {stop_timeout: 2}
+processes:
+  - {name: va, command: sleep, args: ["60"], host: vehicle}
+  - {name: gb, command: sleep, args: ["60"], host: ground}
+)";
+  const std::string file = vehicle_dir.WriteGroup(group);
+  {
+    Subprocess bad = Launch(vehicle_dir, file, port, {"--host", "laptop"});
+    EXPECT_EQ(bad.WaitExit(10), std::optional<int>(1));
+    EXPECT_NE(bad.output().find("no process runs on host 'laptop'; hosts in the file: vehicle ground"),
+              std::string::npos) << bad.output();
+  }
+  std::string error;
+  auto transport = MakeLcmTransport(TestLcmUrl(port), &error);
+  ASSERT_TRUE(transport) << error;
+  std::map<std::string, procman_status_t> status;
+  Subscribe<procman_status_t>(*transport, "PROCMAN_STATUS",
+                              [&](const std::string&, const procman_status_t& m) { status[m.host] = m; });
+  Subprocess vehicle = Launch(vehicle_dir, file, port, {"--host", "vehicle", "--lost-after", "1.5"});
+  Subprocess ground = Launch(ground_dir, file, port, {"--host", "ground", "--lost-after", "1.5"});
+  auto proc = [&](const std::string& host, const std::string& name) -> const proc_status_t* {
+    if (!status.count(host)) return nullptr;
+    for (const auto& p : status[host].procs)
+      if (p.name == name) return &p;
+    return nullptr;
+  };
+  auto wait = [&](const std::function<bool()>& done, double timeout_s) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (std::chrono::steady_clock::now() < deadline) {
+      transport->Handle(100);
+      vehicle.Drain();
+      ground.Drain();
+      if (done()) return true;
+    }
+    return false;
+  };
+  ASSERT_TRUE(wait([&] {
+    return proc("vehicle", "va") && proc("vehicle", "va")->state == kRunning && proc("ground", "gb") &&
+           proc("ground", "gb")->state == kRunning;
+  }, 15)) << vehicle.output() << ground.output();
+  EXPECT_EQ(status["vehicle"].num_procs, 1);
+  EXPECT_EQ(status["ground"].num_procs, 1);
+  EXPECT_EQ(status["vehicle"].launcher_pid, vehicle.pid());
+  ASSERT_TRUE(wait([&] {
+    return vehicle.output().find("peers: launcher 'ground' (pid") != std::string::npos &&
+           ground.output().find("peers: launcher 'vehicle' (pid") != std::string::npos;
+  }, 5)) << vehicle.output() << ground.output();
+
+  // An order for gb with no host: the ground's launcher restarts it; the vehicle's leaves it, without an error.
+  const int32_t old_gb = proc("ground", "gb")->pid;
+  procman_order_t order;
+  order.utime = 0;
+  order.host = "";
+  order.target = "gb";
+  order.target_kind = procman_order_t::TARGET_PROCESS;
+  order.action = procman_order_t::ACTION_RESTART;
+  ASSERT_TRUE(Publish(*transport, "PROCMAN_ORDERS", order));
+  ASSERT_TRUE(wait([&] { return proc("ground", "gb")->state == kRunning && proc("ground", "gb")->pid != old_gb; }, 10))
+      << ground.output();
+  ASSERT_TRUE(wait([&] { return vehicle.output().find("'gb' is for another host's launcher") != std::string::npos; },
+                   5)) << vehicle.output();
+  EXPECT_EQ(vehicle.output().find("unknown process"), std::string::npos) << vehicle.output();
+  // Addressed to the vehicle by host.
+  order.host = "vehicle";
+  order.target = "va";
+  order.action = procman_order_t::ACTION_STOP;
+  ASSERT_TRUE(Publish(*transport, "PROCMAN_ORDERS", order));
+  ASSERT_TRUE(wait([&] { return proc("vehicle", "va")->state == proc_status_t::STATE_STOPPED; }, 10))
+      << vehicle.output();
+  EXPECT_EQ(proc("ground", "gb")->state, kRunning);
+  ASSERT_TRUE(wait([&] {
+    const std::string& out = ground.output();
+    const size_t at = out.find("launcher 'vehicle': process 'va' ");  // RUNNING -> STOPPING, then -> STOPPED
+    return at != std::string::npos && out.find("-> STOPPED, pid", at) != std::string::npos;
+  }, 5)) << ground.output();
+
+  // The vehicle's launcher dies: the ground names it LOST.
+  vehicle.Signal(SIGKILL);
+  vehicle.WaitExit(5);
+  const auto killed = std::chrono::steady_clock::now();
+  ASSERT_TRUE(wait([&] { return ground.output().find("launcher 'vehicle' (pid " + std::to_string(vehicle.pid()) +
+                                                     ") LOST: no report for") != std::string::npos; },
+                   5)) << ground.output();
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - killed).count(), 1.5 + 1.2);
+  ground.Signal(SIGTERM);
+  EXPECT_EQ(ground.WaitExit(15), std::optional<int>(0)) << ground.output();
 }
 
 }  // namespace
