@@ -43,8 +43,10 @@ void LaunchLcmAdapter::HandleStatus(const procman_status_t& status) {
     s.has_exited = p.last_exit_code != 0 || p.state == proc_status_t::STATE_EXITED;
     report.procs.push_back(s);
   }
-  for (const PeerEvent& e : peers_.OnReport(report, std::chrono::steady_clock::now()))
-    LOG(INFO) << "peers: " << e.text;
+  for (const PeerEvent& e : peers_.OnReport(report, std::chrono::steady_clock::now())) {
+    if (e.kind == PeerEventKind::kDuplicateHost) LOG(WARNING) << "peers: " << e.text;
+    else LOG(INFO) << "peers: " << e.text;
+  }
 }
 
 bool LaunchLcmAdapter::OwnedElsewhere(const std::string& target, bool is_group) const {

@@ -33,6 +33,16 @@ std::vector<PeerEvent> PeerTracker::OnReport(const PeerReport& report, Clock::ti
   std::vector<PeerEvent> events;
   if (report.host == own_host_ && report.launcher_pid == own_pid_) return events;
   const std::string& host = report.host;
+  if (host == own_host_) {
+    // Another launcher claims this launcher's host: both would run its part.
+    if (!duplicate_noted_.count(report.launcher_pid)) {
+      duplicate_noted_.insert(report.launcher_pid);
+      events.push_back({PeerEventKind::kDuplicateHost, host, "",
+                        "another launcher (pid " + std::to_string(report.launcher_pid) + ") also calls itself '" +
+                            host + "': both run that host's processes; give each machine its own --host"});
+    }
+    return events;
+  }
   auto found = peers_.find(host);
   const bool is_new = found == peers_.end();
   Peer& peer = peers_[host];
@@ -46,9 +56,20 @@ std::vector<PeerEvent> PeerTracker::OnReport(const PeerReport& report, Clock::ti
                           " s without a report (lost for " + Fmt(Seconds(now - peer.lost_since)) + " s)"});
   }
   if (!is_new && peer.launcher_pid != report.launcher_pid) {
-    events.push_back({PeerEventKind::kLauncherRestarted, host, "",
-                      "launcher '" + host + "' restarted: pid " + std::to_string(peer.launcher_pid) + " -> " +
-                          std::to_string(report.launcher_pid)});
+    if (!peer.lost && Seconds(now - peer.last_heard) < options_.lost_after_s) {
+      // Two live launchers under one name (reports alternate): say it once.
+      if (!duplicate_noted_.count(report.launcher_pid)) {
+        duplicate_noted_.insert(report.launcher_pid);
+        events.push_back({PeerEventKind::kDuplicateHost, host, "",
+                          "two launchers call themselves '" + host + "' (pids " + std::to_string(peer.launcher_pid) +
+                              " and " + std::to_string(report.launcher_pid) +
+                              "): both run that host's processes; give each machine its own --host"});
+      }
+    } else {
+      events.push_back({PeerEventKind::kLauncherRestarted, host, "",
+                        "launcher '" + host + "' restarted: pid " + std::to_string(peer.launcher_pid) + " -> " +
+                            std::to_string(report.launcher_pid)});
+    }
   }
   if (!is_new) {
     for (const auto& p : report.procs) {

@@ -73,9 +73,24 @@ TEST(PeerTracker, LostAfterSilenceBackWhenHeardAgain) {
   events = peers.OnReport(Report("vehicle", 200, 0, 1, ProcState::kBackoff), at(13.0));
   ASSERT_EQ(Kinds(events), std::vector<PeerEventKind>{PeerEventKind::kProcessChanged});
   EXPECT_NE(events[0].text.find("RUNNING -> BACKOFF, pid 8 -> 0"), std::string::npos) << events[0].text;
+  // A second live launcher under the same name: said once, not as a restart.
   events = peers.OnReport(Report("vehicle", 201, 9, 0), at(14.0));
-  EXPECT_EQ(Kinds(events)[0], PeerEventKind::kLauncherRestarted);
-  EXPECT_NE(events[0].text.find("pid 200 -> 201"), std::string::npos);
+  ASSERT_FALSE(events.empty());
+  EXPECT_EQ(events[0].kind, PeerEventKind::kDuplicateHost);
+  EXPECT_NE(events[0].text.find("two launchers call themselves 'vehicle' (pids 200 and 201)"), std::string::npos)
+      << events[0].text;
+  peers.OnReport(Report("vehicle", 200, 9, 0), at(14.5));
+  for (const auto& e : peers.OnReport(Report("vehicle", 201, 9, 0), at(15.0)))
+    EXPECT_NE(e.kind, PeerEventKind::kDuplicateHost);
+  // The launcher restarted: the old pid silent for lost_after_s first.
+  events = peers.OnReport(Report("vehicle", 202, 9, 0), at(19.0));
+  ASSERT_FALSE(events.empty());
+  EXPECT_EQ(events.back().kind, PeerEventKind::kLauncherRestarted);
+  EXPECT_NE(events.back().text.find("pid 201 -> 202"), std::string::npos) << events.back().text;
+  // Another launcher with this launcher's own name.
+  events = peers.OnReport(Report("ground", 300, 1, 0), at(20.0));
+  ASSERT_EQ(Kinds(events), std::vector<PeerEventKind>{PeerEventKind::kDuplicateHost});
+  EXPECT_NE(events[0].text.find("also calls itself 'ground'"), std::string::npos);
 }
 
 TEST(PeerTracker, OptionsCheckRejectsNonPositive) {

@@ -13,6 +13,7 @@
 
 #include <chrono>
 #include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -38,7 +39,8 @@ enum class PeerEventKind {
   kJoined,            // first report from this host
   kLost,              // no report for lost_after_s
   kBack,              // reports again after being lost
-  kLauncherRestarted, // same host, new launcher pid
+  kLauncherRestarted, // same host, new launcher pid (the old one silent for lost_after_s)
+  kDuplicateHost,     // two live launchers report the same host name
   kProcessChanged,    // one of its processes changed state, pid or restart count
 };
 
@@ -86,6 +88,7 @@ class PeerTracker {
   int own_pid_;
   PeerTrackerOptions options_;
   std::map<std::string, Peer> peers_;
+  std::set<int> duplicate_noted_;  // launcher pids already reported as a duplicate host
 };
 
 }  // namespace vloc
