@@ -16,7 +16,10 @@ LaunchLcmAdapter::LaunchLcmAdapter(Supervisor& supervisor, Transport& transport,
       next_status_(std::chrono::steady_clock::now()),
       peer_options_(peer_options),
       peers_(host_, static_cast<int>(getpid()), peer_options),
-      whole_file_(whole_file) {}
+      whole_file_(whole_file) {
+  supervisor_.SetRemoteCheck(
+      [this](const std::string& host, const std::string& name) { return peers_.IsRunning(host, name); });
+}
 
 void LaunchLcmAdapter::Subscribe() {
   order_stats_ = vloc::Subscribe<procman_order_t>(

@@ -47,9 +47,7 @@ int main(int argc, char** argv) {
   vloc::GroupFile whole, file;
   try {
     whole = file = vloc::ParseGroupFile(setup->config_path);
-    std::vector<std::string> dropped;
-    if (!host.empty()) file = vloc::SelectHost(whole, host, &dropped);
-    for (const auto& d : dropped) LOG(INFO) << "host " << host << ": depends_on " << d << " is not checked here";
+    if (!host.empty()) file = vloc::SelectHost(whole, host);
     if (!peer_options.Check(&error)) throw vloc::ConfigError("--lost-after: " + error);
   } catch (const vloc::ConfigError& e) {
     std::cerr << "vloc_launch: " << e.what() << "\n";

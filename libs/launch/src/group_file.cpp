@@ -36,7 +36,7 @@ std::vector<std::string> GroupFile::Hosts() const {
   return hosts;
 }
 
-GroupFile SelectHost(const GroupFile& file, const std::string& host, std::vector<std::string>* dropped) {
+GroupFile SelectHost(const GroupFile& file, const std::string& host) {
   const std::vector<std::string> hosts = file.Hosts();
   std::string list;
   for (const auto& h : hosts) list += " " + h;
@@ -54,7 +54,7 @@ GroupFile SelectHost(const GroupFile& file, const std::string& host, std::vector
     for (const auto& d : p.depends_on) {
       const ProcessSpec* dep = file.Find(d);
       if (dep && dep->host != host) {
-        if (dropped) dropped->push_back(p.name + " -> " + d + " (host " + dep->host + ")");
+        spec.remote_depends_on.push_back({dep->host, d});
         continue;
       }
       spec.depends_on.push_back(d);

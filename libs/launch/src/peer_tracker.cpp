@@ -113,6 +113,13 @@ std::vector<PeerEvent> PeerTracker::Check(Clock::time_point now) {
   return events;
 }
 
+bool PeerTracker::IsRunning(const std::string& host, const std::string& name) const {
+  auto it = peers_.find(host);
+  if (it == peers_.end() || it->second.lost) return false;
+  auto p = it->second.procs.find(name);
+  return p != it->second.procs.end() && p->second.state == ProcState::kRunning;
+}
+
 std::vector<PeerView> PeerTracker::Peers(Clock::time_point now) const {
   std::vector<PeerView> views;
   for (const auto& [host, peer] : peers_) {

@@ -276,6 +276,10 @@ bool Supervisor::DependenciesRunning(const Proc& p) const {
     for (const auto& q : procs_)
       if (q->spec.name == d && q->state != ProcState::kRunning) return false;
   }
+  if (remote_check_) {
+    for (const auto& [host, name] : p.spec.remote_depends_on)
+      if (!remote_check_(host, name)) return false;
+  }
   return true;
 }
 
@@ -337,6 +341,8 @@ void Supervisor::Step(int timeout_ms) {
           if (!p->waiting_noted) {
             std::string deps;
             for (const auto& d : p->spec.depends_on) deps += " " + d;
+            if (remote_check_)
+              for (const auto& [host, name] : p->spec.remote_depends_on) deps += " " + name + " (host " + host + ")";
             Note(*p, "waiting for:" + deps);
             p->waiting_noted = true;
           }

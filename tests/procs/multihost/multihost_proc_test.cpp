@@ -5,7 +5,8 @@
 // whole on one host.
 //
 //   1. one host: the whole file in the ground namespace -> reference traverse
-//   2. split, clean link: the traverse arrives complete and equals the
+//   2. split, clean link (the vehicle started first: its simulator waits
+//      for the ground's processes): the traverse arrives complete and equals the
 //      reference; dead_reckoning SIGKILLed on the vehicle is restarted by
 //      the vehicle's launcher and seen restarted from the ground; the link
 //      cut at the ground end: each launcher logs the other LOST within
@@ -299,13 +300,24 @@ TEST_F(MultiHost, SplitGroupMatchesOneHostSurvivesKillCutAndLoss) {
     Stop(whole, "one-host launcher");
   }
 
-  // --- 2. Split over a clean link.
+  // --- 2. Split over a clean link. The vehicle first: its simulator waits
+  // for the ground's processes (remote depends_on) until the ground runs them.
   bus_->Reset();
   const std::string ground_dir = dir_ + "/split/ground", vehicle_dir = dir_ + "/split/vehicle";
-  Subprocess ground = Launch(*link_, link_->ground(), "ground", ground_dir, kSites);
-  ASSERT_TRUE(bus_->WaitFor([&] { return bus_->AllRunning("ground", kGroundProcs, ground.pid()); }, 20, {&ground}))
-      << ground.output();
   Subprocess vehicle = Launch(*link_, link_->vehicle(), "vehicle", vehicle_dir, kSites);
+  ASSERT_TRUE(bus_->WaitFor(
+      [&] {
+        const proc_status_t* dr = bus_->Proc("vehicle", "dead_reckoning", vehicle.pid());
+        return dr && dr->state == proc_status_t::STATE_RUNNING;
+      },
+      20, {&vehicle}))
+      << vehicle.output();
+  bus_->WaitFor([] { return false; }, 1.5, {&vehicle});
+  const proc_status_t* waiting = bus_->Proc("vehicle", "sim_rover", vehicle.pid());
+  ASSERT_TRUE(waiting);
+  EXPECT_EQ(int{waiting->state}, int{proc_status_t::STATE_STARTING}) << vehicle.output();
+  EXPECT_NE(vehicle.output().find("feature_frontend (host ground)"), std::string::npos) << vehicle.output();
+  Subprocess ground = Launch(*link_, link_->ground(), "ground", ground_dir, kSites);
   ASSERT_TRUE(bus_->WaitFor([&] { return bus_->TraverseComplete(kSites); }, 150, {&ground, &vehicle}))
       << "no complete traverse split across hosts\nground:\n" << ground.output() << "\nvehicle:\n" << vehicle.output();
   // Each launcher names its host and runs only its part.

@@ -203,7 +203,7 @@ TEST(GroupFile, ShippedGroupFilesParse) {
 }
 
 // A group split across hosts: each launcher's part, dependencies on the
-// other host left out, and the mistakes a split file can have.
+// other host made remote, and the mistakes a split file can have.
 TEST(GroupFile, SelectHostGivesEachLauncherItsPart) {
   const GroupFile file = Parse(R"(
 defaults: {host: ground}
@@ -215,13 +215,13 @@ processes:
   - {name: sim, command: /bin/true, host: vehicle, depends_on: [dr, frontend]}
 )");
   EXPECT_EQ(file.Hosts(), (std::vector<std::string>{"vehicle", "ground"}));
-  std::vector<std::string> dropped;
-  const GroupFile vehicle = SelectHost(file, "vehicle", &dropped);
+  const GroupFile vehicle = SelectHost(file, "vehicle");
   std::vector<std::string> names;
   for (const auto& p : vehicle.processes) names.push_back(p.name);
   EXPECT_EQ(names, (std::vector<std::string>{"log_v", "dr", "sim"}));
   EXPECT_EQ(vehicle.Find("sim")->depends_on, std::vector<std::string>{"dr"});
-  EXPECT_EQ(dropped, std::vector<std::string>{"sim -> frontend (host ground)"});
+  EXPECT_EQ(vehicle.Find("sim")->remote_depends_on,
+            (std::vector<std::pair<std::string, std::string>>{{"ground", "frontend"}}));
   const GroupFile ground = SelectHost(file, "ground");
   ASSERT_EQ(ground.processes.size(), 2u);
   EXPECT_EQ(ground.processes[1].name, "frontend");

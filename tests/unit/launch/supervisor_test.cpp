@@ -261,5 +261,27 @@ TEST(Supervisor, ReportsCpuAndMemory) {
   EXPECT_GT(st.uptime_seconds, 0.0);
 }
 
+// A process that depends on another host's process starts only once the
+// remote check reports that process RUNNING.
+TEST(Supervisor, WaitsForARemoteDependency) {
+  GroupFile file;
+  ProcessSpec sim = Shell("sim", "exec sleep 30");
+  sim.remote_depends_on = {{"ground", "frontend"}};
+  file.processes = {sim};
+  Supervisor sup(file, {TempDir("remote"), false});
+  bool frontend_running = false;
+  sup.SetRemoteCheck([&](const std::string& host, const std::string& name) {
+    return host == "ground" && name == "frontend" && frontend_running;
+  });
+  std::string error;
+  ASSERT_TRUE(sup.StartGroups({}, &error)) << error;
+  for (int i = 0; i < 10; ++i) sup.Step(20);
+  EXPECT_EQ(StatusOf(sup, "sim").state, ProcState::kStarting);
+  frontend_running = true;
+  EXPECT_TRUE(StepUntil(sup, [&] { return StatusOf(sup, "sim").state == ProcState::kRunning; }));
+  sup.StopAll();
+  EXPECT_TRUE(StepUntil(sup, [&] { return sup.AllStopped(); }));
+}
+
 }  // namespace
 }  // namespace vloc

@@ -33,8 +33,9 @@
 // process does (directly or through `defaults`). `vloc_launch --host
 // vehicle` then starts only the processes of host `vehicle` (SelectHost);
 // without --host a launcher runs the whole file on one machine. A
-// depends_on on another host's process cannot be checked locally and is
-// left out of that launcher's part.
+// depends_on on another host's process becomes a remote dependency of that
+// launcher's part: vloc_launch waits until that host's launcher reports the
+// process RUNNING on PROCMAN_STATUS.
 // ${VAR} and ${VAR:-fallback} in command, args, env values and working_dir
 // are expanded from the launcher's environment when the file is read; $$
 // is a literal $. Errors are ConfigError with one line naming the file, the
@@ -46,6 +47,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace vloc {
@@ -74,6 +76,9 @@ struct ProcessSpec {
   bool exit_when_done = false;               // with --exit-when-done, the launcher ends when it ends
   double exit_grace = 0.0;                   // s, after an exit_when_done end, before stopping the rest
   std::string host;                          // host or role it runs on; empty = wherever the file is launched
+  // Set by SelectHost: depends_on entries that run on another host, as
+  // {host, process name}; the supervisor asks its RemoteCheck about them.
+  std::vector<std::pair<std::string, std::string>> remote_depends_on;
 };
 
 // A parsed group file: processes in file order (the start order when no
@@ -90,12 +95,10 @@ struct GroupFile {
 };
 
 // The part of `file` that runs on `host`: its processes, with depends_on
-// entries naming another host's process removed (`dropped`, when given,
-// receives one "a -> b (host h)" line for each). Throws ConfigError (one
-// line naming the hosts the file has) when `host` has no process in the
-// file or the file names no hosts.
-GroupFile SelectHost(const GroupFile& file, const std::string& host,
-                     std::vector<std::string>* dropped = nullptr);
+// entries naming another host's process moved to remote_depends_on.
+// Throws ConfigError (one line naming the hosts the file has) when `host`
+// has no process in the file or the file names no hosts.
+GroupFile SelectHost(const GroupFile& file, const std::string& host);
 
 // Returns the value of an environment-like variable, or nullopt when unset.
 using VariableLookup = std::function<std::optional<std::string>(const std::string&)>;

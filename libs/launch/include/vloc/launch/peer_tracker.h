@@ -71,6 +71,8 @@ class PeerTracker {
   std::vector<PeerEvent> OnReport(const PeerReport& report, Clock::time_point now);
   // Launchers that have just become LOST.
   std::vector<PeerEvent> Check(Clock::time_point now);
+  // True when `host`'s launcher is not LOST and last reported `name` RUNNING.
+  bool IsRunning(const std::string& host, const std::string& name) const;
   // Every launcher heard from, by host name.
   std::vector<PeerView> Peers(Clock::time_point now) const;
 

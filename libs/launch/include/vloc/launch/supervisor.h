@@ -83,6 +83,11 @@ class Supervisor {
   bool Stop(const std::string& target, bool is_group, std::string* error);
   bool Restart(const std::string& target, bool is_group, std::string* error);
 
+  // Answers whether another host's process is RUNNING (for
+  // remote_depends_on). Without one, remote dependencies are not waited for.
+  using RemoteCheck = std::function<bool(const std::string& host, const std::string& name)>;
+  void SetRemoteCheck(RemoteCheck check) { remote_check_ = std::move(check); }
+
   // Stops every process gracefully: a process is signalled once the
   // processes that depend on it have stopped (reverse start order).
   void StopAll();
@@ -138,6 +143,7 @@ class Supervisor {
   // have not all gone yet, with the time the leader ended.
   std::vector<std::pair<pid_t, Clock::time_point>> lingering_;
   Clock::time_point last_status_time_;
+  RemoteCheck remote_check_;
 };
 
 }  // namespace vloc
