@@ -399,6 +399,15 @@ TEST_F(MultiHost, SplitGroupMatchesOneHostSurvivesKillCutAndLoss) {
         },
         15, {&ground, &vehicle}))
         << "ground:\n" << ground.output() << "\nvehicle:\n" << vehicle.output();
+    // The ground's PROCMAN_PEERS: the vehicle alive again, lost once.
+    ASSERT_TRUE(bus_->WaitFor(
+        [&] {
+          if (!bus_->peers.count("ground")) return false;
+          for (const auto& p : bus_->peers["ground"].peers)
+            if (p.host == "vehicle" && p.state == procman_peer_t::STATE_ALIVE && p.times_lost == 1) return true;
+          return false;
+        },
+        5, {&ground, &vehicle}));
   }
   Stop(vehicle, "vehicle launcher");
   Stop(ground, "ground launcher");

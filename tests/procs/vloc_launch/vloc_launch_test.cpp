@@ -19,6 +19,7 @@
 #include "vloc/lcm_io/transport.h"
 #include "vloc/lcm_io/typed.h"
 #include "vloc/procman_order_t.hpp"
+#include "vloc/procman_peers_t.hpp"
 #include "vloc/procman_status_t.hpp"
 #include "vloc/testing/subprocess.h"
 
@@ -399,6 +400,16 @@ processes:
   std::map<std::string, procman_status_t> status;
   Subscribe<procman_status_t>(*transport, "PROCMAN_STATUS",
                               [&](const std::string&, const procman_status_t& m) { status[m.host] = m; });
+  std::map<std::string, procman_peers_t> peers;  // by reporting host
+  Subscribe<procman_peers_t>(*transport, "PROCMAN_PEERS",
+                             [&](const std::string&, const procman_peers_t& m) { peers[m.host] = m; });
+  // The state of `peer` as `host`'s launcher last published it; -1 when absent.
+  auto peer_state = [&](const std::string& host, const std::string& peer) -> int {
+    if (!peers.count(host)) return -1;
+    for (const auto& p : peers[host].peers)
+      if (p.host == peer) return p.state;
+    return -1;
+  };
   Subprocess vehicle = Launch(vehicle_dir, file, port, {"--host", "vehicle", "--lost-after", "1.5"});
   Subprocess ground = Launch(ground_dir, file, port, {"--host", "ground", "--lost-after", "1.5"});
   auto proc = [&](const std::string& host, const std::string& name) -> const proc_status_t* {
@@ -428,6 +439,11 @@ processes:
     return vehicle.output().find("peers: launcher 'ground' (pid") != std::string::npos &&
            ground.output().find("peers: launcher 'vehicle' (pid") != std::string::npos;
   }, 5)) << vehicle.output() << ground.output();
+  ASSERT_TRUE(wait([&] {
+    return peer_state("ground", "vehicle") == procman_peer_t::STATE_ALIVE &&
+           peer_state("vehicle", "ground") == procman_peer_t::STATE_ALIVE;
+  }, 5));
+  EXPECT_DOUBLE_EQ(peers["ground"].lost_after_seconds, 1.5);
 
   // An order for gb with no host: the ground's launcher restarts it; the vehicle's leaves it, without an error.
   const int32_t old_gb = proc("ground", "gb")->pid;
@@ -465,6 +481,14 @@ processes:
                                                      ") LOST: no report for") != std::string::npos; },
                    5)) << ground.output();
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - killed).count(), 1.5 + 1.2);
+  // ... and publishes it so on PROCMAN_PEERS.
+  ASSERT_TRUE(wait([&] { return peer_state("ground", "vehicle") == procman_peer_t::STATE_LOST; }, 3));
+  for (const auto& p : peers["ground"].peers) {
+    if (p.host != "vehicle") continue;
+    EXPECT_EQ(p.launcher_pid, vehicle.pid());
+    EXPECT_EQ(p.times_lost, 1);
+    EXPECT_GE(p.seconds_since_heard, 1.5);
+  }
   ground.Signal(SIGTERM);
   EXPECT_EQ(ground.WaitExit(15), std::optional<int>(0)) << ground.output();
 }
