@@ -275,6 +275,8 @@ class MultiHost : public ::testing::Test {
     bus_.reset();
     in_ground_.reset();
     link_.reset();
+    // The runs' logs (tens of MB of images) are kept only to look into a failure.
+    if (!HasFailure() && !dir_.empty()) fs::remove_all(dir_);
   }
 
   std::unique_ptr<NetnsLink> link_;
