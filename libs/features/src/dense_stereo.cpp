@@ -335,7 +335,7 @@ bool RowLeastSquaresMatch(const cv::Mat& L, const cv::Mat& R, int x, int y, doub
   using Vec5 = Eigen::Matrix<double, 5, 1>;
   double d = initial_disparity, gx = 0, gy = 0, r0 = 0, r1 = 1;
   Mat5 N;
-  Vec5 b, J;
+  Vec5 b;
   double ssr = 0;
   bool converged = false;
   int it = 0;
@@ -344,8 +344,9 @@ bool RowLeastSquaresMatch(const cv::Mat& L, const cv::Mat& R, int x, int y, doub
     const double xmin = x - h - d - std::abs(gx) * h - std::abs(gy) * hy + (-h * 0.0);
     const double xmax = x + h - d + std::abs(gx) * h + std::abs(gy) * hy;
     if (xmin - 1 < 0 || xmax + 2 > W - 1) return false;
-    N.setZero();
-    b.setZero();
+    // Normal equations accumulated by hand (lower triangle): Eigen's
+    // rankUpdate per pixel was most of the time.
+    double nn[15] = {0}, bb[5] = {0};
     ssr = 0;
     float w[4], dw[4];
     for (int r = -hy, i = 0; r <= hy; ++r) {
@@ -365,16 +366,22 @@ bool RowLeastSquaresMatch(const cv::Mat& L, const cv::Mat& R, int x, int y, doub
         G[i] = static_cast<float>(g);
         const double resid = T[i] - (r0 + r1 * g);
         ssr += resid * resid;
+        double j[5];
         if (plane) {
-          J << -dg, -dg * c, -dg * r, 1.0, g;
+          j[0] = -dg, j[1] = -dg * c, j[2] = -dg * r, j[3] = 1.0, j[4] = g;
         } else {
-          J << -dg, 1.0, g, 0, 0;
+          j[0] = -dg, j[1] = 1.0, j[2] = g, j[3] = 0, j[4] = 0;
         }
-        N.selfadjointView<Eigen::Lower>().rankUpdate(J);
-        b += J * resid;
+        for (int k = 0, q = 0; k < 5; ++k) {
+          bb[k] += j[k] * resid;
+          for (int l = 0; l <= k; ++l, ++q) nn[q] += j[k] * j[l];
+        }
       }
     }
-    N.triangularView<Eigen::StrictlyUpper>() = N.transpose();
+    for (int k = 0, q = 0; k < 5; ++k) {
+      b(k) = bb[k];
+      for (int l = 0; l <= k; ++l, ++q) N(k, l) = N(l, k) = nn[q];
+    }
     if (!plane) N.block<2, 2>(3, 3).diagonal().array() += 1.0;
     const Eigen::LDLT<Mat5> ldlt(N);
     if (ldlt.info() != Eigen::Success) return false;
