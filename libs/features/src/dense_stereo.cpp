@@ -42,6 +42,7 @@ void DenseStereoOptions::Visit(OptionsReader& r) {
   r.Optional("lsm_max_shift_px", &lsm_max_shift_px, "px, largest accepted move from the ZNCC disparity");
   r.Optional("lsm_min_correlation", &lsm_min_correlation, "minimum window correlation at the solution");
   r.Optional("lsm_max_sigma_px", &lsm_max_sigma_px, "px, largest accepted 1-sigma disparity precision");
+  r.Optional("lsm_median_tolerance", &lsm_median_tolerance, "px, median test again after LSM (0 = off)");
   r.Optional("num_threads", &num_threads, "OpenMP threads");
 }
 
@@ -249,7 +250,7 @@ ZnccStage ZnccRows(const cv::Mat& left8, const cv::Mat& right8, const DenseStere
 }
 
 // Step 2: drops disparities far from the median of their grid neighbours.
-long MedianTest(const DenseStereoOptions& o, cv::Mat* disp) {
+long MedianTest(const DenseStereoOptions& o, double abs_tolerance, double rel_tolerance, cv::Mat* disp) {
   const cv::Mat in = disp->clone();
   const int r = o.median_radius, s = o.median_stride;
   long kept = 0;
@@ -275,7 +276,7 @@ long MedianTest(const DenseStereoOptions& o, cv::Mat* disp) {
       if (static_cast<int>(neigh.size()) >= std::max(1, o.median_min_neighbours)) {
         std::nth_element(neigh.begin(), neigh.begin() + neigh.size() / 2, neigh.end());
         const double med = neigh[neigh.size() / 2];
-        keep = std::abs(d - med) <= o.median_abs_tolerance + o.median_rel_tolerance * std::abs(med);
+        keep = std::abs(d - med) <= abs_tolerance + rel_tolerance * std::abs(med);
       } else {
         keep = o.median_min_neighbours == 0;
       }
@@ -447,7 +448,7 @@ cv::Mat DenseStereo(const cv::Mat& left, const cv::Mat& right, const DenseStereo
   s.zncc_seconds = Since(t0);
   const auto t1 = Clock::now();
   cv::Mat disp = z.disparity;
-  s.after_median = MedianTest(o, &disp);
+  s.after_median = MedianTest(o, o.median_abs_tolerance, o.median_rel_tolerance, &disp);
   s.median_seconds = Since(t1);
   const auto t2 = Clock::now();
   if (o.lsm_enabled) {
@@ -472,6 +473,7 @@ cv::Mat DenseStereo(const cv::Mat& left, const cv::Mat& right, const DenseStereo
       }
     }
     s.lsm_matches = matched;
+    if (o.lsm_median_tolerance > 0) s.lsm_matches = MedianTest(o, o.lsm_median_tolerance, 0.0, &disp);
     std::vector<float> sig;
     for (int y = 0; y < sigma.rows; ++y)
       for (int x = 0; x < sigma.cols; ++x)

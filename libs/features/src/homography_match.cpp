@@ -247,9 +247,15 @@ HomographyMatchResult MatchHomography(const cv::Mat& a, const cv::Mat& b, const 
   const auto t1 = Clock::now();
   std::vector<cv::Point2f> pa, pb;
   if (fa.size() >= 4 && fb.size() >= 4) {
+    // FLANN's randomised k-d trees draw from this thread's cv::theRNG():
+    // a fixed seed (restored afterwards) makes the result repeatable.
+    cv::RNG& rng = cv::theRNG();
+    const uint64_t saved_state = rng.state;
+    rng.state = 0x5eed1e55ULL;
     cv::FlannBasedMatcher flann;
     std::vector<std::vector<cv::DMatch>> knn;
     flann.knnMatch(fa.descriptors, fb.descriptors, knn, 4);
+    rng.state = saved_state;
     // Scale factor from reduced to full px, for the pixel-centre convention of cv::resize.
     const double fx_a = static_cast<double>(a.cols) / sa.cols, fy_a = static_cast<double>(a.rows) / sa.rows;
     const double fx_b = static_cast<double>(b.cols) / sb.cols, fy_b = static_cast<double>(b.rows) / sb.rows;

@@ -65,6 +65,17 @@ TEST(DenseStereo, SlantedPlaneToAFewHundredthsOfAPixel) {
   EXPECT_LT(score.median_abs, 0.03);
   EXPECT_LT(std::abs(score.mean_signed), 0.01);
   EXPECT_LT(score.bad1, 0.001);
+  // The peer on the same pair, scored on the pixels both matched: SGBM's
+  // 1/16 px steps and its pixel locking leave it several times less precise.
+  const cv::Mat sgbm = testing::SgbmDisparity(p.left, p.right, 0, 48);
+  const cv::Mat both = testing::BothMatched(d, sgbm);
+  const testing::DisparityScore ours = testing::ScoreDisparity(d, p.truth, 1, both);
+  const testing::DisparityScore peer = testing::ScoreDisparity(sgbm, p.truth, 1, both);
+  std::cout << "synthetic plane, on both: vloc median " << ours.median_abs << " bad1 " << ours.bad1 << " mean signed "
+            << ours.mean_signed << "; SGBM median " << peer.median_abs << " bad1 " << peer.bad1 << " mean signed "
+            << peer.mean_signed << " (" << ours.scored << " px)\n";
+  EXPECT_LT(ours.median_abs, 0.5 * peer.median_abs);
+  EXPECT_LE(ours.bad1, peer.bad1);
 }
 
 // The bias hunt: row LSM and the front end's 2-D LSM at every sub-pixel
@@ -135,6 +146,10 @@ TEST(DenseStereo, AloeBeatsSgbmOnThePixelsBothMatch) {
   std::cout << "vloc: coverage " << all.coverage << ", on both: bad1 " << ours.bad1 << " median " << ours.median_abs
             << " mean signed " << ours.mean_signed << "; SGBM on both: bad1 " << peer.bad1 << " median "
             << peer.median_abs << " mean signed " << peer.mean_signed << "\n";
+  const testing::DisparityScore ours_c = testing::ScoreDisparity(d, aloe.gt, o.step, both, 0.25);
+  const testing::DisparityScore peer_c = testing::ScoreDisparity(sgbm, aloe.gt, o.step, both, 0.25);
+  std::cout << "against truth + 0.25 px, on both: vloc bad1 " << ours_c.bad1 << " median " << ours_c.median_abs
+            << "; SGBM bad1 " << peer_c.bad1 << " median " << peer_c.median_abs << "\n";
   EXPECT_GE(all.coverage, 0.5);
   EXPECT_LT(ours.median_abs, 0.4);
   EXPECT_LT(ours.bad1, 0.05);
