@@ -22,6 +22,7 @@ void LsmOptions::Visit(OptionsReader& r) {
   r.Optional("max_sigma_axis_px", &max_sigma_axis_px, "px, largest accepted sigma along the worst direction (0 = off)");
   r.Optional("min_correlation", &min_correlation, "minimum correlation at the solution");
   r.Optional("estimate_affine", &estimate_affine, "estimate the 4 affine shape parameters");
+  r.Optional("bspline", &bspline, "cubic B-spline resampling (false: Keys cubic convolution)");
 }
 
 bool LsmOptions::Check(std::string* error) const {
@@ -34,7 +35,36 @@ bool LsmOptions::Check(std::string* error) const {
   return true;
 }
 
-LsmImage MakeLsmImage(const cv::Mat& gray) {
+namespace {
+
+// In-place cubic B-spline prefilter of n samples `stride` apart.
+void Prefilter1D(double* c, int n, int stride) {
+  if (n < 2) return;
+  const double z = std::sqrt(3.0) - 2.0;
+  for (int k = 0; k < n; ++k) c[k * stride] *= 6.0;
+  const int horizon = std::min(n, 30);  // |z|^30 < 1e-17
+  double sum = c[0], zk = z;
+  for (int k = 1; k < horizon; ++k, zk *= z) sum += zk * c[k * stride];
+  c[0] = sum;
+  for (int k = 1; k < n; ++k) c[k * stride] += z * c[(k - 1) * stride];
+  c[(n - 1) * stride] = (z / (z * z - 1.0)) * (c[(n - 1) * stride] + z * c[(n - 2) * stride]);
+  for (int k = n - 2; k >= 0; --k) c[k * stride] = z * (c[(k + 1) * stride] - c[k * stride]);
+}
+
+}  // namespace
+
+cv::Mat BSplineCoefficients(const cv::Mat& gray) {
+  CV_Assert(gray.type() == CV_32FC1);
+  cv::Mat c;
+  gray.convertTo(c, CV_64F);
+  for (int y = 0; y < c.rows; ++y) Prefilter1D(c.ptr<double>(y), c.cols, 1);
+  for (int x = 0; x < c.cols; ++x) Prefilter1D(c.ptr<double>(0) + x, c.rows, static_cast<int>(c.step1()));
+  cv::Mat out;
+  c.convertTo(out, CV_32F);
+  return out;
+}
+
+LsmImage MakeLsmImage(const cv::Mat& gray, bool bspline_coefficients) {
   LsmImage out;
   if (gray.type() == CV_32FC1) {
     out.gray = gray;
@@ -55,6 +85,7 @@ LsmImage MakeLsmImage(const cv::Mat& gray) {
       gy[x] = 0.5f * (pd[x] - pu[x]);
     }
   }
+  if (bspline_coefficients) out.bspline = BSplineCoefficients(out.gray);
   return out;
 }
 
@@ -74,13 +105,32 @@ inline void CubicWeights(float t, float w[4], float dw[4]) {
   dw[3] = 1.5f * t2 - t;
 }
 
+// Cubic B-spline weights and derivatives (same taps), for coefficients.
+inline void BSplineWeights(float t, float w[4], float dw[4]) {
+  const float u = 1.f - t, t2 = t * t, t3 = t2 * t;
+  w[0] = u * u * u / 6.f;
+  w[1] = (3.f * t3 - 6.f * t2 + 4.f) / 6.f;
+  w[2] = (-3.f * t3 + 3.f * t2 + 3.f * t + 1.f) / 6.f;
+  w[3] = t3 / 6.f;
+  dw[0] = -0.5f * u * u;
+  dw[1] = 1.5f * t2 - 2.f * t;
+  dw[2] = -1.5f * t2 + t + 0.5f;
+  dw[3] = 0.5f * t2;
+}
+
 // Bicubic value and gradient at (x, y); the caller keeps (x, y) at least 2 px
-// inside the image.
-inline void SampleCubic(const cv::Mat& img, double x, double y, double* value, double* gx, double* gy) {
+// inside the image. bspline: `img` holds B-spline coefficients.
+inline void SampleCubic(const cv::Mat& img, double x, double y, double* value, double* gx, double* gy,
+                        bool bspline = false) {
   const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
   float wx[4], dwx[4], wy[4], dwy[4];
-  CubicWeights(static_cast<float>(x - x0), wx, dwx);
-  CubicWeights(static_cast<float>(y - y0), wy, dwy);
+  if (bspline) {
+    BSplineWeights(static_cast<float>(x - x0), wx, dwx);
+    BSplineWeights(static_cast<float>(y - y0), wy, dwy);
+  } else {
+    CubicWeights(static_cast<float>(x - x0), wx, dwx);
+    CubicWeights(static_cast<float>(y - y0), wy, dwy);
+  }
   float v = 0, vx = 0, vy = 0;
   for (int i = 0; i < 4; ++i) {
     const float* row = img.ptr<float>(y0 - 1 + i) + (x0 - 1);
@@ -110,12 +160,19 @@ LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& templa
     res.why = "template outside its image";
     return res;
   }
+  const bool bs = o.bspline;
+  if (bs && (templ.bspline.empty() || target.bspline.empty())) {
+    res.why = "lsm.bspline needs images made by MakeLsmImage(gray, true)";
+    return res;
+  }
+  const cv::Mat& templ_img = bs ? templ.bspline : templ.gray;
+  const cv::Mat& target_img = bs ? target.bspline : target.gray;
   std::vector<float> T(n);
   double sum = 0, sum2 = 0;
   for (int r = -hy, i = 0; r <= hy; ++r) {
     for (int c = -h; c <= h; ++c, ++i) {
       double v, unused_x, unused_y;
-      SampleCubic(templ.gray, template_px.x() + c, template_px.y() + r, &v, &unused_x, &unused_y);
+      SampleCubic(templ_img, template_px.x() + c, template_px.y() + r, &v, &unused_x, &unused_y, bs);
       T[i] = static_cast<float>(v);
       sum += T[i];
       sum2 += static_cast<double>(T[i]) * T[i];
@@ -159,7 +216,7 @@ LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& templa
         const double x = t.x() + A(0, 0) * c + A(0, 1) * r;
         const double y = t.y() + A(1, 0) * c + A(1, 1) * r;
         double g, gx, gy;
-        SampleCubic(target.gray, x, y, &g, &gx, &gy);
+        SampleCubic(target_img, x, y, &g, &gx, &gy, bs);
         gx *= r1;
         gy *= r1;
         G[i] = static_cast<float>(g);

@@ -94,10 +94,11 @@ TEST(DenseStereo, LsmHasNoSignedBiasOverSubpixelPhases) {
     cv::Mat L;
     p.left.convertTo(L, CV_32F);
     const cv::Mat R = PrepareRowLsmTarget(p.right, o);
-    const LsmImage la = MakeLsmImage(p.left), lb = MakeLsmImage(p.right);
-    LsmOptions lo;
-    double phase_row = 0, phase_2d = 0;
-    int m_row = 0, m_2d = 0;
+    const LsmImage la = MakeLsmImage(p.left, true), lb = MakeLsmImage(p.right, true);
+    LsmOptions lo, lo_bs;
+    lo_bs.bspline = true;
+    double phase_row = 0, phase_2d = 0, phase_bs = 0;
+    int m_row = 0, m_2d = 0, m_bs = 0;
     for (int y = 12; y < 84; y += 3)
       for (int x = 30; x < 150; x += 3) {
         RowLsmResult r;
@@ -106,12 +107,18 @@ TEST(DenseStereo, LsmHasNoSignedBiasOverSubpixelPhases) {
         const LsmResult r2 = LeastSquaresMatch(la, pl, lb, pl - Eigen::Vector2d(std::round(d0), 0),
                                                Eigen::Matrix2d::Identity(), lo);
         if (r2.ok) phase_2d += (x - r2.target.x()) - d0, ++m_2d;
+        const LsmResult r3 = LeastSquaresMatch(la, pl, lb, pl - Eigen::Vector2d(std::round(d0), 0),
+                                               Eigen::Matrix2d::Identity(), lo_bs);
+        if (r3.ok) phase_bs += (x - r3.target.x()) - d0, ++m_bs;
       }
     ASSERT_GT(m_row, 500);
     ASSERT_GT(m_2d, 500);
+    ASSERT_GT(m_bs, 500);
     EXPECT_LT(std::abs(phase_row / m_row), 0.015) << "row LSM (B-spline), disparity " << d0;
     EXPECT_LT(std::abs(phase_2d / m_2d), 0.025) << "2-D LSM (Keys), disparity " << d0;
-    std::cout << "disparity " << d0 << ": mean error row LSM " << phase_row / m_row << ", 2-D LSM " << phase_2d / m_2d << " px\n";
+    EXPECT_LT(std::abs(phase_bs / m_bs), 0.015) << "2-D LSM (B-spline), disparity " << d0;
+    std::cout << "disparity " << d0 << ": mean error row LSM " << phase_row / m_row << ", 2-D LSM (Keys) "
+              << phase_2d / m_2d << ", 2-D LSM (B-spline) " << phase_bs / m_bs << " px\n";
     sum_row += phase_row / m_row, ++n_row;
     sum_2d += phase_2d / m_2d, ++n_2d;
   }
