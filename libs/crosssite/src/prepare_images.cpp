@@ -68,9 +68,9 @@ void PrepareImages(const NavcamModel& navcam, const FrontendOptions& o, SitePair
   s->previous_right.assign(np, {});
   s->current_left.assign(nc, {});
   s->current_right.assign(nc, {});
-#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
   // B-spline coefficients only when an LSM on these images resamples with them.
   const bool bs = o.lsm.bspline || o.cross_lsm.bspline;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
   for (int k = 0; k < 2 * (np + nc); ++k) {
     if (k < np) s->previous_left[k] = Prepare(s->previous.pairs[k].left, navcam.rig.left, bs);
     else if (k < 2 * np) s->previous_right[k - np] = Prepare(s->previous.pairs[k - np].right, navcam.rig.right, bs);

@@ -157,7 +157,7 @@ HomographyMatchResult RefineHomography(const cv::Mat& a, const cv::Mat& b, const
       if (static_cast<int>(corners.size()) >= o.refine_points) break;
     }
   }
-  const LsmImage la = MakeLsmImage(a), lb = MakeLsmImage(b);
+  const LsmImage la = MakeLsmImage(a, o.lsm.bspline), lb = MakeLsmImage(b, o.lsm.bspline);
   const cv::Mat ones(b.size(), CV_8U, cv::Scalar(255));
   for (int round = 0; round < o.refine_rounds; ++round) {
     const cv::Matx33d h = res.b_from_a;

@@ -35,33 +35,51 @@ bool LsmOptions::Check(std::string* error) const {
   return true;
 }
 
-namespace {
-
-// In-place cubic B-spline prefilter of n samples `stride` apart.
-void Prefilter1D(double* c, int n, int stride) {
-  if (n < 2) return;
-  const double z = std::sqrt(3.0) - 2.0;
-  for (int k = 0; k < n; ++k) c[k * stride] *= 6.0;
-  const int horizon = std::min(n, 30);  // |z|^30 < 1e-17
-  double sum = c[0], zk = z;
-  for (int k = 1; k < horizon; ++k, zk *= z) sum += zk * c[k * stride];
-  c[0] = sum;
-  for (int k = 1; k < n; ++k) c[k * stride] += z * c[(k - 1) * stride];
-  c[(n - 1) * stride] = (z / (z * z - 1.0)) * (c[(n - 1) * stride] + z * c[(n - 2) * stride]);
-  for (int k = n - 2; k >= 0; --k) c[k * stride] = z * (c[(k + 1) * stride] - c[k * stride]);
-}
-
-}  // namespace
-
 cv::Mat BSplineCoefficients(const cv::Mat& gray) {
   CV_Assert(gray.type() == CV_32FC1);
-  cv::Mat c;
-  gray.convertTo(c, CV_64F);
-  for (int y = 0; y < c.rows; ++y) Prefilter1D(c.ptr<double>(y), c.cols, 1);
-  for (int x = 0; x < c.cols; ++x) Prefilter1D(c.ptr<double>(0) + x, c.rows, static_cast<int>(c.step1()));
-  cv::Mat out;
-  c.convertTo(out, CV_32F);
-  return out;
+  // Causal then anti-causal recursion with pole z (gain 6), mirror boundary;
+  // rows one by one, then the columns all at once row after row (cache order).
+  const float z = static_cast<float>(std::sqrt(3.0) - 2.0);
+  const float last = z / (z * z - 1.f);
+  cv::Mat c = gray * 36.0;  // gain 6 per dimension
+  const int W = c.cols, H = c.rows;
+  const int hx = std::min(W, 30), hy = std::min(H, 30);  // |z|^30 < 1e-17
+  if (W > 1) {
+    for (int y = 0; y < H; ++y) {
+      float* r = c.ptr<float>(y);
+      float sum = r[0], zk = z;
+      for (int k = 1; k < hx; ++k, zk *= z) sum += zk * r[k];
+      r[0] = sum;
+      for (int k = 1; k < W; ++k) r[k] += z * r[k - 1];
+      r[W - 1] = last * (r[W - 1] + z * r[W - 2]);
+      for (int k = W - 2; k >= 0; --k) r[k] = z * (r[k + 1] - r[k]);
+    }
+  }
+  if (H > 1) {
+    std::vector<float> sum(c.ptr<float>(0), c.ptr<float>(0) + W);
+    float zk = z;
+    for (int k = 1; k < hy; ++k, zk *= z) {
+      const float* r = c.ptr<float>(k);
+      for (int x = 0; x < W; ++x) sum[x] += zk * r[x];
+    }
+    std::copy(sum.begin(), sum.end(), c.ptr<float>(0));
+    for (int y = 1; y < H; ++y) {
+      float* r = c.ptr<float>(y);
+      const float* p = c.ptr<float>(y - 1);
+      for (int x = 0; x < W; ++x) r[x] += z * p[x];
+    }
+    {
+      float* r = c.ptr<float>(H - 1);
+      const float* p = c.ptr<float>(H - 2);
+      for (int x = 0; x < W; ++x) r[x] = last * (r[x] + z * p[x]);
+    }
+    for (int y = H - 2; y >= 0; --y) {
+      float* r = c.ptr<float>(y);
+      const float* n = c.ptr<float>(y + 1);
+      for (int x = 0; x < W; ++x) r[x] = z * (n[x] - r[x]);
+    }
+  }
+  return c;
 }
 
 LsmImage MakeLsmImage(const cv::Mat& gray, bool bspline_coefficients) {

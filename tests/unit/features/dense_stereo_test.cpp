@@ -78,6 +78,23 @@ TEST(DenseStereo, SlantedPlaneToAFewHundredthsOfAPixel) {
   EXPECT_LE(ours.bad1, peer.bad1);
 }
 
+// B-spline interpolation passes through the samples: coefficients filtered
+// back with the (1 4 1) / 6 kernel along both axes give the image again.
+TEST(DenseStereo, BSplineCoefficientsReproduceTheImage) {
+  const cv::Mat img = testing::TexturedImage(97, 64, 3);
+  cv::Mat f;
+  img.convertTo(f, CV_32F);
+  const cv::Mat c = BSplineCoefficients(f);
+  for (int y = 1; y + 1 < f.rows; ++y)
+    for (int x = 1; x + 1 < f.cols; ++x) {
+      double v = 0;
+      const double w[3] = {1.0 / 6, 4.0 / 6, 1.0 / 6};
+      for (int i = -1; i <= 1; ++i)
+        for (int j = -1; j <= 1; ++j) v += w[i + 1] * w[j + 1] * c.at<float>(y + i, x + j);
+      ASSERT_NEAR(v, f.at<float>(y, x), 1e-3) << "at " << x << ", " << y;
+    }
+}
+
 // The bias hunt: row LSM and the front end's 2-D LSM at every sub-pixel
 // phase of a constant disparity. The error depends on the phase, odd about
 // phases 0 and 0.5: Keys' cubic convolution (the 2-D LSM) pushes estimates
