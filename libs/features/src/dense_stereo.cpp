@@ -42,6 +42,7 @@ void DenseStereoOptions::Visit(OptionsReader& r) {
   r.Optional("lsm_max_shift_px", &lsm_max_shift_px, "px, largest accepted move from the ZNCC disparity");
   r.Optional("lsm_min_correlation", &lsm_min_correlation, "minimum window correlation at the solution");
   r.Optional("lsm_max_sigma_px", &lsm_max_sigma_px, "px, largest accepted 1-sigma disparity precision");
+  r.Optional("lsm_back_check_px", &lsm_back_check_px, "px, LSM back from the right image must agree (0 = off)");
   r.Optional("lsm_median_tolerance", &lsm_median_tolerance, "px, median test again after LSM (0 = off)");
   r.Optional("num_threads", &num_threads, "OpenMP threads");
 }
@@ -342,7 +343,7 @@ bool RowLeastSquaresMatch(const cv::Mat& L, const cv::Mat& R, int x, int y, doub
   int it = 0;
   for (; it < o.lsm_max_iterations; ++it) {
     // Right x of the window corners (linear in c and r): all taps inside?
-    const double xmin = x - h - d - std::abs(gx) * h - std::abs(gy) * hy + (-h * 0.0);
+    const double xmin = x - h - d - std::abs(gx) * h - std::abs(gy) * hy;
     const double xmax = x + h - d + std::abs(gx) * h + std::abs(gy) * hy;
     if (xmin - 1 < 0 || xmax + 2 > W - 1) return false;
     // Normal equations accumulated by hand (lower triangle): Eigen's
@@ -452,9 +453,13 @@ cv::Mat DenseStereo(const cv::Mat& left, const cv::Mat& right, const DenseStereo
   s.median_seconds = Since(t1);
   const auto t2 = Clock::now();
   if (o.lsm_enabled) {
-    cv::Mat L;
+    cv::Mat L, Rraw, Lcoef;
     left.convertTo(L, CV_32F);
     const cv::Mat R = PrepareRowLsmTarget(right, o);
+    if (o.lsm_back_check_px > 0) {
+      right.convertTo(Rraw, CV_32F);
+      Lcoef = PrepareRowLsmTarget(left, o);
+    }
     cv::Mat sigma(disp.size(), CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
     long matched = 0;
 #pragma omp parallel for schedule(dynamic, 4) num_threads(o.num_threads) reduction(+ : matched)
@@ -463,7 +468,16 @@ cv::Mat DenseStereo(const cv::Mat& left, const cv::Mat& right, const DenseStereo
       for (int gx = 0; gx < disp.cols; ++gx) {
         if (!std::isfinite(row[gx])) continue;
         RowLsmResult r;
-        if (RowLeastSquaresMatch(L, R, gx * o.step, gy * o.step, row[gx], o, &r)) {
+        bool ok = RowLeastSquaresMatch(L, R, gx * o.step, gy * o.step, row[gx], o, &r);
+        if (ok && o.lsm_back_check_px > 0) {
+          // Back from the nearest right pixel into the left image (disparity
+          // negated: the left point is to the right of the right point).
+          RowLsmResult back;
+          const int xr = static_cast<int>(std::lround(gx * o.step - r.disparity));
+          ok = RowLeastSquaresMatch(Rraw, Lcoef, xr, gy * o.step, -r.disparity, o, &back) &&
+               std::abs(-back.disparity - r.disparity) <= o.lsm_back_check_px;
+        }
+        if (ok) {
           row[gx] = static_cast<float>(r.disparity);
           sigma.at<float>(gy, gx) = static_cast<float>(r.sigma_px);
           ++matched;

@@ -47,6 +47,7 @@ struct DenseStereoOptions {
   double lsm_min_correlation = 0.8;   // correlation of the windows at the solution
   double lsm_max_sigma_px = 0.2;   // px, reject disparities less precise than this (1 sigma)
   double lsm_median_tolerance = 0; // px, the median test again on the LSM disparities (0 = off)
+  double lsm_back_check_px = 0;    // px, LSM from the right image back into the left must agree (0 = off)
   int num_threads = 2;             // OpenMP threads over rows
 
   void Visit(OptionsReader& reader);
