@@ -348,37 +348,45 @@ bool RowLeastSquaresMatch(const cv::Mat& L, const cv::Mat& R, int x, int y, doub
     if (xmin - 1 < 0 || xmax + 2 > W - 1) return false;
     // Normal equations accumulated by hand (lower triangle): Eigen's
     // rankUpdate per pixel was most of the time.
+    // Float accumulation per row, summed into doubles: the terms are
+    // grey-level products, the sums of a row stay well inside float range.
     double nn[15] = {0}, bb[5] = {0};
     ssr = 0;
     float w[4], dw[4];
+    const float fr1 = static_cast<float>(r1), fr0 = static_cast<float>(r0);
     for (int r = -hy, i = 0; r <= hy; ++r) {
       const float* row = R.ptr<float>(y + r);
       const double row_shift = x - d - gy * r;
+      float rn[15] = {0}, rb[5] = {0}, rs = 0;
       for (int c = -h; c <= h; ++c, ++i) {
         const double xr = row_shift + c * (1.0 - gx);
-        const int x0 = static_cast<int>(std::floor(xr));
+        const int x0 = static_cast<int>(xr);  // xr >= 1: truncation is floor
+        const float t = static_cast<float>(xr - x0);
         if (o.lsm_bspline) {
-          BSpline(static_cast<float>(xr - x0), w, dw);
+          BSpline(t, w, dw);
         } else {
-          Keys(static_cast<float>(xr - x0), w, dw);
+          Keys(t, w, dw);
         }
         const float* p = row + x0 - 1;
-        const double g = w[0] * p[0] + w[1] * p[1] + w[2] * p[2] + w[3] * p[3];
-        const double dg = r1 * (dw[0] * p[0] + dw[1] * p[1] + dw[2] * p[2] + dw[3] * p[3]);
-        G[i] = static_cast<float>(g);
-        const double resid = T[i] - (r0 + r1 * g);
-        ssr += resid * resid;
-        double j[5];
+        const float g = w[0] * p[0] + w[1] * p[1] + w[2] * p[2] + w[3] * p[3];
+        const float dg = fr1 * (dw[0] * p[0] + dw[1] * p[1] + dw[2] * p[2] + dw[3] * p[3]);
+        G[i] = g;
+        const float resid = T[i] - (fr0 + fr1 * g);
+        rs += resid * resid;
+        float j[5];
         if (plane) {
-          j[0] = -dg, j[1] = -dg * c, j[2] = -dg * r, j[3] = 1.0, j[4] = g;
+          j[0] = -dg, j[1] = -dg * c, j[2] = -dg * r, j[3] = 1.f, j[4] = g;
         } else {
-          j[0] = -dg, j[1] = 1.0, j[2] = g, j[3] = 0, j[4] = 0;
+          j[0] = -dg, j[1] = 1.f, j[2] = g, j[3] = 0.f, j[4] = 0.f;
         }
         for (int k = 0, q = 0; k < 5; ++k) {
-          bb[k] += j[k] * resid;
-          for (int l = 0; l <= k; ++l, ++q) nn[q] += j[k] * j[l];
+          rb[k] += j[k] * resid;
+          for (int l = 0; l <= k; ++l, ++q) rn[q] += j[k] * j[l];
         }
       }
+      for (int q = 0; q < 15; ++q) nn[q] += rn[q];
+      for (int k = 0; k < 5; ++k) bb[k] += rb[k];
+      ssr += rs;
     }
     for (int k = 0, q = 0; k < 5; ++k) {
       b(k) = bb[k];
