@@ -1,10 +1,16 @@
-// vloc_match: ASIFT matching of any two images (operators' tool).
+// vloc_match: homography between two images of a planar scene (operators' tool).
 //   vloc_match IMG1 IMG2 [--homography H.yaml] [--tilts 1,1.41,2] [--gate PX] [--ratio R]
-//              [--threads N] [--out overlay.png]
-// Prints YAML: features, matches, RANSAC homography (IMG1 -> IMG2 px), inliers,
-// seconds. With --homography (a YAML file with `homography: [9 values]`,
-// row-major, IMG1 -> IMG2), candidates are gated around the predicted
-// position (--gate px, default 40); otherwise brute force with the ratio test.
+//              [--coarse-scale S] [--refine-rounds N] [--truth H.yaml|H.xml] [--threads N] [--out overlay.png]
+// Prints YAML: features, matches, inliers, homography (IMG1 -> IMG2 px),
+// seconds. Without a prior: ASIFT on images reduced by --coarse-scale
+// (default 0.5), FLANN + ratio test, RANSAC, then --refine-rounds (default
+// 2) rounds of least-squares matching at full resolution and a
+// Levenberg-Marquardt fit over all inliers (vloc::MatchHomography). With
+// --homography (a YAML file with `homography: [9 values]`, row-major,
+// IMG1 -> IMG2), full-size ASIFT candidates are gated around the predicted
+// position (--gate px, default 40) and the RANSAC homography is refined the
+// same way. --truth (same YAML, or an OpenCV XML/YAML file whose first node
+// is the 3x3 matrix, e.g. H1to3p.xml) adds the corner errors.
 #include <chrono>
 #include <iomanip>
 #include <iostream>
@@ -18,6 +24,7 @@
 #include "vloc/common/command_line.h"
 #include "vloc/common/logging.h"
 #include "vloc/features/asift.h"
+#include "vloc/features/homography_match.h"
 
 namespace {
 
@@ -29,6 +36,26 @@ std::vector<double> ParseList(const std::string& text) {
   return out;
 }
 
+// Reads `homography: [9 numbers]` (YAML) or an OpenCV FileStorage whose
+// first node is a 3x3 matrix; throws with the reason.
+cv::Matx33d ReadHomography(const std::string& path) {
+  cv::Matx33d h;
+  try {
+    const YAML::Node n = YAML::LoadFile(path)["homography"];
+    if (n && n.size() == 9) {
+      for (int k = 0; k < 9; ++k) h(k / 3, k % 3) = n[k].as<double>();
+      return h;
+    }
+  } catch (const std::exception&) {
+  }
+  cv::FileStorage fs(path, cv::FileStorage::READ);
+  cv::Mat m;
+  if (fs.isOpened()) fs.getFirstTopLevelNode() >> m;
+  if (m.rows != 3 || m.cols != 3) throw std::runtime_error("expected `homography: [9 numbers]` or an OpenCV 3x3 matrix");
+  m.convertTo(m, CV_64F);
+  return cv::Matx33d(m.ptr<double>());
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -36,9 +63,11 @@ int main(int argc, char** argv) {
   vloc::CommandLine args;
   std::string error;
   const char* usage =
-      "usage: vloc_match IMG1 IMG2 [--homography H.yaml] [--tilts 1,1.41,2] [--gate PX] [--ratio R] [--threads N] "
-      "[--out overlay.png]";
-  if (!args.Parse(argc, argv, {"homography", "tilts", "gate", "ratio", "threads", "out", "help"}, &error) ||
+      "usage: vloc_match IMG1 IMG2 [--homography H.yaml] [--tilts 1,1.41,2] [--gate PX] [--ratio R] [--coarse-scale S] "
+      "[--refine-rounds N] [--truth H.yaml|H.xml] [--threads N] [--out overlay.png]";
+  if (!args.Parse(argc, argv,
+                  {"homography", "tilts", "gate", "ratio", "coarse-scale", "refine-rounds", "truth", "threads", "out", "help"},
+                  &error) ||
       args.Has("help") || args.positional().size() != 2) {
     std::cerr << (error.empty() ? usage : "vloc_match: " + error + "\n" + usage) << "\n";
     return args.Has("help") ? 0 : 1;
@@ -51,38 +80,48 @@ int main(int argc, char** argv) {
       return 1;
     }
   }
-  vloc::AsiftOptions options;
-  options.num_threads = std::max(1, args.GetInt("threads", 2));
+  const int threads = std::max(1, args.GetInt("threads", 2));
+  vloc::HomographyMatchOptions hm;
+  hm.num_threads = threads;
+  hm.ratio = args.GetDouble("ratio", 0.8);
+  hm.coarse_scale = args.GetDouble("coarse-scale", hm.coarse_scale);
+  hm.refine_rounds = args.GetInt("refine-rounds", hm.refine_rounds);
+  const bool have_prior = args.Has("homography");
+  // With a prior, the full-size images are matched: ASIFT's defaults.
+  vloc::AsiftOptions options = have_prior ? vloc::AsiftOptions() : hm.asift;
+  options.num_threads = threads;
   try {
     if (args.Has("tilts")) options.tilts = ParseList(args.Get("tilts"));
   } catch (const std::exception&) {
     std::cerr << "vloc_match: --tilts must be a comma-separated list of numbers >= 1, e.g. 1,1.41,2\n";
     return 1;
   }
+  hm.asift = options;
   std::string check_error;
-  if (!options.Check(&check_error)) {
+  if (!hm.Check(&check_error)) {
     std::cerr << "vloc_match: " << check_error << "\n";
     return 1;
   }
-  cv::Matx33d prior = cv::Matx33d::eye();
-  const bool have_prior = args.Has("homography");
-  if (have_prior) {
+  cv::Matx33d prior = cv::Matx33d::eye(), truth;
+  const bool have_truth = args.Has("truth");
+  for (const bool is_truth : {false, true}) {
+    if (!(is_truth ? have_truth : have_prior)) continue;
+    const std::string path = args.Get(is_truth ? "truth" : "homography");
     try {
-      const YAML::Node h = YAML::LoadFile(args.Get("homography"))["homography"];
-      if (!h || h.size() != 9) throw std::runtime_error("needs 9 values");
-      for (int k = 0; k < 9; ++k) prior(k / 3, k % 3) = h[k].as<double>();
+      (is_truth ? truth : prior) = ReadHomography(path);
     } catch (const std::exception& e) {
-      std::cerr << "vloc_match: " << args.Get("homography") << ": expected `homography: [9 numbers]` (" << e.what()
-                << ")\n";
+      std::cerr << "vloc_match: " << path << ": " << e.what() << "\n";
       return 1;
     }
   }
   const auto t0 = std::chrono::steady_clock::now();
-  const vloc::FeatureSet fa = vloc::DetectAsift(a, cv::Mat(), options);
-  const vloc::FeatureSet fb = vloc::DetectAsift(b, cv::Mat(), options);
-  std::vector<vloc::FeatureMatch> matches;
-  const double ratio = args.GetDouble("ratio", 0.8);
+  vloc::HomographyMatchResult result;
+  int features[2] = {0, 0}, num_matches = 0, num_inliers = 0;
   if (have_prior) {
+    const vloc::FeatureSet fa = vloc::DetectAsift(a, cv::Mat(), options);
+    const vloc::FeatureSet fb = vloc::DetectAsift(b, cv::Mat(), options);
+    features[0] = static_cast<int>(fa.size());
+    features[1] = static_cast<int>(fb.size());
     std::vector<Eigen::Vector2d> predicted;
     for (const auto& p : fa.points) {
       const cv::Vec3d q = prior * cv::Vec3d(p.x(), p.y(), 1);
@@ -90,36 +129,72 @@ int main(int argc, char** argv) {
     }
     vloc::GatedMatchOptions g;
     g.gate_radius = args.GetDouble("gate", 40);
-    g.ratio = ratio;
-    g.num_threads = options.num_threads;
-    matches = vloc::GatedMatch(fa, predicted, fb, g);
+    g.ratio = hm.ratio;
+    g.num_threads = threads;
+    const std::vector<vloc::FeatureMatch> matches = vloc::GatedMatch(fa, predicted, fb, g);
+    num_matches = static_cast<int>(matches.size());
+    std::vector<cv::Point2f> pa, pb;
+    for (const auto& m : matches) {
+      pa.emplace_back(static_cast<float>(fa.points[m.query].x()), static_cast<float>(fa.points[m.query].y()));
+      pb.emplace_back(static_cast<float>(fb.points[m.train].x()), static_cast<float>(fb.points[m.train].y()));
+    }
+    std::vector<uchar> inliers;
+    cv::Mat H;
+    if (pa.size() >= 4) H = cv::findHomography(pa, pb, cv::RANSAC, 5.0, inliers);
+    num_inliers = static_cast<int>(std::count(inliers.begin(), inliers.end(), 1));
+    if (!H.empty()) {
+      result = hm.refine_rounds > 0 ? vloc::RefineHomography(a, b, cv::Matx33d(H.ptr<double>()), hm) : result;
+      if (hm.refine_rounds == 0) {
+        result.b_from_a = cv::Matx33d(H.ptr<double>());
+        result.summary.usable = true;
+        for (size_t k = 0; k < pa.size(); ++k)
+          if (inliers[k]) result.inliers_a.emplace_back(pa[k].x, pa[k].y), result.inliers_b.emplace_back(pb[k].x, pb[k].y);
+      }
+    } else {
+      result.summary.message = "too few gated matches agree on a homography";
+    }
   } else {
-    matches = vloc::BruteForceMatch(fa, fb, ratio);
+    result = vloc::MatchHomography(a, b, hm);
+    features[0] = result.summary.features_a;
+    features[1] = result.summary.features_b;
+    num_matches = result.summary.coarse_matches;
+    num_inliers = result.summary.coarse_inliers;
   }
-  std::vector<cv::Point2f> pa, pb;
-  for (const auto& m : matches) {
-    pa.emplace_back(static_cast<float>(fa.points[m.query].x()), static_cast<float>(fa.points[m.query].y()));
-    pb.emplace_back(static_cast<float>(fb.points[m.train].x()), static_cast<float>(fb.points[m.train].y()));
-  }
-  cv::Mat H;
-  std::vector<uchar> inliers;
-  if (pa.size() >= 4) H = cv::findHomography(pa, pb, cv::RANSAC, 5.0, inliers);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  int num_inliers = 0;
-  for (uchar v : inliers) num_inliers += v ? 1 : 0;
+  const vloc::HomographyMatchSummary& s = result.summary;
   std::cout << std::setprecision(10);
-  std::cout << "features: [" << fa.size() << ", " << fb.size() << "]\n";
+  std::cout << "features: [" << features[0] << ", " << features[1] << "]\n";
   std::cout << "views: " << options.Views().size() << "\n";
-  std::cout << "matches: " << matches.size() << "\n";
-  std::cout << "inliers: " << num_inliers << "\n";
-  if (H.empty()) {
+  std::cout << "matches: " << num_matches << "\n";
+  std::cout << "inliers: " << num_inliers << "  # ASIFT matches on the RANSAC homography\n";
+  std::cout << "refined_inliers: " << s.refine_inliers << "  # LSM correspondences on the final homography\n";
+  std::cout << "refined_rms_px: " << s.rms_px << "\n";
+  if (!s.usable) {
     std::cout << "homography: null\n";
+    std::cout << "message: \"" << s.message << "\"\n";
   } else {
     std::cout << "homography: [";
-    for (int k = 0; k < 9; ++k) std::cout << (k ? ", " : "") << H.at<double>(k / 3, k % 3);
+    for (int k = 0; k < 9; ++k) std::cout << (k ? ", " : "") << result.b_from_a(k / 3, k % 3);
     std::cout << "]\n";
+    if (have_truth) {
+      double worst = 0, sum = 0;
+      for (const cv::Vec3d& c : {cv::Vec3d(0, 0, 1), cv::Vec3d(a.cols - 1, 0, 1), cv::Vec3d(a.cols - 1, a.rows - 1, 1),
+                                cv::Vec3d(0, a.rows - 1, 1)}) {
+        const cv::Vec3d p = result.b_from_a * c, q = truth * c;
+        const double e = std::hypot(p[0] / p[2] - q[0] / q[2], p[1] / p[2] - q[1] / q[2]);
+        worst = std::max(worst, e);
+        sum += e;
+      }
+      std::cout << "corner_error_px: {mean: " << sum / 4 << ", max: " << worst << "}  # against --truth\n";
+    }
   }
   std::cout << "seconds: " << seconds << "\n";
+  std::vector<cv::Point2f> pa, pb;
+  for (size_t k = 0; k < result.inliers_a.size(); ++k) {
+    pa.emplace_back(static_cast<float>(result.inliers_a[k].x()), static_cast<float>(result.inliers_a[k].y()));
+    pb.emplace_back(static_cast<float>(result.inliers_b[k].x()), static_cast<float>(result.inliers_b[k].y()));
+  }
+  const std::vector<uchar> inliers(pa.size(), 1);
   if (args.Has("out")) {
     cv::Mat ca, cb, canvas;
     cv::cvtColor(a, ca, cv::COLOR_GRAY2BGR);

@@ -15,10 +15,22 @@ bool Fail(std::string* error, const std::string& message) {
 
 namespace {
 
+// `overrides` laid over `base`: maps merge key by key, anything else replaces.
+YAML::Node Merge(const YAML::Node& base, const YAML::Node& overrides) {
+  if (!base.IsMap() || !overrides.IsMap()) return YAML::Clone(overrides);
+  YAML::Node out = YAML::Clone(base);
+  for (const auto& kv : overrides) {
+    const std::string key = kv.first.as<std::string>();
+    out[key] = out[key] ? Merge(out[key], kv.second) : YAML::Clone(kv.second);
+  }
+  return out;
+}
+
 YAML::Node ResolveIncludes(const YAML::Node& node, const std::filesystem::path& dir, int depth) {
   if (depth > 16) throw ConfigError("config include nesting deeper than 16 (include loop?)");
   if (node.IsMap()) {
-    if (node.size() == 1 && node["include"] && node["include"].IsScalar()) {
+    if (node["include"] && node["include"].IsScalar()) {
+      // {include: FILE, key: value, ...}: the file, with the other keys laid over it (a profile over a base config).
       const auto path = dir / node["include"].as<std::string>();
       YAML::Node included;
       try {
@@ -26,7 +38,13 @@ YAML::Node ResolveIncludes(const YAML::Node& node, const std::filesystem::path& 
       } catch (const YAML::Exception& e) {
         throw ConfigError("cannot read included config " + path.string() + ": " + e.what());
       }
-      return ResolveIncludes(included, path.parent_path(), depth + 1);
+      const YAML::Node base = ResolveIncludes(included, path.parent_path(), depth + 1);
+      if (node.size() == 1) return base;
+      if (!base.IsMap()) throw ConfigError("included config " + path.string() + " is not a map: keys cannot be laid over it");
+      YAML::Node overrides(YAML::NodeType::Map);
+      for (const auto& kv : node)
+        if (kv.first.as<std::string>() != "include") overrides[kv.first] = ResolveIncludes(kv.second, dir, depth);
+      return Merge(base, overrides);
     }
     YAML::Node out(YAML::NodeType::Map);
     for (const auto& kv : node) out[kv.first] = ResolveIncludes(kv.second, dir, depth);

@@ -92,7 +92,8 @@ int RefineOverlapOnGrid(const FrontendOptions& o, OverlapWork* work) {
   if (!o.grid_lsm_enabled || !o.warp_current || work->warped.empty() || work->previous_crop.empty() ||
       work->candidates.empty())
     return 0;
-  const LsmImage lt = MakeLsmImage(work->previous_crop), lw = MakeLsmImage(work->warped);
+  const LsmImage lt = MakeLsmImage(work->previous_crop, o.grid_lsm.bspline),
+                 lw = MakeLsmImage(work->warped, o.grid_lsm.bspline);
   int refined = 0;
   for (Candidate& c : work->candidates) refined += RefineOnGrid(*work, lt, lw, o, &c) ? 1 : 0;
   VLOG(1) << "grid LSM refined " << refined << " of " << work->candidates.size();

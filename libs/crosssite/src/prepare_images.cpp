@@ -49,14 +49,14 @@ void InitTiePointSet(const SitePairState& state, TiePointSet* tps) {
 
 namespace {
 
-PreparedImage Prepare(const cv::Mat& raw, const PinholeCamera& cam) {
+PreparedImage Prepare(const cv::Mat& raw, const PinholeCamera& cam, bool bspline) {
   PreparedImage p;
   if (cam.HasDistortion()) {
     cv::undistort(raw, p.gray, cv::Mat(cam.K()), cam.DistortionCoeffs(), cv::Mat(cam.K()));
   } else {
     p.gray = raw;
   }
-  p.lsm = MakeLsmImage(p.gray);
+  p.lsm = MakeLsmImage(p.gray, bspline);
   return p;
 }
 
@@ -68,12 +68,14 @@ void PrepareImages(const NavcamModel& navcam, const FrontendOptions& o, SitePair
   s->previous_right.assign(np, {});
   s->current_left.assign(nc, {});
   s->current_right.assign(nc, {});
+  // B-spline coefficients only when an LSM on these images resamples with them.
+  const bool bs = o.lsm.bspline || o.cross_lsm.bspline;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
   for (int k = 0; k < 2 * (np + nc); ++k) {
-    if (k < np) s->previous_left[k] = Prepare(s->previous.pairs[k].left, navcam.rig.left);
-    else if (k < 2 * np) s->previous_right[k - np] = Prepare(s->previous.pairs[k - np].right, navcam.rig.right);
-    else if (k < 2 * np + nc) s->current_left[k - 2 * np] = Prepare(s->current.pairs[k - 2 * np].left, navcam.rig.left);
-    else s->current_right[k - 2 * np - nc] = Prepare(s->current.pairs[k - 2 * np - nc].right, navcam.rig.right);
+    if (k < np) s->previous_left[k] = Prepare(s->previous.pairs[k].left, navcam.rig.left, bs);
+    else if (k < 2 * np) s->previous_right[k - np] = Prepare(s->previous.pairs[k - np].right, navcam.rig.right, bs);
+    else if (k < 2 * np + nc) s->current_left[k - 2 * np] = Prepare(s->current.pairs[k - 2 * np].left, navcam.rig.left, bs);
+    else s->current_right[k - 2 * np - nc] = Prepare(s->current.pairs[k - 2 * np - nc].right, navcam.rig.right, bs);
   }
 }
 

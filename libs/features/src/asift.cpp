@@ -61,9 +61,15 @@ cv::Matx23d AffineViewTransform(const cv::Size& size, const AffineView& view, cv
   const double cx = (w - 1) / 2, cy = (h - 1) / 2;
   const double tx = (rw - 1) / 2 - (c * cx + s * cy);
   const double ty = (rh - 1) / 2 - (-s * cx + c * cy);
-  const double inv_t = 1.0 / view.tilt;
-  if (view_size) *view_size = cv::Size(std::max(1, static_cast<int>(std::ceil(rw * inv_t))), static_cast<int>(std::ceil(rh)));
-  return cv::Matx23d(c * inv_t, s * inv_t, tx * inv_t, -s, c, ty);
+  // The canvas (ceil(rw) px wide) is resized to the view width; cv::resize
+  // maps pixel centres: u = (x + 0.5) / f - 0.5 with f = canvas / view
+  // width (about t). Taking u = x / t put keypoints of tilted views
+  // (t - 1) / 2 canvas px off along the tilt (0.5 px at t = 2).
+  const int canvas_w = static_cast<int>(std::ceil(rw));
+  const int view_w = std::max(1, static_cast<int>(std::ceil(rw / view.tilt)));
+  if (view_size) *view_size = cv::Size(view_w, static_cast<int>(std::ceil(rh)));
+  const double inv_f = static_cast<double>(view_w) / canvas_w;
+  return cv::Matx23d(c * inv_f, s * inv_f, (tx + 0.5) * inv_f - 0.5, -s, c, ty);
 }
 
 namespace {

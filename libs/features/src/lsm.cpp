@@ -22,6 +22,7 @@ void LsmOptions::Visit(OptionsReader& r) {
   r.Optional("max_sigma_axis_px", &max_sigma_axis_px, "px, largest accepted sigma along the worst direction (0 = off)");
   r.Optional("min_correlation", &min_correlation, "minimum correlation at the solution");
   r.Optional("estimate_affine", &estimate_affine, "estimate the 4 affine shape parameters");
+  r.Optional("bspline", &bspline, "cubic B-spline resampling (false: Keys cubic convolution)");
 }
 
 bool LsmOptions::Check(std::string* error) const {
@@ -34,7 +35,54 @@ bool LsmOptions::Check(std::string* error) const {
   return true;
 }
 
-LsmImage MakeLsmImage(const cv::Mat& gray) {
+cv::Mat BSplineCoefficients(const cv::Mat& gray) {
+  CV_Assert(gray.type() == CV_32FC1);
+  // Causal then anti-causal recursion with pole z (gain 6), mirror boundary;
+  // rows one by one, then the columns all at once row after row (cache order).
+  const float z = static_cast<float>(std::sqrt(3.0) - 2.0);
+  const float last = z / (z * z - 1.f);
+  cv::Mat c = gray * 36.0;  // gain 6 per dimension
+  const int W = c.cols, H = c.rows;
+  const int hx = std::min(W, 30), hy = std::min(H, 30);  // |z|^30 < 1e-17
+  if (W > 1) {
+    for (int y = 0; y < H; ++y) {
+      float* r = c.ptr<float>(y);
+      float sum = r[0], zk = z;
+      for (int k = 1; k < hx; ++k, zk *= z) sum += zk * r[k];
+      r[0] = sum;
+      for (int k = 1; k < W; ++k) r[k] += z * r[k - 1];
+      r[W - 1] = last * (r[W - 1] + z * r[W - 2]);
+      for (int k = W - 2; k >= 0; --k) r[k] = z * (r[k + 1] - r[k]);
+    }
+  }
+  if (H > 1) {
+    std::vector<float> sum(c.ptr<float>(0), c.ptr<float>(0) + W);
+    float zk = z;
+    for (int k = 1; k < hy; ++k, zk *= z) {
+      const float* r = c.ptr<float>(k);
+      for (int x = 0; x < W; ++x) sum[x] += zk * r[x];
+    }
+    std::copy(sum.begin(), sum.end(), c.ptr<float>(0));
+    for (int y = 1; y < H; ++y) {
+      float* r = c.ptr<float>(y);
+      const float* p = c.ptr<float>(y - 1);
+      for (int x = 0; x < W; ++x) r[x] += z * p[x];
+    }
+    {
+      float* r = c.ptr<float>(H - 1);
+      const float* p = c.ptr<float>(H - 2);
+      for (int x = 0; x < W; ++x) r[x] = last * (r[x] + z * p[x]);
+    }
+    for (int y = H - 2; y >= 0; --y) {
+      float* r = c.ptr<float>(y);
+      const float* n = c.ptr<float>(y + 1);
+      for (int x = 0; x < W; ++x) r[x] = z * (n[x] - r[x]);
+    }
+  }
+  return c;
+}
+
+LsmImage MakeLsmImage(const cv::Mat& gray, bool bspline_coefficients) {
   LsmImage out;
   if (gray.type() == CV_32FC1) {
     out.gray = gray;
@@ -55,6 +103,7 @@ LsmImage MakeLsmImage(const cv::Mat& gray) {
       gy[x] = 0.5f * (pd[x] - pu[x]);
     }
   }
+  if (bspline_coefficients) out.bspline = BSplineCoefficients(out.gray);
   return out;
 }
 
@@ -74,13 +123,32 @@ inline void CubicWeights(float t, float w[4], float dw[4]) {
   dw[3] = 1.5f * t2 - t;
 }
 
+// Cubic B-spline weights and derivatives (same taps), for coefficients.
+inline void BSplineWeights(float t, float w[4], float dw[4]) {
+  const float u = 1.f - t, t2 = t * t, t3 = t2 * t;
+  w[0] = u * u * u / 6.f;
+  w[1] = (3.f * t3 - 6.f * t2 + 4.f) / 6.f;
+  w[2] = (-3.f * t3 + 3.f * t2 + 3.f * t + 1.f) / 6.f;
+  w[3] = t3 / 6.f;
+  dw[0] = -0.5f * u * u;
+  dw[1] = 1.5f * t2 - 2.f * t;
+  dw[2] = -1.5f * t2 + t + 0.5f;
+  dw[3] = 0.5f * t2;
+}
+
 // Bicubic value and gradient at (x, y); the caller keeps (x, y) at least 2 px
-// inside the image.
-inline void SampleCubic(const cv::Mat& img, double x, double y, double* value, double* gx, double* gy) {
+// inside the image. bspline: `img` holds B-spline coefficients.
+inline void SampleCubic(const cv::Mat& img, double x, double y, double* value, double* gx, double* gy,
+                        bool bspline = false) {
   const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
   float wx[4], dwx[4], wy[4], dwy[4];
-  CubicWeights(static_cast<float>(x - x0), wx, dwx);
-  CubicWeights(static_cast<float>(y - y0), wy, dwy);
+  if (bspline) {
+    BSplineWeights(static_cast<float>(x - x0), wx, dwx);
+    BSplineWeights(static_cast<float>(y - y0), wy, dwy);
+  } else {
+    CubicWeights(static_cast<float>(x - x0), wx, dwx);
+    CubicWeights(static_cast<float>(y - y0), wy, dwy);
+  }
   float v = 0, vx = 0, vy = 0;
   for (int i = 0; i < 4; ++i) {
     const float* row = img.ptr<float>(y0 - 1 + i) + (x0 - 1);
@@ -110,12 +178,19 @@ LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& templa
     res.why = "template outside its image";
     return res;
   }
+  const bool bs = o.bspline;
+  if (bs && (templ.bspline.empty() || target.bspline.empty())) {
+    res.why = "lsm.bspline needs images made by MakeLsmImage(gray, true)";
+    return res;
+  }
+  const cv::Mat& templ_img = bs ? templ.bspline : templ.gray;
+  const cv::Mat& target_img = bs ? target.bspline : target.gray;
   std::vector<float> T(n);
   double sum = 0, sum2 = 0;
   for (int r = -hy, i = 0; r <= hy; ++r) {
     for (int c = -h; c <= h; ++c, ++i) {
       double v, unused_x, unused_y;
-      SampleCubic(templ.gray, template_px.x() + c, template_px.y() + r, &v, &unused_x, &unused_y);
+      SampleCubic(templ_img, template_px.x() + c, template_px.y() + r, &v, &unused_x, &unused_y, bs);
       T[i] = static_cast<float>(v);
       sum += T[i];
       sum2 += static_cast<double>(T[i]) * T[i];
@@ -159,7 +234,7 @@ LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& templa
         const double x = t.x() + A(0, 0) * c + A(0, 1) * r;
         const double y = t.y() + A(1, 0) * c + A(1, 1) * r;
         double g, gx, gy;
-        SampleCubic(target.gray, x, y, &g, &gx, &gy);
+        SampleCubic(target_img, x, y, &g, &gx, &gy, bs);
         gx *= r1;
         gy *= r1;
         G[i] = static_cast<float>(g);

@@ -192,6 +192,21 @@ TEST(Options, IncludesAndNestedCalibration) {
   }
 }
 
+TEST(Options, IncludeWithKeysLaysThemOverTheFile) {
+  // A profile: the base file with some keys changed, nested maps merged key by key.
+  const std::string dir = ::testing::TempDir();
+  std::ofstream(dir + "/cam_base.yaml") << "left: {fx: 1000, fy: 1000}\nright: {fx: 1000}\nright_in_left_translation: [0.3, 0, 0]\n";
+  std::ofstream(dir + "/profile.yaml") << "rig: {include: cam_base.yaml, left: {fx: 1200}, right_in_left_translation: [0.5, 0, 0]}\n";
+  const auto model = LoadOptionsFile<NavcamModel>(dir + "/profile.yaml");
+  EXPECT_DOUBLE_EQ(model.rig.left.fx, 1200);
+  EXPECT_DOUBLE_EQ(model.rig.left.fy, 1000);  // kept from the base
+  EXPECT_DOUBLE_EQ(model.rig.right.fx, 1000);
+  EXPECT_NEAR(model.rig.Baseline(), 0.5, 1e-12);
+  // A misspelled key in the overrides is still rejected.
+  std::ofstream(dir + "/typo.yaml") << "rig: {include: cam_base.yaml, left: {fxx: 1200}}\n";
+  EXPECT_THROW(LoadOptionsFile<NavcamModel>(dir + "/typo.yaml"), ConfigError);
+}
+
 TEST(Options, RepoNavcamCalibrationLoads) {
   const auto model = LoadOptionsFile<NavcamModel>("config/navcam.yaml");
   EXPECT_DOUBLE_EQ(model.rig.left.fx, 1189.0);

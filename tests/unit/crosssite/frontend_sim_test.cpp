@@ -18,7 +18,8 @@ namespace {
 // the renders, VLOC_TEST_FRONTEND_CONFIG=<yaml> overrides options,
 // VLOC_TEST_PRINT_ERRORS=1 lists every point's error (also along / across
 // the cross-site epipolar line), VLOC_TEST_DUMP_TIE_POINTS=<file> writes the
-// tie points (to compare builds), VLOC_TEST_HEADING_DEG, VLOC_TEST_DISTANCE,
+// tie points (to compare builds), VLOC_TEST_SIM_PROFILE=<sim_rover config> renders
+// with a profile (config/procs/sim_rover_hard.yaml), VLOC_TEST_HEADING_DEG, VLOC_TEST_DISTANCE,
 // VLOC_TEST_TERRAIN_SEED, VLOC_TEST_DR_SCALE, VLOC_TEST_DR_ROTATION_DEG (turns
 // the DR position error), VLOC_TEST_NO_RELIEF=1 (a textured plane) vary the pair.
 struct PairRun {
@@ -45,6 +46,7 @@ PairRun RunPair(testing::SimSitePairOptions so = testing::SimSitePairOptions()) 
   if (const char* e = std::getenv("VLOC_TEST_DISTANCE")) so.distance = std::atof(e);
   if (const char* e = std::getenv("VLOC_TEST_TERRAIN_SEED")) so.terrain_seed = std::atoi(e);
   if (std::getenv("VLOC_TEST_NO_RELIEF")) so.no_relief = true;
+  if (const char* e = std::getenv("VLOC_TEST_SIM_PROFILE")) so.profile = e;
   if (const char* e = std::getenv("VLOC_TEST_DR_ROTATION_DEG")) so.dr_error_rotation_deg = std::atof(e);
   if (const char* e = std::getenv("VLOC_TEST_DR_SIGMA_FRACTION")) so.dr_sigma_fraction = std::atof(e);
   if (const char* e = std::getenv("VLOC_TEST_DR_SCALE")) {

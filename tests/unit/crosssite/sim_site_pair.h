@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <memory>
 #include <opencv2/imgcodecs.hpp>
+#include <filesystem>
 #include <sstream>
 #include <vector>
 
@@ -17,6 +18,7 @@
 #include "vloc/common/options.h"
 #include "vloc/crosssite/frontend.h"
 #include "vloc/sim/navcam_renderer.h"
+#include "vloc/sim/rover_world.h"
 #include "vloc/sim/rover_traverse.h"
 #include "vloc/sim/terrain.h"
 
@@ -41,6 +43,8 @@ struct SimSitePairOptions {
   uint64_t terrain_seed = 3;
   bool textureless = false;            // albedo contrast and relief off: a featureless plain
   bool no_relief = false;              // relief, craters and rocks off, texture on: a textured plane
+  std::string profile;                 // a sim_rover config (e.g. config/procs/sim_rover_hard.yaml): its sun, lighting
+                                       // steps (site 1 = one step), render options and JPEG encoding; "" = defaults
 };
 
 // Rendered images and depths can be cached in a folder (env
@@ -79,7 +83,22 @@ inline SimSitePair MakeSimSitePair(const SimSitePairOptions& so = SimSitePairOpt
   const std::string cache = cache_env ? cache_env : "";
   std::ostringstream key;
   key << "t" << so.terrain_seed << "_d" << so.distance << "_h" << so.heading_change_deg << (so.textureless ? "_flat" : "") << (so.no_relief ? "_plane" : "");
+  sim::NavcamRenderOptions render_options;
+  sim::LightingOptions lighting;
+  sim::TerrainOptions profile_terrain;
+  int jpeg_quality = 0;  // 0 = PNG (lossless)
+  if (!so.profile.empty()) {
+    const YAML::Node root = LoadYamlFile(so.profile);
+    if (root["render"]) render_options = LoadOptionsFile<sim::NavcamRenderOptions>(so.profile, "render");
+    if (root["lighting"]) lighting = LoadOptionsFile<sim::LightingOptions>(so.profile, "lighting");
+    if (root["terrain"]) profile_terrain = LoadOptionsFile<sim::TerrainOptions>(so.profile, "terrain");
+    if (root["image_encoding"] && root["image_encoding"].as<std::string>() == "jpeg")
+      jpeg_quality = root["jpeg_quality"] ? root["jpeg_quality"].as<int>() : 95;
+    key << "_" << std::filesystem::path(so.profile).stem().string();
+  }
   sim::TerrainOptions to;
+  to.sun_azimuth_deg = profile_terrain.sun_azimuth_deg;
+  to.sun_elevation_deg = profile_terrain.sun_elevation_deg;
   to.seed = so.terrain_seed;
   to.size_m = 72;
   to.origin_x_m = -24;
@@ -95,7 +114,7 @@ inline SimSitePair MakeSimSitePair(const SimSitePairOptions& so = SimSitePairOpt
   auto renderer = [&]() -> const sim::NavcamRenderer& {
     if (!renderer_ptr) {
       terrain_ptr = std::make_unique<sim::Terrain>(to);
-      renderer_ptr = std::make_unique<sim::NavcamRenderer>(*terrain_ptr, out.navcam, sim::NavcamRenderOptions());
+      renderer_ptr = std::make_unique<sim::NavcamRenderer>(*terrain_ptr, out.navcam, render_options);
     }
     return *renderer_ptr;
   };
@@ -138,10 +157,21 @@ inline SimSitePair MakeSimSitePair(const SimSitePairOptions& so = SimSitePairOpt
     const std::string tag = key.str() + "_s" + std::to_string(site_id);
     if (cached && LoadCachedSite(cache, tag, pointing.size(), site, depth)) return;
     depth->clear();
+    renderer();
+    // Site 1 sees the sun one lighting step on, with its own exposure gain.
+    terrain_ptr->SetSun(to.sun_azimuth_deg + site_id * lighting.azimuth_step_deg,
+                        std::clamp(to.sun_elevation_deg + site_id * lighting.elevation_step_deg, lighting.min_elevation_deg, 89.0));
+    const double gain = 1.0 + site_id * lighting.exposure_jitter;
+    auto encode = [&](const cv::Mat& image) {
+      if (jpeg_quality <= 0) return image;
+      std::vector<uchar> bytes;
+      cv::imencode(".jpg", image, bytes, {cv::IMWRITE_JPEG_QUALITY, jpeg_quality});
+      return cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+    };
     for (size_t k = 0; k < pointing.size(); ++k) {
-      const sim::RenderedPair rp = renderer().RenderPair(pose, pointing[k].pan, pointing[k].tilt, seed + k, true);
-      site->pairs[k].left = rp.left.image;
-      site->pairs[k].right = rp.right.image;
+      const sim::RenderedPair rp = renderer().RenderPair(pose, pointing[k].pan, pointing[k].tilt, seed + k, true, gain);
+      site->pairs[k].left = encode(rp.left.image);
+      site->pairs[k].right = encode(rp.right.image);
       depth->push_back(rp.left.depth);
     }
     if (!cache.empty()) SaveCachedSite(cache, tag, *site, *depth);

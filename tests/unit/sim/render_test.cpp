@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
+#include "vloc/common/options.h"
 #include "vloc/sim/navcam_renderer.h"
 #include "vloc/sim/rover_world.h"
 #include "vloc/sim/terrain.h"
@@ -204,6 +205,7 @@ TEST(SimRender, LookingAtTheSkyGivesBlackLevel) {
   EXPECT_EQ(cv::countNonZero(pair.left.depth), 0);
 }
 
+
 }  // namespace
 }  // namespace vloc::sim
 
@@ -238,6 +240,116 @@ TEST(SimRoverWorld, TwoSitesTenMetresApartRenderTheirPanoramas) {
   const std::vector<StereoPair> again = world.RenderSite(1);
   EXPECT_EQ(cv::norm(pairs[3].left, again[3].left, cv::NORM_L1), 0.0);
   EXPECT_THROW(world.RenderSite(2), std::invalid_argument);
+}
+
+
+// The photometric models (issue 16): Lambert is mu0; lunar-Lambert with L = 1
+// is Lommel-Seeliger, 2 mu0 / (mu0 + mu), which does not darken towards the
+// limb; the opposition surge brightens zero phase by 1 + B0 and fades with g.
+TEST(SimRender, PhotometricModels) {
+  NavcamRenderOptions o;
+  EXPECT_DOUBLE_EQ(Reflectance(o, 0.5, 0.9, 0.3), 0.5);
+  EXPECT_DOUBLE_EQ(Reflectance(o, -0.2, 0.9, 0.3), 0.0);
+  o.photometric = "lunar_lambert";
+  o.lunar_lambert_l = 1.0;
+  EXPECT_NEAR(Reflectance(o, 0.5, 0.5, 1.0), 1.0, 1e-12);        // 2 x 0.5 / 1
+  EXPECT_NEAR(Reflectance(o, 0.2, 0.2, 1.0), 1.0, 1e-12);        // same at the limb: no limb darkening
+  o.opposition_b0 = 1.0;
+  o.opposition_h = 0.06;
+  EXPECT_NEAR(Reflectance(o, 0.5, 0.5, 0.0), 2.0, 1e-12);        // 1 + B0 at zero phase
+  const double at_10deg = Reflectance(o, 0.5, 0.5, 10 * M_PI / 180);
+  EXPECT_LT(at_10deg, 1.5);                                       // h = 0.06: mostly gone by 10 deg
+  EXPECT_GT(at_10deg, 1.0);
+  std::string error;
+  o.photometric = "hapke";
+  EXPECT_FALSE(o.Check(&error));
+}
+
+// Camera effects: 12-bit companding, vignetting and hot pixels do what they say.
+TEST(SimRender, CameraEffects) {
+  const NavcamModel model = HalfNavcam();
+  const Pose3 world_from_body = MakePose(0, 0, 0, 0.02, -0.03, 0.3);
+  NavcamRenderOptions plain;
+  plain.add_noise = false;
+  const RenderedPair base = NavcamRenderer(TestTerrain(), model, plain).RenderPair(world_from_body, 0.0, 0.4, 1);
+  // Companding: 12-bit DN = 16 x the 8-bit ones, then 255 sqrt(dn / 4095).
+  NavcamRenderOptions twelve = plain;
+  twelve.adc_bits = 12;
+  twelve.exposure_gain_dn *= 16;
+  twelve.black_level_dn *= 16;
+  const RenderedPair companded = NavcamRenderer(TestTerrain(), model, twelve).RenderPair(world_from_body, 0.0, 0.4, 1);
+  const cv::Mat& b = base.left.image;
+  const cv::Mat& c = companded.left.image;
+  int checked = 0;
+  for (int v = 0; v < b.rows; v += 7)
+    for (int u = 0; u < b.cols; u += 7) {
+      const int dn8 = b.at<uint8_t>(v, u);
+      if (dn8 < 20 || dn8 > 250) continue;
+      EXPECT_NEAR(c.at<uint8_t>(v, u), 255.0 * std::sqrt(16.0 * dn8 / 4095.0), 4.0) << u << "," << v;
+      ++checked;
+    }
+  EXPECT_GT(checked, 1000);
+  // Vignetting 0.3: the corners lose about 30 % against the centre, relative to the plain render.
+  NavcamRenderOptions vignetted = plain;
+  vignetted.vignetting = 0.3;
+  vignetted.black_level_dn = plain.black_level_dn = 0;
+  const cv::Mat v0 = NavcamRenderer(TestTerrain(), model, plain).RenderPair(world_from_body, 0.0, 0.4, 1).left.image;
+  const cv::Mat v1 = NavcamRenderer(TestTerrain(), model, vignetted).RenderPair(world_from_body, 0.0, 0.4, 1).left.image;
+  const cv::Rect centre(236, 236, 40, 40), corner(472, 472, 40, 40);
+  EXPECT_NEAR(cv::mean(v1(centre))[0] / cv::mean(v0(centre))[0], 1.0, 0.02);
+  EXPECT_NEAR(cv::mean(v1(corner))[0] / cv::mean(v0(corner))[0], 0.72, 0.05);
+  // Hot pixels: the same pixels stuck at 255 in every exposure of that camera.
+  NavcamRenderOptions hot = plain;
+  hot.exposure_gain_dn = 200;  // dark: nothing else reaches 255
+  hot.hot_pixel_fraction = 0.001;
+  const NavcamRenderer hot_renderer(TestTerrain(), model, hot);
+  const cv::Mat h1 = hot_renderer.RenderPair(world_from_body, 0.0, 0.4, 1).left.image;
+  const cv::Mat h2 = hot_renderer.RenderPair(world_from_body, 0.3, 0.4, 2).left.image;
+  const int stuck = cv::countNonZero(h1 == 255);
+  EXPECT_NEAR(stuck, 0.001 * h1.total(), 0.4 * 0.001 * h1.total());
+  EXPECT_EQ(cv::countNonZero((h1 == 255) != (h2 == 255)), 0);
+}
+
+// The sun moves between sites: azimuth and elevation steps, and the cast
+// shadows follow (lower sun, more shadow).
+TEST(SimRoverWorld, SunAndExposureChangeBetweenSites) {
+  RoverWorldOptions options;
+  options.terrain.size_m = 60.0;
+  options.terrain.origin_x_m = -15.0;
+  options.terrain.origin_y_m = -30.0;
+  options.terrain.sun_elevation_deg = 30.0;
+  options.lighting.azimuth_step_deg = 30.0;
+  options.lighting.elevation_step_deg = -12.0;
+  options.lighting.exposure_jitter = 0.2;
+  for (PinholeCamera* c : {&options.navcam.rig.left, &options.navcam.rig.right}) {
+    c->width = c->height = 256;
+    c->fx = c->fy = 1189.0 / 4;
+    c->cx = c->cy = 127.5;
+  }
+  options.traverse.plan.sites_xy = {0, 0, 10, 0, 20, 0};
+  const RoverWorld world(options);
+  EXPECT_NEAR(world.SunAtSite(2).x(), options.terrain.sun_azimuth_deg + 60.0, 1e-12);
+  EXPECT_NEAR(world.SunAtSite(2).y(), 6.0, 1e-12);
+  EXPECT_NEAR(world.SunAtSite(3).y(), options.lighting.min_elevation_deg, 1e-12);  // clamped
+  for (int s = 0; s < 3; ++s) EXPECT_LE(std::abs(world.GainAtSite(s) - 1.0), 0.2 + 1e-12);
+  EXPECT_NE(world.GainAtSite(0), world.GainAtSite(1));
+  // Shadowed ground in a 20 m square: at 6 deg far more than at 30 deg.
+  auto shadowed = [&](int site) {
+    world.RenderSite(site);  // moves the terrain's sun to the site's
+    int dark = 0, n = 0;
+    for (double x = -5; x < 15; x += 0.25)
+      for (double y = -10; y < 10; y += 0.25, ++n) dark += world.terrain().SunVisibility(x, y) < 0.5 ? 1 : 0;
+    return static_cast<double>(dark) / n;
+  };
+  const double at30 = shadowed(0), at6 = shadowed(2);
+  EXPECT_GT(at6, 0.004);
+  EXPECT_GT(at6, 4 * at30) << "shadow fraction " << at30 << " at 30 deg, " << at6 << " at 6 deg";
+  // A profile file lays its keys over the base config.
+  const auto hard = LoadOptionsFile<LightingOptions>("config/procs/sim_rover_hard.yaml", "lighting");
+  EXPECT_DOUBLE_EQ(hard.azimuth_step_deg, 30.0);
+  const auto extreme = LoadOptionsFile<TerrainOptions>("config/procs/sim_rover_extreme.yaml", "terrain");
+  EXPECT_DOUBLE_EQ(extreme.sun_elevation_deg, 10.0);
+  EXPECT_DOUBLE_EQ(extreme.resolution_m, 0.04);  // from config/sim/terrain.yaml, through two includes
 }
 
 }  // namespace

@@ -22,6 +22,14 @@ void NavcamRenderOptions::Visit(OptionsReader& r) {
   r.Optional("apply_distortion", &apply_distortion, "render through the lens distortion");
   r.Optional("max_range_m", &max_range_m, "m, rays beyond see sky");
   r.Optional("max_footprint_samples", &max_footprint_samples, "shading samples along a grazing pixel's footprint");
+  r.Optional("photometric", &photometric, "lambert | lunar_lambert");
+  r.Optional("lunar_lambert_l", &lunar_lambert_l, "L of the lunar-Lambert model");
+  r.Optional("opposition_b0", &opposition_b0, "opposition surge amplitude");
+  r.Optional("opposition_h", &opposition_h, "opposition surge width (rad)");
+  r.Optional("sky_dn", &sky_dn, "DN of sky pixels");
+  r.Optional("vignetting", &vignetting, "fraction of light lost at the corner");
+  r.Optional("adc_bits", &adc_bits, "8 or 12 (12: square-root companded to 8)");
+  r.Optional("hot_pixel_fraction", &hot_pixel_fraction, "fraction of pixels stuck at 255");
   r.Optional("num_threads", &num_threads, "OpenMP threads");
 }
 
@@ -31,6 +39,14 @@ bool NavcamRenderOptions::Check(std::string* error) const {
   if (!(black_level_dn >= 0 && black_level_dn < 255)) return Fail(error, "render black_level_dn must be in [0, 255)");
   if (!(read_noise_dn >= 0 && shot_noise_dn2_per_dn >= 0)) return Fail(error, "render noise levels must be >= 0");
   if (!(max_range_m > 0)) return Fail(error, "render max_range_m must be > 0");
+  if (photometric != "lambert" && photometric != "lunar_lambert")
+    return Fail(error, "render photometric must be 'lambert' or 'lunar_lambert'");
+  if (!(lunar_lambert_l >= 0 && lunar_lambert_l <= 1)) return Fail(error, "render lunar_lambert_l must be in [0, 1]");
+  if (!(opposition_b0 >= 0 && opposition_h > 0)) return Fail(error, "render opposition_b0 must be >= 0, opposition_h > 0");
+  if (!(sky_dn >= 0 && sky_dn <= 255)) return Fail(error, "render sky_dn must be in [0, 255]");
+  if (!(vignetting >= 0 && vignetting < 1)) return Fail(error, "render vignetting must be in [0, 1)");
+  if (adc_bits != 8 && adc_bits != 12) return Fail(error, "render adc_bits must be 8 or 12");
+  if (!(hot_pixel_fraction >= 0 && hot_pixel_fraction < 0.01)) return Fail(error, "render hot_pixel_fraction must be in [0, 0.01)");
   if (num_threads < 1) return Fail(error, "render num_threads must be >= 1");
   return true;
 }
@@ -64,8 +80,16 @@ std::vector<Eigen::Vector3f> NavcamRenderer::PixelRays(const PinholeCamera& came
   return rays;
 }
 
+double Reflectance(const NavcamRenderOptions& o, double mu0, double mu, double g) {
+  if (o.photometric == "lambert") return std::max(0.0, mu0);
+  if (mu0 <= 0) return 0.0;
+  const double lunar = 2.0 * o.lunar_lambert_l * mu0 / (mu0 + std::max(mu, 0.05)) + (1.0 - o.lunar_lambert_l) * mu0;
+  const double surge = o.opposition_b0 / (1.0 + std::tan(0.5 * std::abs(g)) / o.opposition_h);
+  return lunar * (1.0 + surge);
+}
+
 RenderedImage NavcamRenderer::Render(const PinholeCamera& camera, const Pose3& world_from_camera,
-                                     uint64_t noise_seed, bool with_depth) const {
+                                     uint64_t noise_seed, bool with_depth, double gain_factor) const {
   const auto start = std::chrono::steady_clock::now();
   std::vector<Eigen::Vector3f> own_rays;
   const std::vector<Eigen::Vector3f>* rays = nullptr;
@@ -86,6 +110,9 @@ RenderedImage NavcamRenderer::Render(const PinholeCamera& camera, const Pose3& w
   const Eigen::Vector3d& sun = terrain_.SunDirection();
   const double ambient = terrain_.options().ambient;
   const double inv_f = 1.0 / std::sqrt(camera.fx * camera.fy);
+  const bool lambert = options_.photometric == "lambert";
+  const double corner2 = camera.cx * camera.cx + camera.cy * camera.cy;
+  const uint64_t hot_seed = SameCamera(camera, model_.rig.right) ? 2 : 1;  // stuck pixels belong to the sensor
   int sky = 0;
 #pragma omp parallel for schedule(dynamic, 4) num_threads(options_.num_threads) reduction(+ : sky)
   for (int v = 0; v < camera.height; ++v) {
@@ -123,13 +150,21 @@ RenderedImage NavcamRenderer::Render(const PinholeCamera& camera, const Pose3& w
           const double qx = p.x() + offset * along.x(), qy = p.y() + offset * along.y();
           const double albedo = terrain_.Albedo(qx, qy, footprint);
           const Eigen::Vector3d shading_normal = terrain_.ShadingNormal(qx, qy, footprint, n);
-          const double direct = std::max(0.0, shading_normal.dot(sun)) * visibility;
+          const double mu0 = std::max(0.0, shading_normal.dot(sun));
+          const double direct =
+              (lambert ? mu0 : Reflectance(options_, mu0, -dir.dot(shading_normal), std::acos(std::clamp(-dir.dot(sun), -1.0, 1.0)))) *
+              visibility;
           radiance += albedo * (ambient + (1.0 - ambient) * direct);
         }
-        signal = options_.exposure_gain_dn * radiance / samples;
+        signal = options_.exposure_gain_dn * gain_factor * radiance / samples;
         if (depth_row) depth_row[u] = static_cast<float>(hit->range / ray_norm);
       } else {
         ++sky;
+        signal = options_.sky_dn * (options_.adc_bits == 12 ? 16.0 : 1.0) * gain_factor;
+      }
+      if (options_.vignetting > 0) {
+        const double r2 = ((u - camera.cx) * (u - camera.cx) + (v - camera.cy) * (v - camera.cy)) / corner2;
+        signal *= 1.0 - options_.vignetting * r2;
       }
       double dn = options_.black_level_dn + signal;
       if (options_.add_noise) {
@@ -137,6 +172,9 @@ RenderedImage NavcamRenderer::Render(const PinholeCamera& camera, const Pose3& w
                                        options_.shot_noise_dn2_per_dn * signal);
         dn += sigma * HashToGaussian(Hash3(noise_seed, index, 0xCA3E7AULL));
       }
+      if (options_.adc_bits == 12) dn = 255.0 * std::sqrt(std::clamp(dn, 0.0, 4095.0) / 4095.0);  // companding
+      if (options_.hot_pixel_fraction > 0 && HashToUnit(Hash3(hot_seed, index, 0x407ULL)) < options_.hot_pixel_fraction)
+        dn = 255;
       row[u] = static_cast<uint8_t>(std::clamp(std::lround(dn), 0L, 255L));
     }
   }
@@ -146,12 +184,12 @@ RenderedImage NavcamRenderer::Render(const PinholeCamera& camera, const Pose3& w
 }
 
 RenderedPair NavcamRenderer::RenderPair(const Pose3& world_from_body, double pan, double tilt,
-                                        uint64_t noise_seed, bool with_depth) const {
+                                        uint64_t noise_seed, bool with_depth, double gain_factor) const {
   RenderedPair pair;
   const Pose3 world_from_left = world_from_body * model_.mast.BodyFromLeft(pan, tilt, model_.rig);
   const Pose3 world_from_right = world_from_body * model_.mast.BodyFromRight(pan, tilt, model_.rig);
-  pair.left = Render(model_.rig.left, world_from_left, noise_seed, with_depth);
-  pair.right = Render(model_.rig.right, world_from_right, HashMix(noise_seed ^ 0x52494748ULL), with_depth);
+  pair.left = Render(model_.rig.left, world_from_left, noise_seed, with_depth, gain_factor);
+  pair.right = Render(model_.rig.right, world_from_right, HashMix(noise_seed ^ 0x52494748ULL), with_depth, gain_factor);
   return pair;
 }
 

@@ -1,5 +1,7 @@
 #include "vloc/sim/rover_world.h"
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 #include "vloc/common/options.h"
@@ -7,15 +9,32 @@
 
 namespace vloc::sim {
 
+void LightingOptions::Visit(OptionsReader& r) {
+  r.Optional("azimuth_step_deg", &azimuth_step_deg, "deg the sun's azimuth moves per site");
+  r.Optional("elevation_step_deg", &elevation_step_deg, "deg the sun's elevation moves per site");
+  r.Optional("min_elevation_deg", &min_elevation_deg, "deg, lowest sun");
+  r.Optional("exposure_jitter", &exposure_jitter, "site gain varies by +-this fraction");
+}
+
+bool LightingOptions::Check(std::string* error) const {
+  if (!(std::isfinite(azimuth_step_deg) && std::isfinite(elevation_step_deg)))
+    return Fail(error, "lighting steps must be finite");
+  if (!(min_elevation_deg >= 1 && min_elevation_deg <= 89)) return Fail(error, "lighting min_elevation_deg must be in [1, 89]");
+  if (!(exposure_jitter >= 0 && exposure_jitter < 0.9)) return Fail(error, "lighting exposure_jitter must be in [0, 0.9)");
+  return true;
+}
+
 void RoverWorldOptions::Visit(OptionsReader& r) {
   r.Child("navcam", [&](OptionsReader& c) { navcam.Visit(c); });
   r.Child("terrain", [&](OptionsReader& c) { terrain.Visit(c); });
   r.Child("render", [&](OptionsReader& c) { render.Visit(c); });
   r.Child("traverse", [&](OptionsReader& c) { traverse.Visit(c); });
+  r.Child("lighting", [&](OptionsReader& c) { lighting.Visit(c); });
 }
 
 bool RoverWorldOptions::Check(std::string* error) const {
-  return navcam.Check(error) && terrain.Check(error) && render.Check(error) && traverse.Check(error);
+  return navcam.Check(error) && terrain.Check(error) && render.Check(error) && traverse.Check(error) &&
+         lighting.Check(error);
 }
 
 RoverWorld::RoverWorld(const RoverWorldOptions& options) : options_(options) {
@@ -26,14 +45,40 @@ RoverWorld::RoverWorld(const RoverWorldOptions& options) : options_(options) {
   renderer_ = std::make_unique<NavcamRenderer>(*terrain_, options_.navcam, options_.render);
 }
 
+Eigen::Vector2d RoverWorld::SunAtSite(int site_id) const {
+  const TerrainOptions& t = options_.terrain;
+  const LightingOptions& l = options_.lighting;
+  const double elevation = std::clamp(t.sun_elevation_deg + site_id * l.elevation_step_deg, l.min_elevation_deg, 89.0);
+  return {t.sun_azimuth_deg + site_id * l.azimuth_step_deg, elevation};
+}
+
+double RoverWorld::GainAtSite(int site_id) const {
+  const double jitter = options_.lighting.exposure_jitter;
+  if (jitter <= 0) return 1.0;
+  const double u = 2.0 * HashToUnit(Hash3(options_.traverse.seed, static_cast<uint64_t>(site_id), 0x6A1EULL)) - 1.0;
+  return 1.0 + jitter * u;
+}
+
+std::unique_lock<std::mutex> RoverWorld::LightSite(int site_id) const {
+  std::unique_lock<std::mutex> lock(sun_mutex_);
+  const Eigen::Vector2d sun = SunAtSite(site_id);
+  terrain_->SetSun(sun.x(), sun.y());
+  return lock;
+}
+
 RenderedPair RoverWorld::RenderExposureWithDepth(const Exposure& e) const {
   const uint64_t seed = Hash3(options_.traverse.seed, static_cast<uint64_t>(e.site_id), static_cast<uint64_t>(e.pair_index));
-  return renderer_->RenderPair(e.world_from_body, e.mast_pan, e.mast_tilt, seed, true);
+  const auto lit = LightSite(e.site_id);
+  return renderer_->RenderPair(e.world_from_body, e.mast_pan, e.mast_tilt, seed, true, GainAtSite(e.site_id));
 }
 
 StereoPair RoverWorld::RenderExposure(const Exposure& e) const {
   const uint64_t seed = Hash3(options_.traverse.seed, static_cast<uint64_t>(e.site_id), static_cast<uint64_t>(e.pair_index));
-  const RenderedPair rendered = renderer_->RenderPair(e.world_from_body, e.mast_pan, e.mast_tilt, seed, false);
+  RenderedPair rendered;
+  {
+    const auto lit = LightSite(e.site_id);
+    rendered = renderer_->RenderPair(e.world_from_body, e.mast_pan, e.mast_tilt, seed, false, GainAtSite(e.site_id));
+  }
   StereoPair pair;
   pair.utime = e.utime;
   pair.site_id = e.site_id;

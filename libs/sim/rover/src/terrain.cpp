@@ -102,8 +102,7 @@ Terrain::Terrain(const TerrainOptions& options) : options_(options) {
   cells_ = static_cast<int>(std::ceil(options_.size_m / options_.resolution_m - 1e-9));
   n_ = cells_ + 1;
   inv_res_ = 1.0 / options_.resolution_m;
-  const double az = options_.sun_azimuth_deg * kDegToRad, el = options_.sun_elevation_deg * kDegToRad;
-  sun_direction_ = Eigen::Vector3d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+  SunFromOptions();
 
   BuildRelief();
   PlaceCraters();
@@ -332,6 +331,23 @@ void Terrain::BuildMaxMips() {
     }
     max_levels_.push_back(std::move(next));
   }
+}
+
+void Terrain::SunFromOptions() {
+  const double az = options_.sun_azimuth_deg * kDegToRad, el = options_.sun_elevation_deg * kDegToRad;
+  sun_direction_ = Eigen::Vector3d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+}
+
+void Terrain::SetSun(double azimuth_deg, double elevation_deg) {
+  if (azimuth_deg == options_.sun_azimuth_deg && elevation_deg == options_.sun_elevation_deg) return;
+  TerrainOptions moved = options_;
+  moved.sun_azimuth_deg = azimuth_deg;
+  moved.sun_elevation_deg = elevation_deg;
+  std::string error;
+  if (!moved.Check(&error)) throw std::invalid_argument("Terrain::SetSun: " + error);
+  options_ = moved;
+  SunFromOptions();
+  BuildShadowHorizon();
 }
 
 void Terrain::BuildShadowHorizon() {

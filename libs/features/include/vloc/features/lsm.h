@@ -25,6 +25,10 @@ struct LsmOptions {
   double max_sigma_axis_px = 0;    // px, reject when the least precise direction is worse than this (0 = off)
   double min_correlation = 0.8;    // correlation of template and resampled window at the solution
   bool estimate_affine = true;     // false: shift + radiometry only
+  bool bspline = false;            // resample with cubic B-splines (both images made by
+                                   // MakeLsmImage(gray, true)); false: Keys' cubic convolution,
+                                   // whose smoothing changes with the sub-pixel phase and pulls
+                                   // matches towards phase 0.5 by up to 0.02 px
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
@@ -32,12 +36,17 @@ struct LsmOptions {
 
 // An image prepared for LSM: float grey levels and central-difference gradients.
 struct LsmImage {
-  cv::Mat gray;  // CV_32FC1
-  cv::Mat gx;    // CV_32FC1, d gray / d x
-  cv::Mat gy;    // CV_32FC1, d gray / d y
+  cv::Mat gray;     // CV_32FC1
+  cv::Mat gx;       // CV_32FC1, d gray / d x
+  cv::Mat gy;       // CV_32FC1, d gray / d y
+  cv::Mat bspline;  // CV_32FC1, cubic B-spline coefficients of gray (empty unless asked for)
 };
 // Accepts CV_8UC1 or CV_32FC1.
-LsmImage MakeLsmImage(const cv::Mat& gray);
+LsmImage MakeLsmImage(const cv::Mat& gray, bool bspline_coefficients = false);
+
+// Cubic B-spline interpolation coefficients of a CV_32FC1 image (separable
+// recursive prefilter, mirror boundary; Unser 1999).
+cv::Mat BSplineCoefficients(const cv::Mat& gray);
 
 struct LsmResult {
   bool ok = false;

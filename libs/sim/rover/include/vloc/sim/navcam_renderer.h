@@ -43,11 +43,27 @@ struct NavcamRenderOptions {
   int max_footprint_samples = 6;         // a grazing pixel's ground footprint is long along the line of sight:
                                          // shaded at up to this many points along it, each filtered to its share
                                          // (1 = one isotropic sample, which blurs the far ground across the view)
+  // What real Navcam images have that the defaults leave out (issue 16; all off by default):
+  std::string photometric = "lambert";   // "lambert" or "lunar_lambert" (McEwen 1991: regolith, limb-darkening
+                                         // free: 2 L mu0 / (mu0 + mu) + (1 - L) mu0), with the opposition surge below
+  double lunar_lambert_l = 0.8;          // L of the lunar-Lambert model (1 = pure Lommel-Seeliger)
+  double opposition_b0 = 0.0;            // amplitude of the opposition surge (Hapke B0; lunar regolith ~1)
+  double opposition_h = 0.06;            // angular width of the surge (Hapke h, rad)
+  double sky_dn = 0.0;                   // DN of pixels that see no terrain (0 = the Moon's black sky; Mars ~ 100)
+  double vignetting = 0.0;               // fraction of light lost at the image corner (radial, quadratic)
+  int adc_bits = 8;                      // 8 (linear) or 12: exposure_gain_dn, black level and noise in 12-bit DN,
+                                         // then companded to 8 bits by a square-root table (like MSL's Navcams)
+  double hot_pixel_fraction = 0.0;       // fraction of pixels stuck at 255 (fixed per camera)
   int num_threads = 2;                   // OpenMP threads
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
 };
+
+// Reflectance for a unit sun irradiance of a surface element with incidence cosine mu0 and emission cosine mu, at
+// phase angle g (rad, between the directions to the sun and to the camera): Lambert (mu0) or lunar-Lambert with
+// the opposition surge, as options.photometric says.
+double Reflectance(const NavcamRenderOptions& options, double mu0, double mu, double g);
 
 struct RenderedImage {
   cv::Mat image;        // CV_8UC1
@@ -69,14 +85,15 @@ class NavcamRenderer {
   NavcamRenderer(const Terrain& terrain, const NavcamModel& model, const NavcamRenderOptions& options);
 
   // Renders one camera at world_from_camera (camera: x right, y down, z forward).
+  // gain_factor: this exposure's gain relative to exposure_gain_dn (auto-exposure differing between sites).
   RenderedImage Render(const PinholeCamera& camera, const Pose3& world_from_camera, uint64_t noise_seed,
-                       bool with_depth = false) const;
+                       bool with_depth = false, double gain_factor = 1.0) const;
 
   // Renders the stereo pair for the rover at world_from_body with the mast
   // at pan/tilt (rad, as in MastKinematics). The right image uses a noise
   // seed derived from noise_seed.
   RenderedPair RenderPair(const Pose3& world_from_body, double pan, double tilt, uint64_t noise_seed,
-                          bool with_depth = false) const;
+                          bool with_depth = false, double gain_factor = 1.0) const;
 
   const NavcamModel& model() const { return model_; }
   const NavcamRenderOptions& options() const { return options_; }

@@ -137,6 +137,9 @@ class Terrain {
   double SunVisibility(double x, double y) const;
   // Unit vector toward the sun, world frame.
   const Eigen::Vector3d& SunDirection() const { return sun_direction_; }
+  // Moves the sun (deg, as in TerrainOptions) and recomputes the cast shadows (about 0.2 s at the default size).
+  // Not thread-safe against concurrent rendering.
+  void SetSun(double azimuth_deg, double elevation_deg);
   // Reflected radiance for a unit sun irradiance: albedo x (ambient + lit x
   // max(0, n.s)), Lambertian, with n = ShadingNormal.
   double Radiance(double x, double y, double footprint = 0.0) const;
@@ -161,6 +164,7 @@ class Terrain {
   void PlaceCraters();
   void PlaceRocks();
   void BuildMaxMips();
+  void SunFromOptions();
   void BuildShadowHorizon();
   double Bilinear(const std::vector<float>& field, double x, double y) const;
   bool IntersectCell(int ci, int cj, double o_x, double o_y, double o_z, double d_x, double d_y,

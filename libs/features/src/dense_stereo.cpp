@@ -1,0 +1,518 @@
+#include "vloc/features/dense_stereo.h"
+
+#include <omp.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+#include <stdexcept>
+#include <vector>
+
+#include "vloc/common/options.h"
+
+namespace vloc {
+
+void DenseStereoOptions::Visit(OptionsReader& r) {
+  r.Optional("min_disparity", &min_disparity, "px, smallest searched disparity (left x - right x)");
+  r.Optional("max_disparity", &max_disparity, "px, largest searched disparity");
+  r.Optional("step", &step, "px, grid spacing");
+  r.Optional("zncc_window", &zncc_window, "px, ZNCC window side (odd)");
+  r.Optional("min_score", &min_score, "minimum ZNCC of the best disparity");
+  r.Optional("min_peak_margin", &min_peak_margin, "best minus the next local maximum >= 3 px away");
+  r.Optional("min_template_std", &min_template_std, "grey level, minimum left window std");
+  r.Optional("left_right_check", &left_right_check, "require the right pixel's best disparity to agree");
+  r.Optional("max_left_right_diff", &max_left_right_diff, "px, allowed left-right disagreement");
+  r.Optional("median_radius", &median_radius, "grid cells, median window half side");
+  r.Optional("median_stride", &median_stride, "grid cells, neighbour sampling step");
+  r.Optional("median_min_neighbours", &median_min_neighbours, "fewer valid neighbours: dropped");
+  r.Optional("median_abs_tolerance", &median_abs_tolerance, "px, allowed deviation from the median");
+  r.Optional("median_rel_tolerance", &median_rel_tolerance, "fraction of the median added to the tolerance");
+  r.Optional("lsm_enabled", &lsm_enabled, "refine by row least-squares matching");
+  r.Optional("lsm_half_window", &lsm_half_window, "px, LSM window half width");
+  r.Optional("lsm_half_height", &lsm_half_height, "px, LSM window half height");
+  r.Optional("lsm_bspline", &lsm_bspline, "cubic B-spline resampling (false: Keys cubic convolution)");
+  r.Optional("lsm_disparity_plane", &lsm_disparity_plane, "estimate the disparity gradients");
+  r.Optional("lsm_max_iterations", &lsm_max_iterations, "Gauss-Newton iterations");
+  r.Optional("lsm_convergence_px", &lsm_convergence_px, "px, disparity update that ends the iteration");
+  r.Optional("lsm_max_shift_px", &lsm_max_shift_px, "px, largest accepted move from the ZNCC disparity");
+  r.Optional("lsm_min_correlation", &lsm_min_correlation, "minimum window correlation at the solution");
+  r.Optional("lsm_max_sigma_px", &lsm_max_sigma_px, "px, largest accepted 1-sigma disparity precision");
+  r.Optional("lsm_back_check_px", &lsm_back_check_px, "px, LSM back from the right image must agree (0 = off)");
+  r.Optional("lsm_median_tolerance", &lsm_median_tolerance, "px, median test again after LSM (0 = off)");
+  r.Optional("num_threads", &num_threads, "OpenMP threads");
+}
+
+bool DenseStereoOptions::Check(std::string* error) const {
+  if (!(min_disparity >= 0)) return Fail(error, "dense_stereo.min_disparity must be >= 0");
+  if (!(max_disparity >= min_disparity + 1)) return Fail(error, "dense_stereo.max_disparity must exceed min_disparity by >= 1");
+  if (step < 1) return Fail(error, "dense_stereo.step must be >= 1");
+  if (zncc_window < 3 || zncc_window % 2 == 0 || zncc_window > 41) return Fail(error, "dense_stereo.zncc_window must be odd, in [3, 41]");
+  if (!(min_score > -1 && min_score < 1)) return Fail(error, "dense_stereo.min_score must be in (-1, 1)");
+  if (min_peak_margin < 0) return Fail(error, "dense_stereo.min_peak_margin must be >= 0");
+  if (max_left_right_diff < 0) return Fail(error, "dense_stereo.max_left_right_diff must be >= 0");
+  if (median_radius < 0 || median_stride < 1) return Fail(error, "dense_stereo.median_radius must be >= 0 and median_stride >= 1");
+  if (median_min_neighbours < 0) return Fail(error, "dense_stereo.median_min_neighbours must be >= 0");
+  if (median_abs_tolerance < 0 || median_rel_tolerance < 0) return Fail(error, "dense_stereo median tolerances must be >= 0");
+  if (lsm_half_window < 2 || lsm_half_window > 20 || lsm_half_height < 0 || lsm_half_height > 20)
+    return Fail(error, "dense_stereo.lsm_half_window must be in [2, 20], lsm_half_height in [0, 20]");
+  if (lsm_max_iterations < 1) return Fail(error, "dense_stereo.lsm_max_iterations must be >= 1");
+  if (!(lsm_convergence_px > 0) || !(lsm_max_shift_px > 0) || !(lsm_max_sigma_px > 0))
+    return Fail(error, "dense_stereo.lsm_convergence_px, lsm_max_shift_px and lsm_max_sigma_px must be > 0");
+  if (num_threads < 1) return Fail(error, "dense_stereo.num_threads must be >= 1");
+  return true;
+}
+
+std::string DenseStereoSummary::BriefReport() const {
+  std::ostringstream s;
+  s << (usable ? "usable" : "not usable") << " (" << message << "): grid " << grid_width << " x " << grid_height
+    << ", points " << points << ", zncc " << zncc_matches << ", median " << after_median << ", lsm " << lsm_matches
+    << ", " << total_seconds << " s (zncc " << zncc_seconds << ", median " << median_seconds << ", lsm "
+    << lsm_seconds << ")";
+  return s.str();
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+// Keys cubic convolution (a = -0.5): weights and derivative weights of the
+// taps at floor(x) - 1 .. floor(x) + 2, t = x - floor(x).
+inline void Keys(float t, float w[4], float dw[4]) {
+  const float t2 = t * t, t3 = t2 * t;
+  w[0] = -0.5f * t3 + t2 - 0.5f * t;
+  w[1] = 1.5f * t3 - 2.5f * t2 + 1.f;
+  w[2] = -1.5f * t3 + 2.f * t2 + 0.5f * t;
+  w[3] = 0.5f * t3 - 0.5f * t2;
+  dw[0] = -1.5f * t2 + 2.f * t - 0.5f;
+  dw[1] = 4.5f * t2 - 5.f * t;
+  dw[2] = -4.5f * t2 + 4.f * t + 0.5f;
+  dw[3] = 1.5f * t2 - t;
+}
+
+// Cubic B-spline weights and derivative weights (taps as in Keys). On
+// B-spline coefficients (PrepareRowLsmTarget) the interpolant passes
+// through the samples and its error depends far less on the sub-pixel
+// phase than Keys' kernel, whose phase-dependent smoothing biases LSM by up
+// to +-0.02 px (towards phase 0.5).
+inline void BSpline(float t, float w[4], float dw[4]) {
+  const float u = 1.f - t, t2 = t * t, t3 = t2 * t;
+  w[0] = u * u * u / 6.f;
+  w[1] = (3.f * t3 - 6.f * t2 + 4.f) / 6.f;
+  w[2] = (-3.f * t3 + 3.f * t2 + 3.f * t + 1.f) / 6.f;
+  w[3] = t3 / 6.f;
+  dw[0] = -0.5f * u * u;
+  dw[1] = 1.5f * t2 - 2.f * t;
+  dw[2] = -1.5f * t2 + t + 0.5f;
+  dw[3] = 0.5f * t2;
+}
+
+// Box mean and inverse standard deviation (0 where the std is below
+// min_std) of a float image over a square window.
+void BoxStats(const cv::Mat& img, int window, double min_std, cv::Mat* mean, cv::Mat* inv_std) {
+  cv::Mat sq;
+  cv::multiply(img, img, sq);
+  cv::Mat m2;
+  cv::boxFilter(img, *mean, CV_32F, cv::Size(window, window), cv::Point(-1, -1), true, cv::BORDER_REFLECT);
+  cv::boxFilter(sq, m2, CV_32F, cv::Size(window, window), cv::Point(-1, -1), true, cv::BORDER_REFLECT);
+  *inv_std = cv::Mat(img.size(), CV_32F);
+  for (int y = 0; y < img.rows; ++y) {
+    const float* m = mean->ptr<float>(y);
+    const float* q = m2.ptr<float>(y);
+    float* o = inv_std->ptr<float>(y);
+    for (int x = 0; x < img.cols; ++x) {
+      const double var = std::max(0.0, static_cast<double>(q[x]) - static_cast<double>(m[x]) * m[x]);
+      const double sd = std::sqrt(var);
+      o[x] = sd >= min_std ? static_cast<float>(1.0 / sd) : 0.f;
+    }
+  }
+}
+
+struct ZnccStage {
+  cv::Mat disparity;  // grid, CV_32F, NaN = none
+  long points = 0, matches = 0;
+};
+
+// Step 1: ZNCC for every grid pixel and integer disparity.
+ZnccStage ZnccRows(const cv::Mat& left8, const cv::Mat& right8, const DenseStereoOptions& o) {
+  const int W = left8.cols, H = left8.rows, h = o.zncc_window / 2, n = o.zncc_window * o.zncc_window;
+  const int dlo = static_cast<int>(std::ceil(o.min_disparity)), dhi = static_cast<int>(std::floor(o.max_disparity));
+  const int nd = dhi - dlo + 1;
+  const int gw = (W + o.step - 1) / o.step, gh = (H + o.step - 1) / o.step;
+  cv::Mat L, R;
+  // Centred grey levels keep the float sums of products small.
+  left8.convertTo(L, CV_32F, 1.0, -128.0);
+  right8.convertTo(R, CV_32F, 1.0, -128.0);
+  cv::Mat muL, isdL, muR, isdR;
+  BoxStats(L, o.zncc_window, o.min_template_std, &muL, &isdL);
+  BoxStats(R, o.zncc_window, 1e-3, &muR, &isdR);
+  ZnccStage out;
+  out.disparity = cv::Mat(gh, gw, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+  const int block = 16;  // grid rows per task: the column sums carry over within a block
+  const int nblocks = (gh + block - 1) / block;
+  long points = 0, matches = 0;
+#pragma omp parallel num_threads(o.num_threads) reduction(+ : points, matches)
+  {
+    std::vector<float> V(static_cast<size_t>(nd) * W), C(static_cast<size_t>(nd) * W);
+    std::vector<float> best(W), second(W), bestR(W);
+    std::vector<int> bestd(W), bestRd(W);
+#pragma omp for schedule(dynamic, 1)
+    for (int b = 0; b < nblocks; ++b) {
+      int prev_y = -(1 << 20);
+      for (int gy = b * block; gy < std::min(gh, (b + 1) * block); ++gy) {
+        const int y = gy * o.step;
+        if (y - h < 0 || y + h >= H) continue;
+        // Column sums V[d][x] = sum over the window rows of L(r, x) R(r, x - d).
+        auto add_row = [&](int r, float sign) {
+          const float* l = L.ptr<float>(r);
+          const float* rr = R.ptr<float>(r);
+          for (int di = 0; di < nd; ++di) {
+            const int d = dlo + di;
+            float* v = V.data() + static_cast<size_t>(di) * W;
+            for (int x = d; x < W; ++x) v[x] += sign * l[x] * rr[x - d];
+          }
+        };
+        if (y - prev_y < o.zncc_window) {
+          for (int r = prev_y + h + 1; r <= y + h; ++r) add_row(r, 1.f);
+          for (int r = prev_y - h; r < y - h; ++r) add_row(r, -1.f);
+        } else {
+          std::fill(V.begin(), V.end(), 0.f);
+          for (int r = y - h; r <= y + h; ++r) add_row(r, 1.f);
+        }
+        prev_y = y;
+        // Scores C[d][x] (-2 = undefined), best left and right disparities.
+        std::fill(best.begin(), best.end(), -2.f);
+        std::fill(bestR.begin(), bestR.end(), -2.f);
+        std::fill(bestd.begin(), bestd.end(), -1);
+        std::fill(bestRd.begin(), bestRd.end(), -1);
+        const float* mL = muL.ptr<float>(y);
+        const float* iL = isdL.ptr<float>(y);
+        const float* mR = muR.ptr<float>(y);
+        const float* iR = isdR.ptr<float>(y);
+        for (int di = 0; di < nd; ++di) {
+          const int d = dlo + di;
+          const float* v = V.data() + static_cast<size_t>(di) * W;
+          float* c = C.data() + static_cast<size_t>(di) * W;
+          std::fill(c, c + W, -2.f);
+          const int x0 = d + h, x1 = W - h - 1;
+          if (x0 > x1) continue;
+          double s = 0;
+          for (int x = x0 - h; x <= x0 + h; ++x) s += v[x];
+          for (int x = x0; x <= x1; ++x) {
+            if (x > x0) s += static_cast<double>(v[x + h]) - v[x - h - 1];
+            const float cov = static_cast<float>(s / n) - mL[x] * mR[x - d];
+            const float z = iL[x] > 0 && iR[x - d] > 0 ? cov * iL[x] * iR[x - d] : -2.f;
+            c[x] = z;
+            if (z > best[x]) best[x] = z, bestd[x] = di;
+            if (z > bestR[x - d]) bestR[x - d] = z, bestRd[x - d] = di;
+          }
+        }
+        // Competing local maxima at least 3 disparities from the best.
+        std::fill(second.begin(), second.end(), -2.f);
+        for (int di = 0; di < nd; ++di) {
+          const float* c = C.data() + static_cast<size_t>(di) * W;
+          const float* cm = di > 0 ? c - W : nullptr;
+          const float* cp = di + 1 < nd ? c + W : nullptr;
+          for (int x = 0; x < W; x += o.step) {
+            if (std::abs(di - bestd[x]) < 3) continue;
+            const bool peak = (!cm || c[x] >= cm[x]) && (!cp || c[x] >= cp[x]);
+            if (peak && c[x] > second[x]) second[x] = c[x];
+          }
+        }
+        float* out_row = out.disparity.ptr<float>(gy);
+        for (int gx = 0; gx < gw; ++gx) {
+          const int x = gx * o.step;
+          if (x - h < 0 || x + h >= W || x - dhi - h < 0) continue;
+          ++points;
+          const int bi = bestd[x];
+          if (bi < 0 || best[x] < o.min_score || best[x] - second[x] < o.min_peak_margin) continue;
+          const int xr = x - (dlo + bi);
+          if (o.left_right_check && std::abs(bestRd[xr] - bi) > o.max_left_right_diff) continue;
+          double offset = 0;
+          if (bi > 0 && bi + 1 < nd) {
+            const double a = C[static_cast<size_t>(bi - 1) * W + x], bb = best[x], c = C[static_cast<size_t>(bi + 1) * W + x];
+            const double den = a - 2 * bb + c;
+            if (a > -2 && c > -2 && den < -1e-9) offset = std::clamp(0.5 * (a - c) / den, -0.5, 0.5);
+          }
+          out_row[gx] = static_cast<float>(dlo + bi + offset);
+          ++matches;
+        }
+      }
+    }
+  }
+  out.points = points;
+  out.matches = matches;
+  return out;
+}
+
+// Step 2: drops disparities far from the median of their grid neighbours.
+long MedianTest(const DenseStereoOptions& o, double abs_tolerance, double rel_tolerance, cv::Mat* disp) {
+  const cv::Mat in = disp->clone();
+  const int r = o.median_radius, s = o.median_stride;
+  long kept = 0;
+#pragma omp parallel for schedule(dynamic, 8) num_threads(o.num_threads) reduction(+ : kept)
+  for (int y = 0; y < in.rows; ++y) {
+    std::vector<float> neigh;
+    float* out = disp->ptr<float>(y);
+    for (int x = 0; x < in.cols; ++x) {
+      const float d = in.at<float>(y, x);
+      if (!std::isfinite(d)) continue;
+      neigh.clear();
+      for (int dy = -(r / s) * s; dy <= r; dy += s) {
+        const int yy = y + dy;
+        if (yy < 0 || yy >= in.rows) continue;
+        const float* row = in.ptr<float>(yy);
+        for (int dx = -(r / s) * s; dx <= r; dx += s) {
+          const int xx = x + dx;
+          if (xx < 0 || xx >= in.cols || (dx == 0 && dy == 0)) continue;
+          if (std::isfinite(row[xx])) neigh.push_back(row[xx]);
+        }
+      }
+      bool keep = false;
+      if (static_cast<int>(neigh.size()) >= std::max(1, o.median_min_neighbours)) {
+        std::nth_element(neigh.begin(), neigh.begin() + neigh.size() / 2, neigh.end());
+        const double med = neigh[neigh.size() / 2];
+        keep = std::abs(d - med) <= abs_tolerance + rel_tolerance * std::abs(med);
+      } else {
+        keep = o.median_min_neighbours == 0;
+      }
+      if (keep) {
+        ++kept;
+      } else {
+        out[x] = std::numeric_limits<float>::quiet_NaN();
+      }
+    }
+  }
+  return kept;
+}
+
+}  // namespace
+
+cv::Mat PrepareRowLsmTarget(const cv::Mat& right, const DenseStereoOptions& o) {
+  cv::Mat out;
+  right.convertTo(out, CV_32F);
+  if (!o.lsm_bspline) return out;
+  // Cubic B-spline prefilter along the rows (Unser 1999; mirror boundary).
+  const double z = std::sqrt(3.0) - 2.0;
+  const int W = out.cols;
+  std::vector<double> c(W);
+  const int horizon = std::min(W, 30);  // |z|^30 < 1e-17
+  for (int y = 0; y < out.rows; ++y) {
+    float* row = out.ptr<float>(y);
+    for (int k = 0; k < W; ++k) c[k] = 6.0 * row[k];
+    if (W > 1) {
+      double sum = c[0], zk = z;
+      for (int k = 1; k < horizon; ++k, zk *= z) sum += zk * c[k];
+      c[0] = sum;
+      for (int k = 1; k < W; ++k) c[k] += z * c[k - 1];
+      c[W - 1] = (z / (z * z - 1.0)) * (c[W - 1] + z * c[W - 2]);
+      for (int k = W - 2; k >= 0; --k) c[k] = z * (c[k + 1] - c[k]);
+    }
+    for (int k = 0; k < W; ++k) row[k] = static_cast<float>(c[k]);
+  }
+  return out;
+}
+
+bool RowLeastSquaresMatch(const cv::Mat& L, const cv::Mat& R, int x, int y, double initial_disparity,
+                          const DenseStereoOptions& o, RowLsmResult* result) {
+  const int h = o.lsm_half_window, hy = o.lsm_half_height;
+  const int W = R.cols;
+  if (x - h < 0 || x + h >= L.cols || y - hy < 0 || y + hy >= L.rows) return false;
+  const int ww = 2 * h + 1, wh = 2 * hy + 1, n = ww * wh;
+  constexpr int kMaxN = 41 * 41;
+  float T[kMaxN], G[kMaxN];
+  double tsum = 0;
+  for (int r = -hy, i = 0; r <= hy; ++r) {
+    const float* row = L.ptr<float>(y + r);
+    for (int c = -h; c <= h; ++c, ++i) tsum += T[i] = row[x + c];
+  }
+  const bool plane = o.lsm_disparity_plane;
+  const int np = plane ? 5 : 3;  // d, [dd/dx, dd/dy], r0, r1
+  using Mat5 = Eigen::Matrix<double, 5, 5>;
+  using Vec5 = Eigen::Matrix<double, 5, 1>;
+  double d = initial_disparity, gx = 0, gy = 0, r0 = 0, r1 = 1;
+  Mat5 N;
+  Vec5 b;
+  double ssr = 0;
+  bool converged = false;
+  int it = 0;
+  for (; it < o.lsm_max_iterations; ++it) {
+    // Right x of the window corners (linear in c and r): all taps inside?
+    const double xmin = x - h - d - std::abs(gx) * h - std::abs(gy) * hy;
+    const double xmax = x + h - d + std::abs(gx) * h + std::abs(gy) * hy;
+    if (xmin - 1 < 0 || xmax + 2 > W - 1) return false;
+    // Normal equations accumulated by hand (lower triangle): Eigen's
+    // rankUpdate per pixel was most of the time.
+    // Float accumulation per row, summed into doubles: the terms are
+    // grey-level products, the sums of a row stay well inside float range.
+    double nn[15] = {0}, bb[5] = {0};
+    ssr = 0;
+    float w[4], dw[4];
+    const float fr1 = static_cast<float>(r1), fr0 = static_cast<float>(r0);
+    for (int r = -hy, i = 0; r <= hy; ++r) {
+      const float* row = R.ptr<float>(y + r);
+      const double row_shift = x - d - gy * r;
+      float rn[15] = {0}, rb[5] = {0}, rs = 0;
+      for (int c = -h; c <= h; ++c, ++i) {
+        const double xr = row_shift + c * (1.0 - gx);
+        const int x0 = static_cast<int>(xr);  // xr >= 1: truncation is floor
+        const float t = static_cast<float>(xr - x0);
+        if (o.lsm_bspline) {
+          BSpline(t, w, dw);
+        } else {
+          Keys(t, w, dw);
+        }
+        const float* p = row + x0 - 1;
+        const float g = w[0] * p[0] + w[1] * p[1] + w[2] * p[2] + w[3] * p[3];
+        const float dg = fr1 * (dw[0] * p[0] + dw[1] * p[1] + dw[2] * p[2] + dw[3] * p[3]);
+        G[i] = g;
+        const float resid = T[i] - (fr0 + fr1 * g);
+        rs += resid * resid;
+        float j[5];
+        if (plane) {
+          j[0] = -dg, j[1] = -dg * c, j[2] = -dg * r, j[3] = 1.f, j[4] = g;
+        } else {
+          j[0] = -dg, j[1] = 1.f, j[2] = g, j[3] = 0.f, j[4] = 0.f;
+        }
+        for (int k = 0, q = 0; k < 5; ++k) {
+          rb[k] += j[k] * resid;
+          for (int l = 0; l <= k; ++l, ++q) rn[q] += j[k] * j[l];
+        }
+      }
+      for (int q = 0; q < 15; ++q) nn[q] += rn[q];
+      for (int k = 0; k < 5; ++k) bb[k] += rb[k];
+      ssr += rs;
+    }
+    for (int k = 0, q = 0; k < 5; ++k) {
+      b(k) = bb[k];
+      for (int l = 0; l <= k; ++l, ++q) N(k, l) = N(l, k) = nn[q];
+    }
+    if (!plane) N.block<2, 2>(3, 3).diagonal().array() += 1.0;
+    const Eigen::LDLT<Mat5> ldlt(N);
+    if (ldlt.info() != Eigen::Success) return false;
+    const Vec5 dx = ldlt.solve(b);
+    if (!dx.allFinite()) return false;
+    d += dx(0);
+    if (plane) {
+      gx += dx(1);
+      gy += dx(2);
+      r0 += dx(3);
+      r1 += dx(4);
+    } else {
+      r0 += dx(1);
+      r1 += dx(2);
+    }
+    if (std::abs(d - initial_disparity) > o.lsm_max_shift_px || std::abs(gx) > 0.5 || std::abs(gy) > 1.0 || r1 < 0.2)
+      return false;
+    if (std::abs(dx(0)) < o.lsm_convergence_px) {
+      converged = true;
+      ++it;
+      break;
+    }
+  }
+  if (!converged) return false;
+  const double sigma0_sq = ssr / std::max(1, n - np);
+  const Mat5 Ninv = Eigen::LDLT<Mat5>(N).solve(Mat5::Identity());
+  const double sigma = std::sqrt(std::max(0.0, sigma0_sq * Ninv(0, 0)));
+  const double tm = tsum / n;
+  double gm = 0;
+  for (int i = 0; i < n; ++i) gm += G[i];
+  gm /= n;
+  double stg = 0, stt = 0, sgg = 0;
+  for (int i = 0; i < n; ++i) {
+    stg += (T[i] - tm) * (G[i] - gm);
+    stt += (T[i] - tm) * (T[i] - tm);
+    sgg += (G[i] - gm) * (G[i] - gm);
+  }
+  const double corr = stg / std::sqrt(std::max(stt * sgg, 1e-12));
+  if (result) {
+    result->disparity = d;
+    result->sigma_px = sigma;
+    result->correlation = corr;
+    result->iterations = it;
+  }
+  return corr >= o.lsm_min_correlation && sigma <= o.lsm_max_sigma_px;
+}
+
+cv::Mat DenseStereo(const cv::Mat& left, const cv::Mat& right, const DenseStereoOptions& o,
+                    DenseStereoSummary* summary) {
+  std::string error;
+  if (!o.Check(&error)) throw std::invalid_argument(error);
+  if (left.type() != CV_8UC1 || right.type() != CV_8UC1 || left.size() != right.size() || left.empty())
+    throw std::invalid_argument("DenseStereo needs two 8-bit grey images of the same size");
+  DenseStereoSummary local;
+  DenseStereoSummary& s = summary ? *summary : local;
+  s = DenseStereoSummary();
+  const auto t0 = Clock::now();
+  ZnccStage z = ZnccRows(left, right, o);
+  s.grid_width = z.disparity.cols;
+  s.grid_height = z.disparity.rows;
+  s.points = z.points;
+  s.zncc_matches = z.matches;
+  s.zncc_seconds = Since(t0);
+  const auto t1 = Clock::now();
+  cv::Mat disp = z.disparity;
+  s.after_median = MedianTest(o, o.median_abs_tolerance, o.median_rel_tolerance, &disp);
+  s.median_seconds = Since(t1);
+  const auto t2 = Clock::now();
+  if (o.lsm_enabled) {
+    cv::Mat L, Rraw, Lcoef;
+    left.convertTo(L, CV_32F);
+    const cv::Mat R = PrepareRowLsmTarget(right, o);
+    if (o.lsm_back_check_px > 0) {
+      right.convertTo(Rraw, CV_32F);
+      Lcoef = PrepareRowLsmTarget(left, o);
+    }
+    cv::Mat sigma(disp.size(), CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+    long matched = 0;
+#pragma omp parallel for schedule(dynamic, 4) num_threads(o.num_threads) reduction(+ : matched)
+    for (int gy = 0; gy < disp.rows; ++gy) {
+      float* row = disp.ptr<float>(gy);
+      for (int gx = 0; gx < disp.cols; ++gx) {
+        if (!std::isfinite(row[gx])) continue;
+        RowLsmResult r;
+        bool ok = RowLeastSquaresMatch(L, R, gx * o.step, gy * o.step, row[gx], o, &r);
+        if (ok && o.lsm_back_check_px > 0) {
+          // Back from the nearest right pixel into the left image (disparity
+          // negated: the left point is to the right of the right point).
+          RowLsmResult back;
+          const int xr = static_cast<int>(std::lround(gx * o.step - r.disparity));
+          ok = RowLeastSquaresMatch(Rraw, Lcoef, xr, gy * o.step, -r.disparity, o, &back) &&
+               std::abs(-back.disparity - r.disparity) <= o.lsm_back_check_px;
+        }
+        if (ok) {
+          row[gx] = static_cast<float>(r.disparity);
+          sigma.at<float>(gy, gx) = static_cast<float>(r.sigma_px);
+          ++matched;
+        } else {
+          row[gx] = std::numeric_limits<float>::quiet_NaN();
+        }
+      }
+    }
+    s.lsm_matches = matched;
+    if (o.lsm_median_tolerance > 0) s.lsm_matches = MedianTest(o, o.lsm_median_tolerance, 0.0, &disp);
+    std::vector<float> sig;
+    for (int y = 0; y < sigma.rows; ++y)
+      for (int x = 0; x < sigma.cols; ++x)
+        if (std::isfinite(sigma.at<float>(y, x))) sig.push_back(sigma.at<float>(y, x));
+    if (!sig.empty()) {
+      std::nth_element(sig.begin(), sig.begin() + sig.size() / 2, sig.end());
+      s.median_sigma_px = sig[sig.size() / 2];
+    }
+  } else {
+    s.lsm_matches = s.after_median;
+  }
+  s.lsm_seconds = Since(t2);
+  s.total_seconds = Since(t0);
+  const long out = o.lsm_enabled ? s.lsm_matches : s.after_median;
+  s.usable = out > 0;
+  s.message = s.usable ? "ok" : (s.zncc_matches == 0 ? "no unique ZNCC match (texture, disparity range?)" : "every match rejected");
+  return disp;
+}
+
+}  // namespace vloc

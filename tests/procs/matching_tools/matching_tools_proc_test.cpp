@@ -1,0 +1,129 @@
+// vloc_match and vloc_stereo as an operator runs them: image files in,
+// YAML and a disparity file out, on synthetic pairs rendered exactly
+// (ground truth known), plus the one-line errors for bad input.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <regex>
+#include <string>
+
+#include "test_images.h"
+#include "vloc/testing/subprocess.h"
+
+namespace vloc {
+namespace {
+
+std::string TempDir() {
+  char tmpl[] = "/tmp/vloc_matching_tools_XXXXXX";
+  const char* d = mkdtemp(tmpl);
+  return d ? d : "/tmp";
+}
+
+cv::Mat ToU8(const cv::Mat& f) {
+  cv::Mat out;
+  f.convertTo(out, CV_8U);
+  return out;
+}
+
+struct ToolRun {
+  int exit_code = -1;
+  std::string output;
+};
+
+ToolRun RunTool(const std::vector<std::string>& argv) {
+  testing::Subprocess p(argv);
+  const auto code = p.WaitExit(240);
+  return {code ? *code : -1, p.output()};
+}
+
+double Number(const std::string& text, const std::string& key) {
+  std::smatch m;
+  if (!std::regex_search(text, m, std::regex(key + ": *([-0-9.eE+]+)"))) return NAN;
+  return std::stod(m[1]);
+}
+
+TEST(VlocMatch, FindsASyntheticHomographyToATenthOfAPixel) {
+  const std::string dir = TempDir();
+  const vloc::testing::BlobTexture tex(520, 420, 520 * 420 / 18, 17, 1.5, 4.0);
+  const cv::Matx33d b_from_a(0.8, -0.12, 60, 0.15, 0.95, -20, 2e-4, -5e-5, 1.0);
+  const cv::Matx33d a_from_b = b_from_a.inv();
+  cv::imwrite(dir + "/a.png", ToU8(tex.Render(480, 360, [](int x, int y) { return std::make_pair<double, double>(x, y); })));
+  cv::imwrite(dir + "/b.png", ToU8(tex.Render(480, 360, [&](int x, int y) {
+                const cv::Vec3d p = a_from_b * cv::Vec3d(x, y, 1);
+                return std::make_pair(p[0] / p[2], p[1] / p[2]);
+              })));
+  {
+    std::ofstream f(dir + "/truth.yaml");
+    f << "homography: [";
+    for (int k = 0; k < 9; ++k) f << (k ? ", " : "") << b_from_a(k / 3, k % 3);
+    f << "]\n";
+  }
+  const ToolRun r = RunTool({vloc::testing::BinPath("vloc_match"), dir + "/a.png", dir + "/b.png", "--truth",
+                         dir + "/truth.yaml", "--out", dir + "/overlay.jpg"});
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_LT(Number(r.output, "max"), 0.1) << r.output;
+  EXPECT_GT(Number(r.output, "refined_inliers"), 200) << r.output;
+  EXPECT_FALSE(cv::imread(dir + "/overlay.jpg").empty());
+  std::filesystem::remove_all(dir);
+}
+
+TEST(VlocMatch, MissingImageIsOneClearLine) {
+  const ToolRun r = RunTool({vloc::testing::BinPath("vloc_match"), "/nonexistent/a.png", "/nonexistent/b.png"});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("cannot read image /nonexistent/a.png"), std::string::npos) << r.output;
+}
+
+// Reads a PFM written by vloc_stereo (little endian, rows bottom-up).
+cv::Mat ReadPfm(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  std::string magic;
+  int w = 0, h = 0;
+  double scale = 0;
+  f >> magic >> w >> h >> scale;
+  f.get();
+  if (magic != "Pf" || w <= 0 || h <= 0) return cv::Mat();
+  cv::Mat m(h, w, CV_32F);
+  for (int y = h - 1; y >= 0; --y) f.read(reinterpret_cast<char*>(m.ptr<float>(y)), w * 4);
+  return f ? m : cv::Mat();
+}
+
+TEST(VlocStereo, SlantedPlaneDisparitiesToAFewHundredthsOfAPixel) {
+  const std::string dir = TempDir();
+  const int w = 240, h = 160;
+  const double d0 = 9.4, gx = 0.02, gy = 0.015;
+  const vloc::testing::BlobTexture tex(w + 60, h, (w + 60) * h / 18, 23);
+  cv::imwrite(dir + "/l.png", ToU8(tex.Render(w, h, [](int x, int y) { return std::make_pair<double, double>(x, y); })));
+  cv::imwrite(dir + "/r.png", ToU8(tex.Render(w, h, [&](int x, int y) {
+                return std::make_pair<double, double>((x + d0 + gy * y) / (1.0 - gx), y);
+              })));
+  const ToolRun r = RunTool({vloc::testing::BinPath("vloc_stereo"), dir + "/l.png", dir + "/r.png", "--min-disp", "0",
+                         "--max-disp", "30", "--step", "2", "--out", dir + "/d.pfm"});
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const cv::Mat d = ReadPfm(dir + "/d.pfm");
+  ASSERT_EQ(d.cols, w / 2);
+  ASSERT_EQ(d.rows, h / 2);
+  std::vector<double> err;
+  for (int i = 0; i < d.rows; ++i)
+    for (int j = 0; j < d.cols; ++j)
+      if (std::isfinite(d.at<float>(i, j))) err.push_back(std::abs(d.at<float>(i, j) - (d0 + gx * 2 * j + gy * 2 * i)));
+  ASSERT_GT(err.size(), 0.7 * (w / 2 - 20) * (h / 2 - 6)) << r.output;
+  std::nth_element(err.begin(), err.begin() + err.size() / 2, err.end());
+  EXPECT_LT(err[err.size() / 2], 0.05);
+  EXPECT_EQ(Number(r.output, "lsm_matches"), static_cast<double>(err.size())) << r.output;
+  std::filesystem::remove_all(dir);
+}
+
+TEST(VlocStereo, MissingImagesAreOneClearLine) {
+  const ToolRun r = RunTool({vloc::testing::BinPath("vloc_stereo"), "/nonexistent/l.png", "/nonexistent/r.png", "--out",
+                         "/tmp/x.pfm"});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("cannot read two images"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace vloc

@@ -1,0 +1,213 @@
+#pragma once
+// Real image pairs with ground truth that Debian ships in opencv-doc
+// (/usr/share/doc/opencv-doc/examples/data), and the scoring the tests and
+// benchmarks share:
+// - aloeL.jpg / aloeR.jpg / aloeGT.png: Middlebury 2006 "Aloe", full size
+//   (1282 x 1110), rectified; GT disparity = grey value (integer px, 0 =
+//   unknown). JPEG-compressed in the package. The integer truth sits about
+//   0.25 px below what both vloc and SGBM measure, at every disparity and
+//   across the image (mean signed error +0.23 px on |error| < 1 for both):
+//   as if it were floor(D / 2) of a twice-finer integer disparity D. A
+//   perfect sub-pixel matcher then has errors spread over [-0.25, 0.75) and
+//   a median |error| of 0.25 px; a matcher that locks onto whole pixels (as
+//   SGBM's sub-pixel step does) scores better against it than it is.
+// - graf1.png / graf3.png / H1to3p.xml: Oxford affine-covariant "Graffiti",
+//   a planar wall seen from about 40 degrees apart; H13 maps graf1 px to
+//   graf3 px.
+// - The peers: cv::StereoSGBM and AffineFeature(SIFT) + FLANN + RANSAC, as a
+//   user of OpenCV would run them.
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+#include <vector>
+
+namespace vloc::testing {
+
+inline std::string OpencvSampleDir() {
+  const char* env = std::getenv("VLOC_OPENCV_SAMPLES");
+  return env ? env : "/usr/share/doc/opencv-doc/examples/data";
+}
+
+inline bool FileExists(const std::string& p) { return static_cast<bool>(std::ifstream(p)); }
+
+struct AloePair {
+  cv::Mat left, right;  // CV_8UC1
+  cv::Mat gt;           // CV_32F, px, NaN = unknown
+  bool ok = false;
+  std::string missing;  // the file that was not found
+};
+
+inline AloePair LoadAloe() {
+  AloePair p;
+  const std::string d = OpencvSampleDir() + "/";
+  for (const char* f : {"aloeL.jpg", "aloeR.jpg", "aloeGT.png"})
+    if (!FileExists(d + f)) {
+      p.missing = d + f + " (Debian package opencv-doc)";
+      return p;
+    }
+  p.left = cv::imread(d + "aloeL.jpg", cv::IMREAD_GRAYSCALE);
+  p.right = cv::imread(d + "aloeR.jpg", cv::IMREAD_GRAYSCALE);
+  const cv::Mat g = cv::imread(d + "aloeGT.png", cv::IMREAD_GRAYSCALE);
+  g.convertTo(p.gt, CV_32F);
+  p.gt.setTo(std::numeric_limits<float>::quiet_NaN(), g == 0);
+  p.ok = !p.left.empty() && !p.right.empty() && !g.empty();
+  return p;
+}
+
+struct GrafPair {
+  cv::Mat a, b;         // CV_8UC1
+  cv::Matx33d b_from_a; // ground truth homography
+  bool ok = false;
+  std::string missing;
+};
+
+inline GrafPair LoadGraf() {
+  GrafPair p;
+  const std::string d = OpencvSampleDir() + "/";
+  for (const char* f : {"graf1.png", "graf3.png", "H1to3p.xml"})
+    if (!FileExists(d + f)) {
+      p.missing = d + f + " (Debian package opencv-doc)";
+      return p;
+    }
+  p.a = cv::imread(d + "graf1.png", cv::IMREAD_GRAYSCALE);
+  p.b = cv::imread(d + "graf3.png", cv::IMREAD_GRAYSCALE);
+  cv::FileStorage fs(d + "H1to3p.xml", cv::FileStorage::READ);
+  cv::Mat h;
+  fs["H13"] >> h;
+  if (h.rows == 3 && h.cols == 3) {
+    h.convertTo(h, CV_64F);
+    p.b_from_a = cv::Matx33d(h.ptr<double>());
+  }
+  p.ok = !p.a.empty() && !p.b.empty() && h.rows == 3;
+  return p;
+}
+
+// Mean and largest distance between the two homographies' images of the
+// corners of an image of `size`, px.
+inline void CornerErrors(const cv::Matx33d& h, const cv::Matx33d& truth, const cv::Size& size, double* mean_px,
+                         double* max_px) {
+  double sum = 0, worst = 0;
+  for (const cv::Vec3d& c : {cv::Vec3d(0, 0, 1), cv::Vec3d(size.width - 1, 0, 1),
+                            cv::Vec3d(size.width - 1, size.height - 1, 1), cv::Vec3d(0, size.height - 1, 1)}) {
+    const cv::Vec3d p = h * c, q = truth * c;
+    const double e = std::hypot(p[0] / p[2] - q[0] / q[2], p[1] / p[2] - q[1] / q[2]);
+    sum += e;
+    worst = std::max(worst, e);
+  }
+  *mean_px = sum / 4;
+  *max_px = worst;
+}
+
+struct DisparityScore {
+  long gt_pixels = 0;      // pixels with ground truth
+  long scored = 0;         // ... where the map has a disparity
+  double coverage = 0;     // scored / gt_pixels
+  double bad1 = 0;         // fraction of scored with |error| > 1 px
+  double median_abs = 0;   // px
+  double mean_signed = 0;  // px, estimate - truth
+};
+
+// Scores a disparity map on a grid of `step` px (cell (i, j) = pixel
+// (j step, i step)) against the full-size truth; `mask` (grid size, CV_8U,
+// optional) restricts the scored cells (e.g. to those both methods matched).
+// `truth_offset` is added to the truth (Aloe: +0.25 centres its integer
+// steps, see AloePair).
+inline DisparityScore ScoreDisparity(const cv::Mat& disp, const cv::Mat& gt, int step, const cv::Mat& mask = cv::Mat(),
+                                     double truth_offset = 0) {
+  DisparityScore s;
+  std::vector<float> err;
+  double signed_sum = 0;
+  long bad = 0;
+  for (int i = 0; i < disp.rows; ++i)
+    for (int j = 0; j < disp.cols; ++j) {
+      const float t = static_cast<float>(gt.at<float>(i * step, j * step) + truth_offset);
+      if (!std::isfinite(t)) continue;
+      if (!mask.empty() && !mask.at<uchar>(i, j)) continue;
+      ++s.gt_pixels;
+      const float d = disp.at<float>(i, j);
+      if (!std::isfinite(d)) continue;
+      const float e = d - t;
+      err.push_back(std::abs(e));
+      signed_sum += e;
+      bad += std::abs(e) > 1.f ? 1 : 0;
+    }
+  s.scored = static_cast<long>(err.size());
+  if (s.gt_pixels) s.coverage = static_cast<double>(s.scored) / s.gt_pixels;
+  if (!err.empty()) {
+    s.bad1 = static_cast<double>(bad) / err.size();
+    s.mean_signed = signed_sum / err.size();
+    std::nth_element(err.begin(), err.begin() + err.size() / 2, err.end());
+    s.median_abs = err[err.size() / 2];
+  }
+  return s;
+}
+
+// Cells where both maps have a disparity (and the truth is known).
+inline cv::Mat BothMatched(const cv::Mat& a, const cv::Mat& b) {
+  cv::Mat m(a.size(), CV_8U, cv::Scalar(0));
+  for (int i = 0; i < a.rows; ++i)
+    for (int j = 0; j < a.cols; ++j)
+      m.at<uchar>(i, j) = std::isfinite(a.at<float>(i, j)) && std::isfinite(b.at<float>(i, j)) ? 255 : 0;
+  return m;
+}
+
+// The peer: cv::StereoSGBM with the settings of OpenCV's stereo_match
+// sample (block 5, P1 = 8 b^2, P2 = 32 b^2, uniqueness 10, speckle 100/32,
+// left-right check 1 px), over [min_disp, min_disp + num_disp). Float
+// disparity (1/16 px), NaN = no match.
+inline cv::Mat SgbmDisparity(const cv::Mat& left, const cv::Mat& right, int min_disp, int num_disp) {
+  const int block = 5;
+  auto sgbm = cv::StereoSGBM::create(min_disp, num_disp, block, 8 * block * block, 32 * block * block, 1, 63, 10, 100, 32,
+                                     cv::StereoSGBM::MODE_SGBM);
+  cv::Mat d16, out;
+  sgbm->compute(left, right, d16);
+  d16.convertTo(out, CV_32F, 1.0 / 16);
+  out.setTo(std::numeric_limits<float>::quiet_NaN(), d16 < min_disp * 16);
+  return out;
+}
+
+// The peer: AffineFeature(SIFT) with OpenCV's defaults, FLANN (KD-trees)
+// with Lowe's 0.8 ratio, RANSAC homography (3 px).
+struct PlainAsiftResult {
+  cv::Matx33d b_from_a = cv::Matx33d::eye();
+  bool ok = false;
+  int keypoints_a = 0, keypoints_b = 0, matches = 0, inliers = 0;
+};
+inline PlainAsiftResult PlainAsiftHomography(const cv::Mat& a, const cv::Mat& b) {
+  PlainAsiftResult r;
+  auto asift = cv::AffineFeature::create(cv::SIFT::create());
+  std::vector<cv::KeyPoint> ka, kb;
+  cv::Mat da, db;
+  asift->detectAndCompute(a, cv::noArray(), ka, da);
+  asift->detectAndCompute(b, cv::noArray(), kb, db);
+  r.keypoints_a = static_cast<int>(ka.size());
+  r.keypoints_b = static_cast<int>(kb.size());
+  if (ka.size() < 4 || kb.size() < 4) return r;
+  cv::FlannBasedMatcher flann;
+  std::vector<std::vector<cv::DMatch>> knn;
+  flann.knnMatch(da, db, knn, 2);
+  std::vector<cv::Point2f> pa, pb;
+  for (const auto& m : knn)
+    if (m.size() == 2 && m[0].distance < 0.8f * m[1].distance) {
+      pa.push_back(ka[m[0].queryIdx].pt);
+      pb.push_back(kb[m[0].trainIdx].pt);
+    }
+  r.matches = static_cast<int>(pa.size());
+  if (pa.size() < 4) return r;
+  std::vector<uchar> inl;
+  cv::Mat h = cv::findHomography(pa, pb, cv::RANSAC, 3.0, inl);
+  if (h.empty()) return r;
+  r.b_from_a = cv::Matx33d(h.ptr<double>());
+  r.inliers = static_cast<int>(std::count(inl.begin(), inl.end(), 1));
+  r.ok = true;
+  return r;
+}
+
+}  // namespace vloc::testing
