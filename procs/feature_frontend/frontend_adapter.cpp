@@ -3,6 +3,7 @@
 #include <glog/logging.h>
 
 #include <algorithm>
+#include <sstream>
 
 #include "vloc/common/options.h"
 #include "vloc/lcm_io/convert.h"
@@ -164,6 +165,29 @@ void FeatureFrontendAdapter::OnSitePoseDr(int site_id, const PoseWithCovariance&
   TryProcess();
 }
 
+std::string FeatureFrontendAdapter::DescribeInput(const Collecting& c) {
+  std::ostringstream out;
+  out << c.pairs.size() << " of " << (c.num_pairs > 0 ? std::to_string(c.num_pairs) : std::string("?")) << " pairs";
+  std::string missing;
+  for (int i = 0; i < c.num_pairs && i < kMaxPairsPerSite; ++i)
+    if (!c.pairs.count(i)) missing += (missing.empty() ? "" : ", ") + std::to_string(i);
+  if (!missing.empty()) out << " (missing " << missing << ")";
+  out << ", " << (c.dr_pose ? "with" : "no") << " dead-reckoning pose";
+  return out.str();
+}
+
+void FeatureFrontendAdapter::ReportDropped(int site_id, const Collecting& c, const std::string& why) {
+  const std::string message = "site " + std::to_string(site_id) + ": " + DescribeInput(c) + "; " + why + "; dropped";
+  LOG(WARNING) << message;
+  ++sites_dropped_;
+  FrontendSummary summary;
+  summary.status = FrontendStatus::kMissingInput;
+  summary.message = message;
+  const int64_t utime = c.pairs.empty() ? 0 : c.pairs.rbegin()->second.utime;
+  Publish(transport_, options_.status_channel,
+          FrontendStatusToMessage(summary, utime, previous_ ? previous_->site_id : -1, site_id));
+}
+
 bool FeatureFrontendAdapter::Complete(const Collecting& c) const {
   if (!c.dr_pose || c.pairs.empty()) return false;
   return c.imaging_done || (c.num_pairs > 0 && static_cast<int>(c.pairs.size()) >= c.num_pairs);
@@ -175,15 +199,21 @@ void FeatureFrontendAdapter::TryProcess() {
   // or images were lost, or its id was corrupt) and is dropped.
   while (!collecting_.empty()) {
     auto it = collecting_.begin();
+    if (it->second.imaging_done && it->second.pairs.empty() && std::next(it) != collecting_.end()) {
+      // Imaging is done, the rover has moved on to a later site, and not one pair came (lost on the link, or a
+      // camera fault): nothing will complete it.
+      ReportDropped(it->first, it->second, "imaging done but none of its images arrived before site " +
+                                               std::to_string(std::next(it)->first) + " began");
+      collecting_.erase(it);
+      continue;
+    }
     if (!Complete(it->second)) {
       const auto later = std::find_if(std::next(it), collecting_.end(),
                                       [this](const auto& kv) { return Complete(kv.second); });
       if (later == collecting_.end() && static_cast<int>(collecting_.size()) <= kMaxSitesCollecting) return;
-      LOG(WARNING) << "site " << it->first << ": incomplete (" << it->second.pairs.size() << " pairs, "
-                   << (it->second.dr_pose ? "with" : "no") << " dead-reckoning pose) while "
-                   << (later == collecting_.end() ? "too many sites wait" : "site " + std::to_string(later->first) +
-                                                                              " is complete")
-                   << "; dropped";
+      ReportDropped(it->first, it->second,
+                    later == collecting_.end() ? "too many sites wait"
+                                               : "incomplete while site " + std::to_string(later->first) + " is complete");
       collecting_.erase(it);
       continue;
     }
@@ -200,8 +230,7 @@ void FeatureFrontendAdapter::Process(int site_id, Collecting& c) {
   site.world_from_body = *c.dr_pose;
   for (auto& [index, pair] : c.pairs) site.pairs.push_back(std::move(pair));
   if (c.num_pairs > 0 && static_cast<int>(site.pairs.size()) < c.num_pairs)
-    LOG(WARNING) << "site " << site_id << ": imaging done with " << site.pairs.size() << " of " << c.num_pairs
-                 << " pairs; using what arrived";
+    LOG(WARNING) << "site " << site_id << ": imaging done with " << DescribeInput(c) << "; using what arrived";
   if (!previous_) {
     LOG(INFO) << "site " << site_id << ": first site (" << site.pairs.size()
               << " pairs) kept as the previous site; nothing to match yet";
@@ -253,7 +282,8 @@ void FeatureFrontendAdapter::TryRevisits(const SiteImages& current) {
 }
 
 std::string FeatureFrontendAdapter::StatusLine() const {
-  return "site pairs matched " + std::to_string(sites_processed_) + ", revisits published " +
+  return "site pairs matched " + std::to_string(sites_processed_) + ", incomplete sites dropped " +
+         std::to_string(sites_dropped_) + ", revisits published " +
          std::to_string(loops_published_) + "; " + SubscriptionSummary(stats_);
 }
 

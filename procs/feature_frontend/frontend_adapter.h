@@ -71,6 +71,7 @@ class FeatureFrontendAdapter {
   int loops_published() const { return loops_published_; }
 
   int sites_processed() const { return sites_processed_; }
+  int sites_dropped() const { return sites_dropped_; }
   // Sites matched and what the subscriptions received, for the closing log line.
   std::string StatusLine() const;
   std::optional<int> previous_site_id() const;
@@ -83,6 +84,10 @@ class FeatureFrontendAdapter {
     std::optional<PoseWithCovariance> dr_pose;
   };
   bool Complete(const Collecting& c) const;
+  // "k of n pairs (missing i, j), with/no dead-reckoning pose".
+  static std::string DescribeInput(const Collecting& c);
+  // Logs why the site is dropped and publishes FRONTEND_STATUS MISSING_INPUT naming what is missing.
+  void ReportDropped(int site_id, const Collecting& c, const std::string& why);
   void TryProcess();
   void Process(int site_id, Collecting& site);
   void TryRevisits(const SiteImages& current);
@@ -99,6 +104,7 @@ class FeatureFrontendAdapter {
   std::optional<SiteImages> previous_;
   SiteArchive archive_;                                // sites before previous_, poses (revisits on)
   int sites_processed_ = 0, loops_tried_ = 0, loops_published_ = 0;
+  int sites_dropped_ = 0;                  // incomplete sites reported MISSING_INPUT and dropped
   std::vector<std::shared_ptr<SubscriptionStats>> stats_;
 };
 

@@ -75,6 +75,57 @@ TEST(FeatureFrontendProc, TexturelessSitesGiveLowTextureStatus) {
   EXPECT_EQ(WEXITSTATUS(status), 0);
 }
 
+// A site whose imaging is done but whose images never arrived (a lossy link)
+// is reported as MISSING_INPUT naming the missing pairs as soon as the rover
+// reaches the next site, not left waiting for a later site to complete.
+TEST(FeatureFrontendProc, SiteWithoutImagesIsReportedNotAwaited) {
+  std::string error;
+  auto transport = MakeLcmTransport(kUrl, &error);
+  ASSERT_TRUE(transport) << error;
+  std::atomic<int> received{0};
+  frontend_status_t last;
+  Subscribe<frontend_status_t>(*transport, "FRONTEND_STATUS", [&](const std::string&, const frontend_status_t& m) {
+    last = m;
+    ++received;
+  });
+  const pid_t pid = Start("config/procs/feature_frontend.yaml");
+  ASSERT_GT(pid, 0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  PoseWithCovariance pose;
+  pose.pose = MakePose(0, 0, 0, 0, 0, 0);
+  Publish(*transport, "SITE_POSE_DR", SitePoseToMessage(0, site_pose_t::SOURCE_DEAD_RECKONING, pose));
+  for (int k = 0; k < 3; ++k) {
+    Publish(*transport, "NAVCAM_STEREO", StereoPairToMessage(testing::TexturelessPair(0, k), ImageEncoding::kPng));
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  // Site 1: its DR pose and IMAGING_DONE (3 pairs) arrive; its images do not.
+  pose.pose = MakePose(10.0, 0, 0, 0, 0, 0);
+  Publish(*transport, "SITE_POSE_DR", SitePoseToMessage(1, site_pose_t::SOURCE_DEAD_RECKONING, pose));
+  SiteEvent done;
+  done.utime = 5000000;
+  done.site_id = 1;
+  done.event = SiteEventType::kImagingDone;
+  done.num_pairs = 3;
+  Publish(*transport, "ROVER_SITE", SiteEventToMessage(done));
+  const auto wait_until = std::chrono::steady_clock::now() + std::chrono::milliseconds(1500);
+  while (std::chrono::steady_clock::now() < wait_until) transport->Handle(100);
+  EXPECT_EQ(received.load(), 0) << "reported before the rover moved on (images may still be on their way)";
+  // The rover reaches site 2: site 1's images are not coming.
+  pose.pose = MakePose(20.0, 0, 0, 0, 0, 0);
+  Publish(*transport, "SITE_POSE_DR", SitePoseToMessage(2, site_pose_t::SOURCE_DEAD_RECKONING, pose));
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  while (received == 0 && std::chrono::steady_clock::now() < deadline) transport->Handle(100);
+  kill(pid, SIGTERM);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_EQ(received.load(), 1);
+  EXPECT_EQ(static_cast<int>(last.status), static_cast<int>(frontend_status_t::STATUS_MISSING_INPUT)) << last.message;
+  EXPECT_EQ(last.current_site_id, 1);
+  EXPECT_NE(last.message.find("0 of 3 pairs (missing 0, 1, 2)"), std::string::npos) << last.message;
+  EXPECT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+}
+
 TEST(FeatureFrontendProc, BadConfigIsRejectedWithOneLine) {
   char path[] = "/tmp/feature_frontend_bad_XXXXXX";
   const int fd = mkstemp(path);
