@@ -29,11 +29,25 @@
 
 #include "vloc/common/options.h"
 #include "vloc/common/pose.h"
+#include "vloc/posegraph/sparse_solver.h"
 
 namespace vloc::posegraph {
 
-// Settings of optimize_graph_spa_levmarq.
+// The solver's settings for an incremental update: no chordal step (warm
+// start from the previous optimum).
+inline SolverOptions WarmStartSolverOptions() {
+  SolverOptions o;
+  o.chordal_initialisation = false;
+  return o;
+}
+
+// Which optimiser and its settings. method "sparse" is vloc's solver
+// (sparse_solver.h); "mrpt" is MRPT's optimize_graph_spa_levmarq followed by
+// vloc's weighted LM (the former default, kept to measure against).
 struct OptimizerOptions {
+  std::string method = "sparse";                  // "sparse" or "mrpt"
+  SolverOptions solver = WarmStartSolverOptions();  // method "sparse"
+  // method "mrpt":
   int mrpt_max_iterations = 1;       // iterations of MRPT's optimize_graph_spa_levmarq per update (see OptimizeGraph)
   int mrpt_window = 50;              // MRPT optimises only the newest this many nodes (by id); 0 = all
   int max_iterations = 100;          // iterations of the weighted Levenberg-Marquardt that follows
@@ -50,10 +64,11 @@ struct OptimizerOptions {
 };
 
 struct OptimizerResult {
-  int iterations = 0;         // LM iterations MRPT reports
+  int iterations = 0;         // LM iterations
   double initial_chi2 = 0.0;  // sum of e^T W e before
   double final_chi2 = 0.0;    // and after
   double seconds = 0.0;       // wall time of the optimiser call
+  int num_downweighted = 0;   // robust edges the kernel down-weighted (method sparse)
 };
 
 // Optimises every node but graph.root. A graph with no free node or no edge
@@ -65,8 +80,26 @@ struct OptimizerResult {
 // step, rebuilds its Hessian from an empty map so every later Cholesky fails:
 // with edges of different precision (DR vs visual) it stops far from the
 // optimum. 2D: MRPT alone with max_iterations.
-OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOptions& options);
-OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses2DInf& graph, const OptimizerOptions& options);
+// method "sparse": SolvePoseGraph on the graph's poses (root fixed), the
+// robust kernel on the edges whose entry in `robust` (graph.edges order) is
+// non-zero; throws std::runtime_error with the solver's message when it fails.
+OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOptions& options,
+                              const std::vector<char>* robust = nullptr);
+OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses2DInf& graph, const OptimizerOptions& options,
+                              const std::vector<char>* robust = nullptr);
+
+// The solver's view of an MRPT graph: one pose per node in id order (the
+// root fixed), one edge per MRPT edge in graph.edges order; ids[k] is pose
+// k's node id. Throws std::runtime_error for an edge to a missing node.
+PoseGraph3 ProblemFromGraph(const mrpt::graphs::CNetworkOfPoses3DInf& graph, std::vector<mrpt::graphs::TNodeID>* ids,
+                            const std::vector<char>* robust = nullptr);
+PoseGraph2 ProblemFromGraph(const mrpt::graphs::CNetworkOfPoses2DInf& graph, std::vector<mrpt::graphs::TNodeID>* ids,
+                            const std::vector<char>* robust = nullptr);
+// Writes the problem's poses back into the graph's nodes.
+void PosesToGraph(const PoseGraph3& problem, const std::vector<mrpt::graphs::TNodeID>& ids,
+                  mrpt::graphs::CNetworkOfPoses3DInf* graph);
+void PosesToGraph(const PoseGraph2& problem, const std::vector<mrpt::graphs::TNodeID>& ids,
+                  mrpt::graphs::CNetworkOfPoses2DInf* graph);
 
 // Information-weighted squared error sum_e e^T W e with MRPT's residual.
 double Chi2(const mrpt::graphs::CNetworkOfPoses3DInf& graph);

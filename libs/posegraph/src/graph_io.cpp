@@ -1,0 +1,324 @@
+#include "vloc/posegraph/graph_io.h"
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+#include <cmath>
+#include <deque>
+#include <fstream>
+#include <map>
+#include <mrpt/poses/CPose3DQuat.h>
+#include <set>
+#include <sstream>
+
+#include "vloc/common/options.h"
+#include "vloc/common/pose.h"
+#include "vloc/posegraph/mrpt_optimize.h"
+
+namespace vloc::posegraph {
+
+const char* GraphFormatName(GraphFormat format) {
+  return format == GraphFormat::kG2o ? "g2o" : "MRPT/TORO text";
+}
+
+template <int N>
+bool RepairInformation(Eigen::Matrix<double, N, N>* information, bool* repaired) {
+  *repaired = false;
+  if (!information->allFinite()) return false;
+  Eigen::Matrix<double, N, N> sym = 0.5 * (*information + information->transpose());
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> eig(sym);
+  if (eig.info() != Eigen::Success) return false;
+  Eigen::Matrix<double, N, 1> values = eig.eigenvalues();
+  const double largest = values.maxCoeff();
+  if (!(largest > 0)) return false;
+  if (values.minCoeff() > 1e-9 * largest) return true;
+  values = values.cwiseMax(1e-9 * largest);
+  sym = eig.eigenvectors() * values.asDiagonal() * eig.eigenvectors().transpose();
+  *information = 0.5 * (sym + sym.transpose());
+  *repaired = true;
+  return true;
+}
+template bool RepairInformation<3>(Eigen::Matrix3d*, bool*);
+template bool RepairInformation<6>(Eigen::Matrix<double, 6, 6>*, bool*);
+
+namespace {
+
+using mrpt::graphs::TNodeID;
+using Matrix6 = Eigen::Matrix<double, 6, 6>;
+
+// The g2o rotation information is over the quaternion's vector part (half
+// the rotation vector): I_theta = S I_q S.
+Matrix6 QuatScale() {
+  Eigen::Matrix<double, 6, 1> s;
+  s << 1, 1, 1, 0.5, 0.5, 0.5;
+  return s.asDiagonal();
+}
+
+mrpt::poses::CPose3D PoseFromQuat(double x, double y, double z, double qx, double qy, double qz, double qw) {
+  Eigen::Quaterniond q(qw, qx, qy, qz);
+  q.normalize();
+  return ToMrpt(MakePose(q.toRotationMatrix(), Eigen::Vector3d(x, y, z)));
+}
+
+template <class Graph>
+void ChainOdometry(Graph* graph, const std::set<TNodeID>& referenced) {
+  using PoseT = typename Graph::constraint_t::type_value;
+  if (referenced.empty()) return;
+  std::multimap<TNodeID, std::pair<TNodeID, PoseT>> adjacent;  // id -> (other, id_from_other)
+  for (const auto& [ids, edge] : graph->edges) {
+    adjacent.emplace(ids.first, std::make_pair(ids.second, PoseT(edge.getPoseMean())));
+    adjacent.emplace(ids.second, std::make_pair(ids.first, PoseT() - PoseT(edge.getPoseMean())));
+  }
+  auto place = [&](TNodeID from, TNodeID to, const PoseT& from_to) {
+    graph->nodes[to] = graph->nodes.at(from) + from_to;
+  };
+  // Odometry first: i -> i+1 in id order.
+  graph->nodes[*referenced.begin()] = PoseT();
+  for (auto it = std::next(referenced.begin()); it != referenced.end(); ++it) {
+    if (graph->nodes.count(*it) || !graph->nodes.count(*it - 1)) continue;
+    const auto range = graph->edges.equal_range({*it - 1, *it});
+    if (range.first != range.second) place(*it - 1, *it, PoseT(range.first->second.getPoseMean()));
+  }
+  // Then breadth first over any edge.
+  std::deque<TNodeID> queue;
+  for (const auto& n : graph->nodes) queue.push_back(n.first);
+  while (!queue.empty()) {
+    const TNodeID id = queue.front();
+    queue.pop_front();
+    const auto range = adjacent.equal_range(id);
+    for (auto it = range.first; it != range.second; ++it)
+      if (!graph->nodes.count(it->second.first)) {
+        place(id, it->second.first, it->second.second);
+        queue.push_back(it->second.first);
+      }
+  }
+}
+
+template <class Graph>
+void FinishGraph(Graph* graph, bool had_root) {
+  std::set<TNodeID> referenced;
+  for (const auto& [ids, edge] : graph->edges) {
+    referenced.insert(ids.first);
+    referenced.insert(ids.second);
+  }
+  bool missing = false;
+  for (const TNodeID id : referenced) missing |= graph->nodes.count(id) == 0;
+  if (missing) {
+    graph->nodes.clear();
+    ChainOdometry(graph, referenced);
+  }
+  if (!had_root && !graph->nodes.empty()) graph->root = graph->nodes.begin()->first;
+}
+
+std::string RepairReport(int repaired, int rejected) {
+  if (!repaired && !rejected) return "";
+  std::ostringstream os;
+  os << "pose graph: ";
+  if (rejected) os << rejected << " edges rejected (information matrix or pose not finite)";
+  if (rejected && repaired) os << "; ";
+  if (repaired)
+    os << repaired << " information matrices not positive definite, repaired by raising their eigenvalues "
+       << "to 1e-9 of the largest (check the file's information convention)";
+  return os.str();
+}
+
+bool ParseG2o(const std::string& text, GraphFile* file, std::string* error) {
+  std::istringstream lines(text);
+  std::string line;
+  int line_number = 0;
+  bool had_root = false;
+  while (std::getline(lines, line)) {
+    ++line_number;
+    std::istringstream s(line);
+    std::string key;
+    if (!(s >> key) || key[0] == '#') continue;
+    auto bad = [&]() { return Fail(error, "line " + std::to_string(line_number) + ": cannot parse '" + line + "'"); };
+    if (key == "VERTEX_SE3:QUAT") {
+      TNodeID id;
+      double x, y, z, qx, qy, qz, qw;
+      if (file->dimension != 3 || !(s >> id >> x >> y >> z >> qx >> qy >> qz >> qw)) return bad();
+      file->graph3.nodes[id] = PoseFromQuat(x, y, z, qx, qy, qz, qw);
+    } else if (key == "EDGE_SE3:QUAT") {
+      TNodeID i, j;
+      double x, y, z, qx, qy, qz, qw;
+      Matrix6 info;
+      if (file->dimension != 3 || !(s >> i >> j >> x >> y >> z >> qx >> qy >> qz >> qw)) return bad();
+      for (int r = 0; r < 6; ++r)
+        for (int c = r; c < 6; ++c) {
+          if (!(s >> info(r, c))) return bad();
+          info(c, r) = info(r, c);
+        }
+      mrpt::poses::CPose3DPDFGaussianInf edge;
+      edge.mean = PoseFromQuat(x, y, z, qx, qy, qz, qw);
+      Matrix6 information = QuatScale() * info * QuatScale();
+      bool repaired = false;
+      if (!std::isfinite(x + y + z + qx + qy + qz + qw) || !RepairInformation<6>(&information, &repaired)) {
+        ++file->num_rejected;
+        continue;
+      }
+      file->num_repaired += repaired ? 1 : 0;
+      edge.cov_inv = mrpt::math::CMatrixDouble66(information);
+      file->graph3.insertEdge(i, j, edge);
+    } else if (key == "VERTEX_SE2") {
+      TNodeID id;
+      double x, y, th;
+      if (file->dimension != 2 || !(s >> id >> x >> y >> th)) return bad();
+      file->graph2.nodes[id] = mrpt::poses::CPose2D(x, y, th);
+    } else if (key == "EDGE_SE2") {
+      TNodeID i, j;
+      double x, y, th;
+      Eigen::Matrix3d info;
+      if (file->dimension != 2 || !(s >> i >> j >> x >> y >> th)) return bad();
+      for (int r = 0; r < 3; ++r)
+        for (int c = r; c < 3; ++c) {
+          if (!(s >> info(r, c))) return bad();
+          info(c, r) = info(r, c);
+        }
+      bool repaired = false;
+      if (!std::isfinite(x + y + th) || !RepairInformation<3>(&info, &repaired)) {
+        ++file->num_rejected;
+        continue;
+      }
+      file->num_repaired += repaired ? 1 : 0;
+      mrpt::poses::CPosePDFGaussianInf edge;
+      edge.mean = mrpt::poses::CPose2D(x, y, th);
+      edge.cov_inv = mrpt::math::CMatrixDouble33(info);
+      file->graph2.insertEdge(i, j, edge);
+    } else if (key == "FIX") {
+      TNodeID id;
+      if (!(s >> id)) return bad();
+      (file->dimension == 2 ? file->graph2.root : file->graph3.root) = id;
+      had_root = true;
+    }
+  }
+  if (file->dimension == 2) FinishGraph(&file->graph2, had_root);
+  else FinishGraph(&file->graph3, had_root);
+  return true;
+}
+
+template <class Graph>
+bool ParseMrpt(const std::string& text, Graph* graph, GraphFile* file, std::string* error) {
+  try {
+    std::istringstream is(text);
+    graph->readAsText(is);
+  } catch (const std::exception& e) {
+    return Fail(error, std::string("MRPT cannot read it: ") + e.what());
+  }
+  // Repair / reject like the g2o path.
+  for (auto it = graph->edges.begin(); it != graph->edges.end();) {
+    constexpr int N = std::is_same_v<Graph, mrpt::graphs::CNetworkOfPoses3DInf> ? 6 : 3;
+    Eigen::Matrix<double, N, N> info = it->second.cov_inv.asEigen();
+    bool repaired = false;
+    if (!RepairInformation<N>(&info, &repaired)) {
+      ++file->num_rejected;
+      it = graph->edges.erase(it);
+      continue;
+    }
+    file->num_repaired += repaired ? 1 : 0;
+    it->second.cov_inv = decltype(it->second.cov_inv)(info);
+    ++it;
+  }
+  const bool had_root = text.find("FIX") != std::string::npos;
+  FinishGraph(graph, had_root);
+  return true;
+}
+
+}  // namespace
+
+bool ParseGraphText(const std::string& text, GraphFile* file, std::string* error) {
+  *file = GraphFile{};
+  // The first vertex or edge keyword decides the dimension and format.
+  std::istringstream lines(text);
+  std::string line, key;
+  bool found = false, had_vertices = false;
+  while (std::getline(lines, line)) {
+    std::istringstream s(line);
+    std::string k;
+    if (!(s >> k) || k[0] == '#') continue;
+    if (k.rfind("VERTEX", 0) == 0) had_vertices = true;
+    if (!found && (k.rfind("VERTEX", 0) == 0 || k.rfind("EDGE", 0) == 0)) {
+      key = k;
+      found = true;
+    }
+  }
+  if (!found) return Fail(error, "no VERTEX or EDGE line");
+  const bool three_d = key == "VERTEX_SE3:QUAT" || key == "EDGE_SE3:QUAT" || key == "VERTEX3" || key == "EDGE3";
+  const bool two_d = key == "VERTEX_SE2" || key == "EDGE_SE2" || key == "VERTEX2" || key == "EDGE2" ||
+                     key == "VERTEX" || key == "EDGE";
+  if (!three_d && !two_d)
+    return Fail(error, "unknown record '" + key + "' (expected VERTEX_SE3:QUAT/EDGE_SE3:QUAT, VERTEX_SE2/EDGE_SE2, "
+                       "VERTEX2/EDGE2 or VERTEX3/EDGE3)");
+  file->dimension = three_d ? 3 : 2;
+  file->format = key.find("_SE") != std::string::npos ? GraphFormat::kG2o : GraphFormat::kMrptText;
+  file->had_vertices = had_vertices;
+  bool ok;
+  if (file->format == GraphFormat::kG2o) ok = ParseG2o(text, file, error);
+  else if (three_d) ok = ParseMrpt(text, &file->graph3, file, error);
+  else ok = ParseMrpt(text, &file->graph2, file, error);
+  if (!ok) return false;
+  if (file->num_edges() == 0) return Fail(error, "no usable edge");
+  file->repair_report = RepairReport(file->num_repaired, file->num_rejected);
+  return true;
+}
+
+bool ReadGraphFile(const std::string& path, GraphFile* file, std::string* error) {
+  std::ifstream f(path);
+  if (!f) return Fail(error, "cannot read pose graph file " + path);
+  std::stringstream buffer;
+  buffer << f.rdbuf();
+  std::string sub;
+  if (!ParseGraphText(buffer.str(), file, &sub)) return Fail(error, "pose graph file " + path + ": " + sub);
+  return true;
+}
+
+std::string GraphText(const GraphFile& file) {
+  std::ostringstream os;
+  os.precision(17);
+  if (file.format == GraphFormat::kMrptText) {
+    if (file.dimension == 2) file.graph2.writeAsText(os);
+    else file.graph3.writeAsText(os);
+    return os.str();
+  }
+  if (file.dimension == 2) {
+    for (const auto& [id, p] : file.graph2.nodes)
+      os << "VERTEX_SE2 " << id << ' ' << p.x() << ' ' << p.y() << ' ' << p.phi() << '\n';
+    for (const auto& [ids, edge] : file.graph2.edges) {
+      os << "EDGE_SE2 " << ids.first << ' ' << ids.second << ' ' << edge.mean.x() << ' ' << edge.mean.y() << ' '
+         << edge.mean.phi();
+      for (int r = 0; r < 3; ++r)
+        for (int c = r; c < 3; ++c) os << ' ' << edge.cov_inv(r, c);
+      os << '\n';
+    }
+    os << "FIX " << file.graph2.root << '\n';
+    return os.str();
+  }
+  auto write_pose = [&os](const mrpt::poses::CPose3D& p) {
+    const Pose3 pose = FromMrpt(p);
+    const Eigen::Quaterniond q(pose.linear());
+    os << pose.translation().x() << ' ' << pose.translation().y() << ' ' << pose.translation().z() << ' ' << q.x()
+       << ' ' << q.y() << ' ' << q.z() << ' ' << q.w();
+  };
+  for (const auto& [id, p] : file.graph3.nodes) {
+    os << "VERTEX_SE3:QUAT " << id << ' ';
+    write_pose(p);
+    os << '\n';
+  }
+  const Matrix6 unscale = QuatScale().inverse();
+  for (const auto& [ids, edge] : file.graph3.edges) {
+    os << "EDGE_SE3:QUAT " << ids.first << ' ' << ids.second << ' ';
+    write_pose(edge.mean);
+    const Matrix6 info = unscale * edge.cov_inv.asEigen() * unscale;
+    for (int r = 0; r < 6; ++r)
+      for (int c = r; c < 6; ++c) os << ' ' << info(r, c);
+    os << '\n';
+  }
+  os << "FIX " << file.graph3.root << '\n';
+  return os.str();
+}
+
+bool WriteGraphFile(const std::string& path, const GraphFile& file, std::string* error) {
+  std::string sub;
+  if (!WriteFileAtomically(path, GraphText(file), &sub)) return Fail(error, "pose graph file: " + sub);
+  return true;
+}
+
+}  // namespace vloc::posegraph
