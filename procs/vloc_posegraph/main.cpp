@@ -1,7 +1,7 @@
 // vloc_posegraph: optimises a pose-graph file (g2o SE2/SE3:QUAT, or MRPT/TORO
 // text) and writes the result in the same format.
 //   vloc_posegraph IN.g2o --out OUT.g2o [--weights file|sesync] [--init chordal|none]
-//                  [--max-iterations N] [--threads N] [--verbose 1]
+//                  [--max-iterations N] [--threads N] [--linear-solver cholmod|eigen] [--verbose 1]
 // --weights sesync solves with SE-Sync's isotropic weights (the measure of
 // the published optima); the output keeps the file's information matrices.
 // Prints the chi2 (file weights) and SE-Sync's objective before and after,
@@ -16,14 +16,14 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: vloc_posegraph IN.g2o --out OUT.g2o [--weights file|sesync] [--init chordal|none] "
-    "[--max-iterations N] [--threads N] [--verbose 1]\n";
+    "[--max-iterations N] [--threads N] [--linear-solver cholmod|eigen] [--verbose 1]\n";
 
 }  // namespace
 
 int main(int argc, char** argv) {
   vloc::CommandLine args;
   std::string error;
-  if (!args.Parse(argc, argv, {"out", "weights", "init", "max-iterations", "threads", "verbose", "help"}, &error) ||
+  if (!args.Parse(argc, argv, {"out", "weights", "init", "max-iterations", "threads", "linear-solver", "verbose", "help"}, &error) ||
       args.positional().size() != 1 || !args.Has("out") || args.Has("help")) {
     if (!error.empty()) std::cerr << "vloc_posegraph: " << error << "\n";
     std::cerr << kUsage;
@@ -41,6 +41,7 @@ int main(int argc, char** argv) {
     options.max_iterations = args.GetInt("max-iterations", options.max_iterations);
     options.num_threads = args.GetInt("threads", options.num_threads);
     options.verbose = args.GetInt("verbose", 0) != 0;
+    options.linear_solver = args.Get("linear-solver", options.linear_solver);
     if (!options.Check(&error)) {
       std::cerr << "vloc_posegraph: " << error << "\n";
       return 1;

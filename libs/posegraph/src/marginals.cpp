@@ -17,8 +17,11 @@
 
 namespace vloc::posegraph {
 
-bool BlockDiagonalOfInverse(const Eigen::SparseMatrix<double>& matrix, int block_size,
-                            std::vector<Eigen::MatrixXd>* blocks) {
+namespace {
+
+template <class Ordering>
+bool BlockDiagonalOfInverseImpl(const Eigen::SparseMatrix<double>& matrix, int block_size,
+                                std::vector<Eigen::MatrixXd>* blocks) {
   using SpMat = Eigen::SparseMatrix<double>;
   const int n = static_cast<int>(matrix.rows());
   blocks->clear();
@@ -36,7 +39,7 @@ bool BlockDiagonalOfInverse(const Eigen::SparseMatrix<double>& matrix, int block
       for (int c = 0; c <= r; ++c) triplets.emplace_back(b * block_size + r, b * block_size + c, 0.0);
   SpMat lower(n, n);
   lower.setFromTriplets(triplets.begin(), triplets.end());
-  Eigen::SimplicialLLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int>> llt(lower);
+  Eigen::SimplicialLLT<SpMat, Eigen::Lower, Ordering> llt(lower);
   if (llt.info() != Eigen::Success) return false;
   const SpMat& L = llt.matrixL().nestedExpression();
   const int* outer = L.outerIndexPtr();
@@ -86,17 +89,26 @@ bool BlockDiagonalOfInverse(const Eigen::SparseMatrix<double>& matrix, int block
     z[static_cast<size_t>(begin)] = 1.0 / (ljj * ljj) - sum / ljj;
   }
 
-  const auto& perm = llt.permutationP().indices();
   const int num_blocks = n / block_size;
   blocks->resize(static_cast<size_t>(num_blocks));
+  const bool natural = llt.permutationP().size() == 0;
+  const auto perm = [&](int i) { return natural ? i : llt.permutationP().indices()[i]; };
   for (int b = 0; b < num_blocks; ++b) {
     Eigen::MatrixXd& block = (*blocks)[static_cast<size_t>(b)];
     block.resize(block_size, block_size);
     for (int r = 0; r < block_size; ++r)
       for (int c = 0; c < block_size; ++c)
-        block(r, c) = z_at(perm[b * block_size + r], perm[b * block_size + c]);
+        block(r, c) = z_at(perm(b * block_size + r), perm(b * block_size + c));
   }
   return true;
+}
+
+}  // namespace
+
+bool BlockDiagonalOfInverse(const Eigen::SparseMatrix<double>& matrix, int block_size,
+                            std::vector<Eigen::MatrixXd>* blocks, bool keep_order) {
+  if (keep_order) return BlockDiagonalOfInverseImpl<Eigen::NaturalOrdering<int>>(matrix, block_size, blocks);
+  return BlockDiagonalOfInverseImpl<Eigen::AMDOrdering<int>>(matrix, block_size, blocks);
 }
 
 bool LocalMarginals(const mrpt::graphs::CNetworkOfPoses3DInf& graph,

@@ -186,7 +186,7 @@ int RefineWeighted(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOpt
 
 template <int D, class Graph>
 PoseGraphProblem<D> ProblemFromGraphImpl(const Graph& graph, std::vector<mrpt::graphs::TNodeID>* ids,
-                                         const std::vector<char>* robust) {
+                                         const std::vector<double>* robust) {
   PoseGraphProblem<D> problem;
   std::map<mrpt::graphs::TNodeID, int> index;
   ids->clear();
@@ -224,7 +224,8 @@ PoseGraphProblem<D> ProblemFromGraphImpl(const Graph& graph, std::vector<mrpt::g
       e.measurement.t = Eigen::Vector2d(z.x(), z.y());
     }
     e.information = edge.cov_inv.asEigen();
-    e.robust = robust && k < robust->size() && (*robust)[k];
+    e.robust = robust && k < robust->size() && (*robust)[k] > 0;
+    if (e.robust) e.robust_scale = (*robust)[k];
     problem.edges.push_back(e);
     ++k;
   }
@@ -232,7 +233,8 @@ PoseGraphProblem<D> ProblemFromGraphImpl(const Graph& graph, std::vector<mrpt::g
 }
 
 template <int D, class Graph>
-OptimizerResult OptimizeSparse(Graph& graph, const OptimizerOptions& options, const std::vector<char>* robust);
+OptimizerResult OptimizeSparse(Graph& graph, const OptimizerOptions& options, const std::vector<double>* robust,
+                               std::map<mrpt::graphs::TNodeID, Matrix6d>* marginals);
 
 }  // namespace
 
@@ -334,11 +336,11 @@ void Linearise(const mrpt::graphs::CNetworkOfPoses3DInf& graph, const std::map<m
 }
 
 PoseGraph3 ProblemFromGraph(const mrpt::graphs::CNetworkOfPoses3DInf& graph, std::vector<mrpt::graphs::TNodeID>* ids,
-                            const std::vector<char>* robust) {
+                            const std::vector<double>* robust) {
   return ProblemFromGraphImpl<3>(graph, ids, robust);
 }
 PoseGraph2 ProblemFromGraph(const mrpt::graphs::CNetworkOfPoses2DInf& graph, std::vector<mrpt::graphs::TNodeID>* ids,
-                            const std::vector<char>* robust) {
+                            const std::vector<double>* robust) {
   return ProblemFromGraphImpl<2>(graph, ids, robust);
 }
 
@@ -358,8 +360,8 @@ void PosesToGraph(const PoseGraph2& problem, const std::vector<mrpt::graphs::TNo
 }
 
 OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOptions& options,
-                              const std::vector<char>* robust) {
-  if (options.method == "sparse") return OptimizeSparse<3>(graph, options, robust);
+                              const std::vector<double>* robust, std::map<mrpt::graphs::TNodeID, Matrix6d>* marginals) {
+  if (options.method == "sparse") return OptimizeSparse<3>(graph, options, robust, marginals);
   OptimizerResult result = OptimizeImpl(graph, options, options.mrpt_max_iterations, options.mrpt_window);
   const auto start = std::chrono::steady_clock::now();
   if (options.verbose) std::printf("[vloc] MRPT stage %.3f s\n", result.seconds);
@@ -369,8 +371,8 @@ OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const O
   return result;
 }
 OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses2DInf& graph, const OptimizerOptions& options,
-                              const std::vector<char>* robust) {
-  if (options.method == "sparse") return OptimizeSparse<2>(graph, options, robust);
+                              const std::vector<double>* robust) {
+  if (options.method == "sparse") return OptimizeSparse<2>(graph, options, robust, nullptr);
   // 2D: MRPT alone (no weighted polish), max_iterations iterations.
   return OptimizeImpl(graph, options, options.max_iterations, 0);
 }
@@ -402,20 +404,34 @@ Matrix6d VlocFromLocalCovariance(const Pose3& a_from_b, const Matrix6d& covarian
 namespace {
 
 template <int D, class Graph>
-OptimizerResult OptimizeSparse(Graph& graph, const OptimizerOptions& options, const std::vector<char>* robust) {
+OptimizerResult OptimizeSparse(Graph& graph, const OptimizerOptions& options, const std::vector<double>* robust,
+                               std::map<mrpt::graphs::TNodeID, Matrix6d>* marginals) {
   const Stopwatch watch;
   OptimizerResult result;
   std::vector<mrpt::graphs::TNodeID> ids;
   PoseGraphProblem<D> problem = ProblemFromGraph(graph, &ids, robust);
   if (problem.edges.empty() || problem.poses.size() < 2) {
     result.initial_chi2 = result.final_chi2 = Cost(problem, nullptr);
+    if (marginals) marginals->clear();
+    result.marginals_valid = problem.poses.size() < 2;
     return result;
   }
   SolverOptions solver = options.solver;
   solver.verbose |= options.verbose;
-  const SolverSummary s = SolvePoseGraph(&problem, solver);
+  std::vector<typename PoseGraphProblem<D>::Information> blocks;
+  const SolverSummary s = SolvePoseGraph(&problem, solver, marginals ? &blocks : nullptr);
   if (!s.usable) throw std::runtime_error("pose graph solver: " + s.message);
   PosesToGraph(problem, ids, &graph);
+  if constexpr (D == 3) {
+    if (marginals) {
+      marginals->clear();
+      result.marginals_valid = s.marginals_valid;
+      result.marginal_seconds = s.marginal_seconds;
+      if (s.marginals_valid)
+        for (size_t k = 0; k < ids.size(); ++k)
+          if (!problem.fixed[k]) (*marginals)[ids[k]] = blocks[k];
+    }
+  }
   result.iterations = s.iterations;
   result.initial_chi2 = s.initial_cost;
   result.final_chi2 = s.final_cost;

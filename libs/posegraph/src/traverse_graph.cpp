@@ -118,6 +118,7 @@ std::string PoseGraphSummary::BriefReport() const {
      << num_dr_edges << " DR, " << num_visual_edges << " visual, " << num_loop_edges << " loop/fix), chi2 "
      << initial_chi2 << " -> " << final_chi2 << " in " << iterations << " iterations, " << total_seconds << " s";
   if (num_pending) os << ", " << num_pending << " pending";
+  if (num_downweighted) os << ", " << num_downweighted << " loop/fix edges down-weighted as outliers";
   if (!message.empty()) os << "; " << message;
   return os.str();
 }
@@ -354,6 +355,54 @@ void TraverseGraph::RebuildEdges() {
                       edge);
 }
 
+std::vector<double> TraverseGraph::RobustEdgeScales() const {
+  // Per edge (graph_.edges order, which RebuildEdges makes edges_ order): 0
+  // for DR and adjacent visual edges; for loops and fixes the kernel width
+  // scale max(1, s / s'), s = e^T W e the edge's own chi2 at the current
+  // estimate and s' = e^T S^-1 e its chi2 against the predicted covariance
+  // S = J_i C_i J_i^T + J_j C_j J_j^T + W^-1 (C = the last update's
+  // marginals, the sites taken as uncorrelated: S is then a little wide,
+  // erring on the side of accepting). So a revisit that closes a long drift
+  // keeps its weight while the drift is within the traverse's own
+  // uncertainty, and a match to the wrong place, far outside it, is
+  // down-weighted. A site without a marginal yet (added since) takes its
+  // nearest site's, grown by the per-metre DR model over the distance.
+  std::vector<double> scales;
+  scales.reserve(edges_.size());
+  auto marginal = [this](mrpt::graphs::TNodeID id) -> Matrix6d {
+    if (id == graph_.root || marginals_.empty()) return Matrix6d::Zero();
+    if (const auto it = marginals_.find(id); it != marginals_.end()) return it->second;
+    auto nearest = marginals_.lower_bound(id);
+    if (nearest == marginals_.end()) --nearest;
+    const auto& a = graph_.nodes.at(id);
+    const auto& b = graph_.nodes.at(nearest->first);
+    const double d = std::sqrt((a.x() - b.x()) * (a.x() - b.x()) + (a.y() - b.y()) * (a.y() - b.y()) +
+                               (a.z() - b.z()) * (a.z() - b.z()));
+    return nearest->second + Diagonal(options_.dr_position_sigma_per_metre * d, options_.dr_position_sigma_per_metre * d,
+                                      options_.dr_vertical_sigma_per_metre * d, options_.dr_tilt_sigma,
+                                      options_.dr_tilt_sigma, options_.dr_heading_sigma_per_metre * d);
+  };
+  for (const auto& [key, edge] : edges_) {
+    if (key.kind != EdgeKind::kLoop && key.kind != EdgeKind::kAbsoluteFix) {
+      scales.push_back(0.0);
+      continue;
+    }
+    const auto i = static_cast<mrpt::graphs::TNodeID>(key.from), j = static_cast<mrpt::graphs::TNodeID>(key.to);
+    double scale = 1.0;
+    if (!marginals_.empty() && graph_.nodes.count(i) && graph_.nodes.count(j)) {
+      Matrix6d J_i, J_j;
+      const Vector6d e = EdgeResidualAndJacobians(edge.mean, graph_.nodes.at(i), graph_.nodes.at(j), &J_i, &J_j);
+      const Matrix6d W = edge.cov_inv.asEigen();
+      const Matrix6d S = J_i * marginal(i) * J_i.transpose() + J_j * marginal(j) * J_j.transpose() + W.inverse();
+      const double own = e.dot(W * e);
+      const double predicted = e.dot(S.ldlt().solve(e));
+      if (predicted > 0 && std::isfinite(own / predicted)) scale = std::max(1.0, own / predicted);
+    }
+    scales.push_back(scale);
+  }
+  return scales;
+}
+
 PoseGraphSummary TraverseGraph::Optimize() {
   const Stopwatch total;
   PoseGraphSummary s;
@@ -372,20 +421,32 @@ PoseGraphSummary TraverseGraph::Optimize() {
     summary_ = s;
     return s;
   }
+  // Revisits and absolute fixes go through the robust kernel: a false
+  // match must not bend the traverse.
+  const std::vector<double> robust = RobustEdgeScales();
+  const bool solver_marginals = options_.compute_marginals && options_.optimizer.method == "sparse";
+  marginals_.clear();
   try {
-    const OptimizerResult r = OptimizeGraph(graph_, options_.optimizer);
+    const OptimizerResult r = OptimizeGraph(graph_, options_.optimizer, &robust, solver_marginals ? &marginals_ : nullptr);
     s.initial_chi2 = r.initial_chi2;
     s.final_chi2 = r.final_chi2;
     s.iterations = r.iterations;
-    s.optimize_seconds = r.seconds;
+    s.optimize_seconds = r.seconds - r.marginal_seconds;
+    s.num_downweighted = r.num_downweighted;
+    if (solver_marginals) {
+      s.marginals_valid = r.marginals_valid;
+      s.marginal_seconds = r.marginal_seconds;
+      if (!s.marginals_valid)
+        s.message = "the pose graph's Hessian is singular (a site not linked to the root by edges?); marginal "
+                    "covariances not computed";
+    }
   } catch (const std::exception& e) {
     s.message = e.what();
     s.total_seconds = total.Seconds();
     summary_ = s;
     return s;
   }
-  marginals_.clear();
-  if (options_.compute_marginals) {
+  if (options_.compute_marginals && !solver_marginals) {
     const Stopwatch marginals;
     std::string error;
     s.marginals_valid = LocalMarginals(graph_, &marginals_, &error, options_.optimizer.num_threads);

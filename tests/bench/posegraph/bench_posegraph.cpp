@@ -68,6 +68,10 @@ void BM_GraphUpdate(benchmark::State& state) {
   options.dr_covariance = "per_metre";
   options.optimizer.verbose = getenv("VLOC_VERBOSE") != nullptr;
   options.optimizer.num_threads = static_cast<int>(state.range(1));
+  options.optimizer.solver.num_threads = options.optimizer.num_threads;
+  options.optimizer.method = state.range(2) == 0 ? "sparse" : "mrpt";
+  if (const char* ls = getenv("VLOC_LINEAR_SOLVER")) options.optimizer.solver.linear_solver = ls;
+  if (const char* tol = getenv("VLOC_TOL")) options.optimizer.solver.relative_cost_tolerance = atof(tol);
   TraverseGraph base(options);
   std::mt19937 rng(7);
   for (int i = 0; i < n; ++i) AddSite(base, scene, i, rng);
@@ -91,12 +95,15 @@ void BM_GraphUpdate(benchmark::State& state) {
   state.counters["optimize_s"] = last.optimize_seconds;
   state.counters["marginal_s"] = last.marginal_seconds;
 }
-// Arguments: sites, threads of the weighted LM's linearisation.
+// Arguments: sites, threads linearising the edges, method (0 = vloc's
+// sparse solver, 1 = the former MRPT LM + weighted LM: the peer).
 BENCHMARK(BM_GraphUpdate)
-    ->Args({100, 1})
-    ->Args({1000, 1})
-    ->Args({1000, 2})
-    ->ArgNames({"sites", "threads"})
+    ->Args({100, 1, 0})
+    ->Args({100, 1, 1})
+    ->Args({1000, 1, 0})
+    ->Args({1000, 1, 1})
+    ->Args({1000, 2, 0})
+    ->ArgNames({"sites", "threads", "mrpt"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 

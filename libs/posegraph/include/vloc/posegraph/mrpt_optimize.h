@@ -69,6 +69,8 @@ struct OptimizerResult {
   double final_chi2 = 0.0;    // and after
   double seconds = 0.0;       // wall time of the optimiser call
   int num_downweighted = 0;   // robust edges the kernel down-weighted (method sparse)
+  bool marginals_valid = false;  // marginals asked for and computed (method sparse)
+  double marginal_seconds = 0.0;
 };
 
 // Optimises every node but graph.root. A graph with no free node or no edge
@@ -80,21 +82,25 @@ struct OptimizerResult {
 // step, rebuilds its Hessian from an empty map so every later Cholesky fails:
 // with edges of different precision (DR vs visual) it stops far from the
 // optimum. 2D: MRPT alone with max_iterations.
-// method "sparse": SolvePoseGraph on the graph's poses (root fixed), the
-// robust kernel on the edges whose entry in `robust` (graph.edges order) is
-// non-zero; throws std::runtime_error with the solver's message when it fails.
+// method "sparse": SolvePoseGraph on the graph's poses (root fixed); `robust`
+// (graph.edges order): 0 = an ordinary edge, > 0 = the robust kernel with
+// its width multiplied by this; throws std::runtime_error with the solver's
+// message when it fails.
+// `marginals` (method sparse only; 3D): the solver's marginal covariance of
+// every free node in MRPT's local tangent (as LocalMarginals gives).
 OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOptions& options,
-                              const std::vector<char>* robust = nullptr);
+                              const std::vector<double>* robust = nullptr,
+                              std::map<mrpt::graphs::TNodeID, Matrix6d>* marginals = nullptr);
 OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses2DInf& graph, const OptimizerOptions& options,
-                              const std::vector<char>* robust = nullptr);
+                              const std::vector<double>* robust = nullptr);
 
 // The solver's view of an MRPT graph: one pose per node in id order (the
 // root fixed), one edge per MRPT edge in graph.edges order; ids[k] is pose
 // k's node id. Throws std::runtime_error for an edge to a missing node.
 PoseGraph3 ProblemFromGraph(const mrpt::graphs::CNetworkOfPoses3DInf& graph, std::vector<mrpt::graphs::TNodeID>* ids,
-                            const std::vector<char>* robust = nullptr);
+                            const std::vector<double>* robust = nullptr);
 PoseGraph2 ProblemFromGraph(const mrpt::graphs::CNetworkOfPoses2DInf& graph, std::vector<mrpt::graphs::TNodeID>* ids,
-                            const std::vector<char>* robust = nullptr);
+                            const std::vector<double>* robust = nullptr);
 // Writes the problem's poses back into the graph's nodes.
 void PosesToGraph(const PoseGraph3& problem, const std::vector<mrpt::graphs::TNodeID>& ids,
                   mrpt::graphs::CNetworkOfPoses3DInf* graph);
@@ -141,10 +147,6 @@ Vector6d EdgeResidualAndJacobians(const mrpt::poses::CPose3D& z, const mrpt::pos
 void Linearise(const mrpt::graphs::CNetworkOfPoses3DInf& graph, const std::map<mrpt::graphs::TNodeID, int>& index,
                int num_threads, Eigen::SparseMatrix<double>* H, Eigen::VectorXd* g);
 
-// Diagonal blocks (block_size x block_size) of the inverse of a symmetric
-// positive-definite sparse matrix (the lower triangle is read). Exposed for
-// tests. Returns false when the matrix is not positive definite.
-bool BlockDiagonalOfInverse(const Eigen::SparseMatrix<double>& matrix, int block_size,
-                            std::vector<Eigen::MatrixXd>* blocks);
+
 
 }  // namespace vloc::posegraph

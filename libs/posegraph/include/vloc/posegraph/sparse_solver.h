@@ -30,6 +30,7 @@
 // with rho the identity on ordinary edges and the robust kernel on robust ones.
 
 #include <Eigen/Core>
+#include <Eigen/SparseCore>
 #include <string>
 #include <vector>
 
@@ -55,6 +56,7 @@ struct PoseGraphProblem {
     Pose measurement;           // i_from_j
     Information information = Information::Identity();  // of the residual [t; rotation]
     bool robust = false;        // loop closure / absolute fix: the robust kernel applies
+    double robust_scale = 1.0;  // multiplies options.robust_width for this edge (> 0)
   };
   std::vector<Pose> poses;      // world_from_node
   std::vector<char> fixed;      // per pose: held constant (at least one, normally the root)
@@ -90,8 +92,10 @@ struct SolverSummary {
   double initialised_cost = 0.0;    // after the chordal step (= initial_cost without it)
   double final_cost = 0.0;
   int iterations = 0;               // Levenberg-Marquardt iterations (accepted and rejected)
+  bool marginals_valid = false;     // marginals asked for and computed
   double initialisation_seconds = 0.0;  // chordal step
   double minimise_seconds = 0.0;        // Levenberg-Marquardt
+  double marginal_seconds = 0.0;        // marginal covariances
   double total_seconds = 0.0;
 
   std::string BriefReport() const;
@@ -101,8 +105,13 @@ struct SolverSummary {
 // edge to a missing pose, no fixed pose, a pose not linked to a fixed one,
 // non-finite information) gives usable = false with the reason, and the
 // poses as they came in.
+// With `marginals`: then the marginal covariance of every pose in its
+// tangent (zero for fixed poses), the diagonal blocks of the inverse of the
+// Gauss-Newton Hessian at the optimum (robust weights included), by the
+// selected inversion of BlockDiagonalOfInverse in the solver's ordering.
 template <int D>
-SolverSummary SolvePoseGraph(PoseGraphProblem<D>* problem, const SolverOptions& options);
+SolverSummary SolvePoseGraph(PoseGraphProblem<D>* problem, const SolverOptions& options,
+                             std::vector<typename PoseGraphProblem<D>::Information>* marginals = nullptr);
 
 // Step 1 alone. False with *error (poses unchanged) when a free pose is not
 // linked to a fixed one.
@@ -127,8 +136,16 @@ typename PoseGraphProblem<D>::Tangent EdgeResidual(
 template <int D>
 void Retract(typename PoseGraphProblem<D>::Pose* pose, const typename PoseGraphProblem<D>::Tangent& delta);
 
-// The robust kernel: rho(s) and its derivative rho'(s) (the IRLS weight).
-double RobustCost(const SolverOptions& options, double s, double* weight);
+// The robust kernel of width options.robust_width * scale: rho(s) and its
+// derivative rho'(s) (the IRLS weight).
+double RobustCost(const SolverOptions& options, double s, double* weight, double scale = 1.0);
+
+// Diagonal blocks (block_size x block_size) of the inverse of a symmetric
+// positive-definite sparse matrix (the lower triangle is read). Exposed for
+// tests. Returns false when the matrix is not positive definite.
+// `keep_order`: the matrix is already in a fill-reducing order (no AMD).
+bool BlockDiagonalOfInverse(const Eigen::SparseMatrix<double>& matrix, int block_size,
+                            std::vector<Eigen::MatrixXd>* blocks, bool keep_order = false);
 
 // Nearest rotation (SVD, det +1) to a D x D matrix.
 template <int D>

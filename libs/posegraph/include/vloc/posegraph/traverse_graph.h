@@ -77,6 +77,7 @@ struct PoseGraphSummary {
   int num_fix_edges = 0;
   int num_pending = 0;           // measurements waiting for their sites
   int num_dr_fallbacks = 0;      // DR edges that used the per-metre model in "difference" mode
+  int num_downweighted = 0;      // loop/fix edges the robust kernel down-weighted (weight < 0.5): likely false
   double initial_chi2 = 0.0;
   double final_chi2 = 0.0;
   int iterations = 0;
@@ -164,6 +165,8 @@ class TraverseGraph {
   Matrix6d DrEdgeCovariance(int from, int to, const Pose3& relative, bool* fallback) const;
   void AddNode(int site_id, const Pose3& world_from_body);
   void RebuildEdges();
+  // The solver's robust-kernel width scale of every edge (0 = not robust).
+  std::vector<double> RobustEdgeScales() const;
   void RetryPending();
   std::string Serialize() const;
   bool Deserialize(const std::string& text, std::string* error);
