@@ -86,6 +86,7 @@ void PoseGraphOptions::Visit(OptionsReader& r) {
   r.Optional("min_position_sigma", &min_position_sigma, "m, floor added to every edge");
   r.Optional("min_rotation_sigma", &min_rotation_sigma, "rad, floor added to every edge");
   r.Optional("compute_marginals", &compute_marginals, "marginal covariances after each update");
+  r.Optional("loop_gate_chi2", &loop_gate_chi2, "loop/fix edges beyond this chi2 against the predicted covariance are switched off");
   r.Optional("max_site_id_jump", &max_site_id_jump, "site ids further beyond the newest are rejected as corrupt");
 }
 
@@ -108,6 +109,7 @@ bool PoseGraphOptions::Check(std::string* error) const {
       {"min_rotation_sigma", min_rotation_sigma}};
   for (const auto& [name, value] : positive)
     if (!(value > 0.0) || !std::isfinite(value)) return Fail(error, std::string(name) + " must be > 0");
+  if (!(loop_gate_chi2 > 0.0)) return Fail(error, "loop_gate_chi2 must be > 0");
   if (max_site_id_jump < 1) return Fail(error, "max_site_id_jump must be >= 1, is " + std::to_string(max_site_id_jump));
   return true;
 }
@@ -357,16 +359,21 @@ void TraverseGraph::RebuildEdges() {
 
 std::vector<double> TraverseGraph::RobustEdgeScales() const {
   // Per edge (graph_.edges order, which RebuildEdges makes edges_ order): 0
-  // for DR and adjacent visual edges; for loops and fixes the kernel width
-  // scale max(1, s / s'), s = e^T W e the edge's own chi2 at the current
-  // estimate and s' = e^T S^-1 e its chi2 against the predicted covariance
-  // S = J_i C_i J_i^T + J_j C_j J_j^T + W^-1 (C = the last update's
-  // marginals, the sites taken as uncorrelated: S is then a little wide,
-  // erring on the side of accepting). So a revisit that closes a long drift
-  // keeps its weight while the drift is within the traverse's own
-  // uncertainty, and a match to the wrong place, far outside it, is
-  // down-weighted. A site without a marginal yet (added since) takes its
-  // nearest site's, grown by the per-metre DR model over the distance.
+  // for DR and adjacent visual edges. A loop or fix is tested against the
+  // predicted covariance of its residual, S = J_i C_i J_i^T + J_j C_j J_j^T
+  // + W^-1 (C = the last update's marginals; the two sites taken as
+  // uncorrelated, which widens S a little: the test errs on accepting):
+  //  - s' = e^T S^-1 e <= loop_gate_chi2: a plausible match. Its kernel
+  //    width is scaled by max(1, s / s') (s = e^T W e, its own chi2), so a
+  //    revisit that closes a long drift keeps its full weight from the first
+  //    iteration while the drift is within the traverse's uncertainty;
+  //  - beyond: switched off for this update (width 1e-9: weight ~0), like a
+  //    switchable constraint whose switch went to zero. It is tested again
+  //    at the next update, so a match that becomes plausible comes back.
+  // With no marginals yet (first update, or compute_marginals off) the
+  // kernel runs at its plain width. A site without a marginal (added since
+  // the last update) takes its nearest site's, grown by the per-metre DR
+  // model over the distance between them.
   std::vector<double> scales;
   scales.reserve(edges_.size());
   auto marginal = [this](mrpt::graphs::TNodeID id) -> Matrix6d {
@@ -396,7 +403,8 @@ std::vector<double> TraverseGraph::RobustEdgeScales() const {
       const Matrix6d S = J_i * marginal(i) * J_i.transpose() + J_j * marginal(j) * J_j.transpose() + W.inverse();
       const double own = e.dot(W * e);
       const double predicted = e.dot(S.ldlt().solve(e));
-      if (predicted > 0 && std::isfinite(own / predicted)) scale = std::max(1.0, own / predicted);
+      if (!(predicted <= options_.loop_gate_chi2)) scale = 1e-9;
+      else if (predicted > 0 && std::isfinite(own / predicted)) scale = std::max(1.0, own / predicted);
     }
     scales.push_back(scale);
   }

@@ -386,6 +386,88 @@ TEST(TraverseGraph, RevisitOfAnEarlierSiteClosesTheLoop) {
   EXPECT_LT(error(12), before);
 }
 
+// The revisit traverse of RevisitOfAnEarlierSiteClosesTheLoop, fed as the
+// traverse_graph process feeds it (an update after every measurement), once
+// as it is and once with 3 false loop closures: revisits matched to the
+// wrong place (site b reported at site a's pose, 30-80 m from it, with the
+// BA's confident 2 cm covariance). The robust kernel, gated by the
+// predicted covariance, must leave the end error within 10 % of the clean
+// run's and flag the 3 edges.
+TEST(TraverseGraph, FalseLoopClosuresAreDownWeighted) {
+  PoseGraphOptions o = PerMetreOptions();
+  std::mt19937 rng(33);
+  std::vector<Pose3> truth = TrueTraverse(20, 8.0, rng);
+  truth.push_back(truth[3]);  // the revisit
+  struct Measurement {
+    int kind;  // 0 DR, 1 visual / loop
+    int from, to;
+    PoseWithCovariance pose;
+  };
+  std::vector<Measurement> clean;
+  Pose3 chain = truth[0];
+  for (int i = 0; i < 21; ++i) {
+    if (i > 0) {
+      const Pose3 rel = truth[i - 1].inverse() * truth[i];
+      const double d = rel.translation().norm();
+      Vector6d sd;
+      sd << o.dr_position_sigma_per_metre * d, o.dr_position_sigma_per_metre * d, o.dr_vertical_sigma_per_metre * d,
+          o.dr_tilt_sigma, o.dr_tilt_sigma, o.dr_heading_sigma_per_metre * d;
+      chain = chain * Perturb(rel, sd.array().square().matrix().asDiagonal(), rng);
+    }
+    PoseWithCovariance p;
+    p.pose = chain;
+    p.utime = i;
+    clean.push_back({0, -1, i, p});
+    if (i > 0 && i % 2 == 0 && i < 20) {
+      PoseWithCovariance vis;
+      vis.covariance = Diag(0.02, 1e-4);
+      vis.pose = Perturb(truth[i - 1].inverse() * truth[i], vis.covariance, rng);
+      clean.push_back({1, i - 1, i, vis});
+    }
+  }
+  PoseWithCovariance loop;
+  loop.covariance = Diag(0.02, 1e-4);
+  loop.pose = Perturb(Pose3::Identity(), loop.covariance, rng);
+  clean.push_back({1, 3, 20, loop});
+  // False loops, each right after its later site arrives.
+  std::vector<Measurement> with_false;
+  const std::vector<std::pair<int, int>> wrong = {{2, 9}, {5, 14}, {8, 18}};
+  for (const Measurement& m : clean) {
+    with_false.push_back(m);
+    for (const auto& [a, b] : wrong)
+      if (m.kind == 0 && m.to == b) {
+        PoseWithCovariance f;
+        f.covariance = Diag(0.02, 1e-4);
+        f.pose = Perturb(MakePose(1.0, 0.5, 0, 0, 0, 0.2), f.covariance, rng);  // "b is 1 m ahead of a"
+        with_false.push_back({1, a, b, f});
+      }
+  }
+  auto run = [&](const std::vector<Measurement>& feed, PoseGraphSummary* last) {
+    TraverseGraph g(o);
+    for (const Measurement& m : feed) {
+      const AddResult r = m.kind == 0 ? g.AddDeadReckoning(m.to, m.pose) : g.AddRelative(m.from, m.to, m.pose);
+      EXPECT_TRUE(r.accepted) << r.message;
+      *last = g.Optimize();
+      EXPECT_TRUE(last->usable) << last->message;
+    }
+    return (g.Site(20)->world_from_body.pose.translation() - truth[20].translation()).norm();
+  };
+  PoseGraphSummary clean_summary, false_summary;
+  const double clean_error = run(clean, &clean_summary);
+  const double false_error = run(with_false, &false_summary);
+  o.optimizer.solver.robust_kernel = "none";
+  PoseGraphSummary plain_summary;
+  const double plain_error = run(with_false, &plain_summary);
+  std::printf("false loops: end error %.3f m clean, %.3f m with 3 false loops (%d down-weighted), %.3f m without "
+              "the robust kernel; distance %.0f m\n",
+              clean_error, false_error, false_summary.num_downweighted, plain_error, 8.0 * 20);
+  EXPECT_EQ(clean_summary.num_downweighted, 0);
+  EXPECT_EQ(false_summary.num_loop_edges, 4);
+  EXPECT_EQ(false_summary.num_downweighted, 3);
+  EXPECT_LE(false_error, 1.1 * clean_error);
+  EXPECT_GT(plain_error, 3.0 * clean_error) << "the false loops should bend a plain least-squares traverse";
+}
+
 TEST(TraverseGraph, VisualBeforeDeadReckoningWaitsThenApplies) {
   TraverseGraph g(PerMetreOptions());
   PoseWithCovariance rel;

@@ -59,6 +59,8 @@ struct PoseGraphOptions {
   double min_position_sigma = 1e-3;               // m, added in quadrature to every edge (keeps W finite)
   double min_rotation_sigma = 1e-5;               // rad, ditto
   bool compute_marginals = true;                  // marginal covariance of every site after each update
+  double loop_gate_chi2 = 22.46;                  // a loop/fix edge whose chi2 against its predicted covariance
+                                                  // exceeds this (6 dof, 99.9 %) is switched off for the update
   int max_site_id_jump = kMaxSiteIdJump;          // a site id this far beyond the newest is corrupt: rejected
 
   void Visit(OptionsReader& r);
