@@ -220,12 +220,19 @@ class LinearSolver {
   Eigen::VectorXd Solve(const Eigen::VectorXd& b) {
     return cholmod_ ? Eigen::VectorXd(cholmod_llt_.solve(b)) : Eigen::VectorXd(eigen_ldlt_.solve(b));
   }
+  // Diagonal blocks of the inverse of the last matrix factorised, from the
+  // factor itself (Eigen's LDL^T only; false otherwise).
+  bool BlockDiagonalOfInverse(int block_size, std::vector<Eigen::MatrixXd>* blocks) const {
+    if (cholmod_ || !analysed_ || eigen_ldlt_.info() != Eigen::Success) return false;
+    return BlockDiagonalOfInverseLDLT(eigen_ldlt_.matrixL().nestedExpression(), eigen_ldlt_.vectorD(), block_size,
+                                      blocks);
+  }
 
  private:
   bool cholmod_;
   bool analysed_ = false;
-  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> cholmod_llt_;
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> eigen_ldlt_;
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Upper> cholmod_llt_;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Upper, Eigen::NaturalOrdering<int>> eigen_ldlt_;
 };
 
 // A fill-reducing order of the free poses: approximate minimum degree on
@@ -261,8 +268,11 @@ int BlockOrdering(const PoseGraphProblem<D>& problem, std::vector<int>* free_ind
   return num_free;
 }
 
-// The normal equations H = sum J^T w W J (lower triangle), g = sum J^T w W e
-// over the free poses, with their sparsity pattern built once.
+// The normal equations H = sum J^T w W J (upper triangle, column-major: the
+// layout Eigen's simplicial factorisations read without a copy) and
+// g = sum J^T w W e over the free poses. The pattern is built once, column
+// by column from the pose adjacency (no triplets), and every edge knows
+// where its blocks' values live.
 template <int D>
 class NormalEquations {
  public:
@@ -272,37 +282,50 @@ class NormalEquations {
 
   NormalEquations(const PoseGraphProblem<D>& problem, const std::vector<int>& free_index, int num_free)
       : free_index_(free_index), n_(K * num_free) {
-    std::vector<Eigen::Triplet<double>> pattern;
-    auto add_block = [&](int a, int b) {  // a >= b
-      for (int c = 0; c < K; ++c)
-        for (int r = (a == b ? c : 0); r < K; ++r) pattern.emplace_back(K * a + r, K * b + c, 0.0);
-    };
-    for (int p = 0; p < num_free; ++p) add_block(p, p);
+    // Block rows above the diagonal of each block column, sorted.
+    std::vector<std::vector<int>> above(static_cast<size_t>(num_free));
     for (const auto& edge : problem.edges) {
       const int a = free_index_[static_cast<size_t>(edge.i)], b = free_index_[static_cast<size_t>(edge.j)];
-      if (a >= 0 && b >= 0 && a != b) add_block(std::max(a, b), std::min(a, b));
+      if (a >= 0 && b >= 0 && a != b) above[static_cast<size_t>(std::max(a, b))].push_back(std::min(a, b));
     }
+    size_t nnz = 0;
+    for (auto& rows : above) {
+      std::sort(rows.begin(), rows.end());
+      rows.erase(std::unique(rows.begin(), rows.end()), rows.end());
+      nnz += static_cast<size_t>(K) * K * rows.size();
+    }
+    nnz += static_cast<size_t>(num_free) * K * (K + 1) / 2;
     H_.resize(n_, n_);
-    H_.setFromTriplets(pattern.begin(), pattern.end());
-    H_.makeCompressed();
-    // Where each edge's blocks start, column by column.
-    auto position = [&](int row, int col) {
-      const int* inner = H_.innerIndexPtr();
-      const int* begin = inner + H_.outerIndexPtr()[col];
-      const int* end = inner + H_.outerIndexPtr()[col + 1];
-      return static_cast<int>(std::lower_bound(begin, end, row) - inner);
-    };
+    H_.resizeNonZeros(static_cast<Eigen::Index>(nnz));
+    int* outer = H_.outerIndexPtr();
+    int* inner = H_.innerIndexPtr();
+    int at = 0;
+    for (int b = 0; b < num_free; ++b)
+      for (int c = 0; c < K; ++c) {
+        outer[K * b + c] = at;
+        for (const int a : above[static_cast<size_t>(b)])
+          for (int r = 0; r < K; ++r) inner[at++] = K * a + r;
+        for (int r = 0; r <= c; ++r) inner[at++] = K * b + r;
+      }
+    outer[n_] = at;
+    std::fill(H_.valuePtr(), H_.valuePtr() + nnz, 0.0);
     diagonal_.resize(static_cast<size_t>(n_));
-    for (int c = 0; c < n_; ++c) diagonal_[static_cast<size_t>(c)] = position(c, c);
+    for (int col = 0; col < n_; ++col) diagonal_[static_cast<size_t>(col)] = outer[col + 1] - 1;
     positions_.resize(problem.edges.size());
     for (size_t e = 0; e < problem.edges.size(); ++e) {
       const auto& edge = problem.edges[e];
       const int a = free_index_[static_cast<size_t>(edge.i)], b = free_index_[static_cast<size_t>(edge.j)];
       auto& pos = positions_[e];
       for (int c = 0; c < K; ++c) {
-        pos.ii[c] = a >= 0 ? position(K * a + c, K * a + c) : -1;
-        pos.jj[c] = b >= 0 ? position(K * b + c, K * b + c) : -1;
-        pos.off[c] = a >= 0 && b >= 0 && a != b ? position(K * std::max(a, b), K * std::min(a, b) + c) : -1;
+        // Diagonal blocks: column c's rows 0..c end the column.
+        pos.ii[c] = a >= 0 ? outer[K * a + c + 1] - (c + 1) : -1;
+        pos.jj[c] = b >= 0 ? outer[K * b + c + 1] - (c + 1) : -1;
+        pos.off[c] = -1;
+        if (a >= 0 && b >= 0 && a != b) {
+          const auto& rows = above[static_cast<size_t>(std::max(a, b))];
+          const int k = static_cast<int>(std::lower_bound(rows.begin(), rows.end(), std::min(a, b)) - rows.begin());
+          pos.off[c] = outer[K * std::max(a, b) + c] + K * k;
+        }
       }
     }
   }
@@ -330,7 +353,7 @@ class NormalEquations {
       l.g_j = WJ_j.transpose() * e;
       l.H_ii = J_i.transpose() * WJ_i;
       l.H_jj = J_j.transpose() * WJ_j;
-      l.H_ji = J_j.transpose() * WJ_i;
+      l.H_ij = J_i.transpose() * WJ_j;
     }
     std::fill(H_.valuePtr(), H_.valuePtr() + H_.nonZeros(), 0.0);
     g_.setZero(n_);
@@ -343,21 +366,21 @@ class NormalEquations {
       if (a >= 0) {
         g_.template segment<K>(K * a) += l.g_i;
         for (int c = 0; c < K; ++c)
-          for (int r = c; r < K; ++r) values[pos.ii[c] + r - c] += l.H_ii(r, c);
+          for (int r = 0; r <= c; ++r) values[pos.ii[c] + r] += l.H_ii(r, c);
       }
       if (b >= 0) {
         g_.template segment<K>(K * b) += l.g_j;
         for (int c = 0; c < K; ++c)
-          for (int r = c; r < K; ++r) values[pos.jj[c] + r - c] += l.H_jj(r, c);
+          for (int r = 0; r <= c; ++r) values[pos.jj[c] + r] += l.H_jj(r, c);
       }
       if (a >= 0 && b >= 0) {
         if (a == b) {  // a self-loop: its cross terms land on the diagonal block
-          const Block sym = l.H_ji + l.H_ji.transpose();
+          const Block sym = l.H_ij + l.H_ij.transpose();
           for (int c = 0; c < K; ++c)
-            for (int r = c; r < K; ++r) values[pos.ii[c] + r - c] += sym(r, c);
+            for (int r = 0; r <= c; ++r) values[pos.ii[c] + r] += sym(r, c);
         } else {
-          // Block (max, min): H_ji when j > i in the free order, else its transpose.
-          const Block off = b > a ? l.H_ji : Block(l.H_ji.transpose());
+          // Block (min, max): H_ij when i comes first in the free order, else its transpose.
+          const Block off = a < b ? l.H_ij : Block(l.H_ij.transpose());
           for (int c = 0; c < K; ++c)
             for (int r = 0; r < K; ++r) values[pos.off[c] + r] += off(r, c);
         }
@@ -365,17 +388,17 @@ class NormalEquations {
     }
   }
 
-  const Eigen::SparseMatrix<double>& H() const { return H_; }
+  const Eigen::SparseMatrix<double>& H() const { return H_; }  // upper triangle
   const Eigen::VectorXd& g() const { return g_; }
   const std::vector<int>& diagonal_positions() const { return diagonal_; }
   int size() const { return n_; }
 
  private:
   struct Positions {
-    int ii[K], jj[K], off[K];
+    int ii[K], jj[K], off[K];  // start of column c's rows of each block in H's values
   };
   struct Linearised {
-    Block H_ii, H_jj, H_ji;
+    Block H_ii, H_jj, H_ij;
     Vec g_i, g_j;
   };
   const std::vector<int>& free_index_;
@@ -427,6 +450,8 @@ bool Minimise(PoseGraphProblem<D>* problem, const SolverOptions& options, Solver
   double cost = Cost(*problem, &options);
   double lambda = options.initial_lambda, nu = 2.0;
   bool linearise = true;
+  double factor_lambda = -1.0;  // damping of the last successful factorisation
+  bool converged = false;       // stopped on an accepted step below the tolerance
   std::vector<typename PoseGraphProblem<D>::Pose> backup;
   for (int iter = 0; iter < options.max_iterations; ++iter) {
     if (linearise) {
@@ -442,12 +467,14 @@ bool Minimise(PoseGraphProblem<D>* problem, const SolverOptions& options, Solver
       scaled_diagonal[c] = lambda * std::max(d, 1e-12);
       d += scaled_diagonal[c];
     }
+    factor_lambda = -1.0;
     if (!solver.Factorise(A)) {
       lambda *= nu;
       nu *= 2.0;
       if (lambda > 1e16) return Fail(&summary->message, "the damped normal equations stay singular");
       continue;
     }
+    factor_lambda = lambda;
     const Eigen::VectorXd step = -solver.Solve(normal.g());
     if (!step.allFinite()) return Fail(&summary->message, "the linear solve gave a non-finite step");
     backup = problem->poses;
@@ -461,7 +488,7 @@ bool Minimise(PoseGraphProblem<D>* problem, const SolverOptions& options, Solver
       std::printf("[vloc posegraph] iter %d cost %.9g -> %.9g lambda %.3g |step| %.3g (%.3f ms)\n", iter, cost, new_cost,
                   lambda, step.norm(), 1e3 * watch.Seconds());
     if (std::isfinite(new_cost) && new_cost < cost) {
-      const bool converged = cost - new_cost <= options.relative_cost_tolerance * cost;
+      converged = cost - new_cost <= options.relative_cost_tolerance * cost;
       cost = new_cost;
       lambda *= std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3));
       lambda = std::max(lambda, 1e-15);
@@ -476,11 +503,20 @@ bool Minimise(PoseGraphProblem<D>* problem, const SolverOptions& options, Solver
     }
   }
   if (marginals) {
+    // At convergence the last factorisation (H + lambda diag(H), lambda <=
+    // 1e-6, one converged step before the optimum) is the Hessian's to that
+    // precision: its selected inverse serves; otherwise relinearise at the
+    // optimum and factorise H again.
     const Stopwatch marginal;
-    if (linearise) normal.Linearise(*problem, options);
     std::vector<Eigen::MatrixXd> blocks;
     marginals->assign(problem->poses.size(), PoseGraphProblem<D>::Information::Zero());
-    summary->marginals_valid = BlockDiagonalOfInverse(normal.H(), K, &blocks, /*keep_order=*/true);
+    const bool reuse = converged && factor_lambda >= 0 && factor_lambda <= 1e-6;
+    summary->marginals_valid = reuse && solver.BlockDiagonalOfInverse(K, &blocks);
+    if (!summary->marginals_valid) {
+      if (linearise) normal.Linearise(*problem, options);
+      const Eigen::SparseMatrix<double> lower = normal.H().transpose();
+      summary->marginals_valid = BlockDiagonalOfInverse(lower, K, &blocks, /*keep_order=*/true);
+    }
     if (summary->marginals_valid) {
       for (size_t p = 0; p < problem->poses.size(); ++p)
         if (free_index[p] >= 0) (*marginals)[p] = blocks[static_cast<size_t>(free_index[p])];

@@ -34,10 +34,14 @@
 namespace vloc::posegraph {
 
 // The solver's settings for an incremental update: no chordal step (warm
-// start from the previous optimum).
+// start from the previous optimum), Eigen's simplicial factorisation (a
+// traverse is nearly a chain: CHOLMOD's supernodes do not pay), and a cost
+// tolerance of 1e-6.
 inline SolverOptions WarmStartSolverOptions() {
   SolverOptions o;
   o.chordal_initialisation = false;
+  o.linear_solver = "eigen";
+  o.relative_cost_tolerance = 1e-6;
   return o;
 }
 

@@ -147,6 +147,13 @@ double RobustCost(const SolverOptions& options, double s, double* weight, double
 bool BlockDiagonalOfInverse(const Eigen::SparseMatrix<double>& matrix, int block_size,
                             std::vector<Eigen::MatrixXd>* blocks, bool keep_order = false);
 
+// The same from an LDL^T factorisation (natural order) of the matrix: L
+// unit lower triangular with only its strictly lower part stored (row indices
+// sorted, compressed; Eigen's SimplicialLDLT layout), d the diagonal of D.
+// The factor's pattern must cover the diagonal blocks.
+bool BlockDiagonalOfInverseLDLT(const Eigen::SparseMatrix<double>& L, const Eigen::VectorXd& d, int block_size,
+                                std::vector<Eigen::MatrixXd>* blocks);
+
 // Nearest rotation (SVD, det +1) to a D x D matrix.
 template <int D>
 Eigen::Matrix<double, D, D> ProjectToRotation(const Eigen::Matrix<double, D, D>& m);
