@@ -331,61 +331,25 @@ class NormalEquations {
   }
 
   // Linearises every edge at `problem`'s poses (robust edges weighted by
-  // the kernel's IRLS weight) and fills H and g.
+  // the kernel's IRLS weight) and fills H and g. One thread: each edge is
+  // added as it is linearised; more: all in parallel into a buffer, then
+  // added serially.
   void Linearise(const PoseGraphProblem<D>& problem, const SolverOptions& options) {
     const int m = static_cast<int>(problem.edges.size());
-    lin_.resize(static_cast<size_t>(m));
-#pragma omp parallel for schedule(static) num_threads(options.num_threads)
-    for (int k = 0; k < m; ++k) {
-      const auto& edge = problem.edges[static_cast<size_t>(k)];
-      Block J_i, J_j;
-      const Vec e = EdgeResidual<D>(edge.measurement, problem.poses[static_cast<size_t>(edge.i)],
-                                    problem.poses[static_cast<size_t>(edge.j)], &J_i, &J_j);
-      Block W = edge.information;
-      if (edge.robust) {
-        double w;
-        RobustCost(options, e.dot(W * e), &w, edge.robust_scale);
-        W *= w;
-      }
-      Linearised& l = lin_[static_cast<size_t>(k)];
-      const Block WJ_i = W * J_i, WJ_j = W * J_j;
-      l.g_i = WJ_i.transpose() * e;
-      l.g_j = WJ_j.transpose() * e;
-      l.H_ii = J_i.transpose() * WJ_i;
-      l.H_jj = J_j.transpose() * WJ_j;
-      l.H_ij = J_i.transpose() * WJ_j;
-    }
     std::fill(H_.valuePtr(), H_.valuePtr() + H_.nonZeros(), 0.0);
     g_.setZero(n_);
-    double* values = H_.valuePtr();
-    for (int k = 0; k < m; ++k) {
-      const auto& edge = problem.edges[static_cast<size_t>(k)];
-      const Linearised& l = lin_[static_cast<size_t>(k)];
-      const Positions& pos = positions_[static_cast<size_t>(k)];
-      const int a = free_index_[static_cast<size_t>(edge.i)], b = free_index_[static_cast<size_t>(edge.j)];
-      if (a >= 0) {
-        g_.template segment<K>(K * a) += l.g_i;
-        for (int c = 0; c < K; ++c)
-          for (int r = 0; r <= c; ++r) values[pos.ii[c] + r] += l.H_ii(r, c);
+    if (options.num_threads <= 1) {
+      Linearised l;
+      for (int k = 0; k < m; ++k) {
+        LineariseEdge(problem, options, k, &l);
+        Add(problem, k, l);
       }
-      if (b >= 0) {
-        g_.template segment<K>(K * b) += l.g_j;
-        for (int c = 0; c < K; ++c)
-          for (int r = 0; r <= c; ++r) values[pos.jj[c] + r] += l.H_jj(r, c);
-      }
-      if (a >= 0 && b >= 0) {
-        if (a == b) {  // a self-loop: its cross terms land on the diagonal block
-          const Block sym = l.H_ij + l.H_ij.transpose();
-          for (int c = 0; c < K; ++c)
-            for (int r = 0; r <= c; ++r) values[pos.ii[c] + r] += sym(r, c);
-        } else {
-          // Block (min, max): H_ij when i comes first in the free order, else its transpose.
-          const Block off = a < b ? l.H_ij : Block(l.H_ij.transpose());
-          for (int c = 0; c < K; ++c)
-            for (int r = 0; r < K; ++r) values[pos.off[c] + r] += off(r, c);
-        }
-      }
+      return;
     }
+    lin_.resize(static_cast<size_t>(m));
+#pragma omp parallel for schedule(static) num_threads(options.num_threads)
+    for (int k = 0; k < m; ++k) LineariseEdge(problem, options, k, &lin_[static_cast<size_t>(k)]);
+    for (int k = 0; k < m; ++k) Add(problem, k, lin_[static_cast<size_t>(k)]);
   }
 
   const Eigen::SparseMatrix<double>& H() const { return H_; }  // upper triangle
@@ -401,6 +365,55 @@ class NormalEquations {
     Block H_ii, H_jj, H_ij;
     Vec g_i, g_j;
   };
+
+  void LineariseEdge(const PoseGraphProblem<D>& problem, const SolverOptions& options, int k, Linearised* l) const {
+    const auto& edge = problem.edges[static_cast<size_t>(k)];
+    Block J_i, J_j;
+    const Vec e = EdgeResidual<D>(edge.measurement, problem.poses[static_cast<size_t>(edge.i)],
+                                  problem.poses[static_cast<size_t>(edge.j)], &J_i, &J_j);
+    Block W = edge.information;
+    if (edge.robust) {
+      double w;
+      RobustCost(options, e.dot(W * e), &w, edge.robust_scale);
+      W *= w;
+    }
+    const Block WJ_i = W * J_i, WJ_j = W * J_j;
+    l->g_i = WJ_i.transpose() * e;
+    l->g_j = WJ_j.transpose() * e;
+    l->H_ii = J_i.transpose() * WJ_i;
+    l->H_jj = J_j.transpose() * WJ_j;
+    l->H_ij = J_i.transpose() * WJ_j;
+  }
+
+  void Add(const PoseGraphProblem<D>& problem, int k, const Linearised& l) {
+    double* values = H_.valuePtr();
+    const auto& edge = problem.edges[static_cast<size_t>(k)];
+    const Positions& pos = positions_[static_cast<size_t>(k)];
+    const int a = free_index_[static_cast<size_t>(edge.i)], b = free_index_[static_cast<size_t>(edge.j)];
+    if (a >= 0) {
+      g_.template segment<K>(K * a) += l.g_i;
+      for (int c = 0; c < K; ++c)
+        for (int r = 0; r <= c; ++r) values[pos.ii[c] + r] += l.H_ii(r, c);
+    }
+    if (b >= 0) {
+      g_.template segment<K>(K * b) += l.g_j;
+      for (int c = 0; c < K; ++c)
+        for (int r = 0; r <= c; ++r) values[pos.jj[c] + r] += l.H_jj(r, c);
+    }
+    if (a >= 0 && b >= 0) {
+      if (a == b) {  // a self-loop: its cross terms land on the diagonal block
+        const Block sym = l.H_ij + l.H_ij.transpose();
+        for (int c = 0; c < K; ++c)
+          for (int r = 0; r <= c; ++r) values[pos.ii[c] + r] += sym(r, c);
+      } else {
+        // Block (min, max): H_ij when i comes first in the free order, else its transpose.
+        const Block off = a < b ? l.H_ij : Block(l.H_ij.transpose());
+        for (int c = 0; c < K; ++c)
+          for (int r = 0; r < K; ++r) values[pos.off[c] + r] += off(r, c);
+      }
+    }
+  }
+
   const std::vector<int>& free_index_;
   int n_;
   Eigen::SparseMatrix<double> H_;

@@ -236,7 +236,7 @@ AddResult TraverseGraph::AddDeadReckoning(int site_id, const PoseWithCovariance&
     if (fallback) ++num_dr_fallbacks_;
     edges_[EdgeKey{*from, *to, EdgeKind::kDeadReckoning}] = edge;
   }
-  RebuildEdges();
+  edges_dirty_ = true;
   RetryPending();
   result.accepted = true;
   result.changed = true;
@@ -339,7 +339,7 @@ AddResult TraverseGraph::AddEdge(int from, int to, EdgeKind kind, const PoseWith
   }
   edges_[EdgeKey{from, to, kind}] = edge;
   if (!sites_.count(to)) sites_[to].utime = measurement.utime;
-  RebuildEdges();
+  edges_dirty_ = true;
   result.accepted = result.changed = true;
   return result;
 }
@@ -350,15 +350,73 @@ void TraverseGraph::RetryPending() {
   for (const Pending& p : waiting) AddEdge(p.from, p.to, p.kind, p.measurement);
 }
 
-void TraverseGraph::RebuildEdges() {
-  graph_.edges.clear();
-  for (const auto& [key, edge] : edges_)
-    graph_.insertEdge(static_cast<mrpt::graphs::TNodeID>(key.from), static_cast<mrpt::graphs::TNodeID>(key.to),
-                      edge);
+mrpt::graphs::CNetworkOfPoses3DInf& TraverseGraph::Synced() const {
+  if (edges_dirty_) {
+    graph_.edges.clear();
+    for (const auto& [key, edge] : edges_)
+      graph_.insertEdge(static_cast<mrpt::graphs::TNodeID>(key.from), static_cast<mrpt::graphs::TNodeID>(key.to),
+                        edge);
+    edges_dirty_ = false;
+  }
+  return graph_;
+}
+
+OptimizerResult TraverseGraph::SolveSparse(const std::vector<double>& robust) {
+  // The solver's problem straight from edges_ (no MRPT edge map needed).
+  const Stopwatch watch;
+  PoseGraph3 problem;
+  std::vector<mrpt::graphs::TNodeID> ids;
+  std::map<mrpt::graphs::TNodeID, int> index;
+  for (const auto& [id, node] : graph_.nodes) {
+    index.emplace(id, static_cast<int>(ids.size()));
+    ids.push_back(id);
+    PoseGraph3::Pose p;
+    p.R = node.getRotationMatrix().asEigen();
+    p.t = Eigen::Vector3d(node.x(), node.y(), node.z());
+    problem.poses.push_back(p);
+    problem.fixed.push_back(id == graph_.root ? 1 : 0);
+  }
+  size_t k = 0;
+  for (const auto& [key, edge] : edges_) {
+    const auto a = index.find(static_cast<mrpt::graphs::TNodeID>(key.from));
+    const auto b = index.find(static_cast<mrpt::graphs::TNodeID>(key.to));
+    if (a == index.end() || b == index.end())
+      throw std::runtime_error("pose graph edge " + std::to_string(key.from) + "->" + std::to_string(key.to) +
+                               " refers to a missing site");
+    PoseGraph3::Edge e;
+    e.i = a->second;
+    e.j = b->second;
+    e.measurement.R = edge.mean.getRotationMatrix().asEigen();
+    e.measurement.t = Eigen::Vector3d(edge.mean.x(), edge.mean.y(), edge.mean.z());
+    e.information = edge.cov_inv.asEigen();
+    e.robust = robust[k] > 0;
+    if (e.robust) e.robust_scale = robust[k];
+    problem.edges.push_back(e);
+    ++k;
+  }
+  SolverOptions solver = options_.optimizer.solver;
+  solver.verbose |= options_.optimizer.verbose;
+  std::vector<PoseGraph3::Information> blocks;
+  const SolverSummary summary = SolvePoseGraph(&problem, solver, options_.compute_marginals ? &blocks : nullptr);
+  if (!summary.usable) throw std::runtime_error("pose graph solver: " + summary.message);
+  OptimizerResult r;
+  for (size_t p = 0; p < ids.size(); ++p) {
+    if (problem.fixed[p]) continue;
+    graph_.nodes.at(ids[p]) = ToMrpt(MakePose(problem.poses[p].R, problem.poses[p].t));
+    if (summary.marginals_valid) marginals_[ids[p]] = blocks[p];
+  }
+  r.iterations = summary.iterations;
+  r.initial_chi2 = summary.initial_cost;
+  r.final_chi2 = summary.final_cost;
+  r.num_downweighted = summary.num_downweighted;
+  r.marginals_valid = summary.marginals_valid;
+  r.marginal_seconds = summary.marginal_seconds;
+  r.seconds = watch.Seconds();
+  return r;
 }
 
 std::vector<double> TraverseGraph::RobustEdgeScales() const {
-  // Per edge (graph_.edges order, which RebuildEdges makes edges_ order): 0
+  // Per edge (edges_ order): 0
   // for DR and adjacent visual edges. A loop or fix is tested against the
   // predicted covariance of its residual, S = J_i C_i J_i^T + J_j C_j J_j^T
   // + W^-1 (C = the last update's marginals; the two sites taken as
@@ -432,10 +490,11 @@ PoseGraphSummary TraverseGraph::Optimize() {
   // Revisits and absolute fixes go through the robust kernel: a false
   // match must not bend the traverse.
   const std::vector<double> robust = RobustEdgeScales();
-  const bool solver_marginals = options_.compute_marginals && options_.optimizer.method == "sparse";
+  const bool sparse = options_.optimizer.method == "sparse";
+  const bool solver_marginals = options_.compute_marginals && sparse;
   marginals_.clear();
   try {
-    const OptimizerResult r = OptimizeGraph(graph_, options_.optimizer, &robust, solver_marginals ? &marginals_ : nullptr);
+    const OptimizerResult r = sparse ? SolveSparse(robust) : OptimizeGraph(Synced(), options_.optimizer);
     s.initial_chi2 = r.initial_chi2;
     s.final_chi2 = r.final_chi2;
     s.iterations = r.iterations;
@@ -457,7 +516,7 @@ PoseGraphSummary TraverseGraph::Optimize() {
   if (options_.compute_marginals && !solver_marginals) {
     const Stopwatch marginals;
     std::string error;
-    s.marginals_valid = LocalMarginals(graph_, &marginals_, &error, options_.optimizer.num_threads);
+    s.marginals_valid = LocalMarginals(Synced(), &marginals_, &error, options_.optimizer.num_threads);
     if (!s.marginals_valid) s.message = error;
     s.marginal_seconds = marginals.Seconds();
   }
@@ -520,7 +579,7 @@ std::string TraverseGraph::Serialize() const {
     WritePoseText(os, p.measurement);
     os << '\n';
   }
-  graph_.writeAsText(os);
+  Synced().writeAsText(os);
   return os.str();
 }
 
@@ -622,7 +681,7 @@ bool TraverseGraph::Deserialize(const std::string& text, std::string* error) {
     if (!loaded.sites_.count(id)) loaded.sites_[id] = SiteRecord{};
   }
   loaded.have_root_ = !g.nodes.empty();
-  loaded.RebuildEdges();
+  loaded.edges_dirty_ = true;
   *this = std::move(loaded);
   return true;
 }

@@ -126,7 +126,7 @@ class TraverseGraph {
   std::optional<SiteEstimate> Site(int site_id) const;
   int num_sites() const { return static_cast<int>(graph_.nodes.size()); }
   int64_t newest_utime() const;
-  const mrpt::graphs::CNetworkOfPoses3DInf& graph() const { return graph_; }
+  const mrpt::graphs::CNetworkOfPoses3DInf& graph() const { return Synced(); }
   const PoseGraphOptions& options() const { return options_; }
 
   // Writes atomically (temporary file + rename). False with *error on failure.
@@ -166,15 +166,21 @@ class TraverseGraph {
   std::string SiteIdProblem(int site_id) const;
   Matrix6d DrEdgeCovariance(int from, int to, const Pose3& relative, bool* fallback) const;
   void AddNode(int site_id, const Pose3& world_from_body);
-  void RebuildEdges();
-  // The solver's robust-kernel width scale of every edge (0 = not robust).
+  // graph_ with its edges rebuilt from edges_ when they changed (the MRPT
+  // edge map is only needed to save and for method "mrpt").
+  mrpt::graphs::CNetworkOfPoses3DInf& Synced() const;
+  // The solver's robust-kernel width scale of every edge (edges_ order, 0 =
+  // not robust).
   std::vector<double> RobustEdgeScales() const;
+  // Method "sparse": SolvePoseGraph over graph_'s nodes and edges_.
+  OptimizerResult SolveSparse(const std::vector<double>& robust);
   void RetryPending();
   std::string Serialize() const;
   bool Deserialize(const std::string& text, std::string* error);
 
   PoseGraphOptions options_;
-  mrpt::graphs::CNetworkOfPoses3DInf graph_;
+  mutable mrpt::graphs::CNetworkOfPoses3DInf graph_;  // nodes authoritative; edges a cache of edges_ (Synced)
+  mutable bool edges_dirty_ = false;
   std::map<EdgeKey, mrpt::poses::CPose3DPDFGaussianInf> edges_;  // authoritative edge list
   std::map<int, SiteRecord> sites_;
   std::vector<Pending> pending_;
