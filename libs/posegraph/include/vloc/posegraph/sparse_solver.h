@@ -70,7 +70,7 @@ struct SolverOptions {
   int max_iterations = 100;               // Levenberg-Marquardt iterations
   double relative_cost_tolerance = 1e-9;  // stop when an accepted step lowers the cost by less than this fraction
   double gradient_tolerance = 1e-10;      // stop when |J^T W e|_inf <= this
-  double initial_lambda = 1e-6;           // initial damping, relative to each diagonal entry of the Hessian
+  double initial_lambda = 1e-12;          // initial damping, relative to each diagonal entry of the Hessian (Gauss-Newton first)
   std::string robust_kernel = "dcs";      // on robust edges: "none", "cauchy" or "dcs" (dynamic covariance scaling)
   double robust_width = 10.0;             // kernel width in chi2 units (e^T W e): DCS Phi / Cauchy c^2
   std::string linear_solver = "cholmod";  // "cholmod" (SuiteSparse supernodal) or "eigen" (SimplicialLDLT)
