@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdlib>
 #include <deque>
 #include <fstream>
 #include <map>
@@ -121,6 +122,23 @@ std::string RepairReport(int repaired, int rejected) {
   return os.str();
 }
 
+// Numbers by strtod, which also takes "nan" and "inf" (streams refuse them):
+// a non-finite value is then the edge's problem, not a parse error.
+struct Numbers {
+  std::istringstream& s;
+  template <class... T>
+  bool Read(T*... values) {
+    return (One(values) && ...);
+  }
+  bool One(double* v) {
+    std::string token;
+    if (!(s >> token)) return false;
+    char* end = nullptr;
+    *v = std::strtod(token.c_str(), &end);
+    return end && *end == '\0';
+  }
+};
+
 bool ParseG2o(const std::string& text, GraphFile* file, std::string* error) {
   std::istringstream lines(text);
   std::string line;
@@ -135,16 +153,16 @@ bool ParseG2o(const std::string& text, GraphFile* file, std::string* error) {
     if (key == "VERTEX_SE3:QUAT") {
       TNodeID id;
       double x, y, z, qx, qy, qz, qw;
-      if (file->dimension != 3 || !(s >> id >> x >> y >> z >> qx >> qy >> qz >> qw)) return bad();
+      if (file->dimension != 3 || !(s >> id) || !Numbers{s}.Read(&x, &y, &z, &qx, &qy, &qz, &qw)) return bad();
       file->graph3.nodes[id] = PoseFromQuat(x, y, z, qx, qy, qz, qw);
     } else if (key == "EDGE_SE3:QUAT") {
       TNodeID i, j;
       double x, y, z, qx, qy, qz, qw;
       Matrix6 info;
-      if (file->dimension != 3 || !(s >> i >> j >> x >> y >> z >> qx >> qy >> qz >> qw)) return bad();
+      if (file->dimension != 3 || !(s >> i >> j) || !Numbers{s}.Read(&x, &y, &z, &qx, &qy, &qz, &qw)) return bad();
       for (int r = 0; r < 6; ++r)
         for (int c = r; c < 6; ++c) {
-          if (!(s >> info(r, c))) return bad();
+          if (!Numbers{s}.One(&info(r, c))) return bad();
           info(c, r) = info(r, c);
         }
       mrpt::poses::CPose3DPDFGaussianInf edge;
@@ -161,16 +179,16 @@ bool ParseG2o(const std::string& text, GraphFile* file, std::string* error) {
     } else if (key == "VERTEX_SE2") {
       TNodeID id;
       double x, y, th;
-      if (file->dimension != 2 || !(s >> id >> x >> y >> th)) return bad();
+      if (file->dimension != 2 || !(s >> id) || !Numbers{s}.Read(&x, &y, &th)) return bad();
       file->graph2.nodes[id] = mrpt::poses::CPose2D(x, y, th);
     } else if (key == "EDGE_SE2") {
       TNodeID i, j;
       double x, y, th;
       Eigen::Matrix3d info;
-      if (file->dimension != 2 || !(s >> i >> j >> x >> y >> th)) return bad();
+      if (file->dimension != 2 || !(s >> i >> j) || !Numbers{s}.Read(&x, &y, &th)) return bad();
       for (int r = 0; r < 3; ++r)
         for (int c = r; c < 3; ++c) {
-          if (!(s >> info(r, c))) return bad();
+          if (!Numbers{s}.One(&info(r, c))) return bad();
           info(c, r) = info(r, c);
         }
       bool repaired = false;
@@ -222,6 +240,62 @@ bool ParseMrpt(const std::string& text, Graph* graph, GraphFile* file, std::stri
   return true;
 }
 
+// MRPT's 3D text records, read in MRPT's layout (VERTEX3 id x y z roll
+// pitch yaw; EDGE3 i j x y z roll pitch yaw + the 21 values MRPT's writer
+// puts out, rows 0 1 2 5 4 3 of its matrix). MRPT 2.5's own reader mirrors
+// three entries it never read over the rotation cross terms; this one keeps
+// them. Information matrices repaired / rejected like the g2o path.
+bool ParseMrpt3D(const std::string& text, GraphFile* file, std::string* error) {
+  static const int kOrder[21][2] = {{0, 0}, {0, 1}, {0, 2}, {0, 5}, {0, 4}, {0, 3}, {1, 1}, {1, 2}, {1, 5}, {1, 4}, {1, 3},
+                                    {2, 2}, {2, 5}, {2, 4}, {2, 3}, {5, 5}, {5, 4}, {5, 3}, {4, 4}, {4, 3}, {3, 3}};
+  std::istringstream lines(text);
+  std::string line;
+  int line_number = 0;
+  bool had_root = false;
+  while (std::getline(lines, line)) {
+    ++line_number;
+    std::istringstream s(line);
+    std::string key;
+    if (!(s >> key) || key[0] == '#') continue;
+    auto bad = [&]() { return Fail(error, "line " + std::to_string(line_number) + ": cannot parse '" + line + "'"); };
+    if (key == "VERTEX3") {
+      TNodeID id;
+      mrpt::math::TPose3D p;
+      if (!(s >> id) || !Numbers{s}.Read(&p.x, &p.y, &p.z, &p.roll, &p.pitch, &p.yaw)) return bad();
+      file->graph3.nodes[id] = mrpt::poses::CPose3D(p);
+    } else if (key == "EDGE3") {
+      TNodeID i, j;
+      mrpt::math::TPose3D p;
+      if (!(s >> i >> j) || !Numbers{s}.Read(&p.x, &p.y, &p.z, &p.roll, &p.pitch, &p.yaw)) return bad();
+      Matrix6 info = Matrix6::Identity();
+      double v;
+      for (const auto& rc : kOrder) {
+        if (!Numbers{s}.One(&v)) return bad();
+        info(rc[0], rc[1]) = info(rc[1], rc[0]) = v;
+      }
+      bool repaired = false;
+      if (!std::isfinite(p.x + p.y + p.z + p.roll + p.pitch + p.yaw) || !RepairInformation<6>(&info, &repaired)) {
+        ++file->num_rejected;
+        continue;
+      }
+      file->num_repaired += repaired ? 1 : 0;
+      mrpt::poses::CPose3DPDFGaussianInf edge;
+      edge.mean = mrpt::poses::CPose3D(p);
+      edge.cov_inv = mrpt::math::CMatrixDouble66(info);
+      file->graph3.insertEdge(i, j, edge);
+    } else if (key == "FIX") {
+      TNodeID id;
+      if (!(s >> id)) return bad();
+      file->graph3.root = id;
+      had_root = true;
+    } else if (key != "EQUIV") {
+      return Fail(error, "line " + std::to_string(line_number) + ": unknown record '" + key + "' in a 3D MRPT graph");
+    }
+  }
+  FinishGraph(&file->graph3, had_root);
+  return true;
+}
+
 }  // namespace
 
 bool ParseGraphText(const std::string& text, GraphFile* file, std::string* error) {
@@ -252,7 +326,7 @@ bool ParseGraphText(const std::string& text, GraphFile* file, std::string* error
   file->had_vertices = had_vertices;
   bool ok;
   if (file->format == GraphFormat::kG2o) ok = ParseG2o(text, file, error);
-  else if (three_d) ok = ParseMrpt(text, &file->graph3, file, error);
+  else if (three_d) ok = ParseMrpt3D(text, file, error);
   else ok = ParseMrpt(text, &file->graph2, file, error);
   if (!ok) return false;
   if (file->num_edges() == 0) return Fail(error, "no usable edge");
@@ -274,8 +348,21 @@ std::string GraphText(const GraphFile& file) {
   std::ostringstream os;
   os.precision(17);
   if (file.format == GraphFormat::kMrptText) {
-    if (file.dimension == 2) file.graph2.writeAsText(os);
-    else file.graph3.writeAsText(os);
+    if (file.dimension == 3) {
+      file.graph3.writeAsText(os);  // VERTEX3 / EDGE3 (and FIX)
+      return os.str();
+    }
+    // MRPT writes 2D graphs with g2o's keywords; keep the file's own.
+    for (const auto& [id, p] : file.graph2.nodes)
+      os << "VERTEX2 " << id << ' ' << p.x() << ' ' << p.y() << ' ' << p.phi() << '\n';
+    for (const auto& [ids, edge] : file.graph2.edges) {
+      os << "EDGE2 " << ids.first << ' ' << ids.second << ' ' << edge.mean.x() << ' ' << edge.mean.y() << ' '
+         << edge.mean.phi();
+      for (int r = 0; r < 3; ++r)
+        for (int c = r; c < 3; ++c) os << ' ' << edge.cov_inv(r, c);
+      os << '\n';
+    }
+    os << "FIX " << file.graph2.root << '\n';
     return os.str();
   }
   if (file.dimension == 2) {
