@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "vloc/common/stopwatch.h"
+#include "vloc/posegraph/graph_io.h"
 
 namespace vloc::posegraph {
 
@@ -556,10 +557,10 @@ int64_t TraverseGraph::newest_utime() const {
   return newest;
 }
 
-std::string TraverseGraph::Serialize() const {
+std::string TraverseGraph::Serialize(GraphFormat format) const {
   std::ostringstream os;
   os.precision(17);
-  os << "# vloc traverse graph: MRPT text graph format; '# VLOC_' lines are vloc metadata\n";
+  os << "# vloc traverse graph: " << GraphFormatName(format) << " format; '# VLOC_' lines are vloc metadata\n";
   os << "# VLOC_VERSION 1\n";
   for (const auto& [id, rec] : sites_) {
     os << "# VLOC_SITE " << id << ' ' << rec.utime << ' ' << (rec.has_dr ? 1 : 0) << ' ';
@@ -579,13 +580,23 @@ std::string TraverseGraph::Serialize() const {
     WritePoseText(os, p.measurement);
     os << '\n';
   }
-  Synced().writeAsText(os);
+  if (format == GraphFormat::kG2o) {
+    GraphFile file;
+    file.dimension = 3;
+    file.format = GraphFormat::kG2o;
+    file.graph3 = Synced();
+    os << GraphText(file);
+  } else {
+    Synced().writeAsText(os);
+  }
   return os.str();
 }
 
 bool TraverseGraph::Save(const std::string& path, std::string* error) const {
   std::string sub;
-  if (!WriteFileAtomically(path, Serialize(), &sub)) return Fail(error, "pose graph file: " + sub);
+  const bool g2o = path.size() >= 4 && path.compare(path.size() - 4, 4, ".g2o") == 0;
+  if (!WriteFileAtomically(path, Serialize(g2o ? GraphFormat::kG2o : GraphFormat::kMrptText), &sub))
+    return Fail(error, "pose graph file: " + sub);
   return true;
 }
 
@@ -601,11 +612,18 @@ bool TraverseGraph::Load(const std::string& path, std::string* error) {
 
 bool TraverseGraph::Deserialize(const std::string& text, std::string* error) {
   TraverseGraph loaded(options_);
-  try {
-    std::istringstream is(text);
-    loaded.graph_.readAsText(is);
-  } catch (const std::exception& e) {
-    return Fail(error, std::string("not a valid MRPT 3D graph: ") + e.what());
+  if (text.find("EDGE_SE3:QUAT") != std::string::npos || text.find("VERTEX_SE3:QUAT") != std::string::npos) {
+    GraphFile file;
+    std::string sub;
+    if (!ParseGraphText(text, &file, &sub) || file.dimension != 3) return Fail(error, "not a valid 3D g2o graph: " + sub);
+    loaded.graph_ = file.graph3;
+  } else {
+    try {
+      std::istringstream is(text);
+      loaded.graph_.readAsText(is);
+    } catch (const std::exception& e) {
+      return Fail(error, std::string("not a valid MRPT 3D graph: ") + e.what());
+    }
   }
   std::vector<EdgeKey> kinds;
   std::vector<Matrix6d> informations;

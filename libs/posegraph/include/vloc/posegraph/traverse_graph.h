@@ -25,8 +25,10 @@
 // site's current estimate; the first site added is the root (normally site 0).
 //
 // Persistence: MRPT's text graph format (VERTEX3 / FIX / EDGE3 lines,
-// written with 17 significant digits) plus vloc's metadata as comment lines
-// that MRPT's reader skips ("# VLOC_SITE ...", "# VLOC_EDGE ...").
+// written with 17 significant digits), or g2o (VERTEX_SE3:QUAT /
+// EDGE_SE3:QUAT / FIX) when the path ends in ".g2o", plus vloc's metadata as
+// comment lines both readers skip ("# VLOC_SITE ...", "# VLOC_EDGE ...").
+// Either file opens in vloc_posegraph and g2o's tools.
 
 #include <map>
 #include <mrpt/graphs/CNetworkOfPoses.h>
@@ -37,6 +39,7 @@
 #include "vloc/common/options.h"
 #include "vloc/common/pose.h"
 #include "vloc/common/rover_data.h"
+#include "vloc/posegraph/graph_io.h"
 #include "vloc/posegraph/mrpt_optimize.h"
 
 namespace vloc::posegraph {
@@ -129,10 +132,12 @@ class TraverseGraph {
   const mrpt::graphs::CNetworkOfPoses3DInf& graph() const { return Synced(); }
   const PoseGraphOptions& options() const { return options_; }
 
-  // Writes atomically (temporary file + rename). False with *error on failure.
+  // Writes atomically (temporary file + rename), in g2o when `path` ends in
+  // ".g2o", else in MRPT's text format. False with *error on failure.
   bool Save(const std::string& path, std::string* error) const;
-  // Reads a graph saved by Save (or any MRPT 3D text graph; its edges are
-  // then classified by adjacency). False with *error (the graph unchanged).
+  // Reads a graph saved by Save in either format (or any MRPT 3D text or
+  // 3D g2o graph; its edges are then classified by adjacency). False with
+  // *error (the graph unchanged).
   bool Load(const std::string& path, std::string* error);
   // Loaded edges whose information matrix was not positive definite and was
   // repaired (eigenvalues raised to 1e-9 of the largest; one warning line).
@@ -175,7 +180,7 @@ class TraverseGraph {
   // Method "sparse": SolvePoseGraph over graph_'s nodes and edges_.
   OptimizerResult SolveSparse(const std::vector<double>& robust);
   void RetryPending();
-  std::string Serialize() const;
+  std::string Serialize(GraphFormat format) const;
   bool Deserialize(const std::string& text, std::string* error);
 
   PoseGraphOptions options_;
