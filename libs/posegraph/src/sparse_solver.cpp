@@ -199,12 +199,11 @@ namespace {
 // A symmetric positive-definite solve of the damped normal equations.
 class LinearSolver {
  public:
-  // The matrix comes already in a fill-reducing order (BlockOrdering): both
-  // factorisations keep it.
-  explicit LinearSolver(const std::string& kind) : cholmod_(kind == "cholmod") {
-    cholmod_llt_.cholmod().nmethods = 1;
-    cholmod_llt_.cholmod().method[0].ordering = CHOLMOD_NATURAL;
-  }
+  // The matrix comes in a fill-reducing order (BlockOrdering): Eigen's
+  // simplicial LDL^T keeps it (and its factor then serves the marginals);
+  // CHOLMOD chooses its own (AMD / METIS on the scalar pattern, which its
+  // supernodes profit from: sphere2500 0.30 s against 0.50 s in the block order).
+  explicit LinearSolver(const std::string& kind) : cholmod_(kind == "cholmod") {}
   bool Factorise(const Eigen::SparseMatrix<double>& A) {
     if (cholmod_) {
       if (!analysed_) cholmod_llt_.analyzePattern(A);

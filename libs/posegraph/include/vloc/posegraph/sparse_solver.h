@@ -14,12 +14,14 @@
 //      all 3x3 / 2x2 matrices), projected on SO(n) by SVD; then translations
 //      by linear least squares given those rotations. Needs no initial guess,
 //      so a graph whose odometry drifted far starts in the optimum's basin.
-//   2. Minimise (sparse_solver.cpp): Levenberg-Marquardt; each iteration
-//      linearises every edge into a block-sparse Hessian whose pattern is
-//      built once, factorises H + lambda diag(H) with CHOLMOD's supernodal
-//      Cholesky (SuiteSparse; the symbolic analysis done once per pattern)
-//      and retracts. A warm start (no chordal step) from the previous
-//      optimum is what an incremental update uses.
+//   2. Minimise (sparse_solver.cpp): Levenberg-Marquardt, Gauss-Newton
+//      first; each iteration linearises every edge into a block-sparse
+//      Hessian (poses in approximate-minimum-degree order, pattern built
+//      once), factorises H + lambda diag(H) with CHOLMOD's supernodal
+//      Cholesky (SuiteSparse; large graphs) or Eigen's simplicial LDL^T
+//      (traverses), the symbolic analysis done once, and retracts. A warm
+//      start (no chordal step) from the previous optimum is what an
+//      incremental update uses.
 //
 // Conventions (the same as MRPT's, so the information matrices of MRPT's
 // CNetworkOfPoses2DInf / 3DInf edges are used unchanged): a pose is
