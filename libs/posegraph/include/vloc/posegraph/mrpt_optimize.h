@@ -1,6 +1,9 @@
 #pragma once
-// vloc's use of MRPT's sparse Levenberg-Marquardt pose-graph optimiser
-// (mrpt::graphslam::optimize_graph_spa_levmarq) and the conversions between
+// MRPT graphs (CNetworkOfPoses2DInf / 3DInf, the graph's home) optimised by
+// vloc's solver (sparse_solver.h, method "sparse", the default) or by MRPT's
+// sparse Levenberg-Marquardt (mrpt::graphslam::optimize_graph_spa_levmarq)
+// followed by vloc's weighted LM (method "mrpt", the former default); the
+// conversions between MRPT graphs and the solver's problem, and between
 // vloc's pose/covariance convention and MRPT's.
 //
 // MRPT conventions used by the optimiser (MRPT 2.5):

@@ -1,6 +1,11 @@
 #pragma once
-// The traverse pose graph: one MRPT node per rover site, optimised with
-// MRPT's sparse Levenberg-Marquardt after every change.
+// The traverse pose graph: one MRPT node per rover site, optimised after
+// every change by vloc's sparse solver (sparse_solver.h), warm-started from
+// the last optimum, its marginals from the solver's last factorisation.
+// Revisit (loop) and absolute-fix edges are robust: each update tests them
+// against their predicted covariance (RobustEdgeScales): an implausible one
+// (a match to the wrong place) is switched off, the others go through the
+// DCS kernel. optimizer.method "mrpt" keeps the former MRPT optimiser.
 //
 //   TraverseGraph graph(options);
 //   graph.AddDeadReckoning(site, utime, world_from_body_dr);      // node + DR edge
