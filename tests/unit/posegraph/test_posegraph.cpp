@@ -469,6 +469,33 @@ TEST(TraverseGraph, FalseLoopClosuresAreDownWeighted) {
   EXPECT_GT(plain_error, 3.0 * clean_error) << "the false loops should bend a plain least-squares traverse";
 }
 
+// Absolute fixes go through the same test: a fix 40 m off the traverse
+// (sigma 0.2 m, an aerial-map match at the wrong place) is switched off, a
+// true one (0.2 m) still pulls its site.
+TEST(TraverseGraph, AFalseAbsoluteFixIsSwitchedOffATrueOneStillPulls) {
+  Traverse t = MakeTraverse(16, 91, 0.05, 0.002, PerMetreOptions());
+  ASSERT_TRUE(t.graph.Optimize().usable);
+  auto error = [&](int i) { return (t.graph.Site(i)->world_from_body.pose.translation() - t.truth[i].translation()).norm(); };
+  const double before = error(15);
+  PoseWithCovariance fix;
+  fix.covariance = Diag(0.2, 3.0);
+  fix.pose = MakePose(t.truth[15].linear(), t.truth[15].translation() + Eigen::Vector3d(30, -25, 5));
+  ASSERT_TRUE(t.graph.AddAbsoluteFix(15, fix).changed);
+  const auto with_false = t.graph.Optimize();
+  EXPECT_EQ(with_false.num_downweighted, 1);
+  const double after_false = error(15);
+  EXPECT_LT(std::abs(after_false - before), 0.05 * before + 0.01) << "the false fix must not move the site";
+  fix.pose = t.truth[12];
+  ASSERT_TRUE(t.graph.AddAbsoluteFix(12, fix).changed);
+  const auto with_true = t.graph.Optimize();
+  EXPECT_EQ(with_true.num_fix_edges, 2);
+  EXPECT_EQ(with_true.num_downweighted, 1);
+  std::printf("fixes: site 15 error %.3f m before, %.3f m with a fix 40 m off; with a true 0.2 m fix of site 12: "
+              "site 12 %.3f m, site 15 %.3f m\n",
+              before, after_false, error(12), error(15));
+  EXPECT_LT(error(12), 3 * 0.2 * std::sqrt(3.0));
+}
+
 TEST(TraverseGraph, VisualBeforeDeadReckoningWaitsThenApplies) {
   TraverseGraph g(PerMetreOptions());
   PoseWithCovariance rel;
