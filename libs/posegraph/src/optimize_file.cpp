@@ -15,6 +15,7 @@ std::string GraphFileReport::BriefReport() const {
      << final_sesync << ", " << solver.iterations << " iterations, " << solver.total_seconds << " s (chordal "
      << solver.initialisation_seconds << " s)";
   if (!solver.usable) os << "; NOT solved: " << solver.message;
+  else os << "; " << certificate.message;
   return os.str();
 }
 
@@ -33,6 +34,7 @@ GraphFileReport OptimizeImpl(Graph* graph, const SolverOptions& options, bool se
   problem.poses = solved.poses;
   report.final_chi2 = Cost(problem, nullptr);
   report.final_sesync = SeSyncObjective(problem);
+  if (report.solver.usable) report.certificate = CertifyGlobalOptimum(problem);
   if (report.solver.usable) PosesToGraph(problem, ids, graph);
   return report;
 }

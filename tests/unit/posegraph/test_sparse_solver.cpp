@@ -200,6 +200,31 @@ void ExpectChordalReachesTheOptimumFromDriftedOdometry(uint32_t seed) {
 TEST(Chordal, ReachesTheOptimumFromDriftedOdometry3D) { ExpectChordalReachesTheOptimumFromDriftedOdometry<3>(11); }
 TEST(Chordal, ReachesTheOptimumFromDriftedOdometry2D) { ExpectChordalReachesTheOptimumFromDriftedOdometry<2>(12); }
 
+// The certificate (SE-Sync's verification) holds at the optimum reached by
+// chordal + LM and fails at the local minimum LM alone stops in, on a
+// drifted 3D grid solved with SE-Sync's weights.
+TEST(Certificate, SeparatesTheGlobalOptimumFromALocalMinimum) {
+  const Synthetic<3> s = MakeGrid<3>(6, 0.1, 0.35, 11);  // 0.35 rad per edge: LM alone gets stuck
+  PoseGraph3 weighted = s.problem;  // solved with SE-Sync's weights; F and C from the problem's own information
+  UseSeSyncWeights(&weighted);
+  SolverOptions local;
+  local.chordal_initialisation = false;
+  PoseGraph3 chordal = weighted, drifted = weighted;
+  ASSERT_TRUE(SolvePoseGraph(&chordal, SolverOptions()).usable);
+  ASSERT_TRUE(SolvePoseGraph(&drifted, local).usable);
+  PoseGraph3 at_global = s.problem, at_local = s.problem;
+  at_global.poses = chordal.poses;
+  at_local.poses = drifted.poses;
+  const double f_global = SeSyncObjective(at_global), f_local = SeSyncObjective(at_local);
+  const OptimalityCertificate global = CertifyGlobalOptimum(at_global);
+  const OptimalityCertificate stuck = CertifyGlobalOptimum(at_local);
+  std::printf("certificate: chordal + LM F %.3f: %s\nLM alone F %.3f: %s\n", f_global, global.message.c_str(), f_local,
+              stuck.message.c_str());
+  EXPECT_TRUE(global.certified) << global.message;
+  ASSERT_GT(f_local, 1.01 * f_global) << "LM alone should stop in a local minimum here";
+  EXPECT_FALSE(stuck.certified) << stuck.message;
+}
+
 TEST(SparseSolver, MarginalsMatchTheDenseInverseOfTheHessian) {
   Synthetic<3> s = MakeGrid<3>(3, 0.1, 0.02, 13);
   std::vector<PoseGraph3::Information> marginals;
@@ -245,6 +270,7 @@ TEST(PublicDatasets, ReachThePublishedOptimum) {
     const GraphFileReport report = OptimizeGraphFile(&file, SolverOptions(), /*sesync_weights=*/true);
     ASSERT_TRUE(report.solver.usable) << name << ": " << report.solver.message;
     std::printf("%s: %s\n", name.c_str(), report.BriefReport().c_str());
+    EXPECT_TRUE(report.certificate.certified) << name << ": " << report.certificate.message;
     if (published > 0) {
       EXPECT_LT(std::abs(report.final_sesync - published), 1e-3 * published) << name;
     } else {

@@ -29,6 +29,7 @@
 #include <mrpt/graphs/CNetworkOfPoses.h>
 #include <string>
 
+#include "vloc/posegraph/sesync_objective.h"
 #include "vloc/posegraph/sparse_solver.h"
 
 namespace vloc::posegraph {
@@ -72,6 +73,7 @@ struct GraphFileReport {
   double final_chi2 = 0.0;       // and at the optimum
   double initial_sesync = 0.0;   // SE-Sync's objective (sesync_objective.h) at the file's poses
   double final_sesync = 0.0;     // and at the optimum
+  OptimalityCertificate certificate;  // of the optimum for SE-Sync's objective (sesync_objective.h)
 
   std::string BriefReport() const;
 };

@@ -26,4 +26,22 @@ double SeSyncObjective(const PoseGraphProblem<D>& problem);
 template <int D>
 void UseSeSyncWeights(PoseGraphProblem<D>* problem);
 
+// A certificate of global optimality for F (SE-Sync's verification, by
+// inertia instead of an eigensolver). With X = [t_1..t_n R_1..R_n] (d rows),
+// F = tr(X M X^T) for a sparse M of size n(d+1); at a critical point the
+// rotations' Lagrange multipliers are Lambda_i = sym(R_i^T (X M)_{R_i}), and
+// the poses are a global minimum of F (and of its semidefinite relaxation)
+// when C = M - blockdiag(0, Lambda) is positive semidefinite (Rosen et al.,
+// IJRR 2019, thm. 7). C + eta I is factorised (LDL^T, AMD): all pivots
+// positive <=> lambda_min(C) > -eta. eta = relative_tolerance * max diag(C).
+struct OptimalityCertificate {
+  bool certified = false;     // lambda_min(C) > -eta
+  double eta = 0.0;           // the tolerance used
+  int negative_pivots = 0;    // eigenvalues of C below -eta (inertia)
+  double stationarity = 0.0;  // |C X^T|_F / |M X^T|_F: how far from a critical point of F the poses are
+  std::string message;        // one line
+};
+template <int D>
+OptimalityCertificate CertifyGlobalOptimum(const PoseGraphProblem<D>& problem, double relative_tolerance = 1e-6);
+
 }  // namespace vloc::posegraph
