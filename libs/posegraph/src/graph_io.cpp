@@ -213,33 +213,6 @@ bool ParseG2o(const std::string& text, GraphFile* file, std::string* error) {
   return true;
 }
 
-template <class Graph>
-bool ParseMrpt(const std::string& text, Graph* graph, GraphFile* file, std::string* error) {
-  try {
-    std::istringstream is(text);
-    graph->readAsText(is);
-  } catch (const std::exception& e) {
-    return Fail(error, std::string("MRPT cannot read it: ") + e.what());
-  }
-  // Repair / reject like the g2o path.
-  for (auto it = graph->edges.begin(); it != graph->edges.end();) {
-    constexpr int N = std::is_same_v<Graph, mrpt::graphs::CNetworkOfPoses3DInf> ? 6 : 3;
-    Eigen::Matrix<double, N, N> info = it->second.cov_inv.asEigen();
-    bool repaired = false;
-    if (!RepairInformation<N>(&info, &repaired)) {
-      ++file->num_rejected;
-      it = graph->edges.erase(it);
-      continue;
-    }
-    file->num_repaired += repaired ? 1 : 0;
-    it->second.cov_inv = decltype(it->second.cov_inv)(info);
-    ++it;
-  }
-  const bool had_root = text.find("FIX") != std::string::npos;
-  FinishGraph(graph, had_root);
-  return true;
-}
-
 // MRPT's 3D text records, read in MRPT's layout (VERTEX3 id x y z roll
 // pitch yaw; EDGE3 i j x y z roll pitch yaw + the 21 values MRPT's writer
 // puts out, rows 0 1 2 5 4 3 of its matrix). MRPT 2.5's own reader mirrors
@@ -296,6 +269,54 @@ bool ParseMrpt3D(const std::string& text, GraphFile* file, std::string* error) {
   return true;
 }
 
+// TORO's 2D records: VERTEX2 (or VERTEX) id x y theta; EDGE2 (or EDGE) i j
+// dx dy dtheta I_xx I_xy I_yy I_tt I_xt I_yt (TORO's information order; MRPT
+// 2.5's reader takes them in g2o's order, which swaps the cross terms).
+bool ParseToro2D(const std::string& text, GraphFile* file, std::string* error) {
+  std::istringstream lines(text);
+  std::string line;
+  int line_number = 0;
+  bool had_root = false;
+  while (std::getline(lines, line)) {
+    ++line_number;
+    std::istringstream s(line);
+    std::string key;
+    if (!(s >> key) || key[0] == '#') continue;
+    auto bad = [&]() { return Fail(error, "line " + std::to_string(line_number) + ": cannot parse '" + line + "'"); };
+    if (key == "VERTEX2" || key == "VERTEX") {
+      TNodeID id;
+      double x, y, th;
+      if (!(s >> id) || !Numbers{s}.Read(&x, &y, &th)) return bad();
+      file->graph2.nodes[id] = mrpt::poses::CPose2D(x, y, th);
+    } else if (key == "EDGE2" || key == "EDGE") {
+      TNodeID i, j;
+      double x, y, th, xx, xy, yy, tt, xt, yt;
+      if (!(s >> i >> j) || !Numbers{s}.Read(&x, &y, &th, &xx, &xy, &yy, &tt, &xt, &yt)) return bad();
+      Eigen::Matrix3d info;
+      info << xx, xy, xt, xy, yy, yt, xt, yt, tt;
+      bool repaired = false;
+      if (!std::isfinite(x + y + th) || !RepairInformation<3>(&info, &repaired)) {
+        ++file->num_rejected;
+        continue;
+      }
+      file->num_repaired += repaired ? 1 : 0;
+      mrpt::poses::CPosePDFGaussianInf edge;
+      edge.mean = mrpt::poses::CPose2D(x, y, th);
+      edge.cov_inv = mrpt::math::CMatrixDouble33(info);
+      file->graph2.insertEdge(i, j, edge);
+    } else if (key == "FIX") {
+      TNodeID id;
+      if (!(s >> id)) return bad();
+      file->graph2.root = id;
+      had_root = true;
+    } else if (key != "EQUIV") {
+      return Fail(error, "line " + std::to_string(line_number) + ": unknown record '" + key + "' in a 2D TORO graph");
+    }
+  }
+  FinishGraph(&file->graph2, had_root);
+  return true;
+}
+
 }  // namespace
 
 bool ParseGraphText(const std::string& text, GraphFile* file, std::string* error) {
@@ -327,7 +348,7 @@ bool ParseGraphText(const std::string& text, GraphFile* file, std::string* error
   bool ok;
   if (file->format == GraphFormat::kG2o) ok = ParseG2o(text, file, error);
   else if (three_d) ok = ParseMrpt3D(text, file, error);
-  else ok = ParseMrpt(text, &file->graph2, file, error);
+  else ok = ParseToro2D(text, file, error);
   if (!ok) return false;
   if (file->num_edges() == 0) return Fail(error, "no usable edge");
   file->repair_report = RepairReport(file->num_repaired, file->num_rejected);
@@ -352,15 +373,14 @@ std::string GraphText(const GraphFile& file) {
       file.graph3.writeAsText(os);  // VERTEX3 / EDGE3 (and FIX)
       return os.str();
     }
-    // MRPT writes 2D graphs with g2o's keywords; keep the file's own.
+    // TORO's 2D records (MRPT writes 2D graphs with g2o's keywords).
     for (const auto& [id, p] : file.graph2.nodes)
       os << "VERTEX2 " << id << ' ' << p.x() << ' ' << p.y() << ' ' << p.phi() << '\n';
     for (const auto& [ids, edge] : file.graph2.edges) {
+      const auto& I = edge.cov_inv;
       os << "EDGE2 " << ids.first << ' ' << ids.second << ' ' << edge.mean.x() << ' ' << edge.mean.y() << ' '
-         << edge.mean.phi();
-      for (int r = 0; r < 3; ++r)
-        for (int c = r; c < 3; ++c) os << ' ' << edge.cov_inv(r, c);
-      os << '\n';
+         << edge.mean.phi() << ' ' << I(0, 0) << ' ' << I(0, 1) << ' ' << I(1, 1) << ' ' << I(2, 2) << ' ' << I(0, 2)
+         << ' ' << I(1, 2) << '\n';
     }
     os << "FIX " << file.graph2.root << '\n';
     return os.str();

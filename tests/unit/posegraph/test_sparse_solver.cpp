@@ -376,6 +376,16 @@ TEST(GraphFiles, G2oRoundTrip2DAndEdgeOnlyFilesChainTheOdometry) {
   ASSERT_EQ(mrpt_back.graph2.edges.size(), file.graph2.edges.size());
   for (const auto& [id, node] : file.graph2.nodes) EXPECT_NEAR(node.phi(), mrpt_back.graph2.nodes.at(id).phi(), 1e-12);
   EXPECT_LT((mrpt_back.graph2.edges.begin()->second.cov_inv.asEigen() - file.graph2.edges.begin()->second.cov_inv.asEigen()).norm(), 1e-9);
+  // TORO's EDGE2 information order: xx xy yy tt xt yt.
+  GraphFile toro;
+  ASSERT_TRUE(ParseGraphText("VERTEX2 0 0 0 0\nVERTEX2 1 1 0 0\nEDGE2 0 1 1 0 0 10 1 20 30 2 3\n", &toro, &error)) << error;
+  const Eigen::Matrix3d I = toro.graph2.edges.begin()->second.cov_inv.asEigen();
+  EXPECT_EQ(I(0, 0), 10);
+  EXPECT_EQ(I(0, 1), 1);
+  EXPECT_EQ(I(1, 1), 20);
+  EXPECT_EQ(I(2, 2), 30);
+  EXPECT_EQ(I(0, 2), 2);
+  EXPECT_EQ(I(2, 1), 3);
   // The same edges without VERTEX lines: poses composed along i -> i+1.
   std::istringstream lines(text);
   std::string line, edges_only;

@@ -12,9 +12,10 @@
 //    qz qw + 21 upper-triangular information values over [t, q_xyz]; and
 //    VERTEX_SE2 id x y theta, EDGE_SE2 i j dx dy dtheta + 6 values over
 //    [x y theta]. FIX id marks the fixed vertex.
-//  - MRPT/TORO text, as MRPT reads and writes it: VERTEX2 / EDGE2 (2D,
-//    information xx xy xtheta yy ytheta thetatheta) and VERTEX3 / EDGE3 (3D,
-//    roll pitch yaw; the information handled by MRPT's own reader/writer).
+//  - MRPT/TORO text: VERTEX2 / EDGE2 (2D, TORO's information order xx xy
+//    yy tt xt yt) and VERTEX3 / EDGE3 (3D, roll pitch yaw, the information
+//    in the layout MRPT's writer uses, read keeping the rotation cross terms
+//    MRPT 2.5's own reader loses).
 // Information matrices are held in the optimiser's tangent [t; rotation
 // vector] (MRPT's): a g2o quaternion-vector information I_q becomes
 // I_theta = S I S with S = diag(1,1,1,1/2,1/2,1/2), and back on writing.
