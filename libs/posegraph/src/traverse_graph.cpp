@@ -429,17 +429,34 @@ std::vector<double> TraverseGraph::RobustEdgeScales() const {
   //  - beyond: switched off for this update (width 1e-9: weight ~0), like a
   //    switchable constraint whose switch went to zero. It is tested again
   //    at the next update, so a match that becomes plausible comes back.
-  // With no marginals yet (first update, or compute_marginals off) the
-  // kernel runs at its plain width. A site without a marginal (added since
-  // the last update) takes its nearest site's, grown by the per-metre DR
-  // model over the distance between them.
+  // With no marginals from the last update (the first after a reload, or
+  // compute_marginals off) they are computed here, at the current estimate,
+  // from the graph without its loop and fix edges; when even that is
+  // singular the kernel runs at its plain width. A site without a marginal
+  // (added since the last update) takes its nearest site's, grown by the
+  // per-metre DR model over the distance between them.
   std::vector<double> scales;
   scales.reserve(edges_.size());
-  auto marginal = [this](mrpt::graphs::TNodeID id) -> Matrix6d {
-    if (id == graph_.root || marginals_.empty()) return Matrix6d::Zero();
-    if (const auto it = marginals_.find(id); it != marginals_.end()) return it->second;
-    auto nearest = marginals_.lower_bound(id);
-    if (nearest == marginals_.end()) --nearest;
+  const bool any_robust = std::any_of(edges_.begin(), edges_.end(), [](const auto& entry) {
+    return entry.first.kind == EdgeKind::kLoop || entry.first.kind == EdgeKind::kAbsoluteFix;
+  });
+  std::map<mrpt::graphs::TNodeID, Matrix6d> computed;
+  if (any_robust && marginals_.empty()) {
+    mrpt::graphs::CNetworkOfPoses3DInf plain;
+    plain.nodes = graph_.nodes;
+    plain.root = graph_.root;
+    for (const auto& [key, edge] : edges_)
+      if (key.kind != EdgeKind::kLoop && key.kind != EdgeKind::kAbsoluteFix)
+        plain.insertEdge(static_cast<mrpt::graphs::TNodeID>(key.from), static_cast<mrpt::graphs::TNodeID>(key.to), edge);
+    std::string ignored;
+    if (!LocalMarginals(plain, &computed, &ignored, options_.optimizer.num_threads)) computed.clear();
+  }
+  const std::map<mrpt::graphs::TNodeID, Matrix6d>& prior = marginals_.empty() ? computed : marginals_;
+  auto marginal = [this, &prior](mrpt::graphs::TNodeID id) -> Matrix6d {
+    if (id == graph_.root || prior.empty()) return Matrix6d::Zero();
+    if (const auto it = prior.find(id); it != prior.end()) return it->second;
+    auto nearest = prior.lower_bound(id);
+    if (nearest == prior.end()) --nearest;
     const auto& a = graph_.nodes.at(id);
     const auto& b = graph_.nodes.at(nearest->first);
     const double d = std::sqrt((a.x() - b.x()) * (a.x() - b.x()) + (a.y() - b.y()) * (a.y() - b.y()) +
@@ -455,7 +472,7 @@ std::vector<double> TraverseGraph::RobustEdgeScales() const {
     }
     const auto i = static_cast<mrpt::graphs::TNodeID>(key.from), j = static_cast<mrpt::graphs::TNodeID>(key.to);
     double scale = 1.0;
-    if (!marginals_.empty() && graph_.nodes.count(i) && graph_.nodes.count(j)) {
+    if (!prior.empty() && graph_.nodes.count(i) && graph_.nodes.count(j)) {
       Matrix6d J_i, J_j;
       const Vector6d e = EdgeResidualAndJacobians(edge.mean, graph_.nodes.at(i), graph_.nodes.at(j), &J_i, &J_j);
       const Matrix6d W = edge.cov_inv.asEigen();

@@ -456,6 +456,13 @@ TEST(TraverseGraph, FalseLoopClosuresAreDownWeighted) {
   PoseGraphSummary clean_summary, false_summary;
   const double clean_error = run(clean, &clean_summary);
   const double false_error = run(with_false, &false_summary);
+  // The same without marginals after each update: the gate computes its own.
+  o.compute_marginals = false;
+  PoseGraphSummary no_marginals_summary;
+  const double no_marginals_error = run(with_false, &no_marginals_summary);
+  EXPECT_EQ(no_marginals_summary.num_downweighted, 3);
+  EXPECT_LE(no_marginals_error, 1.1 * clean_error);
+  o.compute_marginals = true;
   o.optimizer.solver.robust_kernel = "none";
   PoseGraphSummary plain_summary;
   const double plain_error = run(with_false, &plain_summary);
