@@ -5,7 +5,8 @@
 // --weights sesync solves with SE-Sync's isotropic weights (the measure of
 // the published optima); the output keeps the file's information matrices.
 // Prints the chi2 (file weights) and SE-Sync's objective before and after,
-// the iterations and the time. Exit code 0 when the solve is usable.
+// the iterations and the time, and with --weights sesync whether SE-Sync's
+// certificate of global optimality holds. Exit code 0 when the solve is usable.
 
 #include <iostream>
 

@@ -34,7 +34,9 @@ GraphFileReport OptimizeImpl(Graph* graph, const SolverOptions& options, bool se
   problem.poses = solved.poses;
   report.final_chi2 = Cost(problem, nullptr);
   report.final_sesync = SeSyncObjective(problem);
-  if (report.solver.usable) report.certificate = CertifyGlobalOptimum(problem);
+  // The certificate is for SE-Sync's objective: meaningful when that is what was solved.
+  if (report.solver.usable && sesync_weights) report.certificate = CertifyGlobalOptimum(problem);
+  else report.certificate.message = "no certificate (it is for SE-Sync's objective: solve with its weights)";
   if (report.solver.usable) PosesToGraph(problem, ids, graph);
   return report;
 }

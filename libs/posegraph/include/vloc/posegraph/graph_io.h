@@ -74,7 +74,7 @@ struct GraphFileReport {
   double final_chi2 = 0.0;       // and at the optimum
   double initial_sesync = 0.0;   // SE-Sync's objective (sesync_objective.h) at the file's poses
   double final_sesync = 0.0;     // and at the optimum
-  OptimalityCertificate certificate;  // of the optimum for SE-Sync's objective (sesync_objective.h)
+  OptimalityCertificate certificate;  // for SE-Sync's objective (sesync_objective.h); with sesync_weights only
 
   std::string BriefReport() const;
 };
