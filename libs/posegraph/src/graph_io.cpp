@@ -110,10 +110,12 @@ void FinishGraph(Graph* graph, bool had_root) {
   if (!had_root && !graph->nodes.empty()) graph->root = graph->nodes.begin()->first;
 }
 
-std::string RepairReport(int repaired, int rejected) {
-  if (!repaired && !rejected) return "";
+std::string RepairReport(int repaired, int rejected, int skipped, const std::string& first_skipped) {
+  if (!repaired && !rejected && !skipped) return "";
   std::ostringstream os;
   os << "pose graph: ";
+  if (skipped) os << skipped << " records of other types skipped (the first: " << first_skipped << ")";
+  if (skipped && (rejected || repaired)) os << "; ";
   if (rejected) os << rejected << " edges rejected (information matrix or pose not finite)";
   if (rejected && repaired) os << "; ";
   if (repaired)
@@ -206,6 +208,8 @@ bool ParseG2o(const std::string& text, GraphFile* file, std::string* error) {
       if (!(s >> id)) return bad();
       (file->dimension == 2 ? file->graph2.root : file->graph3.root) = id;
       had_root = true;
+    } else {
+      if (file->num_skipped++ == 0) file->first_skipped = key;
     }
   }
   if (file->dimension == 2) FinishGraph(&file->graph2, had_root);
@@ -351,7 +355,7 @@ bool ParseGraphText(const std::string& text, GraphFile* file, std::string* error
   else ok = ParseToro2D(text, file, error);
   if (!ok) return false;
   if (file->num_edges() == 0) return Fail(error, "no usable edge");
-  file->repair_report = RepairReport(file->num_repaired, file->num_rejected);
+  file->repair_report = RepairReport(file->num_repaired, file->num_rejected, file->num_skipped, file->first_skipped);
   return true;
 }
 

@@ -429,6 +429,13 @@ TEST(GraphFiles, BadInformationIsRejectedOrRepairedWithOneLine) {
   EXPECT_FALSE(refused.usable);
   EXPECT_NE(refused.message.find("edge 2->3: information matrix is not positive definite"), std::string::npos)
       << refused.message;
+  // Records of other types are skipped, and said so in the same line.
+  ASSERT_TRUE(ParseGraphText("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\n"
+                             "VERTEX_XY 5 1 2\nEDGE_SE2_XY 0 5 1 2 1 0 1\n",
+                             &file, &error)) << error;
+  EXPECT_EQ(file.num_skipped, 2);
+  EXPECT_NE(file.repair_report.find("2 records of other types skipped (the first: VERTEX_XY)"), std::string::npos)
+      << file.repair_report;
   // Files the reader cannot take.
   EXPECT_FALSE(ParseGraphText("# nothing\n", &file, &error));
   EXPECT_FALSE(ParseGraphText("VERTEX_XYZ 0 1 2 3\n", &file, &error));

@@ -46,7 +46,9 @@ struct GraphFile {
   bool had_vertices = true;                // false: poses from chained odometry
   int num_repaired = 0;                    // information matrices made positive definite
   int num_rejected = 0;                    // edges dropped for a non-finite information / pose
-  std::string repair_report;               // one line when either count is non-zero, else ""
+  int num_skipped = 0;                     // g2o records of other types (landmarks, priors, ...) skipped
+  std::string first_skipped;               // the first such record's type
+  std::string repair_report;               // one line when any count is non-zero, else ""
 
   size_t num_nodes() const { return dimension == 2 ? graph2.nodes.size() : graph3.nodes.size(); }
   size_t num_edges() const { return dimension == 2 ? graph2.edges.size() : graph3.edges.size(); }
