@@ -23,13 +23,6 @@ namespace {
 
 const std::string kData = std::string(VLOC_SOURCE_DIR) + "/../shared/data/posegraph";
 
-PoseGraph3::Pose Pose3D(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
-  PoseGraph3::Pose p;
-  p.R = R;
-  p.t = t;
-  return p;
-}
-
 template <int D>
 typename PoseGraphProblem<D>::Pose Compose(const typename PoseGraphProblem<D>::Pose& a,
                                            const typename PoseGraphProblem<D>::Pose& b) {
