@@ -29,8 +29,13 @@ GraphFileReport OptimizeImpl(Graph* graph, const SolverOptions& options, bool se
   report.initial_chi2 = Cost(problem, nullptr);
   report.initial_sesync = SeSyncObjective(problem);
   PoseGraphProblem<D> solved = problem;
-  if (sesync_weights) UseSeSyncWeights(&solved);
-  report.solver = SolvePoseGraph(&solved, options);
+  SolverOptions solver_options = options;
+  if (sesync_weights) {
+    // Exactly SE-Sync's objective: its isotropic weights on the chordal rotation residual.
+    UseSeSyncWeights(&solved);
+    solver_options.rotation_residual = "chordal";
+  }
+  report.solver = SolvePoseGraph(&solved, solver_options);
   problem.poses = solved.poses;
   report.final_chi2 = Cost(problem, nullptr);
   report.final_sesync = SeSyncObjective(problem);

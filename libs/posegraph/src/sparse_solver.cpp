@@ -29,6 +29,7 @@ void SolverOptions::Visit(OptionsReader& r) {
   r.Optional("robust_kernel", &robust_kernel, "none | cauchy | dcs, on loop-closure and absolute-fix edges");
   r.Optional("robust_width", &robust_width, "kernel width in chi2 units");
   r.Optional("linear_solver", &linear_solver, "cholmod | eigen");
+  r.Optional("rotation_residual", &rotation_residual, "geodesic | chordal (SE-Sync's objective)");
   r.Optional("num_threads", &num_threads, "OpenMP threads linearising the edges");
   r.Optional("verbose", &verbose, "print every iteration");
 }
@@ -43,6 +44,8 @@ bool SolverOptions::Check(std::string* error) const {
   if (!(robust_width > 0.0) || !std::isfinite(robust_width)) return Fail(error, "robust_width must be > 0");
   if (linear_solver != "cholmod" && linear_solver != "eigen")
     return Fail(error, "linear_solver must be cholmod or eigen, got '" + linear_solver + "'");
+  if (rotation_residual != "geodesic" && rotation_residual != "chordal")
+    return Fail(error, "rotation_residual must be geodesic or chordal, got '" + rotation_residual + "'");
   if (num_threads < 1) return Fail(error, "num_threads must be >= 1");
   return true;
 }
@@ -177,16 +180,42 @@ void Retract<2>(PoseGraph2::Pose* pose, const PoseGraph2::Tangent& delta) {
   pose->R = pose->R * R;
 }
 
+template <>
+void ToChordalRotation<3>(PoseGraph3::Tangent* e, Eigen::Matrix<double, 6, 6>* J_i, Eigen::Matrix<double, 6, 6>* J_j) {
+  const Eigen::Vector3d phi = e->tail<3>();
+  const double theta = phi.norm();
+  // psi = g(theta) phi, g = 2 sin(theta/2) / theta; dpsi/dphi = g I + (g'/theta) phi phi^T.
+  const double g = theta < 1e-6 ? 1.0 - theta * theta / 24.0 : 2.0 * std::sin(0.5 * theta) / theta;
+  const double h = theta < 1e-4 ? -1.0 / 12.0 + theta * theta / 480.0
+                                 : (theta * std::cos(0.5 * theta) - 2.0 * std::sin(0.5 * theta)) / (theta * theta * theta);
+  e->tail<3>() = g * phi;
+  if (!J_i) return;
+  const Eigen::Matrix3d dpsi = g * Eigen::Matrix3d::Identity() + h * phi * phi.transpose();
+  J_i->bottomRows<3>() = (dpsi * J_i->bottomRows<3>()).eval();
+  J_j->bottomRows<3>() = (dpsi * J_j->bottomRows<3>()).eval();
+}
+
+template <>
+void ToChordalRotation<2>(PoseGraph2::Tangent* e, Eigen::Matrix3d* J_i, Eigen::Matrix3d* J_j) {
+  const double theta = (*e)[2];
+  (*e)[2] = 2.0 * std::sin(0.5 * theta);
+  if (!J_i) return;
+  J_i->row(2) *= std::cos(0.5 * theta);
+  J_j->row(2) *= std::cos(0.5 * theta);
+}
+
 template <int D>
 double Cost(const PoseGraphProblem<D>& problem, const SolverOptions* options) {
   const int m = static_cast<int>(problem.edges.size());
   double cost = 0.0;
   const int threads = options ? options->num_threads : 1;
+  const bool chordal = options && options->rotation_residual == "chordal";
 #pragma omp parallel for reduction(+ : cost) schedule(static) num_threads(threads)
   for (int k = 0; k < m; ++k) {
     const auto& edge = problem.edges[static_cast<size_t>(k)];
-    const auto e = EdgeResidual<D>(edge.measurement, problem.poses[static_cast<size_t>(edge.i)],
-                                   problem.poses[static_cast<size_t>(edge.j)], nullptr, nullptr);
+    auto e = EdgeResidual<D>(edge.measurement, problem.poses[static_cast<size_t>(edge.i)],
+                             problem.poses[static_cast<size_t>(edge.j)], nullptr, nullptr);
+    if (chordal) ToChordalRotation<D>(&e, nullptr, nullptr);
     const double s = e.dot(edge.information * e);
     double w;
     cost += options && edge.robust ? RobustCost(*options, s, &w, edge.robust_scale) : s;
@@ -368,8 +397,9 @@ class NormalEquations {
   void LineariseEdge(const PoseGraphProblem<D>& problem, const SolverOptions& options, int k, Linearised* l) const {
     const auto& edge = problem.edges[static_cast<size_t>(k)];
     Block J_i, J_j;
-    const Vec e = EdgeResidual<D>(edge.measurement, problem.poses[static_cast<size_t>(edge.i)],
-                                  problem.poses[static_cast<size_t>(edge.j)], &J_i, &J_j);
+    Vec e = EdgeResidual<D>(edge.measurement, problem.poses[static_cast<size_t>(edge.i)],
+                            problem.poses[static_cast<size_t>(edge.j)], &J_i, &J_j);
+    if (options.rotation_residual == "chordal") ToChordalRotation<D>(&e, &J_i, &J_j);
     Block W = edge.information;
     if (edge.robust) {
       double w;
@@ -583,8 +613,9 @@ SolverSummary SolvePoseGraph(PoseGraphProblem<D>* problem, const SolverOptions& 
   }
   for (const auto& edge : problem->edges) {
     if (!edge.robust) continue;
-    const auto e = EdgeResidual<D>(edge.measurement, problem->poses[static_cast<size_t>(edge.i)],
-                                   problem->poses[static_cast<size_t>(edge.j)], nullptr, nullptr);
+    auto e = EdgeResidual<D>(edge.measurement, problem->poses[static_cast<size_t>(edge.i)],
+                             problem->poses[static_cast<size_t>(edge.j)], nullptr, nullptr);
+    if (options.rotation_residual == "chordal") ToChordalRotation<D>(&e, nullptr, nullptr);
     double w;
     RobustCost(options, e.dot(edge.information * e), &w, edge.robust_scale);
     s.num_downweighted += w < 0.5 ? 1 : 0;

@@ -76,6 +76,9 @@ struct SolverOptions {
   std::string robust_kernel = "dcs";      // on robust edges: "none", "cauchy" or "dcs" (dynamic covariance scaling)
   double robust_width = 10.0;             // kernel width in chi2 units (e^T W e): DCS Phi / Cauchy c^2
   std::string linear_solver = "cholmod";  // "cholmod" (SuiteSparse supernodal) or "eigen" (SimplicialLDLT)
+  std::string rotation_residual = "geodesic";  // "geodesic" (rotation vector, MRPT's and g2o's) or "chordal"
+                                          // (2 sin(theta/2) axis: with weights diag(tau, 2 kappa) the cost is
+                                          // exactly SE-Sync's objective)
   int num_threads = 1;                    // OpenMP threads linearising the edges
   bool verbose = false;                   // one line per iteration on stdout
 
@@ -133,6 +136,14 @@ typename PoseGraphProblem<D>::Tangent EdgeResidual(
     const typename PoseGraphProblem<D>::Pose& p_j,
     Eigen::Matrix<double, PoseGraphProblem<D>::kTangent, PoseGraphProblem<D>::kTangent>* J_i,
     Eigen::Matrix<double, PoseGraphProblem<D>::kTangent, PoseGraphProblem<D>::kTangent>* J_j);
+
+// Rotation part of a residual (and of its Jacobians' rows) from the
+// rotation vector phi to the chordal 2 sin(|phi|/2) phi / |phi|, whose
+// squared norm is |R_T - I|_F^2 / 2 (exposed for tests).
+template <int D>
+void ToChordalRotation(typename PoseGraphProblem<D>::Tangent* e,
+                       Eigen::Matrix<double, PoseGraphProblem<D>::kTangent, PoseGraphProblem<D>::kTangent>* J_i,
+                       Eigen::Matrix<double, PoseGraphProblem<D>::kTangent, PoseGraphProblem<D>::kTangent>* J_j);
 
 // P <- P (+) delta (R Exp(w), t + R tau).
 template <int D>
