@@ -155,6 +155,36 @@ TEST(SparseSolver, JacobiansMatchFiniteDifferences) {
   }
 }
 
+// The kernels: rho continuous, rho' its derivative (the IRLS weight), 1 at
+// zero, DCS equal to least squares up to its width and bounded (3 phi) beyond.
+TEST(SparseSolver, RobustKernelsAreConsistent) {
+  for (const std::string kernel : {"none", "cauchy", "dcs"}) {
+    SolverOptions o;
+    o.robust_kernel = kernel;
+    o.robust_width = 10.0;
+    double w0;
+    EXPECT_DOUBLE_EQ(RobustCost(o, 0.0, &w0), 0.0);
+    EXPECT_DOUBLE_EQ(w0, 1.0);
+    for (const double s : {0.5, 9.99, 10.01, 50.0, 1e4}) {
+      double w, w_plus, w_minus;
+      const double h = 1e-6 * s;
+      const double rho = RobustCost(o, s, &w);
+      const double derivative = (RobustCost(o, s + h, &w_plus) - RobustCost(o, s - h, &w_minus)) / (2 * h);
+      EXPECT_NEAR(w, derivative, 1e-5) << kernel << " s " << s;
+      EXPECT_LE(rho, s + 1e-12) << kernel;
+      if (kernel == "dcs") {
+        EXPECT_LE(rho, 3 * o.robust_width) << s;
+      }
+    }
+  }
+  SolverOptions dcs;
+  double w;
+  EXPECT_DOUBLE_EQ(RobustCost(dcs, 5.0, &w), 5.0);  // least squares inside the width
+  EXPECT_NEAR(RobustCost(dcs, 10.0 - 1e-9, &w), RobustCost(dcs, 10.0 + 1e-9, &w), 1e-6);
+  EXPECT_DOUBLE_EQ(RobustCost(dcs, 5.0, &w, 0.1), 3.0 - 4.0 / 6.0);  // width 1: 3 phi - 4 phi^2 / (phi + s)
+  EXPECT_DOUBLE_EQ(RobustCost(dcs, 20.0, &w, 2.0), 20.0);             // width 20: still least squares
+}
+
 // With SE-Sync's weights on the chordal rotation residual the cost is
 // exactly SE-Sync's objective (evaluated on the problem's own information).
 template <int D>
