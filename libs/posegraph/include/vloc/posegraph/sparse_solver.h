@@ -1,9 +1,10 @@
 #pragma once
 // vloc's pose-graph solver: chordal initialisation, then a sparse
-// Levenberg-Marquardt on the information-weighted geodesic error, with a
-// robust kernel on the edges marked robust (loop closures, absolute fixes).
+// Levenberg-Marquardt on the information-weighted geodesic (or, as an
+// option, chordal) error, with a robust kernel on the edges marked robust
+// (loop closures, absolute fixes).
 //
-//   PoseGraph3 problem = ...;                         // or FromMrpt(mrpt_graph)
+//   PoseGraph3 problem = ...;                         // or ProblemFromGraph(mrpt_graph, &ids)
 //   SolverOptions options;                            // defaults pass Check()
 //   SolverSummary s = SolvePoseGraph(&problem, options);
 //   if (s.usable) ... problem.poses ...
@@ -28,8 +29,11 @@
 // world_from_node (R, t); it is perturbed on the right, R <- R Exp(w),
 // t <- t + R tau, with the tangent ordered [tau; w] (3D: x y z rx ry rz; 2D:
 // x y phi). An edge i->j measures Z = i_from_j; its residual is
-// e = [t_T; Log R_T] with T = Z^-1 P_i^-1 P_j; the cost is sum rho(e^T W e)
-// with rho the identity on ordinary edges and the robust kernel on robust ones.
+// e = [t_T; Log R_T] with T = Z^-1 P_i^-1 P_j (rotation_residual "chordal":
+// [t_T; 2 sin(theta/2) axis]); the cost is sum rho(e^T W e) with rho the
+// identity on ordinary edges and the robust kernel on robust ones.
+// Global optimality for SE-Sync's objective is checked by
+// CertifyGlobalOptimum (sesync_objective.h).
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
