@@ -7,7 +7,7 @@ PACKAGES=(
   build-essential cmake pkg-config git
   liblcm-dev liblcm-bin liblcm-java libglib2.0-dev
   libeigen3-dev libopencv-dev opencv-doc
-  libceres-dev libgoogle-glog-dev libgflags-dev
+  libceres-dev libsuitesparse-dev libgoogle-glog-dev libgflags-dev
   libmrpt-graphslam-dev libmrpt-graphs-dev libmrpt-poses-dev mrpt-common
   libyaml-cpp-dev
   googletest libgtest-dev libgmock-dev libbenchmark-dev

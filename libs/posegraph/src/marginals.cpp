@@ -17,8 +17,11 @@
 
 namespace vloc::posegraph {
 
-bool BlockDiagonalOfInverse(const Eigen::SparseMatrix<double>& matrix, int block_size,
-                            std::vector<Eigen::MatrixXd>* blocks) {
+namespace {
+
+template <class Ordering>
+bool BlockDiagonalOfInverseImpl(const Eigen::SparseMatrix<double>& matrix, int block_size,
+                                std::vector<Eigen::MatrixXd>* blocks) {
   using SpMat = Eigen::SparseMatrix<double>;
   const int n = static_cast<int>(matrix.rows());
   blocks->clear();
@@ -36,7 +39,7 @@ bool BlockDiagonalOfInverse(const Eigen::SparseMatrix<double>& matrix, int block
       for (int c = 0; c <= r; ++c) triplets.emplace_back(b * block_size + r, b * block_size + c, 0.0);
   SpMat lower(n, n);
   lower.setFromTriplets(triplets.begin(), triplets.end());
-  Eigen::SimplicialLLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int>> llt(lower);
+  Eigen::SimplicialLLT<SpMat, Eigen::Lower, Ordering> llt(lower);
   if (llt.info() != Eigen::Success) return false;
   const SpMat& L = llt.matrixL().nestedExpression();
   const int* outer = L.outerIndexPtr();
@@ -86,15 +89,83 @@ bool BlockDiagonalOfInverse(const Eigen::SparseMatrix<double>& matrix, int block
     z[static_cast<size_t>(begin)] = 1.0 / (ljj * ljj) - sum / ljj;
   }
 
-  const auto& perm = llt.permutationP().indices();
+  const int num_blocks = n / block_size;
+  blocks->resize(static_cast<size_t>(num_blocks));
+  const bool natural = llt.permutationP().size() == 0;
+  const auto perm = [&](int i) { return natural ? i : llt.permutationP().indices()[i]; };
+  for (int b = 0; b < num_blocks; ++b) {
+    Eigen::MatrixXd& block = (*blocks)[static_cast<size_t>(b)];
+    block.resize(block_size, block_size);
+    for (int r = 0; r < block_size; ++r)
+      for (int c = 0; c < block_size; ++c)
+        block(r, c) = z_at(perm(b * block_size + r), perm(b * block_size + c));
+  }
+  return true;
+}
+
+}  // namespace
+
+bool BlockDiagonalOfInverse(const Eigen::SparseMatrix<double>& matrix, int block_size,
+                            std::vector<Eigen::MatrixXd>* blocks, bool keep_order) {
+  if (keep_order) return BlockDiagonalOfInverseImpl<Eigen::NaturalOrdering<int>>(matrix, block_size, blocks);
+  return BlockDiagonalOfInverseImpl<Eigen::AMDOrdering<int>>(matrix, block_size, blocks);
+}
+
+bool BlockDiagonalOfInverseLDLT(const Eigen::SparseMatrix<double>& L, const Eigen::VectorXd& d, int block_size,
+                                std::vector<Eigen::MatrixXd>* blocks) {
+  // The recurrence above with a unit-diagonal L (strictly lower part stored,
+  // rows sorted) and D: Z_ij = -sum_k L_kj Z_ik, Z_jj = 1/d_j - sum_k L_kj Z_kj.
+  const int n = static_cast<int>(L.rows());
+  blocks->clear();
+  if (n == 0) return true;
+  if (L.cols() != n || d.size() != n || block_size <= 0 || n % block_size != 0 || !L.isCompressed()) return false;
+  const int* outer = L.outerIndexPtr();
+  const int* inner = L.innerIndexPtr();
+  const double* values = L.valuePtr();
+  std::vector<double> z(static_cast<size_t>(L.nonZeros()), 0.0), z_diag(static_cast<size_t>(n), 0.0);
+  std::vector<int> position(static_cast<size_t>(n), -1);
+  std::vector<double> acc;
+  for (int j = n - 1; j >= 0; --j) {
+    if (!(d[j] > 0.0)) return false;
+    const int begin = outer[j];
+    const int m = outer[j + 1] - begin;
+    acc.assign(static_cast<size_t>(m), 0.0);
+    for (int a = 0; a < m; ++a) {
+      const int k = inner[begin + a];
+      for (int t = outer[k]; t < outer[k + 1]; ++t) position[static_cast<size_t>(inner[t])] = t;
+      acc[static_cast<size_t>(a)] += values[begin + a] * z_diag[static_cast<size_t>(k)];
+      for (int b = a + 1; b < m; ++b) {
+        const int at = position[static_cast<size_t>(inner[begin + b])];
+        if (at < 0) continue;  // outside the pattern: never needed
+        const double z_ik = z[static_cast<size_t>(at)];
+        acc[static_cast<size_t>(b)] += values[begin + a] * z_ik;
+        acc[static_cast<size_t>(a)] += values[begin + b] * z_ik;
+      }
+      for (int t = outer[k]; t < outer[k + 1]; ++t) position[static_cast<size_t>(inner[t])] = -1;
+    }
+    double sum = 0.0;
+    for (int b = 0; b < m; ++b) {
+      z[static_cast<size_t>(begin + b)] = -acc[static_cast<size_t>(b)];
+      sum += values[begin + b] * z[static_cast<size_t>(begin + b)];
+    }
+    z_diag[static_cast<size_t>(j)] = 1.0 / d[j] - sum;
+  }
+  auto z_at = [&](int r, int c) -> double {
+    if (r == c) return z_diag[static_cast<size_t>(r)];
+    if (r < c) std::swap(r, c);
+    const int* begin = inner + outer[c];
+    const int* end = inner + outer[c + 1];
+    const int* it = std::lower_bound(begin, end, r);
+    if (it == end || *it != r) return 0.0;
+    return z[static_cast<size_t>(it - inner)];
+  };
   const int num_blocks = n / block_size;
   blocks->resize(static_cast<size_t>(num_blocks));
   for (int b = 0; b < num_blocks; ++b) {
     Eigen::MatrixXd& block = (*blocks)[static_cast<size_t>(b)];
     block.resize(block_size, block_size);
     for (int r = 0; r < block_size; ++r)
-      for (int c = 0; c < block_size; ++c)
-        block(r, c) = z_at(perm[b * block_size + r], perm[b * block_size + c]);
+      for (int c = 0; c <= r; ++c) block(r, c) = block(c, r) = z_at(b * block_size + r, b * block_size + c);
   }
   return true;
 }

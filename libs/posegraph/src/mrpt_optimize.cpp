@@ -16,6 +16,8 @@
 namespace vloc::posegraph {
 
 void OptimizerOptions::Visit(OptionsReader& r) {
+  r.Optional("method", &method, "sparse (vloc's solver) | mrpt (MRPT's LM + weighted LM, the former default)");
+  r.Child("solver", [this](OptionsReader& c) { solver.Visit(c); });
   r.Optional("mrpt_max_iterations", &mrpt_max_iterations, "MRPT optimize_graph_spa_levmarq iterations per update");
   r.Optional("mrpt_window", &mrpt_window, "MRPT optimises only the newest this many nodes; 0 = all");
   r.Optional("max_iterations", &max_iterations, "weighted Levenberg-Marquardt iterations per update");
@@ -28,6 +30,9 @@ void OptimizerOptions::Visit(OptionsReader& r) {
 }
 
 bool OptimizerOptions::Check(std::string* error) const {
+  if (method != "sparse" && method != "mrpt") return Fail(error, "method must be sparse or mrpt, got '" + method + "'");
+  std::string sub;
+  if (!solver.Check(&sub)) return Fail(error, "solver." + sub);
   if (max_iterations < 1 || mrpt_max_iterations < 1) return Fail(error, "max_iterations and mrpt_max_iterations must be >= 1");
   if (mrpt_window < 0) return Fail(error, "mrpt_window must be >= 0");
   if (!(relative_chi2_tolerance >= 0.0)) return Fail(error, "relative_chi2_tolerance must be >= 0");
@@ -179,6 +184,58 @@ int RefineWeighted(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOpt
   return iterations;
 }
 
+template <int D, class Graph>
+PoseGraphProblem<D> ProblemFromGraphImpl(const Graph& graph, std::vector<mrpt::graphs::TNodeID>* ids,
+                                         const std::vector<double>* robust) {
+  PoseGraphProblem<D> problem;
+  std::map<mrpt::graphs::TNodeID, int> index;
+  ids->clear();
+  problem.poses.reserve(graph.nodes.size());
+  for (const auto& [id, node] : graph.nodes) {
+    index.emplace(id, static_cast<int>(ids->size()));
+    ids->push_back(id);
+    typename PoseGraphProblem<D>::Pose p;
+    if constexpr (D == 3) {
+      p.R = node.getRotationMatrix().asEigen();
+      p.t = Eigen::Vector3d(node.x(), node.y(), node.z());
+    } else {
+      p.R = Eigen::Rotation2Dd(node.phi()).toRotationMatrix();
+      p.t = Eigen::Vector2d(node.x(), node.y());
+    }
+    problem.poses.push_back(p);
+    problem.fixed.push_back(id == graph.root ? 1 : 0);
+  }
+  problem.edges.reserve(graph.edges.size());
+  size_t k = 0;
+  for (const auto& [key, edge] : graph.edges) {
+    const auto a = index.find(key.first), b = index.find(key.second);
+    if (a == index.end() || b == index.end())
+      throw std::runtime_error("pose graph edge " + std::to_string(key.first) + "->" + std::to_string(key.second) +
+                               " refers to a missing node");
+    typename PoseGraphProblem<D>::Edge e;
+    e.i = a->second;
+    e.j = b->second;
+    const auto& z = edge.getPoseMean();
+    if constexpr (D == 3) {
+      e.measurement.R = z.getRotationMatrix().asEigen();
+      e.measurement.t = Eigen::Vector3d(z.x(), z.y(), z.z());
+    } else {
+      e.measurement.R = Eigen::Rotation2Dd(z.phi()).toRotationMatrix();
+      e.measurement.t = Eigen::Vector2d(z.x(), z.y());
+    }
+    e.information = edge.cov_inv.asEigen();
+    e.robust = robust && k < robust->size() && (*robust)[k] > 0;
+    if (e.robust) e.robust_scale = (*robust)[k];
+    problem.edges.push_back(e);
+    ++k;
+  }
+  return problem;
+}
+
+template <int D, class Graph>
+OptimizerResult OptimizeSparse(Graph& graph, const OptimizerOptions& options, const std::vector<double>* robust,
+                               std::map<mrpt::graphs::TNodeID, Matrix6d>* marginals);
+
 }  // namespace
 
 Eigen::Matrix3d InverseRightJacobianSO3(const Eigen::Vector3d& theta) {
@@ -278,7 +335,33 @@ void Linearise(const mrpt::graphs::CNetworkOfPoses3DInf& graph, const std::map<m
   H->setFromTriplets(triplets.begin(), triplets.end());
 }
 
-OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOptions& options) {
+PoseGraph3 ProblemFromGraph(const mrpt::graphs::CNetworkOfPoses3DInf& graph, std::vector<mrpt::graphs::TNodeID>* ids,
+                            const std::vector<double>* robust) {
+  return ProblemFromGraphImpl<3>(graph, ids, robust);
+}
+PoseGraph2 ProblemFromGraph(const mrpt::graphs::CNetworkOfPoses2DInf& graph, std::vector<mrpt::graphs::TNodeID>* ids,
+                            const std::vector<double>* robust) {
+  return ProblemFromGraphImpl<2>(graph, ids, robust);
+}
+
+void PosesToGraph(const PoseGraph3& problem, const std::vector<mrpt::graphs::TNodeID>& ids,
+                  mrpt::graphs::CNetworkOfPoses3DInf* graph) {
+  for (size_t k = 0; k < ids.size(); ++k) {
+    const auto& p = problem.poses[k];
+    graph->nodes.at(ids[k]) = ToMrpt(MakePose(p.R, p.t));
+  }
+}
+void PosesToGraph(const PoseGraph2& problem, const std::vector<mrpt::graphs::TNodeID>& ids,
+                  mrpt::graphs::CNetworkOfPoses2DInf* graph) {
+  for (size_t k = 0; k < ids.size(); ++k) {
+    const auto& p = problem.poses[k];
+    graph->nodes.at(ids[k]) = mrpt::poses::CPose2D(p.t.x(), p.t.y(), std::atan2(p.R(1, 0), p.R(0, 0)));
+  }
+}
+
+OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOptions& options,
+                              const std::vector<double>* robust, std::map<mrpt::graphs::TNodeID, Matrix6d>* marginals) {
+  if (options.method == "sparse") return OptimizeSparse<3>(graph, options, robust, marginals);
   OptimizerResult result = OptimizeImpl(graph, options, options.mrpt_max_iterations, options.mrpt_window);
   const auto start = std::chrono::steady_clock::now();
   if (options.verbose) std::printf("[vloc] MRPT stage %.3f s\n", result.seconds);
@@ -287,7 +370,9 @@ OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const O
   result.seconds += SecondsSince(start);
   return result;
 }
-OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses2DInf& graph, const OptimizerOptions& options) {
+OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses2DInf& graph, const OptimizerOptions& options,
+                              const std::vector<double>* robust) {
+  if (options.method == "sparse") return OptimizeSparse<2>(graph, options, robust, nullptr);
   // 2D: MRPT alone (no weighted polish), max_iterations iterations.
   return OptimizeImpl(graph, options, options.max_iterations, 0);
 }
@@ -315,5 +400,46 @@ Matrix6d VlocFromLocalCovariance(const Pose3& a_from_b, const Matrix6d& covarian
   const Matrix6d J = RotationBlocks(a_from_b.linear());
   return J * covariance * J.transpose();
 }
+
+namespace {
+
+template <int D, class Graph>
+OptimizerResult OptimizeSparse(Graph& graph, const OptimizerOptions& options, const std::vector<double>* robust,
+                               std::map<mrpt::graphs::TNodeID, Matrix6d>* marginals) {
+  const Stopwatch watch;
+  OptimizerResult result;
+  std::vector<mrpt::graphs::TNodeID> ids;
+  PoseGraphProblem<D> problem = ProblemFromGraph(graph, &ids, robust);
+  if (problem.edges.empty() || problem.poses.size() < 2) {
+    result.initial_chi2 = result.final_chi2 = Cost(problem, nullptr);
+    if (marginals) marginals->clear();
+    result.marginals_valid = problem.poses.size() < 2;
+    return result;
+  }
+  SolverOptions solver = options.solver;
+  solver.verbose |= options.verbose;
+  std::vector<typename PoseGraphProblem<D>::Information> blocks;
+  const SolverSummary s = SolvePoseGraph(&problem, solver, marginals ? &blocks : nullptr);
+  if (!s.usable) throw std::runtime_error("pose graph solver: " + s.message);
+  PosesToGraph(problem, ids, &graph);
+  if constexpr (D == 3) {
+    if (marginals) {
+      marginals->clear();
+      result.marginals_valid = s.marginals_valid;
+      result.marginal_seconds = s.marginal_seconds;
+      if (s.marginals_valid)
+        for (size_t k = 0; k < ids.size(); ++k)
+          if (!problem.fixed[k]) (*marginals)[ids[k]] = blocks[k];
+    }
+  }
+  result.iterations = s.iterations;
+  result.initial_chi2 = s.initial_cost;
+  result.final_chi2 = s.final_cost;
+  result.num_downweighted = s.num_downweighted;
+  result.seconds = watch.Seconds();
+  return result;
+}
+
+}  // namespace
 
 }  // namespace vloc::posegraph

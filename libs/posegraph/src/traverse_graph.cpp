@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "vloc/common/stopwatch.h"
+#include "vloc/posegraph/graph_io.h"
 
 namespace vloc::posegraph {
 
@@ -86,6 +87,7 @@ void PoseGraphOptions::Visit(OptionsReader& r) {
   r.Optional("min_position_sigma", &min_position_sigma, "m, floor added to every edge");
   r.Optional("min_rotation_sigma", &min_rotation_sigma, "rad, floor added to every edge");
   r.Optional("compute_marginals", &compute_marginals, "marginal covariances after each update");
+  r.Optional("loop_gate_chi2", &loop_gate_chi2, "loop/fix edges beyond this chi2 against the predicted covariance are switched off");
   r.Optional("max_site_id_jump", &max_site_id_jump, "site ids further beyond the newest are rejected as corrupt");
 }
 
@@ -108,6 +110,7 @@ bool PoseGraphOptions::Check(std::string* error) const {
       {"min_rotation_sigma", min_rotation_sigma}};
   for (const auto& [name, value] : positive)
     if (!(value > 0.0) || !std::isfinite(value)) return Fail(error, std::string(name) + " must be > 0");
+  if (!(loop_gate_chi2 > 0.0)) return Fail(error, "loop_gate_chi2 must be > 0");
   if (max_site_id_jump < 1) return Fail(error, "max_site_id_jump must be >= 1, is " + std::to_string(max_site_id_jump));
   return true;
 }
@@ -118,6 +121,7 @@ std::string PoseGraphSummary::BriefReport() const {
      << num_dr_edges << " DR, " << num_visual_edges << " visual, " << num_loop_edges << " loop/fix), chi2 "
      << initial_chi2 << " -> " << final_chi2 << " in " << iterations << " iterations, " << total_seconds << " s";
   if (num_pending) os << ", " << num_pending << " pending";
+  if (num_downweighted) os << ", " << num_downweighted << " loop/fix edges down-weighted as outliers";
   if (!message.empty()) os << "; " << message;
   return os.str();
 }
@@ -233,7 +237,7 @@ AddResult TraverseGraph::AddDeadReckoning(int site_id, const PoseWithCovariance&
     if (fallback) ++num_dr_fallbacks_;
     edges_[EdgeKey{*from, *to, EdgeKind::kDeadReckoning}] = edge;
   }
-  RebuildEdges();
+  edges_dirty_ = true;
   RetryPending();
   result.accepted = true;
   result.changed = true;
@@ -336,7 +340,7 @@ AddResult TraverseGraph::AddEdge(int from, int to, EdgeKind kind, const PoseWith
   }
   edges_[EdgeKey{from, to, kind}] = edge;
   if (!sites_.count(to)) sites_[to].utime = measurement.utime;
-  RebuildEdges();
+  edges_dirty_ = true;
   result.accepted = result.changed = true;
   return result;
 }
@@ -347,11 +351,140 @@ void TraverseGraph::RetryPending() {
   for (const Pending& p : waiting) AddEdge(p.from, p.to, p.kind, p.measurement);
 }
 
-void TraverseGraph::RebuildEdges() {
-  graph_.edges.clear();
-  for (const auto& [key, edge] : edges_)
-    graph_.insertEdge(static_cast<mrpt::graphs::TNodeID>(key.from), static_cast<mrpt::graphs::TNodeID>(key.to),
-                      edge);
+mrpt::graphs::CNetworkOfPoses3DInf& TraverseGraph::Synced() const {
+  if (edges_dirty_) {
+    graph_.edges.clear();
+    for (const auto& [key, edge] : edges_)
+      graph_.insertEdge(static_cast<mrpt::graphs::TNodeID>(key.from), static_cast<mrpt::graphs::TNodeID>(key.to),
+                        edge);
+    edges_dirty_ = false;
+  }
+  return graph_;
+}
+
+OptimizerResult TraverseGraph::SolveSparse(const std::vector<double>& robust) {
+  // The solver's problem straight from edges_ (no MRPT edge map needed).
+  const Stopwatch watch;
+  PoseGraph3 problem;
+  std::vector<mrpt::graphs::TNodeID> ids;
+  std::map<mrpt::graphs::TNodeID, int> index;
+  for (const auto& [id, node] : graph_.nodes) {
+    index.emplace(id, static_cast<int>(ids.size()));
+    ids.push_back(id);
+    PoseGraph3::Pose p;
+    p.R = node.getRotationMatrix().asEigen();
+    p.t = Eigen::Vector3d(node.x(), node.y(), node.z());
+    problem.poses.push_back(p);
+    problem.fixed.push_back(id == graph_.root ? 1 : 0);
+  }
+  size_t k = 0;
+  for (const auto& [key, edge] : edges_) {
+    const auto a = index.find(static_cast<mrpt::graphs::TNodeID>(key.from));
+    const auto b = index.find(static_cast<mrpt::graphs::TNodeID>(key.to));
+    if (a == index.end() || b == index.end())
+      throw std::runtime_error("pose graph edge " + std::to_string(key.from) + "->" + std::to_string(key.to) +
+                               " refers to a missing site");
+    PoseGraph3::Edge e;
+    e.i = a->second;
+    e.j = b->second;
+    e.measurement.R = edge.mean.getRotationMatrix().asEigen();
+    e.measurement.t = Eigen::Vector3d(edge.mean.x(), edge.mean.y(), edge.mean.z());
+    e.information = edge.cov_inv.asEigen();
+    e.robust = robust[k] > 0;
+    if (e.robust) e.robust_scale = robust[k];
+    problem.edges.push_back(e);
+    ++k;
+  }
+  SolverOptions solver = options_.optimizer.solver;
+  solver.verbose |= options_.optimizer.verbose;
+  std::vector<PoseGraph3::Information> blocks;
+  const SolverSummary summary = SolvePoseGraph(&problem, solver, options_.compute_marginals ? &blocks : nullptr);
+  if (!summary.usable) throw std::runtime_error("pose graph solver: " + summary.message);
+  OptimizerResult r;
+  for (size_t p = 0; p < ids.size(); ++p) {
+    if (problem.fixed[p]) continue;
+    graph_.nodes.at(ids[p]) = ToMrpt(MakePose(problem.poses[p].R, problem.poses[p].t));
+    if (summary.marginals_valid) marginals_[ids[p]] = blocks[p];
+  }
+  r.iterations = summary.iterations;
+  r.initial_chi2 = summary.initial_cost;
+  r.final_chi2 = summary.final_cost;
+  r.num_downweighted = summary.num_downweighted;
+  r.marginals_valid = summary.marginals_valid;
+  r.marginal_seconds = summary.marginal_seconds;
+  r.seconds = watch.Seconds();
+  return r;
+}
+
+std::vector<double> TraverseGraph::RobustEdgeScales() const {
+  // Per edge (edges_ order): 0
+  // for DR and adjacent visual edges. A loop or fix is tested against the
+  // predicted covariance of its residual, S = J_i C_i J_i^T + J_j C_j J_j^T
+  // + W^-1 (C = the last update's marginals; the two sites taken as
+  // uncorrelated, which widens S a little: the test errs on accepting):
+  //  - s' = e^T S^-1 e <= loop_gate_chi2: a plausible match. Its kernel
+  //    width is scaled by max(1, s / s') (s = e^T W e, its own chi2), so a
+  //    revisit that closes a long drift keeps its full weight from the first
+  //    iteration while the drift is within the traverse's uncertainty;
+  //  - beyond: switched off for this update (width 1e-9: weight ~0), like a
+  //    switchable constraint whose switch went to zero. It is tested again
+  //    at the next update, so a match that becomes plausible comes back.
+  // With no marginals from the last update (the first after a reload, or
+  // compute_marginals off) they are computed here, at the current estimate,
+  // from the graph without its loop and fix edges; when even that is
+  // singular the kernel runs at its plain width. A site without a marginal
+  // (added since the last update) takes its nearest site's, grown by the
+  // per-metre DR model over the distance between them.
+  std::vector<double> scales;
+  scales.reserve(edges_.size());
+  const bool any_robust = std::any_of(edges_.begin(), edges_.end(), [](const auto& entry) {
+    return entry.first.kind == EdgeKind::kLoop || entry.first.kind == EdgeKind::kAbsoluteFix;
+  });
+  std::map<mrpt::graphs::TNodeID, Matrix6d> computed;
+  if (any_robust && marginals_.empty()) {
+    mrpt::graphs::CNetworkOfPoses3DInf plain;
+    plain.nodes = graph_.nodes;
+    plain.root = graph_.root;
+    for (const auto& [key, edge] : edges_)
+      if (key.kind != EdgeKind::kLoop && key.kind != EdgeKind::kAbsoluteFix)
+        plain.insertEdge(static_cast<mrpt::graphs::TNodeID>(key.from), static_cast<mrpt::graphs::TNodeID>(key.to), edge);
+    std::string ignored;
+    if (!LocalMarginals(plain, &computed, &ignored, options_.optimizer.num_threads)) computed.clear();
+  }
+  const std::map<mrpt::graphs::TNodeID, Matrix6d>& prior = marginals_.empty() ? computed : marginals_;
+  auto marginal = [this, &prior](mrpt::graphs::TNodeID id) -> Matrix6d {
+    if (id == graph_.root || prior.empty()) return Matrix6d::Zero();
+    if (const auto it = prior.find(id); it != prior.end()) return it->second;
+    auto nearest = prior.lower_bound(id);
+    if (nearest == prior.end()) --nearest;
+    const auto& a = graph_.nodes.at(id);
+    const auto& b = graph_.nodes.at(nearest->first);
+    const double d = std::sqrt((a.x() - b.x()) * (a.x() - b.x()) + (a.y() - b.y()) * (a.y() - b.y()) +
+                               (a.z() - b.z()) * (a.z() - b.z()));
+    return nearest->second + Diagonal(options_.dr_position_sigma_per_metre * d, options_.dr_position_sigma_per_metre * d,
+                                      options_.dr_vertical_sigma_per_metre * d, options_.dr_tilt_sigma,
+                                      options_.dr_tilt_sigma, options_.dr_heading_sigma_per_metre * d);
+  };
+  for (const auto& [key, edge] : edges_) {
+    if (key.kind != EdgeKind::kLoop && key.kind != EdgeKind::kAbsoluteFix) {
+      scales.push_back(0.0);
+      continue;
+    }
+    const auto i = static_cast<mrpt::graphs::TNodeID>(key.from), j = static_cast<mrpt::graphs::TNodeID>(key.to);
+    double scale = 1.0;
+    if (!prior.empty() && graph_.nodes.count(i) && graph_.nodes.count(j)) {
+      Matrix6d J_i, J_j;
+      const Vector6d e = EdgeResidualAndJacobians(edge.mean, graph_.nodes.at(i), graph_.nodes.at(j), &J_i, &J_j);
+      const Matrix6d W = edge.cov_inv.asEigen();
+      const Matrix6d S = J_i * marginal(i) * J_i.transpose() + J_j * marginal(j) * J_j.transpose() + W.inverse();
+      const double own = e.dot(W * e);
+      const double predicted = e.dot(S.ldlt().solve(e));
+      if (!(predicted <= options_.loop_gate_chi2)) scale = 1e-9;
+      else if (predicted > 0 && std::isfinite(own / predicted)) scale = std::max(1.0, own / predicted);
+    }
+    scales.push_back(scale);
+  }
+  return scales;
 }
 
 PoseGraphSummary TraverseGraph::Optimize() {
@@ -372,23 +505,36 @@ PoseGraphSummary TraverseGraph::Optimize() {
     summary_ = s;
     return s;
   }
+  // Revisits and absolute fixes go through the robust kernel: a false
+  // match must not bend the traverse.
+  const std::vector<double> robust = RobustEdgeScales();
+  const bool sparse = options_.optimizer.method == "sparse";
+  const bool solver_marginals = options_.compute_marginals && sparse;
+  marginals_.clear();
   try {
-    const OptimizerResult r = OptimizeGraph(graph_, options_.optimizer);
+    const OptimizerResult r = sparse ? SolveSparse(robust) : OptimizeGraph(Synced(), options_.optimizer);
     s.initial_chi2 = r.initial_chi2;
     s.final_chi2 = r.final_chi2;
     s.iterations = r.iterations;
-    s.optimize_seconds = r.seconds;
+    s.optimize_seconds = r.seconds - r.marginal_seconds;
+    s.num_downweighted = r.num_downweighted;
+    if (solver_marginals) {
+      s.marginals_valid = r.marginals_valid;
+      s.marginal_seconds = r.marginal_seconds;
+      if (!s.marginals_valid)
+        s.message = "the pose graph's Hessian is singular (a site not linked to the root by edges?); marginal "
+                    "covariances not computed";
+    }
   } catch (const std::exception& e) {
     s.message = e.what();
     s.total_seconds = total.Seconds();
     summary_ = s;
     return s;
   }
-  marginals_.clear();
-  if (options_.compute_marginals) {
+  if (options_.compute_marginals && !solver_marginals) {
     const Stopwatch marginals;
     std::string error;
-    s.marginals_valid = LocalMarginals(graph_, &marginals_, &error, options_.optimizer.num_threads);
+    s.marginals_valid = LocalMarginals(Synced(), &marginals_, &error, options_.optimizer.num_threads);
     if (!s.marginals_valid) s.message = error;
     s.marginal_seconds = marginals.Seconds();
   }
@@ -428,10 +574,10 @@ int64_t TraverseGraph::newest_utime() const {
   return newest;
 }
 
-std::string TraverseGraph::Serialize() const {
+std::string TraverseGraph::Serialize(GraphFormat format) const {
   std::ostringstream os;
   os.precision(17);
-  os << "# vloc traverse graph: MRPT text graph format; '# VLOC_' lines are vloc metadata\n";
+  os << "# vloc traverse graph: " << GraphFormatName(format) << " format; '# VLOC_' lines are vloc metadata\n";
   os << "# VLOC_VERSION 1\n";
   for (const auto& [id, rec] : sites_) {
     os << "# VLOC_SITE " << id << ' ' << rec.utime << ' ' << (rec.has_dr ? 1 : 0) << ' ';
@@ -451,13 +597,23 @@ std::string TraverseGraph::Serialize() const {
     WritePoseText(os, p.measurement);
     os << '\n';
   }
-  graph_.writeAsText(os);
+  if (format == GraphFormat::kG2o) {
+    GraphFile file;
+    file.dimension = 3;
+    file.format = GraphFormat::kG2o;
+    file.graph3 = Synced();
+    os << GraphText(file);
+  } else {
+    Synced().writeAsText(os);
+  }
   return os.str();
 }
 
 bool TraverseGraph::Save(const std::string& path, std::string* error) const {
   std::string sub;
-  if (!WriteFileAtomically(path, Serialize(), &sub)) return Fail(error, "pose graph file: " + sub);
+  const bool g2o = path.size() >= 4 && path.compare(path.size() - 4, 4, ".g2o") == 0;
+  if (!WriteFileAtomically(path, Serialize(g2o ? GraphFormat::kG2o : GraphFormat::kMrptText), &sub))
+    return Fail(error, "pose graph file: " + sub);
   return true;
 }
 
@@ -473,11 +629,18 @@ bool TraverseGraph::Load(const std::string& path, std::string* error) {
 
 bool TraverseGraph::Deserialize(const std::string& text, std::string* error) {
   TraverseGraph loaded(options_);
-  try {
-    std::istringstream is(text);
-    loaded.graph_.readAsText(is);
-  } catch (const std::exception& e) {
-    return Fail(error, std::string("not a valid MRPT 3D graph: ") + e.what());
+  if (text.find("EDGE_SE3:QUAT") != std::string::npos || text.find("VERTEX_SE3:QUAT") != std::string::npos) {
+    GraphFile file;
+    std::string sub;
+    if (!ParseGraphText(text, &file, &sub) || file.dimension != 3) return Fail(error, "not a valid 3D g2o graph: " + sub);
+    loaded.graph_ = file.graph3;
+  } else {
+    try {
+      std::istringstream is(text);
+      loaded.graph_.readAsText(is);
+    } catch (const std::exception& e) {
+      return Fail(error, std::string("not a valid MRPT 3D graph: ") + e.what());
+    }
   }
   std::vector<EdgeKey> kinds;
   std::vector<Matrix6d> informations;
@@ -553,7 +716,7 @@ bool TraverseGraph::Deserialize(const std::string& text, std::string* error) {
     if (!loaded.sites_.count(id)) loaded.sites_[id] = SiteRecord{};
   }
   loaded.have_root_ = !g.nodes.empty();
-  loaded.RebuildEdges();
+  loaded.edges_dirty_ = true;
   *this = std::move(loaded);
   return true;
 }

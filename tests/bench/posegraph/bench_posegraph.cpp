@@ -1,8 +1,11 @@
 // Pose-graph update cost: a traverse of N sites (DR + visual edges, a revisit
 // every 100 sites) already optimised; one update = the next site's DR pose
-// and visual edge added, optimised (MRPT LM + weighted polish) and the
-// marginal covariances of every site computed. The update at 1000 sites
-// also carries a revisit edge (900 -> 1000): the worst case.
+// and visual edge added, optimised and the marginal covariances of every
+// site computed. The update at 1000 sites also carries a revisit edge
+// (900 -> 1000): the worst case. Each case runs with vloc's sparse solver
+// (mrpt:0, the default: warm start, marginals from its factor) and, as the
+// peer in the same run, the optimiser it replaced (mrpt:1: MRPT's LM + the
+// weighted polish, marginals by a separate linearisation).
 //   bench_posegraph --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
 
@@ -68,6 +71,8 @@ void BM_GraphUpdate(benchmark::State& state) {
   options.dr_covariance = "per_metre";
   options.optimizer.verbose = getenv("VLOC_VERBOSE") != nullptr;
   options.optimizer.num_threads = static_cast<int>(state.range(1));
+  options.optimizer.solver.num_threads = options.optimizer.num_threads;
+  options.optimizer.method = state.range(2) == 0 ? "sparse" : "mrpt";
   TraverseGraph base(options);
   std::mt19937 rng(7);
   for (int i = 0; i < n; ++i) AddSite(base, scene, i, rng);
@@ -91,12 +96,15 @@ void BM_GraphUpdate(benchmark::State& state) {
   state.counters["optimize_s"] = last.optimize_seconds;
   state.counters["marginal_s"] = last.marginal_seconds;
 }
-// Arguments: sites, threads of the weighted LM's linearisation.
+// Arguments: sites, threads linearising the edges, method (0 = vloc's
+// sparse solver, 1 = the former MRPT LM + weighted LM: the peer).
 BENCHMARK(BM_GraphUpdate)
-    ->Args({100, 1})
-    ->Args({1000, 1})
-    ->Args({1000, 2})
-    ->ArgNames({"sites", "threads"})
+    ->Args({100, 1, 0})
+    ->Args({100, 1, 1})
+    ->Args({1000, 1, 0})
+    ->Args({1000, 1, 1})
+    ->Args({1000, 2, 0})
+    ->ArgNames({"sites", "threads", "mrpt"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 

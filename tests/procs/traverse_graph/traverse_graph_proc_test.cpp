@@ -1,4 +1,4 @@
-// traverse_graph over real LCM (ports 7780-7781, 7785): dead-reckoning and
+// traverse_graph over real LCM (ports 7780-7781, 7785, 7789): dead-reckoning and
 // visual site poses in, TRAVERSE out with the visual poses winning; a
 // restarted process reloads its graph and continues; a revisit (a BA result
 // between non-adjacent sites) closes the loop.
@@ -14,6 +14,7 @@
 #include "vloc/lcm_io/typed.h"
 #include "vloc/localization_t.hpp"
 #include "vloc/site_pose_t.hpp"
+#include "vloc/posegraph/graph_io.h"
 #include "vloc/testing/subprocess.h"
 #include "vloc/traverse_t.hpp"
 
@@ -149,6 +150,67 @@ TEST(TraverseGraphProcess, OptimisesPublishesSavesAndReloads) {
   Publish(*transport, "SITE_POSE_DR", DrMessage(0));
   ASSERT_TRUE(WaitFor(*transport, 10, [&] { return received.back().num_sites == 1; })) << proc.output();
   EXPECT_TRUE(std::filesystem::exists(graph_path + ".previous"));
+  proc.Signal(SIGTERM);
+  EXPECT_EQ(proc.WaitExit(20), 0) << proc.output();
+  std::filesystem::remove_all(dir);
+}
+
+// graph_path ending in .g2o: the process saves its graph as a 3D g2o file
+// (which vloc_posegraph and g2o read) and reloads it on restart.
+TEST(TraverseGraphProcess, SavesAndReloadsItsGraphInG2o) {
+  const std::string url = TestLcmUrl(7789);
+  const auto dir = std::filesystem::temp_directory_path() / "vloc_traverse_graph_g2o_test";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string graph_path = (dir / "traverse.g2o").string();
+  const std::string config = (dir / "traverse_graph.yaml").string();
+  {
+    std::ifstream in("config/procs/traverse_graph.yaml");
+    std::ofstream out(config);
+    std::string line;
+    while (std::getline(in, line)) {
+      if (line.rfind("graph_path:", 0) == 0) line = "graph_path: " + graph_path;
+      out << line << "\n";
+    }
+  }
+  std::string error;
+  auto transport = MakeLcmTransport(url, &error);
+  ASSERT_TRUE(transport) << error;
+  std::vector<traverse_t> received;
+  Subscribe<traverse_t>(*transport, "TRAVERSE", [&](const std::string&, const traverse_t& m) { received.push_back(m); });
+  {
+    Subprocess proc({BinPath("traverse_graph"), "--config", config, "--lcm-url", url});
+    ASSERT_TRUE(proc.WaitForOutput("waiting for", 30)) << proc.output();
+    for (int i = 0; i < 3; ++i) {
+      Publish(*transport, "SITE_POSE_DR", DrMessage(i));
+      ASSERT_TRUE(WaitFor(*transport, 10, [&] { return !received.empty() && received.back().num_sites == i + 1; }))
+          << proc.output();
+      if (i == 0) continue;
+      const size_t before = received.size();
+      Publish(*transport, "SITE_POSE_VISUAL", VisualMessage(i));
+      ASSERT_TRUE(WaitFor(*transport, 10, [&] { return received.size() > before; })) << proc.output();
+    }
+    proc.Signal(SIGTERM);
+    EXPECT_EQ(proc.WaitExit(20), 0) << proc.output();
+  }
+  const traverse_t before_restart = received.back();
+  posegraph::GraphFile file;
+  ASSERT_TRUE(posegraph::ReadGraphFile(graph_path, &file, &error)) << error;
+  EXPECT_EQ(file.format, posegraph::GraphFormat::kG2o);
+  EXPECT_EQ(file.dimension, 3);
+  EXPECT_EQ(file.num_nodes(), 3u);
+  EXPECT_EQ(file.num_edges(), 4u);  // 2 DR + 2 visual
+  received.clear();
+  Subprocess proc({BinPath("traverse_graph"), "--config", config, "--lcm-url", url});
+  ASSERT_TRUE(proc.WaitForOutput("waiting for", 30)) << proc.output();
+  EXPECT_NE(proc.output().find("reloaded"), std::string::npos) << proc.output();
+  ASSERT_TRUE(WaitFor(*transport, 10, [&] { return !received.empty(); })) << proc.output();
+  ASSERT_EQ(received.back().num_sites, 3);
+  EXPECT_EQ(received.back().num_visual_edges, 2);
+  for (int i = 0; i < 3; ++i) {
+    const Pose3 a = PoseFromMessage(received.back().poses[i]).pose, b = PoseFromMessage(before_restart.poses[i]).pose;
+    EXPECT_LT((a.translation() - b.translation()).norm(), 1e-6) << i;
+  }
   proc.Signal(SIGTERM);
   EXPECT_EQ(proc.WaitExit(20), 0) << proc.output();
   std::filesystem::remove_all(dir);

@@ -1,6 +1,9 @@
 #pragma once
-// vloc's use of MRPT's sparse Levenberg-Marquardt pose-graph optimiser
-// (mrpt::graphslam::optimize_graph_spa_levmarq) and the conversions between
+// MRPT graphs (CNetworkOfPoses2DInf / 3DInf, the graph's home) optimised by
+// vloc's solver (sparse_solver.h, method "sparse", the default) or by MRPT's
+// sparse Levenberg-Marquardt (mrpt::graphslam::optimize_graph_spa_levmarq)
+// followed by vloc's weighted LM (method "mrpt", the former default); the
+// conversions between MRPT graphs and the solver's problem, and between
 // vloc's pose/covariance convention and MRPT's.
 //
 // MRPT conventions used by the optimiser (MRPT 2.5):
@@ -29,11 +32,29 @@
 
 #include "vloc/common/options.h"
 #include "vloc/common/pose.h"
+#include "vloc/posegraph/sparse_solver.h"
 
 namespace vloc::posegraph {
 
-// Settings of optimize_graph_spa_levmarq.
+// The solver's settings for an incremental update: no chordal step (warm
+// start from the previous optimum), Eigen's simplicial factorisation (a
+// traverse is nearly a chain: CHOLMOD's supernodes do not pay), and a cost
+// tolerance of 1e-6.
+inline SolverOptions WarmStartSolverOptions() {
+  SolverOptions o;
+  o.chordal_initialisation = false;
+  o.linear_solver = "eigen";
+  o.relative_cost_tolerance = 1e-6;
+  return o;
+}
+
+// Which optimiser and its settings. method "sparse" is vloc's solver
+// (sparse_solver.h); "mrpt" is MRPT's optimize_graph_spa_levmarq followed by
+// vloc's weighted LM (the former default, kept to measure against).
 struct OptimizerOptions {
+  std::string method = "sparse";                  // "sparse" or "mrpt"
+  SolverOptions solver = WarmStartSolverOptions();  // method "sparse"
+  // method "mrpt":
   int mrpt_max_iterations = 1;       // iterations of MRPT's optimize_graph_spa_levmarq per update (see OptimizeGraph)
   int mrpt_window = 50;              // MRPT optimises only the newest this many nodes (by id); 0 = all
   int max_iterations = 100;          // iterations of the weighted Levenberg-Marquardt that follows
@@ -50,10 +71,13 @@ struct OptimizerOptions {
 };
 
 struct OptimizerResult {
-  int iterations = 0;         // LM iterations MRPT reports
+  int iterations = 0;         // LM iterations
   double initial_chi2 = 0.0;  // sum of e^T W e before
   double final_chi2 = 0.0;    // and after
   double seconds = 0.0;       // wall time of the optimiser call
+  int num_downweighted = 0;   // robust edges the kernel down-weighted (method sparse)
+  bool marginals_valid = false;  // marginals asked for and computed (method sparse)
+  double marginal_seconds = 0.0;
 };
 
 // Optimises every node but graph.root. A graph with no free node or no edge
@@ -65,8 +89,30 @@ struct OptimizerResult {
 // step, rebuilds its Hessian from an empty map so every later Cholesky fails:
 // with edges of different precision (DR vs visual) it stops far from the
 // optimum. 2D: MRPT alone with max_iterations.
-OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOptions& options);
-OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses2DInf& graph, const OptimizerOptions& options);
+// method "sparse": SolvePoseGraph on the graph's poses (root fixed); `robust`
+// (graph.edges order): 0 = an ordinary edge, > 0 = the robust kernel with
+// its width multiplied by this; throws std::runtime_error with the solver's
+// message when it fails.
+// `marginals` (method sparse only; 3D): the solver's marginal covariance of
+// every free node in MRPT's local tangent (as LocalMarginals gives).
+OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses3DInf& graph, const OptimizerOptions& options,
+                              const std::vector<double>* robust = nullptr,
+                              std::map<mrpt::graphs::TNodeID, Matrix6d>* marginals = nullptr);
+OptimizerResult OptimizeGraph(mrpt::graphs::CNetworkOfPoses2DInf& graph, const OptimizerOptions& options,
+                              const std::vector<double>* robust = nullptr);
+
+// The solver's view of an MRPT graph: one pose per node in id order (the
+// root fixed), one edge per MRPT edge in graph.edges order; ids[k] is pose
+// k's node id. Throws std::runtime_error for an edge to a missing node.
+PoseGraph3 ProblemFromGraph(const mrpt::graphs::CNetworkOfPoses3DInf& graph, std::vector<mrpt::graphs::TNodeID>* ids,
+                            const std::vector<double>* robust = nullptr);
+PoseGraph2 ProblemFromGraph(const mrpt::graphs::CNetworkOfPoses2DInf& graph, std::vector<mrpt::graphs::TNodeID>* ids,
+                            const std::vector<double>* robust = nullptr);
+// Writes the problem's poses back into the graph's nodes.
+void PosesToGraph(const PoseGraph3& problem, const std::vector<mrpt::graphs::TNodeID>& ids,
+                  mrpt::graphs::CNetworkOfPoses3DInf* graph);
+void PosesToGraph(const PoseGraph2& problem, const std::vector<mrpt::graphs::TNodeID>& ids,
+                  mrpt::graphs::CNetworkOfPoses2DInf* graph);
 
 // Information-weighted squared error sum_e e^T W e with MRPT's residual.
 double Chi2(const mrpt::graphs::CNetworkOfPoses3DInf& graph);
@@ -108,10 +154,6 @@ Vector6d EdgeResidualAndJacobians(const mrpt::poses::CPose3D& z, const mrpt::pos
 void Linearise(const mrpt::graphs::CNetworkOfPoses3DInf& graph, const std::map<mrpt::graphs::TNodeID, int>& index,
                int num_threads, Eigen::SparseMatrix<double>* H, Eigen::VectorXd* g);
 
-// Diagonal blocks (block_size x block_size) of the inverse of a symmetric
-// positive-definite sparse matrix (the lower triangle is read). Exposed for
-// tests. Returns false when the matrix is not positive definite.
-bool BlockDiagonalOfInverse(const Eigen::SparseMatrix<double>& matrix, int block_size,
-                            std::vector<Eigen::MatrixXd>* blocks);
+
 
 }  // namespace vloc::posegraph

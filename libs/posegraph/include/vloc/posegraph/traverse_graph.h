@@ -1,6 +1,11 @@
 #pragma once
-// The traverse pose graph: one MRPT node per rover site, optimised with
-// MRPT's sparse Levenberg-Marquardt after every change.
+// The traverse pose graph: one MRPT node per rover site, optimised after
+// every change by vloc's sparse solver (sparse_solver.h), warm-started from
+// the last optimum, its marginals from the solver's last factorisation.
+// Revisit (loop) and absolute-fix edges are robust: each update tests them
+// against their predicted covariance (RobustEdgeScales): an implausible one
+// (a match to the wrong place) is switched off, the others go through the
+// DCS kernel. optimizer.method "mrpt" keeps the former MRPT optimiser.
 //
 //   TraverseGraph graph(options);
 //   graph.AddDeadReckoning(site, utime, world_from_body_dr);      // node + DR edge
@@ -25,8 +30,10 @@
 // site's current estimate; the first site added is the root (normally site 0).
 //
 // Persistence: MRPT's text graph format (VERTEX3 / FIX / EDGE3 lines,
-// written with 17 significant digits) plus vloc's metadata as comment lines
-// that MRPT's reader skips ("# VLOC_SITE ...", "# VLOC_EDGE ...").
+// written with 17 significant digits), or g2o (VERTEX_SE3:QUAT /
+// EDGE_SE3:QUAT / FIX) when the path ends in ".g2o", plus vloc's metadata as
+// comment lines both readers skip ("# VLOC_SITE ...", "# VLOC_EDGE ...").
+// Either file opens in vloc_posegraph and g2o's tools.
 
 #include <map>
 #include <mrpt/graphs/CNetworkOfPoses.h>
@@ -37,6 +44,7 @@
 #include "vloc/common/options.h"
 #include "vloc/common/pose.h"
 #include "vloc/common/rover_data.h"
+#include "vloc/posegraph/graph_io.h"
 #include "vloc/posegraph/mrpt_optimize.h"
 
 namespace vloc::posegraph {
@@ -59,6 +67,8 @@ struct PoseGraphOptions {
   double min_position_sigma = 1e-3;               // m, added in quadrature to every edge (keeps W finite)
   double min_rotation_sigma = 1e-5;               // rad, ditto
   bool compute_marginals = true;                  // marginal covariance of every site after each update
+  double loop_gate_chi2 = 22.46;                  // a loop/fix edge whose chi2 against its predicted covariance
+                                                  // exceeds this (6 dof, 99.9 %) is switched off for the update
   int max_site_id_jump = kMaxSiteIdJump;          // a site id this far beyond the newest is corrupt: rejected
 
   void Visit(OptionsReader& r);
@@ -77,6 +87,7 @@ struct PoseGraphSummary {
   int num_fix_edges = 0;
   int num_pending = 0;           // measurements waiting for their sites
   int num_dr_fallbacks = 0;      // DR edges that used the per-metre model in "difference" mode
+  int num_downweighted = 0;      // loop/fix edges the robust kernel down-weighted (weight < 0.5): likely false
   double initial_chi2 = 0.0;
   double final_chi2 = 0.0;
   int iterations = 0;
@@ -123,13 +134,15 @@ class TraverseGraph {
   std::optional<SiteEstimate> Site(int site_id) const;
   int num_sites() const { return static_cast<int>(graph_.nodes.size()); }
   int64_t newest_utime() const;
-  const mrpt::graphs::CNetworkOfPoses3DInf& graph() const { return graph_; }
+  const mrpt::graphs::CNetworkOfPoses3DInf& graph() const { return Synced(); }
   const PoseGraphOptions& options() const { return options_; }
 
-  // Writes atomically (temporary file + rename). False with *error on failure.
+  // Writes atomically (temporary file + rename), in g2o when `path` ends in
+  // ".g2o", else in MRPT's text format. False with *error on failure.
   bool Save(const std::string& path, std::string* error) const;
-  // Reads a graph saved by Save (or any MRPT 3D text graph; its edges are
-  // then classified by adjacency). False with *error (the graph unchanged).
+  // Reads a graph saved by Save in either format (or any MRPT 3D text or
+  // 3D g2o graph; its edges are then classified by adjacency). False with
+  // *error (the graph unchanged).
   bool Load(const std::string& path, std::string* error);
   // Loaded edges whose information matrix was not positive definite and was
   // repaired (eigenvalues raised to 1e-9 of the largest; one warning line).
@@ -163,13 +176,21 @@ class TraverseGraph {
   std::string SiteIdProblem(int site_id) const;
   Matrix6d DrEdgeCovariance(int from, int to, const Pose3& relative, bool* fallback) const;
   void AddNode(int site_id, const Pose3& world_from_body);
-  void RebuildEdges();
+  // graph_ with its edges rebuilt from edges_ when they changed (the MRPT
+  // edge map is only needed to save and for method "mrpt").
+  mrpt::graphs::CNetworkOfPoses3DInf& Synced() const;
+  // The solver's robust-kernel width scale of every edge (edges_ order, 0 =
+  // not robust).
+  std::vector<double> RobustEdgeScales() const;
+  // Method "sparse": SolvePoseGraph over graph_'s nodes and edges_.
+  OptimizerResult SolveSparse(const std::vector<double>& robust);
   void RetryPending();
-  std::string Serialize() const;
+  std::string Serialize(GraphFormat format) const;
   bool Deserialize(const std::string& text, std::string* error);
 
   PoseGraphOptions options_;
-  mrpt::graphs::CNetworkOfPoses3DInf graph_;
+  mutable mrpt::graphs::CNetworkOfPoses3DInf graph_;  // nodes authoritative; edges a cache of edges_ (Synced)
+  mutable bool edges_dirty_ = false;
   std::map<EdgeKey, mrpt::poses::CPose3DPDFGaussianInf> edges_;  // authoritative edge list
   std::map<int, SiteRecord> sites_;
   std::vector<Pending> pending_;

@@ -1,0 +1,90 @@
+#pragma once
+// Pose-graph files in and out of MRPT's graph types.
+//
+//   GraphFile file;
+//   if (!ReadGraphFile("sphere2500.g2o", &file, &error)) ...   // 2D or 3D, g2o or MRPT/TORO
+//   if (!file.repair_report.empty()) LOG(WARNING) << file.repair_report;
+//   ... optimise file.graph3 (or file.graph2) ...
+//   WriteGraphFile("out.g2o", file, &error);                  // in the format it was read in
+//
+// Formats (the first vertex/edge keyword decides):
+//  - g2o: VERTEX_SE3:QUAT id x y z qx qy qz qw, EDGE_SE3:QUAT i j x y z qx qy
+//    qz qw + 21 upper-triangular information values over [t, q_xyz]; and
+//    VERTEX_SE2 id x y theta, EDGE_SE2 i j dx dy dtheta + 6 values over
+//    [x y theta]. FIX id marks the fixed vertex.
+//  - MRPT/TORO text: VERTEX2 / EDGE2 (2D, TORO's information order xx xy
+//    yy tt xt yt) and VERTEX3 / EDGE3 (3D, roll pitch yaw, the information
+//    in the layout MRPT's writer uses, read keeping the rotation cross terms
+//    MRPT 2.5's own reader loses).
+// Information matrices are held in the optimiser's tangent [t; rotation
+// vector] (MRPT's): a g2o quaternion-vector information I_q becomes
+// I_theta = S I S with S = diag(1,1,1,1/2,1/2,1/2), and back on writing.
+// A file with edges but no vertices starts from chained odometry: the poses
+// are composed along the edges i -> i+1 from the lowest id (at the origin),
+// then along any edge to a pose not placed yet.
+// An information matrix that is not finite rejects its edge; one that is
+// not positive definite is repaired (eigenvalues raised to 1e-9 of the
+// largest). Either way repair_report holds one line saying how many and why.
+
+#include <Eigen/Core>
+#include <mrpt/graphs/CNetworkOfPoses.h>
+#include <string>
+
+#include "vloc/posegraph/sesync_objective.h"
+#include "vloc/posegraph/sparse_solver.h"
+
+namespace vloc::posegraph {
+
+enum class GraphFormat { kG2o, kMrptText };
+const char* GraphFormatName(GraphFormat format);
+
+struct GraphFile {
+  int dimension = 3;                       // 2 or 3: which graph below holds the data
+  GraphFormat format = GraphFormat::kG2o;  // format read (and to write back)
+  mrpt::graphs::CNetworkOfPoses2DInf graph2;
+  mrpt::graphs::CNetworkOfPoses3DInf graph3;
+  bool had_vertices = true;                // false: poses from chained odometry
+  int num_repaired = 0;                    // information matrices made positive definite
+  int num_rejected = 0;                    // edges dropped for a non-finite information / pose
+  int num_skipped = 0;                     // g2o records of other types (landmarks, priors, ...) skipped
+  std::string first_skipped;               // the first such record's type
+  std::string repair_report;               // one line when any count is non-zero, else ""
+
+  size_t num_nodes() const { return dimension == 2 ? graph2.nodes.size() : graph3.nodes.size(); }
+  size_t num_edges() const { return dimension == 2 ? graph2.edges.size() : graph3.edges.size(); }
+};
+
+// False with *error naming the file and line when the file cannot be read or
+// parsed, or holds no edge.
+bool ReadGraphFile(const std::string& path, GraphFile* file, std::string* error);
+bool ParseGraphText(const std::string& text, GraphFile* file, std::string* error);
+
+// Writes (atomically) in file.format; vertices hold the current poses.
+bool WriteGraphFile(const std::string& path, const GraphFile& file, std::string* error);
+std::string GraphText(const GraphFile& file);
+
+// An information matrix made symmetric positive definite: eigenvalues below
+// 1e-9 of the largest raised to it. Returns false when it is not finite or
+// has no positive eigenvalue; *repaired says whether it changed.
+template <int N>
+bool RepairInformation(Eigen::Matrix<double, N, N>* information, bool* repaired);
+
+// What OptimizeGraphFile did.
+struct GraphFileReport {
+  SolverSummary solver;          // the solve (its costs use the weights solved with)
+  double initial_chi2 = 0.0;     // sum e^T W e with the file's information, at the file's poses
+  double final_chi2 = 0.0;       // and at the optimum
+  double initial_sesync = 0.0;   // SE-Sync's objective (sesync_objective.h) at the file's poses
+  double final_sesync = 0.0;     // and at the optimum
+  OptimalityCertificate certificate;  // for SE-Sync's objective (sesync_objective.h); with sesync_weights only
+
+  std::string BriefReport() const;
+};
+
+// Optimises the poses of `file` in place (its root fixed). With
+// `sesync_weights` the solve uses SE-Sync's isotropic weights
+// (UseSeSyncWeights) instead of the file's information matrices; the file
+// keeps its own. The solver's failure is in report.solver (poses unchanged).
+GraphFileReport OptimizeGraphFile(GraphFile* file, const SolverOptions& options, bool sesync_weights);
+
+}  // namespace vloc::posegraph

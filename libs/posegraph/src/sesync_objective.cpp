@@ -1,0 +1,134 @@
+#include "vloc/posegraph/sesync_objective.h"
+
+#include <Eigen/LU>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+#include <sstream>
+
+namespace vloc::posegraph {
+
+template <int D>
+void SeSyncWeights(const typename PoseGraphProblem<D>::Information& information, double* kappa, double* tau) {
+  constexpr int kRot = PoseGraphProblem<D>::kTangent - D;
+  *tau = D / information.template topLeftCorner<D, D>().inverse().trace();
+  const Eigen::Matrix<double, kRot, kRot> rot = information.template bottomRightCorner<kRot, kRot>();
+  if constexpr (D == 3) {
+    // I_q = 4 I_theta: kappa = 3 / (2 tr(inv(I_q))) = 6 / tr(inv(I_theta)).
+    *kappa = 6.0 / rot.inverse().trace();
+  } else {
+    *kappa = rot(0, 0);
+  }
+}
+
+template <int D>
+double SeSyncObjective(const PoseGraphProblem<D>& problem) {
+  double f = 0.0;
+  for (const auto& edge : problem.edges) {
+    double kappa, tau;
+    SeSyncWeights<D>(edge.information, &kappa, &tau);
+    const auto& pi = problem.poses[static_cast<size_t>(edge.i)];
+    const auto& pj = problem.poses[static_cast<size_t>(edge.j)];
+    f += kappa * (pj.R - pi.R * edge.measurement.R).squaredNorm() +
+         tau * (pj.t - pi.t - pi.R * edge.measurement.t).squaredNorm();
+  }
+  return f;
+}
+
+template <int D>
+void UseSeSyncWeights(PoseGraphProblem<D>* problem) {
+  constexpr int K = PoseGraphProblem<D>::kTangent;
+  for (auto& edge : problem->edges) {
+    double kappa, tau;
+    SeSyncWeights<D>(edge.information, &kappa, &tau);
+    Eigen::Matrix<double, K, 1> d;
+    d.template head<D>().setConstant(tau);
+    d.template tail<K - D>().setConstant(2.0 * kappa);
+    edge.information = d.asDiagonal();
+  }
+}
+
+template <int D>
+OptimalityCertificate CertifyGlobalOptimum(const PoseGraphProblem<D>& problem, double relative_tolerance) {
+  OptimalityCertificate c;
+  const int n = static_cast<int>(problem.poses.size());
+  const int size = n * (D + 1);
+  auto t_col = [](int i) { return i; };
+  auto r_col = [n](int i) { return n + D * i; };
+  // M = sum kappa B B^T + tau b b^T (see the header), as triplets.
+  std::vector<Eigen::Triplet<double>> m;
+  m.reserve(problem.edges.size() * (4 * D * D + 4 * D + 4));
+  for (const auto& e : problem.edges) {
+    double kappa, tau;
+    SeSyncWeights<D>(e.information, &kappa, &tau);
+    const Eigen::Matrix<double, D, D>& Rij = e.measurement.R;
+    const Eigen::Matrix<double, D, 1>& tij = e.measurement.t;
+    const int ri = r_col(e.i), rj = r_col(e.j), ti = t_col(e.i), tj = t_col(e.j);
+    for (int a = 0; a < D; ++a) {
+      m.emplace_back(rj + a, rj + a, kappa);
+      m.emplace_back(ri + a, ri + a, kappa);
+      for (int b = 0; b < D; ++b) {
+        m.emplace_back(rj + a, ri + b, -kappa * Rij(b, a));  // -R_ij^T
+        m.emplace_back(ri + a, rj + b, -kappa * Rij(a, b));  // -R_ij
+        m.emplace_back(ri + a, ri + b, tau * tij(a) * tij(b));
+      }
+      m.emplace_back(tj, ri + a, -tau * tij(a));
+      m.emplace_back(ri + a, tj, -tau * tij(a));
+      m.emplace_back(ti, ri + a, tau * tij(a));
+      m.emplace_back(ri + a, ti, tau * tij(a));
+    }
+    m.emplace_back(tj, tj, tau);
+    m.emplace_back(ti, ti, tau);
+    m.emplace_back(tj, ti, -tau);
+    m.emplace_back(ti, tj, -tau);
+  }
+  Eigen::SparseMatrix<double> M(size, size);
+  M.setFromTriplets(m.begin(), m.end());
+  Eigen::MatrixXd X = Eigen::MatrixXd::Zero(D, size);
+  for (int i = 0; i < n; ++i) {
+    X.col(t_col(i)) = problem.poses[static_cast<size_t>(i)].t;
+    X.block(0, r_col(i), D, D) = problem.poses[static_cast<size_t>(i)].R;
+  }
+  const Eigen::MatrixXd XM = (M * X.transpose()).transpose();  // D x size (M symmetric)
+  std::vector<Eigen::Triplet<double>> lambda;
+  Eigen::MatrixXd CX = XM;
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Matrix<double, D, D> R = problem.poses[static_cast<size_t>(i)].R;
+    const Eigen::Matrix<double, D, D> G = XM.block(0, r_col(i), D, D);
+    const Eigen::Matrix<double, D, D> L = 0.5 * (R.transpose() * G + G.transpose() * R);
+    CX.block(0, r_col(i), D, D) -= R * L;
+    for (int a = 0; a < D; ++a)
+      for (int b = 0; b < D; ++b) lambda.emplace_back(r_col(i) + a, r_col(i) + b, -L(a, b));
+  }
+  c.stationarity = CX.norm() / std::max(XM.norm(), 1e-300);
+  Eigen::SparseMatrix<double> C(size, size);
+  std::vector<Eigen::Triplet<double>> all = m;
+  all.insert(all.end(), lambda.begin(), lambda.end());
+  C.setFromTriplets(all.begin(), all.end());
+  c.eta = relative_tolerance * C.diagonal().cwiseAbs().maxCoeff();
+  for (int k = 0; k < size; ++k) all.emplace_back(k, k, c.eta);
+  C.setFromTriplets(all.begin(), all.end());
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(C);
+  std::ostringstream os;
+  if (ldlt.info() != Eigen::Success) {
+    c.message = "certificate: the factorisation broke down (not positive semidefinite)";
+    return c;
+  }
+  for (Eigen::Index k = 0; k < ldlt.vectorD().size(); ++k) c.negative_pivots += ldlt.vectorD()[k] <= 0 ? 1 : 0;
+  c.certified = c.negative_pivots == 0;
+  os << (c.certified ? "certified global optimum" : "NOT certified") << ": lambda_min(C) "
+     << (c.certified ? "> -" : "< -") << c.eta << " (" << c.negative_pivots << " eigenvalues below), stationarity "
+     << c.stationarity;
+  c.message = os.str();
+  return c;
+}
+
+template OptimalityCertificate CertifyGlobalOptimum<2>(const PoseGraph2&, double);
+template OptimalityCertificate CertifyGlobalOptimum<3>(const PoseGraph3&, double);
+template void SeSyncWeights<2>(const PoseGraph2::Information&, double*, double*);
+template void SeSyncWeights<3>(const PoseGraph3::Information&, double*, double*);
+template double SeSyncObjective<2>(const PoseGraph2&);
+template double SeSyncObjective<3>(const PoseGraph3&);
+template void UseSeSyncWeights<2>(PoseGraph2*);
+template void UseSeSyncWeights<3>(PoseGraph3*);
+
+}  // namespace vloc::posegraph

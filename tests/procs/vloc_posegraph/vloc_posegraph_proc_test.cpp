@@ -1,0 +1,174 @@
+// vloc_posegraph, the binary, on small generated files whose truth is known:
+// a 3D ring with a loop closure (g2o, vertices from drifted odometry), a 2D
+// edge-only g2o file, an MRPT 2D text file, a file with a NaN information,
+// and the errors a user can make.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include "vloc/common/pose.h"
+#include "vloc/posegraph/graph_io.h"
+#include "vloc/posegraph/mrpt_optimize.h"
+#include "vloc/testing/subprocess.h"
+
+namespace vloc::posegraph {
+namespace {
+
+std::string TempPath(const std::string& name) {
+  return (std::filesystem::temp_directory_path() / ("vloc_posegraph_test_" + std::to_string(getpid()) + "_" + name))
+      .string();
+}
+
+struct ToolRun {
+  int code = -1;
+  std::string output;
+};
+
+ToolRun Tool(const std::vector<std::string>& args) {
+  std::vector<std::string> argv{testing::BinPath("vloc_posegraph")};
+  argv.insert(argv.end(), args.begin(), args.end());
+  testing::Subprocess p(argv);
+  const auto code = p.WaitExit(60.0);
+  return {code ? *code : -1, p.output()};
+}
+
+// A ring of n poses 5 m apart (radius ~ n * 5 / 2 pi), closed by an edge
+// n-1 -> 0; measurements with 2 cm / 2 mrad noise; vertices chained from
+// measurements with 3 % scale error and a heading bias (drifted odometry).
+GraphFile Ring3D(int n, std::vector<Pose3>* truth) {
+  std::mt19937 rng(41);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  const double step = 2 * M_PI / n;
+  truth->clear();
+  for (int i = 0; i < n; ++i) {
+    const double r = 5.0 / step;
+    truth->push_back(MakePose(r * std::cos(i * step), r * std::sin(i * step), 0.1 * i, 0.0, 0.0, i * step + M_PI / 2));
+  }
+  GraphFile file;
+  file.dimension = 3;
+  Matrix6d info = Matrix6d::Identity();
+  info.topLeftCorner<3, 3>() *= 1.0 / (0.02 * 0.02);
+  info.bottomRightCorner<3, 3>() *= 1.0 / (0.002 * 0.002);
+  Pose3 chain = (*truth)[0];
+  for (int i = 0; i < n; ++i) {
+    const int j = (i + 1) % n;
+    const Pose3 rel = (*truth)[i].inverse() * (*truth)[j];
+    const Pose3 measured = MakePose(ExpSO3(Eigen::Vector3d(0.002 * noise(rng), 0.002 * noise(rng), 0.002 * noise(rng))) *
+                                        rel.linear(),
+                                    rel.translation() + 0.02 * Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+    mrpt::poses::CPose3DPDFGaussianInf edge;
+    edge.mean = ToMrpt(measured);
+    edge.cov_inv = mrpt::math::CMatrixDouble66(info);
+    file.graph3.insertEdge(i, j, edge);
+    file.graph3.nodes[i] = ToMrpt(chain);
+    chain = chain * MakePose(1.03 * measured.translation().x(), 1.03 * measured.translation().y(),
+                             measured.translation().z(), 0, 0, RollPitchYawFromRotation(measured.linear()).z() + 0.02);
+  }
+  file.graph3.root = 0;
+  return file;
+}
+
+TEST(VlocPosegraph, OptimisesA3DG2oFileAndWritesIt) {
+  std::vector<Pose3> truth;
+  GraphFile input = Ring3D(40, &truth);
+  const std::string in = TempPath("ring.g2o"), out = TempPath("ring_out.g2o");
+  std::string error;
+  ASSERT_TRUE(WriteGraphFile(in, input, &error)) << error;
+  const ToolRun run = Tool({in, "--out", out});
+  ASSERT_EQ(run.code, 0) << run.output;
+  EXPECT_NE(run.output.find("g2o, 3D, 40 poses, 40 edges"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("chi2 "), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find(" iterations, "), std::string::npos) << run.output;
+  GraphFile output;
+  ASSERT_TRUE(ReadGraphFile(out, &output, &error)) << error;
+  EXPECT_EQ(output.format, GraphFormat::kG2o);
+  ASSERT_EQ(output.graph3.nodes.size(), 40u);
+  ASSERT_EQ(output.graph3.edges.size(), 40u);
+  // The information matrices come back as they went in.
+  EXPECT_LT((output.graph3.edges.begin()->second.cov_inv.asEigen() - input.graph3.edges.begin()->second.cov_inv.asEigen())
+                .norm(),
+            1e-6 * input.graph3.edges.begin()->second.cov_inv.asEigen().norm());
+  // Chi2 per edge near its expectation (6), and poses back on the truth:
+  // 40 edges of 2 cm / 2 mrad around a 200 m ring leave decimetres at most.
+  std::vector<mrpt::graphs::TNodeID> ids;
+  const double chi2_in = Cost(ProblemFromGraph(input.graph3, &ids), nullptr);
+  const double chi2_out = Cost(ProblemFromGraph(output.graph3, &ids), nullptr);
+  EXPECT_GT(chi2_in, 1e4);
+  EXPECT_LT(chi2_out, 6.0 * 40 * 2);
+  double worst = 0.0;
+  for (int i = 0; i < 40; ++i)
+    worst = std::max(worst, (FromMrpt(output.graph3.nodes.at(i)).translation() - truth[i].translation()).norm());
+  EXPECT_LT(worst, 0.5);
+  std::printf("ring: chi2 %.1f -> %.2f, worst position error %.3f m\n", chi2_in, chi2_out, worst);
+  std::filesystem::remove(in);
+  std::filesystem::remove(out);
+}
+
+TEST(VlocPosegraph, EdgeOnly2DAndMrptTextFilesKeepTheirFormat) {
+  // A 2D square loop of 4 x 3 edges, as edges only (g2o) and as MRPT text.
+  std::ostringstream g2o, mrpt;
+  int n = 12;
+  for (int i = 0; i < n; ++i) {
+    const int j = (i + 1) % n;
+    const double turn = (j % 3 == 0) ? M_PI / 2 : 0.0;
+    g2o << "EDGE_SE2 " << i << ' ' << j << " 2.01 0.01 " << turn << " 100 0 0 100 0 1000\n";
+  }
+  const std::string in = TempPath("square.g2o"), out = TempPath("square_out.g2o");
+  std::ofstream(in) << g2o.str();
+  ToolRun run = Tool({in, "--out", out, "--weights", "sesync"});
+  ASSERT_EQ(run.code, 0) << run.output;
+  EXPECT_NE(run.output.find("no vertices: started from chained odometry"), std::string::npos) << run.output;
+  std::ifstream written(out);
+  std::stringstream text;
+  text << written.rdbuf();
+  EXPECT_NE(text.str().find("VERTEX_SE2 11 "), std::string::npos);
+  GraphFile output;
+  std::string error;
+  ASSERT_TRUE(ReadGraphFile(out, &output, &error)) << error;
+  EXPECT_EQ(output.dimension, 2);
+  EXPECT_TRUE(output.had_vertices);
+  // Square of side ~6 m: node 3 near (6, 0).
+  EXPECT_NEAR(output.graph2.nodes.at(3).x(), 6.0, 0.2);
+  // The MRPT text form of the result comes back as MRPT text.
+  output.format = GraphFormat::kMrptText;
+  const std::string in2 = TempPath("square.graph"), out2 = TempPath("square_out.graph");
+  ASSERT_TRUE(WriteGraphFile(in2, output, &error)) << error;
+  run = Tool({in2, "--out", out2});
+  ASSERT_EQ(run.code, 0) << run.output;
+  EXPECT_NE(run.output.find("MRPT/TORO text, 2D"), std::string::npos) << run.output;
+  GraphFile again;
+  ASSERT_TRUE(ReadGraphFile(out2, &again, &error)) << error;
+  EXPECT_EQ(again.format, GraphFormat::kMrptText);
+  for (const auto& f : {in, out, in2, out2}) std::filesystem::remove(f);
+}
+
+TEST(VlocPosegraph, BadInputGivesOneClearLine) {
+  // A NaN information: the edge is dropped with one warning line, the rest solved.
+  const std::string in = TempPath("nan.g2o"), out = TempPath("nan_out.g2o");
+  std::ofstream(in) << "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nVERTEX_SE2 2 2 0 0\n"
+                       "EDGE_SE2 0 1 1 0 0 100 0 0 100 0 400\nEDGE_SE2 1 2 1 0 0 100 0 0 100 0 400\n"
+                       "EDGE_SE2 0 2 2 0 0 nan 0 0 100 0 400\n";
+  ToolRun run = Tool({in, "--out", out});
+  EXPECT_EQ(run.code, 0) << run.output;
+  EXPECT_NE(run.output.find("vloc_posegraph: pose graph: 1 edges rejected"), std::string::npos) << run.output;
+  // A missing file, a wrong option value, no --out.
+  run = Tool({TempPath("missing.g2o"), "--out", out});
+  EXPECT_EQ(run.code, 1);
+  EXPECT_NE(run.output.find("cannot read pose graph file"), std::string::npos) << run.output;
+  EXPECT_EQ(testing::ErrorLines(run.output).size(), 1u) << run.output;
+  run = Tool({in, "--out", out, "--weights", "heavy"});
+  EXPECT_EQ(run.code, 1);
+  EXPECT_NE(run.output.find("--weights is file or sesync"), std::string::npos) << run.output;
+  run = Tool({in});
+  EXPECT_EQ(run.code, 1);
+  EXPECT_NE(run.output.find("usage: vloc_posegraph"), std::string::npos) << run.output;
+  std::filesystem::remove(in);
+  std::filesystem::remove(out);
+}
+
+}  // namespace
+}  // namespace vloc::posegraph
