@@ -141,6 +141,33 @@ struct Numbers {
   }
 };
 
+// Repairs an edge's information in place; false (the edge counted as rejected) when its pose is not finite or the
+// information is beyond repair; a repair is counted.
+template <int N>
+bool AcceptInformation(GraphFile* file, bool finite_pose, Eigen::Matrix<double, N, N>* information) {
+  bool repaired = false;
+  if (!finite_pose || !RepairInformation<N>(information, &repaired)) {
+    ++file->num_rejected;
+    return false;
+  }
+  file->num_repaired += repaired ? 1 : 0;
+  return true;
+}
+
+void InsertEdge(GraphFile* file, TNodeID i, TNodeID j, const mrpt::poses::CPose2D& mean, const Eigen::Matrix3d& info) {
+  mrpt::poses::CPosePDFGaussianInf edge;
+  edge.mean = mean;
+  edge.cov_inv = mrpt::math::CMatrixDouble33(info);
+  file->graph2.insertEdge(i, j, edge);
+}
+
+void InsertEdge(GraphFile* file, TNodeID i, TNodeID j, const mrpt::poses::CPose3D& mean, const Matrix6& info) {
+  mrpt::poses::CPose3DPDFGaussianInf edge;
+  edge.mean = mean;
+  edge.cov_inv = mrpt::math::CMatrixDouble66(info);
+  file->graph3.insertEdge(i, j, edge);
+}
+
 bool ParseG2o(const std::string& text, GraphFile* file, std::string* error) {
   std::istringstream lines(text);
   std::string line;
@@ -167,17 +194,9 @@ bool ParseG2o(const std::string& text, GraphFile* file, std::string* error) {
           if (!Numbers{s}.One(&info(r, c))) return bad();
           info(c, r) = info(r, c);
         }
-      mrpt::poses::CPose3DPDFGaussianInf edge;
-      edge.mean = PoseFromQuat(x, y, z, qx, qy, qz, qw);
       Matrix6 information = QuatScale() * info * QuatScale();
-      bool repaired = false;
-      if (!std::isfinite(x + y + z + qx + qy + qz + qw) || !RepairInformation<6>(&information, &repaired)) {
-        ++file->num_rejected;
-        continue;
-      }
-      file->num_repaired += repaired ? 1 : 0;
-      edge.cov_inv = mrpt::math::CMatrixDouble66(information);
-      file->graph3.insertEdge(i, j, edge);
+      if (!AcceptInformation<6>(file, std::isfinite(x + y + z + qx + qy + qz + qw), &information)) continue;
+      InsertEdge(file, i, j, PoseFromQuat(x, y, z, qx, qy, qz, qw), information);
     } else if (key == "VERTEX_SE2") {
       TNodeID id;
       double x, y, th;
@@ -193,16 +212,8 @@ bool ParseG2o(const std::string& text, GraphFile* file, std::string* error) {
           if (!Numbers{s}.One(&info(r, c))) return bad();
           info(c, r) = info(r, c);
         }
-      bool repaired = false;
-      if (!std::isfinite(x + y + th) || !RepairInformation<3>(&info, &repaired)) {
-        ++file->num_rejected;
-        continue;
-      }
-      file->num_repaired += repaired ? 1 : 0;
-      mrpt::poses::CPosePDFGaussianInf edge;
-      edge.mean = mrpt::poses::CPose2D(x, y, th);
-      edge.cov_inv = mrpt::math::CMatrixDouble33(info);
-      file->graph2.insertEdge(i, j, edge);
+      if (!AcceptInformation<3>(file, std::isfinite(x + y + th), &info)) continue;
+      InsertEdge(file, i, j, mrpt::poses::CPose2D(x, y, th), info);
     } else if (key == "FIX") {
       TNodeID id;
       if (!(s >> id)) return bad();
@@ -250,16 +261,8 @@ bool ParseMrpt3D(const std::string& text, GraphFile* file, std::string* error) {
         if (!Numbers{s}.One(&v)) return bad();
         info(rc[0], rc[1]) = info(rc[1], rc[0]) = v;
       }
-      bool repaired = false;
-      if (!std::isfinite(p.x + p.y + p.z + p.roll + p.pitch + p.yaw) || !RepairInformation<6>(&info, &repaired)) {
-        ++file->num_rejected;
-        continue;
-      }
-      file->num_repaired += repaired ? 1 : 0;
-      mrpt::poses::CPose3DPDFGaussianInf edge;
-      edge.mean = mrpt::poses::CPose3D(p);
-      edge.cov_inv = mrpt::math::CMatrixDouble66(info);
-      file->graph3.insertEdge(i, j, edge);
+      if (!AcceptInformation<6>(file, std::isfinite(p.x + p.y + p.z + p.roll + p.pitch + p.yaw), &info)) continue;
+      InsertEdge(file, i, j, mrpt::poses::CPose3D(p), info);
     } else if (key == "FIX") {
       TNodeID id;
       if (!(s >> id)) return bad();
@@ -298,16 +301,8 @@ bool ParseToro2D(const std::string& text, GraphFile* file, std::string* error) {
       if (!(s >> i >> j) || !Numbers{s}.Read(&x, &y, &th, &xx, &xy, &yy, &tt, &xt, &yt)) return bad();
       Eigen::Matrix3d info;
       info << xx, xy, xt, xy, yy, yt, xt, yt, tt;
-      bool repaired = false;
-      if (!std::isfinite(x + y + th) || !RepairInformation<3>(&info, &repaired)) {
-        ++file->num_rejected;
-        continue;
-      }
-      file->num_repaired += repaired ? 1 : 0;
-      mrpt::poses::CPosePDFGaussianInf edge;
-      edge.mean = mrpt::poses::CPose2D(x, y, th);
-      edge.cov_inv = mrpt::math::CMatrixDouble33(info);
-      file->graph2.insertEdge(i, j, edge);
+      if (!AcceptInformation<3>(file, std::isfinite(x + y + th), &info)) continue;
+      InsertEdge(file, i, j, mrpt::poses::CPose2D(x, y, th), info);
     } else if (key == "FIX") {
       TNodeID id;
       if (!(s >> id)) return bad();
