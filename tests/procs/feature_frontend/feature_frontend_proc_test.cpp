@@ -38,6 +38,22 @@ pid_t Start(const std::string& config) {
   return pid;
 }
 
+// The dead-reckoning pose of `site` (10 m apart along x).
+void PublishDrPose(Transport& transport, int site) {
+  PoseWithCovariance pose;
+  pose.pose = MakePose(10.0 * site, 0, 0, 0, 0, 0);
+  Publish(transport, "SITE_POSE_DR", SitePoseToMessage(site, site_pose_t::SOURCE_DEAD_RECKONING, pose));
+}
+
+// A whole textureless site: its DR pose, then 3 stereo pairs.
+void PublishTexturelessSite(Transport& transport, int site) {
+  PublishDrPose(transport, site);
+  for (int k = 0; k < 3; ++k) {
+    Publish(transport, "NAVCAM_STEREO", StereoPairToMessage(testing::TexturelessPair(site, k), ImageEncoding::kPng));
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+}
+
 TEST(FeatureFrontendProc, TexturelessSitesGiveLowTextureStatus) {
   std::string error;
   auto transport = MakeLcmTransport(kUrl, &error);
@@ -51,15 +67,7 @@ TEST(FeatureFrontendProc, TexturelessSitesGiveLowTextureStatus) {
   const pid_t pid = Start("config/procs/feature_frontend.yaml");
   ASSERT_GT(pid, 0);
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // process start-up (no handshake channel)
-  for (int site = 0; site < 2; ++site) {
-    PoseWithCovariance pose;
-    pose.pose = MakePose(10.0 * site, 0, 0, 0, 0, 0);
-    Publish(*transport, "SITE_POSE_DR", SitePoseToMessage(site, site_pose_t::SOURCE_DEAD_RECKONING, pose));
-    for (int k = 0; k < 3; ++k) {
-      Publish(*transport, "NAVCAM_STEREO", StereoPairToMessage(testing::TexturelessPair(site, k), ImageEncoding::kPng));
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-  }
+  for (int site = 0; site < 2; ++site) PublishTexturelessSite(*transport, site);
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
   while (received == 0 && std::chrono::steady_clock::now() < deadline) transport->Handle(100);
   kill(pid, SIGTERM);
@@ -91,16 +99,9 @@ TEST(FeatureFrontendProc, SiteWithoutImagesIsReportedNotAwaited) {
   const pid_t pid = Start("config/procs/feature_frontend.yaml");
   ASSERT_GT(pid, 0);
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));
-  PoseWithCovariance pose;
-  pose.pose = MakePose(0, 0, 0, 0, 0, 0);
-  Publish(*transport, "SITE_POSE_DR", SitePoseToMessage(0, site_pose_t::SOURCE_DEAD_RECKONING, pose));
-  for (int k = 0; k < 3; ++k) {
-    Publish(*transport, "NAVCAM_STEREO", StereoPairToMessage(testing::TexturelessPair(0, k), ImageEncoding::kPng));
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
+  PublishTexturelessSite(*transport, 0);
   // Site 1: its DR pose and IMAGING_DONE (3 pairs) arrive; its images do not.
-  pose.pose = MakePose(10.0, 0, 0, 0, 0, 0);
-  Publish(*transport, "SITE_POSE_DR", SitePoseToMessage(1, site_pose_t::SOURCE_DEAD_RECKONING, pose));
+  PublishDrPose(*transport, 1);
   SiteEvent done;
   done.utime = 5000000;
   done.site_id = 1;
@@ -111,8 +112,7 @@ TEST(FeatureFrontendProc, SiteWithoutImagesIsReportedNotAwaited) {
   while (std::chrono::steady_clock::now() < wait_until) transport->Handle(100);
   EXPECT_EQ(received.load(), 0) << "reported before the rover moved on (images may still be on their way)";
   // The rover reaches site 2: site 1's images are not coming.
-  pose.pose = MakePose(20.0, 0, 0, 0, 0, 0);
-  Publish(*transport, "SITE_POSE_DR", SitePoseToMessage(2, site_pose_t::SOURCE_DEAD_RECKONING, pose));
+  PublishDrPose(*transport, 2);
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
   while (received == 0 && std::chrono::steady_clock::now() < deadline) transport->Handle(100);
   kill(pid, SIGTERM);
