@@ -3,7 +3,7 @@
 // DJI XMP relative altitude) or OpenCV's aero1.jpg, aero3.jpg.
 //   uav_mosaic_files [--config config/procs/uav_mosaic_files.yaml] [--calibration CAMERA.yaml]
 //                    [--focal F] [--height H] [--no-gps] [--drop-gps A-B]
-//                    [--geotiff OUT.tif] [--geojson OUT.geojson] [--report OUT.tsv]
+//                    [--geotiff OUT.tif] [--geojson OUT.geojson] [--report OUT.tsv] [--reference ORTHO.jpg]
 //                    --out out/mosaic.png (FOLDER | IMAGE...)
 // Focal length (px): the calibration file, else --focal, else EXIF (focal
 // length and sensor width, or the 35 mm equivalent), else the image width;
@@ -14,6 +14,9 @@
 // motion, and the route and height are compared with the GPS per frame and
 // as RMS (route after a 2-D similarity fit). --drop-gps A-B drops the tags
 // of frames A..B (0-based): a simulated GPS drop-out, held out of the fit.
+// A photo tagged with the previous photo's fix (same GPS time) gets no GPS.
+// --reference compares the route and the GPS with a reference orthomosaic
+// of the same flight made by another tool (e.g. OpenDroneMap's).
 //   uav_mosaic_files --split [--angle DEG] [--zoom Z] --out out/x.png IMAGE
 // instead cuts one real image into two overlapping views related by a known
 // similarity (rotation DEG, default 12; view 2 seen from Z times higher,
@@ -76,10 +79,65 @@ struct FrameRecord {
   vm::ImageGeotag tag;
   bool gps_used = false;       // tag given to the mosaicker
   bool dropped = false;        // tag withheld (--drop-gps): compared, not in the fit
+  bool repeated_fix = false;   // the camera tagged it with the previous photo's fix (same GPS time): no new position
   vm::FrameState state;
   bool registered = false;
   cv::Point2d enu;             // GPS east/north of the frame (m, from the first tagged frame)
 };
+
+// A camera's GPS may tag a photo with the fix it already gave the previous
+// photo (same GPSTimeStamp, same position): that is no position for this
+// photo, and using it would put the photo a whole step behind.
+void MarkRepeatedFixes(std::vector<FrameRecord>* frames) {
+  int repeated = 0;
+  for (size_t i = 1; i < frames->size(); ++i) {
+    const auto& a = (*frames)[i - 1].tag;
+    auto& b = (*frames)[i];
+    b.repeated_fix = a.has_gps && b.tag.has_gps && a.has_gps_time && b.tag.has_gps_time &&
+                     a.gps_utime == b.tag.gps_utime && a.latitude == b.tag.latitude && a.longitude == b.tag.longitude;
+    if (b.repeated_fix) {
+      std::cout << b.name << ": GPS tag repeats the previous photo's fix (same GPS time): not used\n";
+      ++repeated;
+    }
+  }
+  if (repeated > 0) std::cout << repeated << " repeated GPS fixes left out\n";
+}
+
+// Route and GPS against a reference orthomosaic of the same flight made by
+// another tool: each registered photo located in it, then both fitted to it
+// by a 2-D similarity (the reference's scale and orientation are unknown).
+void CompareWithReference(const std::string& reference_path, const std::vector<FrameRecord>& frames,
+                          const std::vector<std::string>& paths, const vm::RouteComparison& route_vs_gps) {
+  const cv::Mat reference = cv::imread(reference_path, cv::IMREAD_GRAYSCALE);
+  if (reference.empty()) {
+    std::cerr << "uav_mosaic_files: cannot read the reference orthomosaic " << reference_path << "\n";
+    return;
+  }
+  const vm::ReferenceLocator locator(reference);
+  std::vector<vm::ReferenceFix> fixes(frames.size());
+  std::vector<cv::Point2d> route_m(frames.size()), gps_m(frames.size());
+  std::vector<bool> with_gps(frames.size(), false);
+  for (size_t i = 0; i < frames.size(); ++i) {
+    if (!frames[i].registered) continue;
+    fixes[i] = locator.Locate(cv::imread(paths[i], cv::IMREAD_COLOR));
+    route_m[i] = route_vs_gps.enu_from_flipped.Apply({frames[i].state.route_px.x, -frames[i].state.route_px.y});
+    gps_m[i] = frames[i].enu;
+    with_gps[i] = frames[i].tag.has_gps && !frames[i].repeated_fix;
+  }
+  const vm::ReferenceComparison c = vm::CompareWithReference(fixes, route_m, gps_m, with_gps);
+  std::cout << "reference orthomosaic " << reference_path << " (" << locator.reference_features() << " features): "
+            << c.located << " registered photos located in it\n";
+  if (!c.route.ok || !c.gps.ok) {
+    std::cout << "reference comparison: " << (c.route.ok ? c.gps.why : c.route.why) << "\n";
+    return;
+  }
+  const auto& route = c.route;
+  const auto& gps = c.gps;
+  const double path = route_vs_gps.path_m;  // the GPS path of the whole flight, as in the route-vs-GPS figure
+  std::cout << "route vs reference (2-D similarity): RMS " << route.rms_m << " m = " << 100 * route.rms_m / path
+            << " % of the " << path << " m path; GPS vs reference: RMS " << gps.rms_m << " m = " << 100 * gps.rms_m / path
+            << " %\n";
+}
 
 bool ParseRange(const std::string& text, int* a, int* b) {
   return std::sscanf(text.c_str(), "%d-%d", a, b) == 2 && *a >= 0 && *b >= *a;
@@ -93,13 +151,15 @@ int main(int argc, char** argv) {
   std::string error;
   if (!args.Parse(argc, argv,
                   {"config", "calibration", "height", "focal", "out", "help", "split", "angle", "zoom", "preview",
-                   "preview-side", "no-oblique", "no-gps", "drop-gps", "geotiff", "geojson", "report", "gps-sigma"},
+                   "preview-side", "no-oblique", "no-gps", "drop-gps", "geotiff", "geojson", "report", "gps-sigma",
+                   "reference"},
                   &error) ||
       args.Has("help") || args.positional().empty() || !args.Has("out")) {
     std::cerr << (error.empty() ? "" : "uav_mosaic_files: " + error + "\n")
               << "usage: uav_mosaic_files [--config config/procs/uav_mosaic_files.yaml] [--calibration CAMERA.yaml] "
                  "[--focal F] [--height H] [--no-gps] [--drop-gps A-B] [--gps-sigma M] [--geotiff OUT.tif] "
-                 "[--geojson OUT.geojson] [--report OUT.tsv] [--preview P.png --preview-side N] [--no-oblique] "
+                 "[--geojson OUT.geojson] [--report OUT.tsv] [--reference ORTHO.jpg] [--preview P.png --preview-side N] "
+                 "[--no-oblique] "
                  "--out OUT.png (FOLDER | IMAGE IMAGE...)\n"
                  "       uav_mosaic_files --split [--angle DEG] [--zoom Z] --out OUT.png IMAGE\n";
     return 1;
@@ -175,6 +235,7 @@ int main(int argc, char** argv) {
     if (frames[i].tag.has_gps) ++tagged;
   }
   const bool use_gps = tagged >= 2 && !args.Has("no-gps");
+  if (use_gps) MarkRepeatedFixes(&frames);
   const vm::ImageGeotag& tag0 = frames[0].tag;
 
   // Focal length: calibration file, --focal, EXIF, image width.
@@ -289,7 +350,7 @@ int main(int argc, char** argv) {
     const auto t0 = std::chrono::steady_clock::now();
     const bool dropped = static_cast<int>(i) >= drop_a && static_cast<int>(i) <= drop_b;
     rec.dropped = dropped;
-    if (use_gps && rec.tag.has_gps && !dropped) {
+    if (use_gps && rec.tag.has_gps && !dropped && !rec.repeated_fix) {
       vm::GpsFix fix;
       fix.utime = utime;
       fix.valid = true;
@@ -395,7 +456,7 @@ int main(int argc, char** argv) {
     for (const auto& f : frames) {
       route.push_back(f.state.route_px);
       enu.push_back(f.enu);
-      usable.push_back(f.registered && f.tag.has_gps);
+      usable.push_back(f.registered && f.tag.has_gps && !f.repeated_fix);
       in_fit.push_back(!f.dropped);
       heights.push_back(f.registered ? f.state.height : std::nan(""));
       gps_heights.push_back(relative ? f.tag.relative_altitude : f.tag.altitude);
@@ -428,6 +489,7 @@ int main(int argc, char** argv) {
       std::cout << "heights on the GPS track's scale: first height " << options.calibration.height * k << " m (x " << k
                 << ")\n";
     }
+    if (rc.ok && args.Has("reference")) CompareWithReference(args.Get("reference"), frames, paths, ls);
     const vm::HeightComparison hc = vm::CompareHeights(heights, gps_heights, !relative);
     if (hc.ok) {
       std::cout << "height vs GPS " << (relative ? "relative altitude" : "altitude minus a fitted ground level (" + std::to_string(hc.offset_m) + " m)")

@@ -1,5 +1,7 @@
 #include "vloc/mosaic/geometry.h"
 
+#include <opencv2/imgproc.hpp>
+
 #include <cmath>
 
 namespace vloc::mosaic {
@@ -129,6 +131,13 @@ bool FitAffine(const std::vector<cv::Point2f>& from, const std::vector<cv::Point
     *rms = std::sqrt(ss / n);
   }
   return true;
+}
+
+cv::Mat ToGray(const cv::Mat& image) {
+  if (image.channels() == 1) return image;
+  cv::Mat gray;
+  cv::cvtColor(image, gray, image.channels() == 4 ? cv::COLOR_BGRA2GRAY : cv::COLOR_BGR2GRAY);
+  return gray;
 }
 
 }  // namespace vloc::mosaic

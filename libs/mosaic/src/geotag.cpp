@@ -130,6 +130,13 @@ bool ReadGeotag(const std::string& path, ImageGeotag* tag, std::string* error) {
     }
     tag->altitude = ExifNumber(exif, "Exif.GPSInfo.GPSAltitude");
     if (std::isfinite(tag->altitude) && ExifNumber(exif, "Exif.GPSInfo.GPSAltitudeRef") == 1) tag->altitude = -tag->altitude;
+    const double gps_hours = ExifDegrees(exif, "Exif.GPSInfo.GPSTimeStamp");  // h, m, s rationals read as h + m/60 + s/3600
+    int64_t gps_day = 0;
+    if (std::isfinite(gps_hours) && gps_hours >= 0 && gps_hours < 24.0 &&
+        ParseExifDateTime(ExifString(exif, "Exif.GPSInfo.GPSDateStamp") + " 00:00:00", &gps_day)) {
+      tag->has_gps_time = true;
+      tag->gps_utime = gps_day + static_cast<int64_t>(std::llround(gps_hours * 3600.0 * 1e6));
+    }
     std::string when = ExifString(exif, "Exif.Photo.DateTimeOriginal");
     if (when.empty()) when = ExifString(exif, "Exif.Image.DateTime");
     tag->has_time = ParseExifDateTime(when, &tag->utime);

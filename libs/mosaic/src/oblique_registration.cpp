@@ -1,5 +1,7 @@
 #include "vloc/mosaic/oblique_registration.h"
 
+#include "vloc/mosaic/geometry.h"
+
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/flann.hpp>
@@ -15,6 +17,7 @@
 #include <sstream>
 
 #include "vloc/common/options.h"
+#include "vloc/mosaic/geometry.h"
 
 namespace vloc::mosaic {
 
@@ -53,13 +56,6 @@ std::string PairRegistration::BriefReport() const {
 }
 
 namespace {
-
-cv::Mat Gray(const cv::Mat& image) {
-  if (image.channels() == 1) return image;
-  cv::Mat gray;
-  cv::cvtColor(image, gray, image.channels() == 4 ? cv::COLOR_BGRA2GRAY : cv::COLOR_BGR2GRAY);
-  return gray;
-}
 
 // Ratio test where the rival is the best candidate at least `radius` px away
 // from the best one (ASIFT repeats a point once per simulated view).
@@ -113,7 +109,7 @@ cv::Mat Detail(const cv::Mat& gray) {
 }  // namespace
 
 double RegisteredNcc(const cv::Mat& from, const cv::Mat& to, const cv::Matx33d& to_from_from, double* overlap) {
-  const cv::Mat g_from = Gray(from), g_to = Gray(to);
+  const cv::Mat g_from = ToGray(from), g_to = ToGray(to);
   cv::Mat warped, mask;
   cv::warpPerspective(g_from, warped, cv::Mat(to_from_from), g_to.size(), cv::INTER_LINEAR);
   cv::warpPerspective(cv::Mat(g_from.size(), CV_8UC1, cv::Scalar(255)), mask, cv::Mat(to_from_from), g_to.size(),
@@ -139,7 +135,7 @@ PairRegistration RegisterOblique(const cv::Mat& from_in, const cv::Mat& to_in, c
   if (from_in.empty() || to_in.empty()) return finish("an image is empty");
   cv::setNumThreads(options.num_threads);
   // Matching at most max_side px; homography scaled back to full px.
-  const cv::Mat g_from = Gray(from_in), g_to = Gray(to_in);
+  const cv::Mat g_from = ToGray(from_in), g_to = ToGray(to_in);
   const double f_from = std::min(1.0, options.max_side / std::max(g_from.cols, g_from.rows));
   const double f_to = std::min(1.0, options.max_side / std::max(g_to.cols, g_to.rows));
   cv::Mat s_from = g_from, s_to = g_to;

@@ -1,8 +1,13 @@
 #include "vloc/mosaic/survey_eval.h"
 
+#include <opencv2/calib3d.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 namespace vloc::mosaic {
 
@@ -120,6 +125,79 @@ HeightComparison CompareHeights(const std::vector<double>& height, const std::ve
   h.rms_percent = mean_ref > 0 ? 100.0 * h.rms_m / mean_ref : std::numeric_limits<double>::quiet_NaN();
   h.ok = true;
   return h;
+}
+
+struct ReferenceLocator::Impl {
+  ReferenceLocatorOptions options;
+  cv::Ptr<cv::SIFT> sift;
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;
+  cv::FlannBasedMatcher matcher;
+};
+
+ReferenceLocator::ReferenceLocator(const cv::Mat& reference, const ReferenceLocatorOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  if (reference.empty() || reference.depth() != CV_8U) throw std::invalid_argument("reference orthomosaic: empty or not 8-bit");
+  impl_->options = options;
+  impl_->sift = cv::SIFT::create(options.reference_features);
+  impl_->sift->detectAndCompute(ToGray(reference), cv::noArray(), impl_->keypoints, impl_->descriptors);
+  if (!impl_->descriptors.empty()) impl_->matcher.add(impl_->descriptors), impl_->matcher.train();
+}
+
+ReferenceLocator::~ReferenceLocator() = default;
+
+int ReferenceLocator::reference_features() const { return static_cast<int>(impl_->keypoints.size()); }
+
+ReferenceFix ReferenceLocator::Locate(const cv::Mat& photo) const {
+  ReferenceFix fix;
+  const auto& o = impl_->options;
+  if (photo.empty() || impl_->keypoints.size() < 4) return fix;
+  cv::Mat small;
+  cv::resize(ToGray(photo), small, cv::Size(), o.photo_scale, o.photo_scale, cv::INTER_AREA);
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;
+  cv::SIFT::create()->detectAndCompute(small, cv::noArray(), keypoints, descriptors);
+  if (keypoints.size() < 4) return fix;
+  std::vector<std::vector<cv::DMatch>> knn;
+  impl_->matcher.knnMatch(descriptors, knn, 2);
+  std::vector<cv::Point2f> from, to;
+  for (const auto& m : knn) {
+    if (m.size() < 2 || m[0].distance >= o.ratio * m[1].distance) continue;
+    from.push_back(keypoints[m[0].queryIdx].pt);
+    to.push_back(impl_->keypoints[m[0].trainIdx].pt);
+  }
+  if (from.size() < 4) return fix;
+  cv::Mat mask;
+  const cv::Mat H = cv::findHomography(from, to, cv::RANSAC, o.ransac_px, mask, 5000, 0.999);
+  fix.inliers = H.empty() ? 0 : cv::countNonZero(mask);
+  if (fix.inliers < o.min_inliers) return fix;
+  const cv::Point2d c((photo.cols - 1) / 2.0 * o.photo_scale, (photo.rows - 1) / 2.0 * o.photo_scale);
+  std::vector<cv::Point2d> centre{c}, mapped;
+  cv::perspectiveTransform(centre, mapped, H);
+  fix.px = mapped[0];
+  fix.ok = std::isfinite(fix.px.x) && std::isfinite(fix.px.y);
+  return fix;
+}
+
+ReferenceComparison CompareWithReference(const std::vector<ReferenceFix>& fixes, const std::vector<cv::Point2d>& route_m,
+                                         const std::vector<cv::Point2d>& gps_m, const std::vector<bool>& has_gps) {
+  ReferenceComparison c;
+  const size_t n = fixes.size();
+  std::vector<cv::Point2d> px(n);
+  std::vector<bool> located(n), located_gps(n);
+  for (size_t i = 0; i < n; ++i) {
+    located[i] = fixes[i].ok && i < route_m.size();
+    located_gps[i] = located[i] && i < has_gps.size() && has_gps[i] && i < gps_m.size();
+    if (located[i]) px[i] = fixes[i].px, ++c.located;
+  }
+  RouteFitOptions plain;
+  plain.robust = false;
+  const std::vector<bool> all(n, true);
+  std::vector<cv::Point2d> route = route_m, gps = gps_m;
+  route.resize(n), gps.resize(n);
+  c.route = CompareRouteToGps(px, route, located, all, plain);
+  c.gps = CompareRouteToGps(px, gps, located_gps, all, plain);
+  return c;
 }
 
 }  // namespace vloc::mosaic

@@ -37,6 +37,10 @@ void WriteKnownTags(const std::string& path, bool dji) {
   exif["Exif.GPSInfo.GPSAltitudeRef"] = uint8_t(0);
   exif["Exif.GPSInfo.GPSAltitude"] = Exiv2::URational(3173, 10);
   exif["Exif.Photo.DateTimeOriginal"] = "2014:10:19 13:20:51";
+  if (!dji) {  // the fix's own time (UTC), 3.5 s after the camera clock's 13:20:51 read as UTC + 5 h
+    exif["Exif.GPSInfo.GPSDateStamp"] = "2014:10:19";
+    exif["Exif.GPSInfo.GPSTimeStamp"] = "18/1 20/1 545/10";
+  }
   exif["Exif.Photo.FocalLength"] = Exiv2::URational(45, 10);
   if (dji) {
     Exiv2::XmpProperties::registerNs("http://www.dji.com/drone-dji/1.0/", "drone-dji");
@@ -62,6 +66,8 @@ TEST(Geotag, ExifGpsTimeAndFocalReadBack) {
   EXPECT_NEAR(tag.altitude, 317.3, 1e-9);
   ASSERT_TRUE(tag.has_time);
   EXPECT_EQ(tag.utime, int64_t{1413724851} * 1000000);  // 2014-10-19 13:20:51 UTC
+  ASSERT_TRUE(tag.has_gps_time);
+  EXPECT_EQ(tag.gps_utime, tag.utime + (int64_t{5} * 3600 * 1000000 + 3500000));
   EXPECT_NEAR(tag.focal_mm, 4.5, 1e-12);
   EXPECT_EQ(tag.model, "Canon PowerShot SX260 HS");
   EXPECT_TRUE(std::isnan(tag.relative_altitude));  // no XMP written
@@ -78,6 +84,7 @@ TEST(Geotag, DjiXmpRelativeAltitudeAndAttitude) {
   std::string error;
   ASSERT_TRUE(ReadGeotag(path, &tag, &error)) << error;
   EXPECT_NEAR(tag.relative_altitude, 40.10, 1e-9);
+  EXPECT_FALSE(tag.has_gps_time);  // no GPSTimeStamp written
   EXPECT_NEAR(tag.gimbal_pitch, -90.0, 1e-9);
   EXPECT_NEAR(tag.gimbal_yaw, 12.5, 1e-9);
   EXPECT_NEAR(tag.flight_yaw, 11.2, 1e-9);

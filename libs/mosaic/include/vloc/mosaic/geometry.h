@@ -44,4 +44,7 @@ bool FitAffine(const std::vector<cv::Point2f>& from, const std::vector<cv::Point
 bool FitSimilarity(const std::vector<cv::Point2d>& from, const std::vector<cv::Point2d>& to,
                    Similarity2* result, double* rms = nullptr);
 
+// 8-bit grey from grey, BGR or BGRA (grey is returned as is, not copied).
+cv::Mat ToGray(const cv::Mat& image);
+
 }  // namespace vloc::mosaic

@@ -23,6 +23,8 @@ struct ImageGeotag {
   double latitude = kNaN;               // deg, WGS84, north positive
   double longitude = kNaN;              // deg, WGS84, east positive
   double altitude = kNaN;               // m, GPS altitude (above sea level unless altitude_ref says below)
+  bool has_gps_time = false;            // GPSDateStamp and GPSTimeStamp present: when the fix was taken (UTC)
+  int64_t gps_utime = 0;                // us since 1970; a camera's GPS may tag a photo with an older fix
   bool has_time = false;                // DateTimeOriginal (or DateTime) present
   int64_t utime = 0;                    // us since 1970, the camera clock read as UTC (EXIF has no zone)
   double focal_mm = kNaN;               // mm, Photo.FocalLength

@@ -7,6 +7,7 @@
 // (relative altitude, or altitude minus a fitted ground level).
 
 #include <opencv2/core.hpp>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -61,5 +62,50 @@ struct HeightComparison {
 // reference is gps - ground with the ground level fitted (mean difference),
 // for GPS altitudes above sea level over unknown ground.
 HeightComparison CompareHeights(const std::vector<double>& height, const std::vector<double>& gps, bool fit_offset);
+
+// Where the photos lie in a reference orthomosaic made by another tool
+// (e.g. OpenDroneMap's): an independent check of the route where the
+// camera's GPS is poor. Each photo is matched to the reference with SIFT,
+// Lowe's ratio test and a RANSAC homography; its centre is mapped into the
+// reference. The reference's own scale and orientation are unknown: compare
+// with CompareRouteToGps(reference px, route or GPS metres, ...).
+struct ReferenceFix {
+  bool ok = false;
+  cv::Point2d px;                       // the photo's centre in reference px
+  int inliers = 0;                      // RANSAC inliers of the photo -> reference homography
+};
+
+struct ReferenceLocatorOptions {
+  int reference_features = 20000;       // SIFT features of the reference
+  double photo_scale = 0.5;             // photos reduced by this first (a reference is coarser than the photos)
+  double ratio = 0.8;                   // Lowe's ratio test
+  double ransac_px = 4.0;               // px in the reference
+  int min_inliers = 25;                 // fewer: no fix (a weak registration would add its own error)
+};
+
+class ReferenceLocator {
+ public:
+  // `reference`: the orthomosaic, any 8-bit image. Throws std::invalid_argument when it is empty.
+  explicit ReferenceLocator(const cv::Mat& reference, const ReferenceLocatorOptions& options = ReferenceLocatorOptions());
+  ReferenceLocator(const ReferenceLocator&) = delete;
+  ReferenceLocator& operator=(const ReferenceLocator&) = delete;
+  ~ReferenceLocator();
+  int reference_features() const;
+  ReferenceFix Locate(const cv::Mat& photo) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// The route (m, after its GPS fit) and the GPS (m) each fitted to the photos'
+// places in the reference (fixes[i] for frame i; frames not located are left
+// out) by a 2-D similarity: RMS in the route's and the GPS's metres.
+struct ReferenceComparison {
+  int located = 0;
+  RouteComparison route, gps;           // .ok false with .why when too few photos are located
+};
+ReferenceComparison CompareWithReference(const std::vector<ReferenceFix>& fixes, const std::vector<cv::Point2d>& route_m,
+                                         const std::vector<cv::Point2d>& gps_m, const std::vector<bool>& has_gps);
 
 }  // namespace vloc::mosaic
