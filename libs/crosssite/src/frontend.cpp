@@ -33,6 +33,8 @@ void FrontendOptions::Visit(OptionsReader& r) {
   r.Optional("ground_max_slope_deg", &ground_max_slope_deg, "deg, steepest accepted ground plane");
   r.Optional("motion_consistency", &motion_consistency, "keep only points that agree under one rigid motion");
   r.Child("grid_lsm", [&](OptionsReader& c) { grid_lsm.Visit(c); });
+  r.Child("grid_lsm_retry", [&](OptionsReader& c) { grid_lsm_retry.Visit(c); });
+  r.Optional("grid_retry_below", &grid_retry_below, "retry an overlap's grid LSM with grid_lsm_retry when it refined fewer candidates (0 = off)");
   r.Optional("grid_search_px", &grid_search_px, "px (grid), correlation search around a match before grid LSM");
   r.Optional("grid_min_zncc", &grid_min_zncc, "correlation peak needed before the grid LSM");
   r.Optional("grid_min_margin", &grid_min_margin, "peak minus the best correlation >= 3 px away");
@@ -104,6 +106,7 @@ bool FrontendOptions::Check(std::string* error) const {
       !CheckChild(zncc, "zncc", error) || !CheckChild(median, "median_filter", error) ||
       !CheckChild(lsm, "lsm", error) || !CheckChild(cross_lsm, "cross_lsm", error) ||
       !CheckChild(consistency, "consistency", error) || !CheckChild(grid_lsm, "grid_lsm", error) ||
+      !CheckChild(grid_lsm_retry, "grid_lsm_retry", error) ||
       !CheckChild(motion, "motion", error) || !CheckChild(tiles, "tiles", error))
     return false;
   // Booleans (motion_consistency, fit_ground_planes, zoom_previous,
@@ -125,6 +128,7 @@ bool FrontendOptions::Check(std::string* error) const {
   if (!(grid_min_margin >= 0 && grid_min_margin <= 2)) return Bad(error, "grid_min_margin", grid_min_margin, "in [0, 2]");
   if (!(grid_back_check_px >= 0)) return Bad(error, "grid_back_check_px", grid_back_check_px, ">= 0 px (0 = off)");
   if (!(grid_max_shear >= 0)) return Bad(error, "grid_max_shear", grid_max_shear, ">= 0 (0 = off)");
+  if (!(grid_retry_below >= 0)) return Bad(error, "grid_retry_below", grid_retry_below, ">= 0 (0 = off)");
   if (!(grid_search_px >= 1)) return Bad(error, "grid_search_px", grid_search_px, ">= 1 px");
   if (!(min_tile_inliers >= 4)) return Bad(error, "min_tile_inliers", min_tile_inliers, ">= 4 (a homography)");
   if (!(tile_inlier_px > 0)) return Bad(error, "tile_inlier_px", tile_inlier_px, "> 0 px");

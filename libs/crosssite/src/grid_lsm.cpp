@@ -97,6 +97,16 @@ int RefineOverlapOnGrid(const FrontendOptions& o, OverlapWork* work) {
   int refined = 0;
   for (Candidate& c : work->candidates) refined += RefineOnGrid(*work, lt, lw, o, &c) ? 1 : 0;
   VLOG(1) << "grid LSM refined " << refined << " of " << work->candidates.size();
+  if (refined >= o.grid_retry_below) return refined;
+  // Poor texture: the candidates left unrefined again, with the larger window.
+  FrontendOptions retry = o;
+  retry.grid_lsm = o.grid_lsm_retry;
+  const int first = refined;
+  for (Candidate& c : work->candidates)
+    if (!c.grid_refined) refined += RefineOnGrid(*work, lt, lw, retry, &c) ? 1 : 0;
+  VLOG(1) << "grid LSM retry (" << 2 * retry.grid_lsm.half_window + 1 << " x "
+          << 2 * (retry.grid_lsm.half_height > 0 ? retry.grid_lsm.half_height : retry.grid_lsm.half_window) + 1
+          << "): " << refined - first << " more";
   return refined;
 }
 

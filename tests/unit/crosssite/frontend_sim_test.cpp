@@ -168,6 +168,22 @@ TEST(FrontendSim, TurnedSitePairMeetsTheTiePointFigures) {
   ExpectTiePointFigures(RunPair(so));
 }
 
+// The hard profile (regolith photometry, sun 20 deg up moving 30 deg of
+// azimuth between the sites, camera effects, JPEG): poor texture. The grid
+// LSM's larger-window retry makes it localize with margin: 35 tie points,
+// none wrong (14 without the retry, 12 needed).
+TEST(FrontendSim, HardProfilePairLocalizes) {
+  testing::SimSitePairOptions so;
+  so.profile = "config/procs/sim_rover_hard.yaml";
+  const PairRun run = RunPair(so);
+  const testing::TruthCheck& t = run.truth;
+  ASSERT_TRUE(run.result.summary.IsUsable()) << run.result.summary.message;
+  EXPECT_GE(t.num_points, 25);
+  EXPECT_LT(t.num_wrong, 0.01 * t.num_points);
+  EXPECT_LT(testing::Median(t.cross_error_px), 0.75);  // measured 0.50 px (default profile 0.33)
+  EXPECT_LE(testing::Median(t.stereo_error_px), 0.2);  // measured 0.10 px (JPEG, companding)
+}
+
 TEST(FrontendSim, TexturelessPairGivesAClearStatus) {
   testing::SimSitePairOptions o;
   o.textureless = true;
