@@ -110,7 +110,12 @@ int RunUntilSignal(Transport& transport, int timeout_ms, const std::function<voi
       return 0;
     }
     if (should_stop && should_stop()) return 0;
-    if (transport.Handle(timeout_ms) < 0) {
+    const int handled = transport.Handle(timeout_ms);
+    if (handled == Transport::kEndOfLog) {
+      LOG(INFO) << "end of the log being read (file:// provider): every message handled; exiting";
+      return 0;
+    }
+    if (handled < 0) {
       LOG(ERROR) << "LCM transport error; exiting";
       return 2;
     }

@@ -24,7 +24,7 @@ namespace {
 
 class LcmTransport : public Transport {
  public:
-  explicit LcmTransport(const std::string& url) : lcm_(url) {}
+  explicit LcmTransport(const std::string& url) : lcm_(url), reads_log_(url.rfind("file://", 0) == 0) {}
   bool good() { return lcm_.good(); }
 
   bool Publish(const std::string& channel, const void* data, size_t size) override {
@@ -55,6 +55,7 @@ class LcmTransport : public Transport {
   // bounded queues (counting drops), then delivers in arrival order.
   int Handle(int timeout_ms) override {
     const int rc = lcm_.handleTimeout(timeout_ms);
+    if (rc < 0 && reads_log_) return kEndOfLog;  // the file provider reports the log's end as an error
     if (rc <= 0) return rc;
     while (lcm_.handleTimeout(0) > 0) {
     }
@@ -98,6 +99,7 @@ class LcmTransport : public Transport {
   }
 
   lcm::LCM lcm_;
+  const bool reads_log_;  // file:// provider: reading a log
   std::map<int, std::unique_ptr<Holder>> holders_;
   int next_id_ = 1;
   uint64_t sequence_ = 0;

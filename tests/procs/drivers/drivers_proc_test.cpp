@@ -94,6 +94,23 @@ TEST(NavcamDriver, PublishesTheGoodPairsWithSiteEventsAndNamesTheBadRows) {
   std::filesystem::remove_all(dir);
 }
 
+// Injecting a logged run: a process reading a log (file:// provider) handles
+// every message and exits cleanly at its end, not with a transport error.
+TEST(NavcamDriver, ItsLogReplayedIntoTheFrontEndEndsCleanly) {
+  const std::string dir = testing::MakeFixtureDir("navcam_replay");
+  const std::string manifest = testing::WriteNavcamFixture(dir);
+  const std::string log = dir + "/out.lcmlog";
+  Subprocess driver({BinPath("navcam_driver"), "--config", "config/procs/navcam_driver.yaml", "--manifest", manifest,
+                     "--speed", "0", "--lcm-url", FileUrl(log)});
+  ASSERT_EQ(driver.WaitExit(60), 0) << driver.output();
+  Subprocess frontend({BinPath("feature_frontend"), "--config", "config/procs/feature_frontend.yaml", "--lcm-url",
+                       "file://" + log + "?speed=0"});
+  EXPECT_EQ(frontend.WaitExit(60), 0) << frontend.output();
+  EXPECT_NE(frontend.output().find("end of the log being read"), std::string::npos) << frontend.output();
+  EXPECT_EQ(frontend.output().find("transport error"), std::string::npos) << frontend.output();
+  EXPECT_NE(frontend.output().find("rejected 0"), std::string::npos) << frontend.output();
+}
+
 TEST(NavcamDriver, MissingManifestStopsWithOneLine) {
   Subprocess driver({BinPath("navcam_driver"), "--manifest", "/nonexistent/m.yaml", "--lcm-url", "memq://"});
   EXPECT_EQ(driver.WaitExit(30), 1);

@@ -32,8 +32,10 @@ class Transport {
                         DropHandler on_drop = {}) = 0;
   virtual void Unsubscribe(int id) = 0;
   // Waits up to timeout_ms for messages and dispatches them. Returns >0 when
-  // something was handled, 0 on timeout, <0 on a transport error.
+  // something was handled, 0 on timeout, kEndOfLog when a log being read
+  // (file:// provider) is exhausted, other <0 on a transport error.
   virtual int Handle(int timeout_ms) = 0;
+  static constexpr int kEndOfLog = -100;
 };
 
 // The LCM URL to use: `configured` when not empty, else $LCM_DEFAULT_URL,
