@@ -9,11 +9,14 @@ namespace vloc {
 
 namespace {
 
-// The first pair (in a random order) that sees p in both cameras; -1 if none.
+// The first pair of [first, last) (in a random order) that sees p in both
+// cameras; -1 if none.
 int FindPair(const std::vector<Pose3>& lefts, const std::vector<Pose3>& rights, const NavcamModel& navcam,
-             const Eigen::Vector3d& p, std::mt19937_64& rng, Eigen::Vector2d* uv_left, Eigen::Vector2d* uv_right) {
-  std::vector<int> order(lefts.size());
-  for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+             const Eigen::Vector3d& p, std::mt19937_64& rng, Eigen::Vector2d* uv_left, Eigen::Vector2d* uv_right,
+             int first = 0, int last = -1) {
+  if (last < 0) last = static_cast<int>(lefts.size());
+  std::vector<int> order;
+  for (int i = first; i < last; ++i) order.push_back(i);
   std::shuffle(order.begin(), order.end(), rng);
   for (int i : order) {
     const auto l = CameraView::Make(lefts[i], navcam.rig.left).Project(p);
@@ -49,6 +52,7 @@ SyntheticTiePoints MakeSyntheticTiePoints(const NavcamModel& navcam, const Pose3
     set.previous_pointing.push_back({pan, o.tilt});
     set.current_pointing.push_back({pan, o.tilt});
   }
+  if (o.backward_pair) set.current_pointing.push_back({M_PI, o.tilt});
   std::vector<Pose3> prev_left, prev_right, cur_left, cur_right;
   SiteCameraPoses(world_from_previous, set.previous_pointing, navcam, &prev_left, &prev_right);
   SiteCameraPoses(world_from_current, set.current_pointing, navcam, &cur_left, &cur_right);
@@ -58,13 +62,16 @@ SyntheticTiePoints MakeSyntheticTiePoints(const NavcamModel& navcam, const Pose3
   const Eigen::Vector3d line_origin = world_from_previous * Eigen::Vector3d(14.0, 0.7, -0.2);
   const Eigen::Vector3d line_dir = world_from_previous.linear() * Eigen::Vector3d(1.0, 0.15, 0.0).normalized();
   const double heading = Heading(world_from_previous);
+  const double spacing = (world_from_current.translation() - world_from_previous.translation()).norm();
   for (int tries = 0; tries < 200 * o.num_points && static_cast<int>(set.points.size()) < o.num_points; ++tries) {
     Eigen::Vector3d p;
+    const bool behind_current = o.backward_pair && static_cast<int>(set.points.size()) < o.backward_points;
     if (o.collinear) {
       p = line_origin + line_dir * (-3.0 + 12.0 * uni(rng));
     } else {
       // Level ground patch ahead of the previous site, in its heading.
-      const double ahead = o.min_range + (o.max_range - o.min_range) * uni(rng);
+      const double far = behind_current ? std::max(o.min_range, spacing - 2.0) : o.max_range;
+      const double ahead = o.min_range + (far - o.min_range) * uni(rng);
       const double side = o.half_width * (2.0 * uni(rng) - 1.0);
       const Eigen::Vector3d local(ahead, side, 0.0);
       const Eigen::Vector3d rotated(std::cos(heading) * local.x() - std::sin(heading) * local.y(),
@@ -75,7 +82,9 @@ SyntheticTiePoints MakeSyntheticTiePoints(const NavcamModel& navcam, const Pose3
     Eigen::Vector2d pl, pr, cl, cr;
     const int ip = FindPair(prev_left, prev_right, navcam, p, rng, &pl, &pr);
     if (ip < 0) continue;
-    const int ic = FindPair(cur_left, cur_right, navcam, p, rng, &cl, &cr);
+    const int forward = o.num_pairs;
+    const int ic = behind_current ? FindPair(cur_left, cur_right, navcam, p, rng, &cl, &cr, forward, forward + 1)
+                                  : FindPair(cur_left, cur_right, navcam, p, rng, &cl, &cr, 0, forward);
     if (ic < 0) continue;
     TiePoint tp;
     tp.id = static_cast<int>(set.points.size());

@@ -24,6 +24,12 @@ struct SyntheticTiePointOptions {
   double outlier_fraction = 0.0;   // fraction of points whose current-site observations are wrong by 10-40 px
   uint64_t seed = 1;
   bool collinear = false;          // put every point on one 3-D line (degenerate geometry)
+  // Forward-backward capture (Wan et al. 2.1): the current site also looks
+  // back (one more pair, pan 180 deg); the first `backward_points` tie points
+  // lie on the ground between the sites and are seen by that pair, the rest
+  // by the forward pairs as usual.
+  bool backward_pair = false;
+  int backward_points = 0;
 };
 
 struct SyntheticTiePoints {
