@@ -97,7 +97,7 @@ void ConsoleAdapter::Subscribe() {
   stats_.push_back(vloc::Subscribe<tie_points_t>(transport_, o.tie_points_channel,
       [this](const std::string&, const tie_points_t& m) { OnTiePoints(m); }, kQueue));
   stats_.push_back(vloc::Subscribe<procman_status_t>(transport_, o.procman_status_channel,
-      [this](const std::string&, const procman_status_t& m) { Post("procman/" + m.host, ProcmanJson(m)); }, kQueue));
+      [this](const std::string&, const procman_status_t& m) { Post("procman/" + m.host + ":" + std::to_string(m.launcher_pid), ProcmanJson(m)); }, kQueue));
   stats_.push_back(vloc::Subscribe<uav_state_t>(transport_, o.uav_state_channel, [this](const std::string&, const uav_state_t& m) {
     const json j = UavStateJson(m);
     server_.Broadcast(j.dump());

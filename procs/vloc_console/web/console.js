@@ -5,7 +5,7 @@ const vloc = window.vloc = {
   sites: {},            // id -> {dr, localization, opt, frontend}
   tiePoints: {},        // current site -> tie_points message
   images: {},           // site -> [{pair, width, height}]
-  procman: {},          // host -> procman message
+  procman: {},          // 'host:launcher pid' -> procman message (two launchers may share a host)
   uav: [], mosaicSeq: 0,
   mayAct: false, connected: false,
   pair: null, userPair: false,   // {previous, current} shown in the images panel
@@ -55,7 +55,7 @@ const handlers = {
   frontend_status: (m) => { site(m.current).frontend = m; if (vloc.selected === m.current) showSite(m.current); autoPair(m.previous, m.current); },
   tie_points: (m) => { vloc.tiePoints[m.current] = m; autoPair(m.previous, m.current); if (isShown(m.current)) drawImages(); },
   images: (m) => { vloc.images[m.site] = m.pairs; fillImageSelects(); },
-  procman: (m) => { vloc.procman[m.host] = m; drawProcs(); },
+  procman: (m) => { vloc.procman[m.host + ':' + m.pid] = m; drawProcs(); },
   uav_state: (m) => { vloc.uav.push(m); if (vloc.uav.length > 5000) vloc.uav.shift(); dirtyUav(); },
   uav_history: (m) => { vloc.uav = m.states; dirtyUav(); },
   uav_mosaic: (m) => { vloc.mosaicSeq = m.seq; dirtyUav(); },
@@ -306,7 +306,8 @@ function drawUav() {
 // ---- processes
 function drawProcs() {
   const rows = [];
-  for (const host of Object.keys(vloc.procman).sort()) for (const p of vloc.procman[host].procs) {
+  for (const key of Object.keys(vloc.procman).sort()) for (const p of vloc.procman[key].procs) {
+    const host = vloc.procman[key].host;
     const b = (a) => `<button data-host="${esc(host)}" data-target="${esc(p.name)}" data-action="${a}"${vloc.mayAct ? '' : ' disabled'}>${a}</button>`;
     rows.push(`<tr data-proc="${esc(p.name)}"><td>${esc(host)}</td><td>${esc(p.name)}</td><td>${esc(p.group)}</td><td class="${p.state === 'running' ? 'good' : 'bad'}">${p.state}</td><td>${p.pid}</td><td class="restarts">${p.restarts}</td><td>${Number(p.cpu_percent).toFixed(1)}</td><td>${(p.rss_bytes / 1048576).toFixed(1)}</td><td>${Number(p.uptime_seconds).toFixed(0)}</td><td>${b('start')} ${b('stop')} ${b('restart')}</td></tr>`);
   }

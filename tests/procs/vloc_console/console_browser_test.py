@@ -207,7 +207,7 @@ def check_manual_tie_points(driver, shots):
 def check_restart_from_page(driver, shots):
     row = "const r = (window.vloc.procman['%s'] || {procs: []}).procs.find(p => p.name == 'crosssite_ba'); "
     host = wait_for(driver, "const h = Object.keys(window.vloc.procman); return h.length && h[0]", 20,
-                    "PROCMAN_STATUS")
+                    "PROCMAN_STATUS")  # 'host:launcher pid'
     before = wait_for(driver, row % host + "return r && r.state == 'running' && r", 20, "crosssite_ba running")
     assert driver.js("return window.vloc.mayAct"), "the token given in the URL should allow acting"
     driver.js("document.getElementById('procs-panel').scrollIntoView()")
