@@ -19,7 +19,8 @@ int PairSlot(const SiteImages& site, int pair) {
   return -1;
 }
 
-// The clicks as candidates in ideal px; clicks naming a missing pair are skipped.
+// The clicks as candidates in ideal px; clicks naming a missing pair or
+// outside the image are skipped.
 std::vector<Candidate> ClickCandidates(const NavcamModel& navcam, const SitePairState& s,
                                        const std::vector<ManualTie>& ties) {
   std::vector<Candidate> out;
@@ -28,6 +29,7 @@ std::vector<Candidate> ClickCandidates(const NavcamModel& navcam, const SitePair
     c.prev_pair = PairSlot(s.previous, t.previous_pair);
     c.cur_pair = PairSlot(s.current, t.current_pair);
     if (c.prev_pair < 0 || c.cur_pair < 0) continue;
+    if (!navcam.rig.left.InImage(t.previous_px) || !navcam.rig.left.InImage(t.current_px)) continue;
     c.prev_left = navcam.rig.left.HasDistortion() ? navcam.rig.left.Undistort(t.previous_px) : t.previous_px;
     c.cur_left = navcam.rig.left.HasDistortion() ? navcam.rig.left.Undistort(t.current_px) : t.current_px;
     out.push_back(c);
@@ -74,9 +76,12 @@ FrontendResult CrossSiteFrontend::RunManual(const SiteImages& previous, const Si
     SitePairState s;
     if (auto problem = CheckInput(previous, current, navcam_, &s)) return finish(FrontendStatus::kMissingInput, *problem);
     InitTiePointSet(s, &result.tie_points);
+    s.candidates = ClickCandidates(navcam_, s, ties);
+    if (s.candidates.empty())
+      return finish(FrontendStatus::kTooFewPoints, "manual: none of the " + std::to_string(ties.size()) +
+                                                       " clicks names a pair of both sites inside its image");
     step("prepare_images", [&] {
       PrepareImages(navcam_, options_, &s);
-      s.candidates = ClickCandidates(navcam_, s, ties);
       return static_cast<int>(s.candidates.size());
     });
     const int refined = step("manual_cross_lsm", [&] { return RefineClicks(options_, &s); });
