@@ -70,7 +70,9 @@ bool ResolveStaticPath(const std::filesystem::path& root, const std::string& url
   if (path.back() == '/') path += "index.html";
   if (!CheckComponents(path, why)) return false;
   std::error_code ec;
-  const std::filesystem::path real = std::filesystem::canonical(root / path.substr(1), ec);
+  const size_t start = path.find_first_not_of('/');  // "//etc" is relative to the root too
+  const std::filesystem::path real =
+      std::filesystem::canonical(root / (start == std::string::npos ? "" : path.substr(start)), ec);
   if (ec) {
     *why = "no such file";
     return false;

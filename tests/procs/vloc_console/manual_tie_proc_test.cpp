@@ -105,7 +105,7 @@ TEST(ManualTies, TurnAFailedSitePairIntoALocalizedOne) {
   for (Subprocess* p : {&dr, &frontend, &ba}) ASSERT_TRUE(p->WaitForOutput(kReadyLine, 20)) << p->output();
   Subprocess sim({BinPath("sim_rover"), "--config", kSimConfig, "--lcm-url", url, "--speed", "0"});
   // 1. The automatic pass fails: no tie points, no BA; the site stands at dead reckoning.
-  ASSERT_TRUE(WaitFor(*lcm, 40, [&] { return !bus.statuses.empty(); })) << frontend.output();
+  ASSERT_TRUE(WaitFor(*lcm, 120, [&] { return !bus.statuses.empty(); })) << frontend.output();
   EXPECT_EQ(bus.statuses[0].current_site_id, 1);
   EXPECT_EQ(int(bus.statuses[0].status), int(frontend_status_t::STATUS_LOW_TEXTURE)) << bus.statuses[0].message;
   WaitFor(*lcm, 1.0, [] { return false; });
@@ -118,7 +118,7 @@ TEST(ManualTies, TurnAFailedSitePairIntoALocalizedOne) {
   const std::vector<ManualTie> ties = testing::TrueClicks(world, 0, 1, testing::ClickOptions());
   ASSERT_GE(ties.size(), 10u);
   ASSERT_TRUE(Publish(*lcm, "MANUAL_TIE_POINTS", TiesMessage(0, 1, ties)));
-  ASSERT_TRUE(WaitFor(*lcm, 40, [&] { return !bus.localizations.empty(); })) << frontend.output() << ba.output();
+  ASSERT_TRUE(WaitFor(*lcm, 60, [&] { return !bus.localizations.empty(); })) << frontend.output() << ba.output();
   const localization_t& l = bus.localizations[0];
   EXPECT_EQ(l.site_id, 1);
   EXPECT_EQ(int(l.status), int(localization_t::STATUS_OK)) << l.message;
