@@ -6,7 +6,11 @@ map drawn in the browser (the page stamps each drawn map; LCM on loopback
 adds well under a millisecond before it).
 
   scripts/console_figures.py --log /tmp/demo_hard20/rover/rover_sim.lcmlog [--uav-log LOG]
-                             [--speed 4] [--shots /work/notes]
+                             [--speed 4] [--shots /work/notes] [--ping]
+
+--ping also publishes 100 TRAVERSE messages of 20 sites stamped with the
+wall clock (build/tests/vloc_traverse_pinger, 5 Hz): the latency from
+publishing to the map drawn, LCM included.
 
 The 20-site log comes from `scripts/demo.sh --sites 20 --profile hard --out /tmp/demo_hard20`.
 Needs chromium and chromium-driver (scripts/install_deps.sh); python3 stdlib only.
@@ -43,12 +47,25 @@ def replay(log, speed, console_pid, samples):
     samples.append(rss_mb(console_pid))
 
 
+def ping(driver):
+    driver.js("window.vloc.stats.traverseAgeMs = []; window.vloc.stats.traverseLatencyMs = [];")
+    subprocess.run([os.path.join(ROOT, "build", "tests", "vloc_traverse_pinger"), "--lcm-url", LCM_URL,
+                    "--sites", "20", "--rate", "5", "--seconds", "20"], check=True, stdout=subprocess.DEVNULL)
+    time.sleep(1.0)
+    stats = driver.js("return window.vloc.stats")
+    age, lat = stats["traverseAgeMs"], stats["traverseLatencyMs"]
+    print("TRAVERSE (20 sites) published -> map drawn: median %.1f ms, max %.1f ms (n=%d); "
+          "console receipt -> drawn: median %.1f ms" % (statistics.median(age), max(age), len(age),
+                                                       statistics.median(lat)))
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--log", required=True)
     ap.add_argument("--uav-log")
     ap.add_argument("--speed", type=float, default=4.0)
     ap.add_argument("--shots", default=os.path.join(ROOT, "build"))
+    ap.add_argument("--ping", action="store_true")
     a = ap.parse_args()
     bin_dir = os.environ.get("VLOC_BIN_DIR", os.path.join(ROOT, "build", "bin"))
     http_port, driver_port = browser.free_port(), browser.free_port()
@@ -79,6 +96,8 @@ def main():
         driver.js("const s = Object.keys(window.vloc.sites).map(Number); window.vloc.selectPair(Math.max(...s) - 1, Math.max(...s));")
         time.sleep(2.0)
         driver.screenshot(os.path.join(a.shots, "console_traverse_20_sites.png"))
+        if a.ping:
+            ping(driver)
         if a.uav_log:
             samples = []
             replay(a.uav_log, a.speed, console.pid, samples)

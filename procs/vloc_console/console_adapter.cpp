@@ -3,6 +3,9 @@
 #include <glog/logging.h>
 
 #include <chrono>
+#include <cmath>
+#include <fstream>
+#include <iterator>
 #include <cstdio>
 #include <opencv2/imgcodecs.hpp>
 #include <set>
@@ -38,6 +41,19 @@ json Refused(const std::string& why) { return {{"ok", false}, {"error", why}}; }
 
 }  // namespace
 
+void OrthoimageOptions::Visit(OptionsReader& r) {
+  r.Optional("path", &path, "PNG / JPEG orthoimage under the map (\"\" = none)");
+  r.Optional("x_min_m", &x_min_m, "m, world x of its west edge");
+  r.Optional("y_max_m", &y_max_m, "m, world y of its north edge");
+  r.Optional("m_per_px", &m_per_px, "m per pixel");
+}
+
+bool OrthoimageOptions::Check(std::string* error) const {
+  if (!std::isfinite(x_min_m) || !std::isfinite(y_max_m) || !(m_per_px > 0 && m_per_px < 1e4))
+    return Fail(error, "orthoimage: x_min_m and y_max_m must be finite and m_per_px in (0, 1e4)");
+  return true;
+}
+
 void ConsoleProcOptions::Visit(OptionsReader& r) {
   r.Child("server", [&](OptionsReader& c) { server.Visit(c); });
   r.Optional("traverse_channel", &traverse_channel, "traverse_t in");
@@ -55,6 +71,7 @@ void ConsoleProcOptions::Visit(OptionsReader& r) {
   r.Optional("image_sites_kept", &image_sites_kept, "newest sites whose left images are kept");
   r.Optional("max_uav_states", &max_uav_states, "UAV states kept for the plots");
   r.Optional("max_manual_points", &max_manual_points, "picks in one manual tie-point command");
+  r.Child("orthoimage", [&](OptionsReader& c) { orthoimage.Visit(c); });
 }
 
 bool ConsoleProcOptions::Check(std::string* error) const {
@@ -64,7 +81,7 @@ bool ConsoleProcOptions::Check(std::string* error) const {
     if (c->empty()) return Fail(error, "channel names must not be empty (only stereo_channel may be)");
   if (max_sites < 1 || image_sites_kept < 2 || max_uav_states < 1 || max_manual_points < 1)
     return Fail(error, "max_sites, max_uav_states, max_manual_points must be >= 1 and image_sites_kept >= 2");
-  return server.Check(error);
+  return server.Check(error) && orthoimage.Check(error);
 }
 
 ConsoleAdapter::ConsoleAdapter(Transport& transport, ConsoleServer& server, const ConsoleProcOptions& options)
@@ -113,6 +130,21 @@ void ConsoleAdapter::Subscribe() {
     stats_.push_back(vloc::Subscribe<stereo_image_t>(transport_, o.stereo_channel, [this](const std::string&, const stereo_image_t& m) {
       OnLeftImage(m.site_id, m.pair_index, ImageFromMessage(m.left));
     }, 64));
+}
+
+bool ConsoleAdapter::LoadOrthoimage(std::string* error) {
+  const OrthoimageOptions& o = options_.orthoimage;
+  if (o.path.empty()) return true;
+  const cv::Mat image = cv::imread(o.path, cv::IMREAD_UNCHANGED);
+  std::ifstream in(o.path, std::ios::binary);
+  orthoimage_bytes_.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  if (image.empty() || orthoimage_bytes_.empty())
+    return Fail(error, "orthoimage '" + o.path + "' is not a readable PNG or JPEG image (fix orthoimage.path)");
+  orthoimage_type_ = orthoimage_bytes_.rfind("\x89PNG", 0) == 0 ? "image/png" : "image/jpeg";
+  picture_["orthoimage"] = json{{"type", "orthoimage"}, {"x_min", o.x_min_m}, {"y_max", o.y_max_m},
+                                {"m_per_px", o.m_per_px}, {"width", image.cols}, {"height", image.rows}}
+                               .dump();
+  return true;
 }
 
 void ConsoleAdapter::Post(const std::string& key, const json& j) {
@@ -210,6 +242,10 @@ json ConsoleAdapter::Act(const json& command) {
 bool ConsoleAdapter::OnApi(const std::string& rest, const std::map<std::string, std::string>& query,
                            HttpReply* reply) {
   if (rest == "image") return ImageReply(query, reply);
+  if (rest == "orthoimage" && !orthoimage_bytes_.empty()) {
+    *reply = {200, orthoimage_type_, orthoimage_bytes_};
+    return true;
+  }
   if (rest == "uav_mosaic" && !uav_mosaic_jpeg_.empty()) {
     *reply = {200, "image/jpeg", uav_mosaic_jpeg_};
     return true;

@@ -25,6 +25,18 @@ namespace vloc {
 
 class OptionsReader;
 
+// An aerial orthoimage under the traverse map (north up, pixel (0, 0) at the
+// north-west corner).
+struct OrthoimageOptions {
+  std::string path;          // PNG / JPEG file ("" = none)
+  double x_min_m = 0;        // m, world x (east) of the image's west edge
+  double y_max_m = 0;        // m, world y (north) of the image's north edge
+  double m_per_px = 0.2;     // m per pixel
+
+  void Visit(OptionsReader& reader);
+  bool Check(std::string* error) const;
+};
+
 struct ConsoleProcOptions {
   ConsoleServerOptions server;                       // HTTP / WebSocket server (map `server`)
   std::string traverse_channel = "TRAVERSE";         // traverse_t in
@@ -42,6 +54,7 @@ struct ConsoleProcOptions {
   int image_sites_kept = 3;                          // newest sites whose left images are kept
   int max_uav_states = 5000;                         // UAV states kept for the route and height plots
   int max_manual_points = 200;                       // picks in one manual tie-point command
+  OrthoimageOptions orthoimage;                      // drawn under the map (map `orthoimage`)
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
@@ -51,6 +64,8 @@ class ConsoleAdapter {
  public:
   ConsoleAdapter(Transport& transport, ConsoleServer& server, const ConsoleProcOptions& options);
   void Subscribe();
+  // Loads the orthoimage when one is configured; false and *error when it cannot be read.
+  bool LoadOrthoimage(std::string* error);
   std::string StatusLine() const;
 
   // What a browser that connects now is sent first.
@@ -78,6 +93,7 @@ class ConsoleAdapter {
   std::map<int, Pose3> relative_poses_;                  // BA previous_from_current by current site
   std::deque<std::string> uav_states_;
   std::string uav_mosaic_jpeg_;
+  std::string orthoimage_bytes_, orthoimage_type_;
   int64_t uav_mosaic_seq_ = 0;
   int64_t orders_sent_ = 0, manual_sent_ = 0, refused_ = 0;
   std::vector<std::shared_ptr<SubscriptionStats>> stats_;

@@ -38,7 +38,7 @@ int main(int argc, char** argv) {
   vloc::ConsoleServer server(loaded->server);
   vloc::ConsoleAdapter adapter(*setup->transport, server, *loaded);
   std::string error;
-  if (!server.Start(&error)) {
+  if (!adapter.LoadOrthoimage(&error) || !server.Start(&error)) {
     std::cerr << "vloc_console: " << error << "\n";
     return 1;
   }

@@ -59,6 +59,11 @@ const handlers = {
   uav_state: (m) => { vloc.uav.push(m); if (vloc.uav.length > 5000) vloc.uav.shift(); dirtyUav(); },
   uav_history: (m) => { vloc.uav = m.states; dirtyUav(); },
   uav_mosaic: (m) => { vloc.mosaicSeq = m.seq; dirtyUav(); },
+  orthoimage: (m) => {
+    const img = new Image();
+    img.onload = () => { vloc.ortho = Object.assign({ img }, m); dirtyMap(); };
+    img.src = '/api/orthoimage';
+  },
 };
 function dispatch(m) { const h = handlers[m.type]; if (h) h(m); }
 function site(id) { return vloc.sites[id] || (vloc.sites[id] = { id }); }
@@ -128,6 +133,11 @@ function drawTrack(g, t, key, colour) {
 function drawMap() {
   const c = $('map'), g = c.getContext('2d'), t = mapTransform();
   g.clearRect(0, 0, c.width, c.height);
+  const o = vloc.ortho;
+  if (o) {  // north up: pixel (0, 0) at (x_min, y_max)
+    const [x0, y0] = t.toPx(o.x_min, o.y_max);
+    g.drawImage(o.img, x0, y0, o.width * o.m_per_px * t.k, o.height * o.m_per_px * t.k);
+  }
   g.lineWidth = 1.5;
   drawTrack(g, t, 'dr', '#999');
   drawTrack(g, t, 'localization', '#27c');

@@ -121,6 +121,18 @@ def flat_frontend_config(folder):
     return path
 
 
+def console_config(folder):
+    """The console's config with site 0's terrain orthoimage (sim_rover --render-sample) under the map."""
+    subprocess.run([os.path.join(BIN, "sim_rover"), "--config", SIM_CONFIG, "--render-sample", folder], cwd=ROOT,
+                   check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    text = open(os.path.join(ROOT, "config/procs/vloc_console.yaml")).read().split("orthoimage:")[0]
+    text += "orthoimage: {path: %s, x_min_m: -10.0, y_max_m: 20.0, m_per_px: 0.04}\n" % \
+        os.path.join(folder, "terrain_ortho.png")
+    path = os.path.join(folder, "vloc_console.yaml")
+    open(path, "w").write(text)
+    return path
+
+
 def group_file(folder, http_port):
     def proc(name, args, extra=""):
         quoted = ", ".join(json.dumps(a) for a in args + ["--lcm-url", "${VLOC_LCM_URL}"])
@@ -131,7 +143,7 @@ def group_file(folder, http_port):
     text += proc("feature_frontend", ["--config", flat_frontend_config(folder)])
     text += proc("crosssite_ba", ["--config", "config/procs/crosssite_ba.yaml", "--state-dir", folder])
     text += proc("traverse_graph", ["--config", "config/procs/traverse_graph.yaml"])
-    text += proc("vloc_console", ["--config", "config/procs/vloc_console.yaml", "--port", str(http_port),
+    text += proc("vloc_console", ["--config", console_config(folder), "--port", str(http_port),
                                   "--token", TOKEN])
     text += proc("sim_rover", ["--config", SIM_CONFIG, "--speed", "0"],
                  "    depends_on: [dead_reckoning, feature_frontend, crosssite_ba, traverse_graph, vloc_console]\n"
@@ -167,6 +179,7 @@ def pick(driver, point):
 
 def check_map_shows_sites(driver, shots):
     wait_for(driver, "return window.vloc.stats.mapSites >= 2", 90, "both sites on the map")
+    wait_for(driver, "return window.vloc.ortho && window.vloc.ortho.width == 1000", 10, "the orthoimage under the map")
     status = wait_for(driver, "const s = window.vloc.sites[1]; return s && s.frontend && s.frontend.status",
                       60, "FRONTEND_STATUS of pair 0 -> 1")
     assert status == "low texture", "pair 0 -> 1 should have failed automatically, got %s" % status

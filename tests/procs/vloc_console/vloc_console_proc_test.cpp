@@ -315,9 +315,11 @@ TEST(VlocConsole, WatchesOnlyWhenOpenToOtherMachinesWithoutAToken) {
 }
 
 TEST(VlocConsole, BadSettingsGiveOneErrorLine) {
+  const auto bad_ortho = std::filesystem::temp_directory_path() / "vloc_console_bad_ortho.yaml";
+  std::ofstream(bad_ortho) << "orthoimage: {path: /nonexistent/ortho.png, m_per_px: 0.04}\n";
   for (const std::vector<std::string>& extra :
        {std::vector<std::string>{"--bind", "not-an-address"}, {"--web-root", "/nonexistent/folder"},
-        {"--port", "70000"}}) {
+        {"--port", "70000"}, {"--config", bad_ortho.string()}}) {
     Subprocess p({BinPath("vloc_console"), "--config", "config/procs/vloc_console.yaml", "--lcm-url",
                   TestLcmUrl(7956), extra[0], extra[1]});
     EXPECT_EQ(p.WaitExit(10), 1) << extra[0];
