@@ -96,8 +96,6 @@ def main():
         driver.js("const s = Object.keys(window.vloc.sites).map(Number); window.vloc.selectPair(Math.max(...s) - 1, Math.max(...s));")
         time.sleep(2.0)
         driver.screenshot(os.path.join(a.shots, "console_traverse_20_sites.png"))
-        if a.ping:
-            ping(driver)
         if a.uav_log:
             samples = []
             replay(a.uav_log, a.speed, console.pid, samples)
@@ -106,6 +104,8 @@ def main():
             print("uav log %s: %d UAV states plotted; console RSS max %.1f MB" % (a.uav_log, n, max(samples)))
             driver.js("document.getElementById('uav-panel').scrollIntoView()")
             driver.screenshot(os.path.join(a.shots, "console_uav.png"))
+        if a.ping:  # last: its synthetic traverse replaces the replayed one on the map
+            ping(driver)
     finally:
         driver.quit()
         chrome.terminate()
