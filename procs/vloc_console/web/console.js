@@ -259,6 +259,13 @@ vloc.imageToClient = (which, u, v) => {
   const c = $(which + '-canvas'), r = c.getBoundingClientRect();
   return [r.left + (u + 0.5) * r.width / c.width, r.top + (v + 0.5) * r.height / c.height];
 };
+// Client coordinates of a site on the map (optimised, else DR): for tests.
+vloc.siteToClient = (id) => {
+  const s = vloc.sites[id], p = s && (s.opt || s.dr), c = $('map'), r = c.getBoundingClientRect();
+  if (!p) return null;
+  const [x, y] = mapTransform().toPx(p.x, p.y);
+  return [r.left + x * r.width / c.width, r.top + y * r.height / c.height];
+};
 vloc.imagesReady = () => !!(loaded.prev && loaded.prev.ready && loaded.cur && loaded.cur.ready);
 function onImageClick(which, e) {
   if (!$('manual').checked || !loaded[which] || !loaded[which].ready) return;

@@ -177,6 +177,12 @@ def pick(driver, point):
         driver.click_at(x, y)
 
 
+def click_site(driver, site):
+    driver.js("window.scrollTo(0, 0)")
+    x, y = driver.js("return window.vloc.siteToClient(arguments[0])", site)
+    driver.click_at(x, y)
+
+
 def check_map_shows_sites(driver, shots):
     wait_for(driver, "return window.vloc.stats.mapSites >= 2", 90, "both sites on the map")
     wait_for(driver, "return window.vloc.ortho && window.vloc.ortho.width == 1000", 10, "the orthoimage under the map")
@@ -186,6 +192,10 @@ def check_map_shows_sites(driver, shots):
     assert not driver.js("const l = window.vloc.sites[1].localization; return l && l.ok"), "no BA before the picks"
     wait_for(driver, "const i = window.vloc.images; return i[0] && i[1] && i[0].length == 3 && i[1].length == 3",
              30, "the left images of both sites")
+    click_site(driver, 1)
+    info = wait_for(driver, "const t = document.getElementById('site-info').textContent; "
+                            "return t.includes('FRONTEND 0 -> 1: low texture') && t", 10, "site 1's details")
+    assert "BA: none" in info, info
     driver.screenshot(os.path.join(shots, "console_map_failed_pair.png"))
     print("map: %d sites, pair 0 -> 1 %s" % (driver.js("return window.vloc.stats.mapSites"), status))
 
@@ -210,6 +220,9 @@ def check_manual_tie_points(driver, shots):
           (len(points), loc["status"], loc["used"], loc["final_rms_px"], shift))
     assert loc["used"] >= 6
     wait_for(driver, "const s = window.vloc.sites[1]; return s.opt && true", 30, "the optimised traverse")
+    click_site(driver, 1)
+    wait_for(driver, "return document.getElementById('site-info').textContent.includes('BA vs 0: ok')", 10,
+             "site 1's BA summary on the page")
     driver.js("window.vloc.selectPair(0, 1)")
     wait_for(driver, "const t = window.vloc.tiePoints[1]; return t && t.points.length > 0", 20, "the tie points drawn")
     select_images(driver, points[0]["previous_pair"], points[0]["current_pair"])
