@@ -83,7 +83,8 @@ namespace {
 std::vector<ManualTie> ManualTiesFromMessage(const manual_tie_points_t& m) {
   std::vector<ManualTie> ties;
   for (int i = 0; i < m.num_points; ++i) {
-    ManualTie t{m.previous_pair[i], {m.previous_u[i], m.previous_v[i]}, m.current_pair[i], {m.current_u[i], m.current_v[i]}};
+    ManualTie t{m.previous_pair[i], {m.previous_u[i], m.previous_v[i]}, m.current_pair[i],
+                {m.current_u[i], m.current_v[i]}};
     if (!(t.previous_px.allFinite() && t.current_px.allFinite() && t.previous_px.minCoeff() >= 0 &&
           t.current_px.minCoeff() >= 0))
       throw std::invalid_argument("manual tie point " + std::to_string(i) + " is not a pixel position");
@@ -170,7 +171,8 @@ void FeatureFrontendAdapter::OnManualTies(int previous_site_id, int current_site
                       std::to_string(previous ? current_site_id : previous_site_id) +
                       " are no longer kept (only the newest two sites are, unless revisits are on)";
     LOG(WARNING) << summary.message;
-    Publish(transport_, options_.status_channel, FrontendStatusToMessage(summary, utime, previous_site_id, current_site_id));
+    Publish(transport_, options_.status_channel,
+            FrontendStatusToMessage(summary, utime, previous_site_id, current_site_id));
     return;
   }
   const FrontendResult r = frontend_.RunManual(*previous, *current, ties);

@@ -4,9 +4,9 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <iterator>
-#include <cstdio>
 #include <opencv2/imgcodecs.hpp>
 #include <set>
 
@@ -32,8 +32,7 @@ std::string SiteKey(const char* prefix, int site) {
 }
 
 int64_t WallMicros() {
-  return std::chrono::duration_cast<std::chrono::microseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
       .count();
 }
 
@@ -75,9 +74,9 @@ void ConsoleProcOptions::Visit(OptionsReader& r) {
 }
 
 bool ConsoleProcOptions::Check(std::string* error) const {
-  for (const std::string* c : {&traverse_channel, &dr_channel, &visual_channel, &frontend_status_channel,
-                               &tie_points_channel, &procman_status_channel, &uav_state_channel,
-                               &uav_mosaic_channel, &orders_channel, &manual_ties_channel})
+  for (const std::string* c :
+       {&traverse_channel, &dr_channel, &visual_channel, &frontend_status_channel, &tie_points_channel,
+        &procman_status_channel, &uav_state_channel, &uav_mosaic_channel, &orders_channel, &manual_ties_channel})
     if (c->empty()) return Fail(error, "channel names must not be empty (only stereo_channel may be)");
   if (max_sites < 1 || image_sites_kept < 2 || max_uav_states < 1 || max_manual_points < 1)
     return Fail(error, "max_sites, max_uav_states, max_manual_points must be >= 1 and image_sites_kept >= 2");
@@ -88,48 +87,70 @@ ConsoleAdapter::ConsoleAdapter(Transport& transport, ConsoleServer& server, cons
     : transport_(transport), server_(server), options_(options) {
   server_.SetWelcomeHandler([this] { return Welcome(); });
   server_.SetCommandHandler([this](const json& c, bool may_act) { return OnCommand(c, may_act); });
-  server_.SetApiHandler([this](const std::string& rest, const std::map<std::string, std::string>& q,
-                               HttpReply* r) { return OnApi(rest, q, r); });
+  server_.SetApiHandler([this](const std::string& rest, const std::map<std::string, std::string>& q, HttpReply* r) {
+    return OnApi(rest, q, r);
+  });
+}
+
+template <class Msg>
+void ConsoleAdapter::Watch(const std::string& channel, std::function<void(const Msg&)> handle, int queue) {
+  stats_.push_back(vloc::Subscribe<Msg>(
+      transport_, channel, [handle = std::move(handle)](const std::string&, const Msg& m) { handle(m); }, queue));
 }
 
 void ConsoleAdapter::Subscribe() {
-  constexpr int kQueue = 1000;  // small messages, none may be lost
-  auto& o = options_;
-  stats_.push_back(vloc::Subscribe<traverse_t>(transport_, o.traverse_channel, [this](const std::string&, const traverse_t& m) {
+  SubscribeRover();
+  SubscribeUav();
+  Watch<procman_status_t>(options_.procman_status_channel, [this](const procman_status_t& m) {
+    Post("procman/" + m.host + ":" + std::to_string(m.launcher_pid), ProcmanJson(m));
+  });
+}
+
+void ConsoleAdapter::SubscribeRover() {
+  const ConsoleProcOptions& o = options_;
+  Watch<traverse_t>(o.traverse_channel, [this](const traverse_t& m) {
     json j = TraverseJson(m);
-    j["console_us"] = WallMicros();
+    j["console_us"] = WallMicros();  // the page measures receipt -> drawn from it
     Post("traverse", j);
-  }, kQueue));
-  stats_.push_back(vloc::Subscribe<site_pose_t>(transport_, o.dr_channel, [this](const std::string&, const site_pose_t& m) {
-    Post(SiteKey("dr", m.site_id), SitePoseJson(m));
-  }, kQueue));
-  stats_.push_back(vloc::Subscribe<localization_t>(transport_, o.visual_channel, [this](const std::string&, const localization_t& m) {
-    Post(SiteKey("localization", m.site_id), LocalizationJson(m));
-    if (m.status == localization_t::STATUS_OK) relative_poses_[m.site_id] = PoseFromMessage(m.relative_pose).pose;
-    else relative_poses_.erase(m.site_id);
-    RefreshTiePoints(m.site_id);
-  }, kQueue));
-  stats_.push_back(vloc::Subscribe<frontend_status_t>(transport_, o.frontend_status_channel,
-      [this](const std::string&, const frontend_status_t& m) { Post(SiteKey("frontend", m.current_site_id), FrontendStatusJson(m)); }, kQueue));
-  stats_.push_back(vloc::Subscribe<tie_points_t>(transport_, o.tie_points_channel,
-      [this](const std::string&, const tie_points_t& m) { OnTiePoints(m); }, kQueue));
-  stats_.push_back(vloc::Subscribe<procman_status_t>(transport_, o.procman_status_channel,
-      [this](const std::string&, const procman_status_t& m) { Post("procman/" + m.host + ":" + std::to_string(m.launcher_pid), ProcmanJson(m)); }, kQueue));
-  stats_.push_back(vloc::Subscribe<uav_state_t>(transport_, o.uav_state_channel, [this](const std::string&, const uav_state_t& m) {
-    const json j = UavStateJson(m);
-    server_.Broadcast(j.dump());
-    uav_states_.push_back(j.dump());
+  });
+  Watch<site_pose_t>(o.dr_channel, [this](const site_pose_t& m) { Post(SiteKey("dr", m.site_id), SitePoseJson(m)); });
+  Watch<localization_t>(o.visual_channel, [this](const localization_t& m) { OnLocalization(m); });
+  Watch<frontend_status_t>(o.frontend_status_channel, [this](const frontend_status_t& m) {
+    Post(SiteKey("frontend", m.current_site_id), FrontendStatusJson(m));
+  });
+  Watch<tie_points_t>(o.tie_points_channel, [this](const tie_points_t& m) { OnTiePoints(m); });
+  if (o.stereo_channel.empty()) return;
+  Watch<stereo_image_t>(
+      o.stereo_channel,
+      [this](const stereo_image_t& m) { OnLeftImage(m.site_id, m.pair_index, ImageFromMessage(m.left)); },
+      kStereoQueue);
+}
+
+void ConsoleAdapter::SubscribeUav() {
+  Watch<uav_state_t>(options_.uav_state_channel, [this](const uav_state_t& m) {
+    const std::string text = UavStateJson(m).dump();
+    server_.Broadcast(text);
+    uav_states_.push_back(text);
     while (static_cast<int>(uav_states_.size()) > options_.max_uav_states) uav_states_.pop_front();
-  }, kQueue));
-  stats_.push_back(vloc::Subscribe<image_t>(transport_, o.uav_mosaic_channel, [this](const std::string&, const image_t& m) {
-    if (m.encoding != image_t::ENCODING_JPEG) throw std::invalid_argument("the mosaic preview is not JPEG");
-    uav_mosaic_jpeg_.assign(m.data.begin(), m.data.end());
-    Post("uav_mosaic", {{"type", "uav_mosaic"}, {"seq", ++uav_mosaic_seq_}, {"width", m.width}, {"height", m.height}});
-  }, 4));
-  if (!o.stereo_channel.empty())
-    stats_.push_back(vloc::Subscribe<stereo_image_t>(transport_, o.stereo_channel, [this](const std::string&, const stereo_image_t& m) {
-      OnLeftImage(m.site_id, m.pair_index, ImageFromMessage(m.left));
-    }, 64));
+  });
+  Watch<image_t>(
+      options_.uav_mosaic_channel,
+      [this](const image_t& m) {
+        if (m.encoding != image_t::ENCODING_JPEG) throw std::invalid_argument("the mosaic preview is not JPEG");
+        uav_mosaic_jpeg_.assign(m.data.begin(), m.data.end());
+        Post("uav_mosaic",
+             {{"type", "uav_mosaic"}, {"seq", ++uav_mosaic_seq_}, {"width", m.width}, {"height", m.height}});
+      },
+      kMosaicQueue);
+}
+
+void ConsoleAdapter::OnLocalization(const localization_t& m) {
+  Post(SiteKey("localization", m.site_id), LocalizationJson(m));
+  if (m.status == localization_t::STATUS_OK)
+    relative_poses_[m.site_id] = PoseFromMessage(m.relative_pose).pose;
+  else
+    relative_poses_.erase(m.site_id);
+  RefreshTiePoints(m.site_id);
 }
 
 bool ConsoleAdapter::LoadOrthoimage(std::string* error) {
@@ -141,7 +162,7 @@ bool ConsoleAdapter::LoadOrthoimage(std::string* error) {
   if (image.empty() || orthoimage_bytes_.empty())
     return Fail(error, "orthoimage '" + o.path + "' is not a readable PNG or JPEG image (fix orthoimage.path)");
   orthoimage_type_ = orthoimage_bytes_.rfind("\x89PNG", 0) == 0 ? "image/png" : "image/jpeg";
-  picture_["orthoimage"] = json{{"type", "orthoimage"}, {"x_min", o.x_min_m}, {"y_max", o.y_max_m},
+  picture_["orthoimage"] = json{{"type", "orthoimage"},   {"x_min", o.x_min_m},  {"y_max", o.y_max_m},
                                 {"m_per_px", o.m_per_px}, {"width", image.cols}, {"height", image.rows}}
                                .dump();
   return true;
@@ -239,8 +260,7 @@ json ConsoleAdapter::Act(const json& command) {
   return {{"ok", true}, {"points", ties.num_points}};
 }
 
-bool ConsoleAdapter::OnApi(const std::string& rest, const std::map<std::string, std::string>& query,
-                           HttpReply* reply) {
+bool ConsoleAdapter::OnApi(const std::string& rest, const std::map<std::string, std::string>& query, HttpReply* reply) {
   if (rest == "image") return ImageReply(query, reply);
   if (rest == "orthoimage" && !orthoimage_bytes_.empty()) {
     *reply = {200, orthoimage_type_, orthoimage_bytes_};
@@ -253,10 +273,14 @@ bool ConsoleAdapter::OnApi(const std::string& rest, const std::map<std::string, 
   if (rest == "status") {
     const ConsoleServerStats& s = server_.stats();
     *reply = {200, "application/json",
-              json{{"clients", server_.num_clients()}, {"http_requests", s.http_requests},
-                   {"http_rejected", s.http_rejected}, {"dropped_slow", s.clients_dropped_slow},
-                   {"messages_bad", s.messages_bad}, {"orders_sent", orders_sent_},
-                   {"manual_sent", manual_sent_}, {"refused", refused_}}
+              json{{"clients", server_.num_clients()},
+                   {"http_requests", s.http_requests},
+                   {"http_rejected", s.http_rejected},
+                   {"dropped_slow", s.clients_dropped_slow},
+                   {"messages_bad", s.messages_bad},
+                   {"orders_sent", orders_sent_},
+                   {"manual_sent", manual_sent_},
+                   {"refused", refused_}}
                   .dump()};
     return true;
   }

@@ -6,12 +6,12 @@
 // tie points, the newest sites' left images, the UAV route) bounded, and
 // sends it to each browser that connects.
 
-#include <nlohmann/json.hpp>
-#include <opencv2/core.hpp>
-
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
@@ -19,6 +19,7 @@
 #include "vloc/console/console_server.h"
 #include "vloc/lcm_io/transport.h"
 #include "vloc/lcm_io/typed.h"
+#include "vloc/localization_t.hpp"
 #include "vloc/tie_points_t.hpp"
 
 namespace vloc {
@@ -28,33 +29,33 @@ class OptionsReader;
 // An aerial orthoimage under the traverse map (north up, pixel (0, 0) at the
 // north-west corner).
 struct OrthoimageOptions {
-  std::string path;          // PNG / JPEG file ("" = none)
-  double x_min_m = 0;        // m, world x (east) of the image's west edge
-  double y_max_m = 0;        // m, world y (north) of the image's north edge
-  double m_per_px = 0.2;     // m per pixel
+  std::string path;       // PNG / JPEG file ("" = none)
+  double x_min_m = 0;     // m, world x (east) of the image's west edge
+  double y_max_m = 0;     // m, world y (north) of the image's north edge
+  double m_per_px = 0.2;  // m per pixel
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
 };
 
 struct ConsoleProcOptions {
-  ConsoleServerOptions server;                       // HTTP / WebSocket server (map `server`)
-  std::string traverse_channel = "TRAVERSE";         // traverse_t in
-  std::string dr_channel = "SITE_POSE_DR";           // site_pose_t in
-  std::string visual_channel = "SITE_POSE_VISUAL";   // localization_t in
+  ConsoleServerOptions server;                              // HTTP / WebSocket server (map `server`)
+  std::string traverse_channel = "TRAVERSE";                // traverse_t in
+  std::string dr_channel = "SITE_POSE_DR";                  // site_pose_t in
+  std::string visual_channel = "SITE_POSE_VISUAL";          // localization_t in
   std::string frontend_status_channel = "FRONTEND_STATUS";  // frontend_status_t in
-  std::string tie_points_channel = "TIE_POINTS";     // tie_points_t in
-  std::string stereo_channel = "NAVCAM_STEREO";      // stereo_image_t in (left images shown; "" = none)
-  std::string procman_status_channel = "PROCMAN_STATUS";  // procman_status_t in
-  std::string uav_state_channel = "UAV_STATE";       // uav_state_t in
-  std::string uav_mosaic_channel = "UAV_MOSAIC";     // image_t in (JPEG preview)
-  std::string orders_channel = "PROCMAN_ORDERS";     // procman_order_t out
-  std::string manual_ties_channel = "MANUAL_TIE_POINTS";  // manual_tie_points_t out
-  int max_sites = 5000;                              // sites whose poses and statuses are kept
-  int image_sites_kept = 3;                          // newest sites whose left images are kept
-  int max_uav_states = 5000;                         // UAV states kept for the route and height plots
-  int max_manual_points = 200;                       // picks in one manual tie-point command
-  OrthoimageOptions orthoimage;                      // drawn under the map (map `orthoimage`)
+  std::string tie_points_channel = "TIE_POINTS";            // tie_points_t in
+  std::string stereo_channel = "NAVCAM_STEREO";             // stereo_image_t in (left images shown; "" = none)
+  std::string procman_status_channel = "PROCMAN_STATUS";    // procman_status_t in
+  std::string uav_state_channel = "UAV_STATE";              // uav_state_t in
+  std::string uav_mosaic_channel = "UAV_MOSAIC";            // image_t in (JPEG preview)
+  std::string orders_channel = "PROCMAN_ORDERS";            // procman_order_t out
+  std::string manual_ties_channel = "MANUAL_TIE_POINTS";    // manual_tie_points_t out
+  int max_sites = 5000;                                     // sites whose poses and statuses are kept
+  int image_sites_kept = 3;                                 // newest sites whose left images are kept
+  int max_uav_states = 5000;                                // UAV states kept for the route and height plots
+  int max_manual_points = 200;                              // picks in one manual tie-point command
+  OrthoimageOptions orthoimage;                             // drawn under the map (map `orthoimage`)
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
@@ -74,6 +75,15 @@ class ConsoleAdapter {
   bool OnApi(const std::string& rest, const std::map<std::string, std::string>& query, HttpReply* reply);
 
  private:
+  static constexpr int kQueue = 1000;      // small messages, none may be lost
+  static constexpr int kStereoQueue = 64;  // stereo pairs (about 2 MB each)
+  static constexpr int kMosaicQueue = 4;   // only the newest preview matters
+  // Subscribes `handle` to `channel` through the validated decode (typed.h).
+  template <class Msg>
+  void Watch(const std::string& channel, std::function<void(const Msg&)> handle, int queue = kQueue);
+  void SubscribeRover();
+  void SubscribeUav();
+  void OnLocalization(const localization_t& msg);
   // Sends `j` to the browsers and keeps it under `key` for later ones.
   void Post(const std::string& key, const nlohmann::json& j);
   void TrimSites();
@@ -86,11 +96,11 @@ class ConsoleAdapter {
   Transport& transport_;
   ConsoleServer& server_;
   ConsoleProcOptions options_;
-  std::map<std::string, std::string> picture_;          // key -> JSON text, the current picture
-  std::map<int, std::map<int, cv::Mat>> left_images_;   // site -> pair -> left image (newest sites)
+  std::map<std::string, std::string> picture_;         // key -> JSON text, the current picture
+  std::map<int, std::map<int, cv::Mat>> left_images_;  // site -> pair -> left image (newest sites)
   std::map<std::pair<int, int>, std::string> png_cache_;
-  std::map<int, tie_points_t> tie_points_;          // by current site (newest pairs)
-  std::map<int, Pose3> relative_poses_;                  // BA previous_from_current by current site
+  std::map<int, tie_points_t> tie_points_;  // by current site (newest pairs)
+  std::map<int, Pose3> relative_poses_;     // BA previous_from_current by current site
   std::deque<std::string> uav_states_;
   std::string uav_mosaic_jpeg_;
   std::string orthoimage_bytes_, orthoimage_type_;

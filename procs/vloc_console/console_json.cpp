@@ -63,8 +63,13 @@ json Observation(const tie_observation_t& o) { return {{"pair", o.pair_index}, {
 json PoseJson(const PoseWithCovariance& p) {
   const Eigen::Vector3d t = p.pose.translation();
   const Eigen::Matrix3d r = p.pose.linear();
-  return {{"x", Num(t.x())}, {"y", Num(t.y())}, {"z", Num(t.z())}, {"yaw", Num(std::atan2(r(1, 0), r(0, 0)))},
-          {"cxx", Num(p.covariance(0, 0))}, {"cxy", Num(p.covariance(0, 1))}, {"cyy", Num(p.covariance(1, 1))}};
+  return {{"x", Num(t.x())},
+          {"y", Num(t.y())},
+          {"z", Num(t.z())},
+          {"yaw", Num(std::atan2(r(1, 0), r(0, 0)))},
+          {"cxx", Num(p.covariance(0, 0))},
+          {"cxy", Num(p.covariance(0, 1))},
+          {"cyy", Num(p.covariance(1, 1))}};
 }
 
 json TraverseJson(const traverse_t& m) {
@@ -74,9 +79,14 @@ json TraverseJson(const traverse_t& m) {
     s["id"] = m.site_ids[i];
     sites.push_back(std::move(s));
   }
-  return {{"type", "traverse"}, {"utime", m.utime}, {"sites", std::move(sites)}, {"edges", m.num_edges},
-          {"visual_edges", m.num_visual_edges}, {"loop_edges", m.num_loop_edges},
-          {"final_chi2", Num(m.final_chi2)}, {"solve_seconds", Num(m.solve_seconds)}};
+  return {{"type", "traverse"},
+          {"utime", m.utime},
+          {"sites", std::move(sites)},
+          {"edges", m.num_edges},
+          {"visual_edges", m.num_visual_edges},
+          {"loop_edges", m.num_loop_edges},
+          {"final_chi2", Num(m.final_chi2)},
+          {"solve_seconds", Num(m.solve_seconds)}};
 }
 
 json SitePoseJson(const site_pose_t& m) {
@@ -92,12 +102,20 @@ json SitePoseJson(const site_pose_t& m) {
 json LocalizationJson(const localization_t& m) {
   static const char* kStatus[] = {"ok", "too few points", "ill conditioned", "not converged", "bad input"};
   json j = PoseJson(PoseFromMessage(m.pose));
-  j.update({{"type", "localization"}, {"site", m.site_id}, {"reference", m.reference_site_id},
-            {"status", m.status >= 0 && m.status <= 4 ? kStatus[m.status] : "unknown"}, {"ok", m.status == 0},
-            {"message", m.message}, {"used", m.num_tie_points_used}, {"rejected", m.num_tie_points_rejected},
-            {"observations", m.num_observations}, {"initial_rms_px", Num(m.initial_rms_px)},
-            {"final_rms_px", Num(m.final_rms_px)}, {"iterations", m.iterations},
-            {"solve_seconds", Num(m.solve_seconds)}, {"utime", m.utime}});
+  j.update({{"type", "localization"},
+            {"site", m.site_id},
+            {"reference", m.reference_site_id},
+            {"status", m.status >= 0 && m.status <= 4 ? kStatus[m.status] : "unknown"},
+            {"ok", m.status == 0},
+            {"message", m.message},
+            {"used", m.num_tie_points_used},
+            {"rejected", m.num_tie_points_rejected},
+            {"observations", m.num_observations},
+            {"initial_rms_px", Num(m.initial_rms_px)},
+            {"final_rms_px", Num(m.final_rms_px)},
+            {"iterations", m.iterations},
+            {"solve_seconds", Num(m.solve_seconds)},
+            {"utime", m.utime}});
   return j;
 }
 
@@ -106,9 +124,14 @@ json FrontendStatusJson(const frontend_status_t& m) {
   json stages = json::array();
   for (int i = 0; i < m.num_stages; ++i)
     stages.push_back({{"name", m.stage_names[i]}, {"count", m.stage_counts[i]}, {"seconds", Num(m.stage_seconds[i])}});
-  return {{"type", "frontend_status"}, {"previous", m.previous_site_id}, {"current", m.current_site_id},
-          {"status", m.status >= 0 && m.status <= 5 ? kStatus[m.status] : "unknown"}, {"ok", m.status == 0},
-          {"message", m.message}, {"stages", std::move(stages)}, {"total_seconds", Num(m.total_seconds)},
+  return {{"type", "frontend_status"},
+          {"previous", m.previous_site_id},
+          {"current", m.current_site_id},
+          {"status", m.status >= 0 && m.status <= 5 ? kStatus[m.status] : "unknown"},
+          {"ok", m.status == 0},
+          {"message", m.message},
+          {"stages", std::move(stages)},
+          {"total_seconds", Num(m.total_seconds)},
           {"utime", m.utime}};
 }
 
@@ -127,30 +150,46 @@ json TiePointsJson(const tie_points_t& m, const std::optional<Pose3>& previous_f
     }
     points.push_back(std::move(j));
   }
-  return {{"type", "tie_points"}, {"previous", m.previous_site_id}, {"current", m.current_site_id},
-          {"points", std::move(points)}, {"utime", m.utime}};
+  return {{"type", "tie_points"},
+          {"previous", m.previous_site_id},
+          {"current", m.current_site_id},
+          {"points", std::move(points)},
+          {"utime", m.utime}};
 }
 
 json ProcmanJson(const procman_status_t& m) {
   static const char* kStates[] = {"stopped", "starting", "running", "stopping", "backoff", "exited", "gave up"};
   json procs = json::array();
   for (const proc_status_t& p : m.procs)
-    procs.push_back({{"name", p.name}, {"group", p.group}, {"pid", p.pid},
+    procs.push_back({{"name", p.name},
+                     {"group", p.group},
+                     {"pid", p.pid},
                      {"state", p.state >= 0 && p.state <= 6 ? kStates[p.state] : "unknown"},
-                     {"restarts", p.restarts}, {"last_exit_code", p.last_exit_code},
-                     {"cpu_percent", Num(p.cpu_percent)}, {"rss_bytes", p.rss_bytes},
+                     {"restarts", p.restarts},
+                     {"last_exit_code", p.last_exit_code},
+                     {"cpu_percent", Num(p.cpu_percent)},
+                     {"rss_bytes", p.rss_bytes},
                      {"uptime_seconds", Num(p.uptime_seconds)}});
-  return {{"type", "procman"}, {"host", m.host}, {"pid", m.launcher_pid}, {"utime", m.utime},
-          {"procs", std::move(procs)}};
+  return {
+      {"type", "procman"}, {"host", m.host}, {"pid", m.launcher_pid}, {"utime", m.utime}, {"procs", std::move(procs)}};
 }
 
 json UavStateJson(const uav_state_t& m) {
   static const char* kStatus[] = {"calibrating", "tracking", "lost", "recovered"};
-  return {{"type", "uav_state"}, {"utime", m.utime}, {"frame", m.frame_index},
-          {"status", m.status >= 0 && m.status <= 3 ? kStatus[m.status] : "unknown"}, {"message", m.message},
-          {"height", Num(m.height)}, {"height_raw", Num(m.height_raw)}, {"east", Num(m.route_local[0])},
-          {"north", Num(m.route_local[1])}, {"px", Num(m.route_px[0])}, {"py", Num(m.route_px[1])},
-          {"gps_aided", m.gps_aided != 0}, {"inliers", m.num_inliers}, {"matches", m.num_matches}};
+  return {{"type", "uav_state"},
+          {"utime", m.utime},
+          {"frame", m.frame_index},
+          {"status", m.status >= 0 && m.status <= 3 ? kStatus[m.status] : "unknown"},
+          {"message", m.message},
+          {"height", Num(m.height)},
+          {"height_raw", Num(m.height_raw)},
+          {"east", Num(m.route_local[0])},
+          {"north", Num(m.route_local[1])},
+          {"px", Num(m.route_px[0])},
+          {"py", Num(m.route_px[1])},
+          {"gps_aided", m.gps_aided != 0},
+          {"inliers", m.num_inliers},
+          {"matches", m.num_matches}};
 }
 
 bool OrderFromJson(const json& c, int64_t utime, procman_order_t* order, std::string* error) {

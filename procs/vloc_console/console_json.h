@@ -4,7 +4,6 @@
 // console server (libs/console) sees only JSON text.
 
 #include <nlohmann/json.hpp>
-
 #include <optional>
 #include <string>
 

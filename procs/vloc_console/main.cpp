@@ -29,7 +29,9 @@ int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
   auto setup = vloc::SetupProcess(
       argc, argv,
-      {"vloc_console", {"bind", "port", "token", "web-root"}, false,
+      {"vloc_console",
+       {"bind", "port", "token", "web-root"},
+       false,
        "[--config config/procs/vloc_console.yaml] [--bind ADDR] [--port N] [--token T] [--web-root DIR]"});
   if (!setup) return 1;
   const auto loaded = vloc::LoadProcessOptions<vloc::ConsoleProcOptions>(

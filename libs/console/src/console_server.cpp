@@ -116,8 +116,8 @@ struct ConsoleServer::Impl {
     if (ec) return;
     if (static_cast<int64_t>(con->get_buffered_amount() + text.size()) > options.max_client_buffer_bytes) {
       ++stats.clients_dropped_slow;
-      LOG(WARNING) << "console: client " << con->get_remote_endpoint() << " too slow ("
-                   << con->get_buffered_amount() << " bytes unsent); dropped";
+      LOG(WARNING) << "console: client " << con->get_remote_endpoint() << " too slow (" << con->get_buffered_amount()
+                   << " bytes unsent); dropped";
       clients.erase(hdl);
       con->terminate(websocketpp::lib::error_code());
       return;
@@ -144,8 +144,8 @@ struct ConsoleServer::Impl {
     }
     const nlohmann::json token = command.value("token", nlohmann::json());
     const bool may_act = MayActWith(token.is_string() ? token.get<std::string>() : std::string());
-    nlohmann::json reply = on_command ? on_command(command, may_act)
-                                      : nlohmann::json{{"ok", false}, {"error", "no commands here"}};
+    nlohmann::json reply =
+        on_command ? on_command(command, may_act) : nlohmann::json{{"ok", false}, {"error", "no commands here"}};
     reply["type"] = "reply";
     if (command.contains("id")) reply["id"] = command["id"];
     return reply;

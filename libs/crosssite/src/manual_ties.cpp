@@ -42,9 +42,9 @@ std::vector<Candidate> ClickCandidates(const NavcamModel& navcam, const SitePair
 int RefineClicks(const FrontendOptions& o, SitePairState* s) {
   int refined = 0;
   for (Candidate& c : s->candidates) {
-    const LsmResult r = LeastSquaresMatch(s->previous_left[c.prev_pair].lsm, c.prev_left,
-                                          s->current_left[c.cur_pair].lsm, c.cur_left, Eigen::Matrix2d::Identity(),
-                                          o.cross_lsm);
+    const LsmResult r =
+        LeastSquaresMatch(s->previous_left[c.prev_pair].lsm, c.prev_left, s->current_left[c.cur_pair].lsm, c.cur_left,
+                          Eigen::Matrix2d::Identity(), o.cross_lsm);
     c.sigma_cross = r.ok ? r.sigma_px : o.sigma_unrefined_px;
     if (r.ok) c.cur_left = r.target;
     refined += r.ok ? 1 : 0;
@@ -74,7 +74,8 @@ FrontendResult CrossSiteFrontend::RunManual(const SiteImages& previous, const Si
   };
   try {
     SitePairState s;
-    if (auto problem = CheckInput(previous, current, navcam_, &s)) return finish(FrontendStatus::kMissingInput, *problem);
+    if (auto problem = CheckInput(previous, current, navcam_, &s))
+      return finish(FrontendStatus::kMissingInput, *problem);
     InitTiePointSet(s, &result.tie_points);
     s.candidates = ClickCandidates(navcam_, s, ties);
     if (s.candidates.empty())
@@ -86,7 +87,8 @@ FrontendResult CrossSiteFrontend::RunManual(const SiteImages& previous, const Si
     });
     const int refined = step("manual_cross_lsm", [&] { return RefineClicks(options_, &s); });
     step("stereo_zncc", [&] { return CorrelateStereo(navcam_, options_, &s); });
-    const int kept = step("stereo_lsm", [&] { return RefineStereoAndIntersect(navcam_, result.tie_points, options_, &s); });
+    const int kept =
+        step("stereo_lsm", [&] { return RefineStereoAndIntersect(navcam_, result.tie_points, options_, &s); });
     Verification all;
     all.keep.assign(s.candidates.size(), true);
     all.weights.assign(s.candidates.size(), 1);

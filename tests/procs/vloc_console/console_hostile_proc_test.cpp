@@ -83,15 +83,19 @@ std::vector<std::tuple<std::string, std::string, std::vector<uint8_t>>> ConsoleT
   u.message = "tracking";
   stereo_image_t st{};
   st.site_id = 1, st.num_pairs = 1, st.left = Image(image_t::ENCODING_GRAY8), st.right = Image(image_t::ENCODING_GRAY8);
-  return {{"TRAVERSE", "traverse_t", Bytes(t)},         {"SITE_POSE_DR", "site_pose_t", Bytes(s)},
-          {"SITE_POSE_VISUAL", "localization_t", Bytes(l)}, {"FRONTEND_STATUS", "frontend_status_t", Bytes(f)},
-          {"TIE_POINTS", "tie_points_t", Bytes(tp)},     {"PROCMAN_STATUS", "procman_status_t", Bytes(ps)},
-          {"UAV_STATE", "uav_state_t", Bytes(u)},        {"UAV_MOSAIC", "image_t", Bytes(Image(image_t::ENCODING_JPEG))},
+  return {{"TRAVERSE", "traverse_t", Bytes(t)},
+          {"SITE_POSE_DR", "site_pose_t", Bytes(s)},
+          {"SITE_POSE_VISUAL", "localization_t", Bytes(l)},
+          {"FRONTEND_STATUS", "frontend_status_t", Bytes(f)},
+          {"TIE_POINTS", "tie_points_t", Bytes(tp)},
+          {"PROCMAN_STATUS", "procman_status_t", Bytes(ps)},
+          {"UAV_STATE", "uav_state_t", Bytes(u)},
+          {"UAV_MOSAIC", "image_t", Bytes(Image(image_t::ENCODING_JPEG))},
           {"NAVCAM_STEREO", "stereo_image_t", Bytes(st)}};
 }
 
-std::vector<std::vector<uint8_t>> OthersThan(const std::string& type,
-                                             const std::vector<std::tuple<std::string, std::string, std::vector<uint8_t>>>& all) {
+std::vector<std::vector<uint8_t>> OthersThan(
+    const std::string& type, const std::vector<std::tuple<std::string, std::string, std::vector<uint8_t>>>& all) {
   std::vector<std::vector<uint8_t>> out;
   for (const auto& [channel, t, bytes] : all)
     if (t != type) out.push_back(bytes);
@@ -109,8 +113,8 @@ bool AllJson(RawClient& ws, int* count, std::string* bad) {
 
 TEST(ConsoleHostile, ConsoleSurvivesEveryWatchedChannelAndSendsOnlyJson) {
   const std::string url = TestLcmUrl(7961);
-  Subprocess console({BinPath("vloc_console"), "--config", "config/procs/vloc_console.yaml", "--port", "0",
-                      "--lcm-url", url});
+  Subprocess console(
+      {BinPath("vloc_console"), "--config", "config/procs/vloc_console.yaml", "--port", "0", "--lcm-url", url});
   ASSERT_TRUE(console.WaitForOutput(kReadyLine, 10)) << console.output();
   std::smatch m;
   const std::string out = console.output();
@@ -123,7 +127,8 @@ TEST(ConsoleHostile, ConsoleSurvivesEveryWatchedChannelAndSendsOnlyJson) {
   int sent = 0, received = 0;
   std::string bad;
   for (const auto& [channel, type, bytes] : templates) {
-    for (const HostileMessage& h : testing::MakeHostileMessages(channel, type, bytes, OthersThan(type, templates), kPerChannel)) {
+    for (const HostileMessage& h :
+         testing::MakeHostileMessages(channel, type, bytes, OthersThan(type, templates), kPerChannel)) {
       bus.Send(channel, h.bytes);
       ++sent;
       console.Drain();
@@ -147,7 +152,8 @@ TEST(ConsoleHostile, ConsoleSurvivesEveryWatchedChannelAndSendsOnlyJson) {
 TEST(ConsoleHostile, FrontendSurvivesHostileManualTiePoints) {
   const std::string url = TestLcmUrl(7962);
   Bus bus(url, "(FRONTEND_STATUS|TIE_POINTS)");
-  Subprocess frontend({BinPath("feature_frontend"), "--config", "config/procs/feature_frontend.yaml", "--lcm-url", url});
+  Subprocess frontend(
+      {BinPath("feature_frontend"), "--config", "config/procs/feature_frontend.yaml", "--lcm-url", url});
   bus.Watch(&frontend);
   ASSERT_TRUE(frontend.WaitForOutput(kReadyLine, 20)) << frontend.output();
   manual_tie_points_t t{};
@@ -159,7 +165,8 @@ TEST(ConsoleHostile, FrontendSurvivesHostileManualTiePoints) {
   std::vector<std::vector<uint8_t>> others;
   for (const auto& [channel, type, bytes] : ConsoleTemplates()) others.push_back(bytes);
   int sent = 0;
-  for (const HostileMessage& h : testing::MakeHostileMessages("MANUAL_TIE_POINTS", "manual_tie_points_t", templ, others, kPerChannel))
+  for (const HostileMessage& h :
+       testing::MakeHostileMessages("MANUAL_TIE_POINTS", "manual_tie_points_t", templ, others, kPerChannel))
     bus.Send("MANUAL_TIE_POINTS", h.bytes), ++sent;
   bus.Send("MANUAL_TIE_POINTS", templ);
   ASSERT_TRUE(bus.PumpUntilQuiet(1.0, 20));

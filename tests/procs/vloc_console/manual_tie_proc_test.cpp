@@ -93,15 +93,19 @@ TEST(ManualTies, TurnAFailedSitePairIntoALocalizedOne) {
   auto lcm = MakeLcmTransport(url, &error);
   ASSERT_TRUE(lcm) << error;
   Bus bus;
-  Subscribe<site_pose_t>(*lcm, "SITE_POSE_DR", [&](const std::string&, const site_pose_t& m) { bus.dr[m.site_id] = m; });
-  Subscribe<site_pose_t>(*lcm, "SITE_POSE_GT", [&](const std::string&, const site_pose_t& m) { bus.truth[m.site_id] = m; });
-  Subscribe<frontend_status_t>(*lcm, "FRONTEND_STATUS", [&](const std::string&, const frontend_status_t& m) { bus.statuses.push_back(m); });
-  Subscribe<localization_t>(*lcm, "SITE_POSE_VISUAL", [&](const std::string&, const localization_t& m) { bus.localizations.push_back(m); });
+  Subscribe<site_pose_t>(*lcm, "SITE_POSE_DR",
+                         [&](const std::string&, const site_pose_t& m) { bus.dr[m.site_id] = m; });
+  Subscribe<site_pose_t>(*lcm, "SITE_POSE_GT",
+                         [&](const std::string&, const site_pose_t& m) { bus.truth[m.site_id] = m; });
+  Subscribe<frontend_status_t>(*lcm, "FRONTEND_STATUS",
+                               [&](const std::string&, const frontend_status_t& m) { bus.statuses.push_back(m); });
+  Subscribe<localization_t>(*lcm, "SITE_POSE_VISUAL",
+                            [&](const std::string&, const localization_t& m) { bus.localizations.push_back(m); });
 
   Subprocess dr({BinPath("dead_reckoning"), "--config", "config/procs/dead_reckoning.yaml", "--lcm-url", url});
   Subprocess frontend({BinPath("feature_frontend"), "--config", FlatGroundFrontendConfig(dir), "--lcm-url", url});
-  Subprocess ba({BinPath("crosssite_ba"), "--config", "config/procs/crosssite_ba.yaml", "--lcm-url", url,
-                 "--state-dir", dir.string()});
+  Subprocess ba({BinPath("crosssite_ba"), "--config", "config/procs/crosssite_ba.yaml", "--lcm-url", url, "--state-dir",
+                 dir.string()});
   for (Subprocess* p : {&dr, &frontend, &ba}) ASSERT_TRUE(p->WaitForOutput(kReadyLine, 20)) << p->output();
   Subprocess sim({BinPath("sim_rover"), "--config", kSimConfig, "--lcm-url", url, "--speed", "0"});
   // 1. The automatic pass fails: no tie points, no BA; the site stands at dead reckoning.

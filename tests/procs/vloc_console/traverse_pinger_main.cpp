@@ -46,8 +46,8 @@ int main(int argc, char** argv) {
   const double period = 1.0 / std::max(0.1, args.GetDouble("rate", 5));
   const int count = static_cast<int>(args.GetDouble("seconds", 20) / period);
   for (int k = 0; k < count; ++k) {
-    t.utime = std::chrono::duration_cast<std::chrono::microseconds>(
-                  std::chrono::system_clock::now().time_since_epoch()).count();
+    t.utime = std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+                  .count();
     vloc::Publish(*lcm, "TRAVERSE", t);
     std::this_thread::sleep_for(std::chrono::duration<double>(period));
   }

@@ -27,11 +27,11 @@ inline sim::RoverWorldOptions WorldOptionsOf(const std::string& sim_config) {
 }
 
 struct ClickOptions {
-  int count = 12;              // picks wanted
-  double grid_px = 48;         // px, spacing of the candidate pixels in the previous images
-  double margin_px = 40;       // px, kept from the image borders
-  double max_range_m = 20;     // m, farther ground is not picked
-  double click_sigma_px = 1.0; // px, 1-sigma error of a click (each axis)
+  int count = 12;               // picks wanted
+  double grid_px = 48;          // px, spacing of the candidate pixels in the previous images
+  double margin_px = 40;        // px, kept from the image borders
+  double max_range_m = 20;      // m, farther ground is not picked
+  double click_sigma_px = 1.0;  // px, 1-sigma error of a click (each axis)
   unsigned seed = 19;
 };
 

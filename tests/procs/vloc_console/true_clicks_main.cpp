@@ -16,15 +16,19 @@ int main(int argc, char** argv) {
     return 1;
   }
   try {
-    const vloc::sim::RoverWorld world(vloc::testing::WorldOptionsOf(args.Get("config", "config/sim/rover_two_sites.yaml")));
+    const vloc::sim::RoverWorld world(
+        vloc::testing::WorldOptionsOf(args.Get("config", "config/sim/rover_two_sites.yaml")));
     vloc::testing::ClickOptions o;
     o.count = args.GetInt("count", o.count);
     const auto ties = vloc::testing::TrueClicks(world, args.GetInt("previous", 0), args.GetInt("current", 1), o);
     nlohmann::json points = nlohmann::json::array();
     for (const vloc::ManualTie& t : ties)
-      points.push_back({{"previous_pair", t.previous_pair}, {"previous_u", t.previous_px.x()},
-                        {"previous_v", t.previous_px.y()}, {"current_pair", t.current_pair},
-                        {"current_u", t.current_px.x()}, {"current_v", t.current_px.y()}});
+      points.push_back({{"previous_pair", t.previous_pair},
+                        {"previous_u", t.previous_px.x()},
+                        {"previous_v", t.previous_px.y()},
+                        {"current_pair", t.current_pair},
+                        {"current_u", t.current_px.x()},
+                        {"current_v", t.current_px.y()}});
     std::cout << nlohmann::json{{"points", points}}.dump() << "\n";
   } catch (const std::exception& e) {
     std::cerr << "vloc_true_clicks: " << e.what() << "\n";

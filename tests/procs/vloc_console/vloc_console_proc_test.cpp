@@ -38,8 +38,8 @@ struct Console {
 };
 
 Console StartConsole(const std::string& lcm_url, std::vector<std::string> extra = {}) {
-  std::vector<std::string> argv = {BinPath("vloc_console"), "--config", "config/procs/vloc_console.yaml",
-                                   "--port", "0", "--lcm-url", lcm_url};
+  std::vector<std::string> argv = {
+      BinPath("vloc_console"), "--config", "config/procs/vloc_console.yaml", "--port", "0", "--lcm-url", lcm_url};
   argv.insert(argv.end(), extra.begin(), extra.end());
   Console c;
   c.process = std::make_unique<Subprocess>(argv);
@@ -79,11 +79,11 @@ TEST(VlocConsole, ServesItsOwnFilesAndNothingElse) {
   EXPECT_EQ(RawClient::StatusOf(RawClient::Get(c.port, "/")), 200);
   EXPECT_NE(RawClient::Get(c.port, "/").find("console index"), std::string::npos);
   EXPECT_NE(RawClient::Get(c.port, "/sub/page.html").find("sub page"), std::string::npos);
-  for (const std::string& target : std::vector<std::string>{"/../secret.txt", "/sub/../../secret.txt", "/%2e%2e/secret.txt", "/%2E%2E%2Fsecret.txt",
-        "/sub/%2e%2e/%2e%2e/secret.txt", "/..%2fsecret.txt", "/%252e%252e/secret.txt", "//etc/passwd",
-        "/etc/passwd", "http://127.0.0.1/../secret.txt", "secret.txt", "/link.txt", "/up/secret.txt",
-        "/.hidden", "/%2ehidden", "/index.html%00.png", "/%zz", "/sub\\..\\..\\secret.txt",
-        "/" + std::string(5000, 'a')}) {
+  for (const std::string& target : std::vector<std::string>{
+           "/../secret.txt", "/sub/../../secret.txt", "/%2e%2e/secret.txt", "/%2E%2E%2Fsecret.txt",
+           "/sub/%2e%2e/%2e%2e/secret.txt", "/..%2fsecret.txt", "/%252e%252e/secret.txt", "//etc/passwd", "/etc/passwd",
+           "http://127.0.0.1/../secret.txt", "secret.txt", "/link.txt", "/up/secret.txt", "/.hidden", "/%2ehidden",
+           "/index.html%00.png", "/%zz", "/sub\\..\\..\\secret.txt", "/" + std::string(5000, 'a')}) {
     const std::string r = RawClient::Get(c.port, target);
     const int status = RawClient::StatusOf(r);
     EXPECT_TRUE(status == 404 || status == 400) << target << " -> " << r.substr(0, 80);
@@ -259,15 +259,27 @@ TEST(VlocConsole, OnlyAClientWithTheTokenActs) {
   ASSERT_TRUE(lcm) << error;
   std::vector<procman_order_t> orders;
   std::vector<manual_tie_points_t> ties;
-  Subscribe<procman_order_t>(*lcm, "PROCMAN_ORDERS", [&](const std::string&, const procman_order_t& m) { orders.push_back(m); });
-  Subscribe<manual_tie_points_t>(*lcm, "MANUAL_TIE_POINTS", [&](const std::string&, const manual_tie_points_t& m) { ties.push_back(m); });
+  Subscribe<procman_order_t>(*lcm, "PROCMAN_ORDERS",
+                             [&](const std::string&, const procman_order_t& m) { orders.push_back(m); });
+  Subscribe<manual_tie_points_t>(*lcm, "MANUAL_TIE_POINTS",
+                                 [&](const std::string&, const manual_tie_points_t& m) { ties.push_back(m); });
   RawClient ws(c.port);
   ASSERT_TRUE(ws.Upgrade());
-  const json order = {{"type", "order"}, {"host", "rover"}, {"target", "crosssite_ba"}, {"target_kind", "process"},
+  const json order = {{"type", "order"},
+                      {"host", "rover"},
+                      {"target", "crosssite_ba"},
+                      {"target_kind", "process"},
                       {"action", "restart"}};
-  const json tie = {{"type", "manual_tie"}, {"previous_site", 4}, {"current_site", 5},
-                    {"points", {{{"previous_pair", 1}, {"previous_u", 100.5}, {"previous_v", 200.25},
-                                 {"current_pair", 2}, {"current_u", 300}, {"current_v", 400}}}}};
+  const json tie = {{"type", "manual_tie"},
+                    {"previous_site", 4},
+                    {"current_site", 5},
+                    {"points",
+                     {{{"previous_pair", 1},
+                       {"previous_u", 100.5},
+                       {"previous_v", 200.25},
+                       {"current_pair", 2},
+                       {"current_u", 300},
+                       {"current_v", 400}}}}};
   EXPECT_FALSE(Command(ws, {{"type", "auth"}})["may_act"].get<bool>());
   for (const json& bad_token : {json(nullptr), json("wrong"), json("s3cre"), json("s3cret!"), json(12)}) {
     json o = order, t = tie;
@@ -308,8 +320,8 @@ TEST(VlocConsole, WatchesOnlyWhenOpenToOtherMachinesWithoutAToken) {
   RawClient ws(c.port);
   ASSERT_TRUE(ws.Upgrade());
   EXPECT_FALSE(Command(ws, {{"type", "auth"}})["may_act"].get<bool>());
-  const json r = Command(ws, {{"type", "order"}, {"host", ""}, {"target", "x"}, {"target_kind", "process"},
-                              {"action", "stop"}});
+  const json r =
+      Command(ws, {{"type", "order"}, {"host", ""}, {"target", "x"}, {"target_kind", "process"}, {"action", "stop"}});
   EXPECT_FALSE(r["ok"].get<bool>());
   EXPECT_NE(r["error"].get<std::string>().find("only watches"), std::string::npos);
 }
@@ -317,16 +329,17 @@ TEST(VlocConsole, WatchesOnlyWhenOpenToOtherMachinesWithoutAToken) {
 TEST(VlocConsole, BadSettingsGiveOneErrorLine) {
   const auto bad_ortho = std::filesystem::temp_directory_path() / "vloc_console_bad_ortho.yaml";
   std::ofstream(bad_ortho) << "orthoimage: {path: /nonexistent/ortho.png, m_per_px: 0.04}\n";
-  for (const std::vector<std::string>& extra :
-       {std::vector<std::string>{"--bind", "not-an-address"}, {"--web-root", "/nonexistent/folder"},
-        {"--port", "70000"}, {"--config", bad_ortho.string()}}) {
-    Subprocess p({BinPath("vloc_console"), "--config", "config/procs/vloc_console.yaml", "--lcm-url",
-                  TestLcmUrl(7956), extra[0], extra[1]});
+  for (const std::vector<std::string>& extra : {std::vector<std::string>{"--bind", "not-an-address"},
+                                                {"--web-root", "/nonexistent/folder"},
+                                                {"--port", "70000"},
+                                                {"--config", bad_ortho.string()}}) {
+    Subprocess p({BinPath("vloc_console"), "--config", "config/procs/vloc_console.yaml", "--lcm-url", TestLcmUrl(7956),
+                  extra[0], extra[1]});
     EXPECT_EQ(p.WaitExit(10), 1) << extra[0];
     // One line naming the problem (the options echo above it is glog's INFO).
     const std::regex error_line("(^|\n)vloc_console: [^\n]*");
-    const auto n = std::distance(std::sregex_iterator(p.output().begin(), p.output().end(), error_line),
-                                 std::sregex_iterator());
+    const auto n =
+        std::distance(std::sregex_iterator(p.output().begin(), p.output().end(), error_line), std::sregex_iterator());
     EXPECT_EQ(n, 1) << p.output();
   }
 }

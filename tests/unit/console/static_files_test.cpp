@@ -1,12 +1,13 @@
 // The console's file rules (libs/console): decoding, what resolves inside
 // the web folder and what never does, query parsing, option checks.
+#include "vloc/console/static_files.h"
+
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <fstream>
 
 #include "vloc/console/console_server.h"
-#include "vloc/console/static_files.h"
 
 namespace vloc {
 namespace {
@@ -51,9 +52,8 @@ TEST_F(StaticFiles, ServesItsOwnFiles) {
 }
 
 TEST_F(StaticFiles, NeverLeavesTheFolder) {
-  for (const char* url : {"/../secret", "/css/../../secret", "/%2e%2e/secret", "/%2E%2E%2fsecret", "/out",
-                          "secret", "", "//secret", "/css/", "/css", "/.", "/.hidden", "/a%00b", "/a\\..\\secret",
-                          "/%zz"}) {
+  for (const char* url : {"/../secret", "/css/../../secret", "/%2e%2e/secret", "/%2E%2E%2fsecret", "/out", "secret", "",
+                          "//secret", "/css/", "/css", "/.", "/.hidden", "/a%00b", "/a\\..\\secret", "/%zz"}) {
     std::string why;
     EXPECT_FALSE(Resolves(url, &why)) << url;
     EXPECT_FALSE(why.empty()) << url;

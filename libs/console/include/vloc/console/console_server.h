@@ -12,11 +12,10 @@
 // allowed when the message's "token" matches the configured one; with no
 // token configured, only when bound to a loopback address.
 
-#include <nlohmann/json.hpp>
-
 #include <functional>
 #include <map>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 
 namespace vloc {
@@ -24,13 +23,13 @@ namespace vloc {
 class OptionsReader;
 
 struct ConsoleServerOptions {
-  std::string bind_address = "127.0.0.1";       // IPv4 or IPv6 address to listen on (0.0.0.0: every interface)
-  int port = 8765;                               // TCP port (0: any free port, printed at start)
+  std::string bind_address = "127.0.0.1";           // IPv4 or IPv6 address to listen on (0.0.0.0: every interface)
+  int port = 8765;                                  // TCP port (0: any free port, printed at start)
   std::string web_root = "procs/vloc_console/web";  // folder whose files are served (relative: to the working dir)
-  std::string token;                             // required by acting commands when set ("" = act only on loopback)
-  int64_t max_client_buffer_bytes = 8 << 20;     // bytes, unsent data per client before it is dropped as too slow
-  int64_t max_message_bytes = 1 << 20;           // bytes, largest WebSocket message accepted from a browser
-  int64_t max_file_bytes = 16 << 20;             // bytes, largest file served
+  std::string token;                                // required by acting commands when set ("" = act only on loopback)
+  int64_t max_client_buffer_bytes = 8 << 20;        // bytes, unsent data per client before it is dropped as too slow
+  int64_t max_message_bytes = 1 << 20;              // bytes, largest WebSocket message accepted from a browser
+  int64_t max_file_bytes = 16 << 20;                // bytes, largest file served
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
@@ -43,7 +42,7 @@ struct HttpReply {
 };
 
 struct ConsoleServerStats {
-  int64_t http_requests = 0, http_rejected = 0;   // requests, of which refused (4xx)
+  int64_t http_requests = 0, http_rejected = 0;  // requests, of which refused (4xx)
   int64_t clients_opened = 0, clients_closed = 0, clients_dropped_slow = 0;
   int64_t messages_in = 0, messages_bad = 0, broadcasts = 0;
 };
@@ -53,8 +52,8 @@ class ConsoleServer {
   // Answers one JSON command; `may_act` says whether its token allows acting.
   using CommandHandler = std::function<nlohmann::json(const nlohmann::json& command, bool may_act)>;
   // Answers GET /api/<rest>; false = 404.
-  using ApiHandler = std::function<bool(const std::string& rest, const std::map<std::string, std::string>& query,
-                                        HttpReply* reply)>;
+  using ApiHandler =
+      std::function<bool(const std::string& rest, const std::map<std::string, std::string>& query, HttpReply* reply)>;
   // Messages a newly opened client is sent first (the current picture).
   using WelcomeHandler = std::function<std::vector<std::string>()>;
 
