@@ -25,6 +25,7 @@ void ConsoleServerOptions::Visit(OptionsReader& r) {
   r.Optional("max_client_buffer_bytes", &max_client_buffer_bytes, "bytes unsent per client before it is dropped");
   r.Optional("max_message_bytes", &max_message_bytes, "bytes, largest WebSocket message accepted");
   r.Optional("max_file_bytes", &max_file_bytes, "bytes, largest file served");
+  r.Optional("max_connections", &max_connections, "open TCP connections before requests are refused (503)");
 }
 
 bool ConsoleServerOptions::Check(std::string* error) const {
@@ -35,6 +36,7 @@ bool ConsoleServerOptions::Check(std::string* error) const {
   if (web_root.empty()) return Fail(error, "web_root must name the console's web folder");
   if (max_client_buffer_bytes < 1024 || max_message_bytes < 1024 || max_file_bytes < 1024)
     return Fail(error, "max_client_buffer_bytes, max_message_bytes and max_file_bytes must be >= 1024");
+  if (max_connections < 2) return Fail(error, "max_connections must be >= 2");
   return true;
 }
 
@@ -55,7 +57,8 @@ struct ConsoleServer::Impl {
   ConsoleServerOptions options;
   std::filesystem::path root;  // canonical web_root
   WsServer server;
-  std::set<Hdl, std::owner_less<Hdl>> clients;
+  std::set<Hdl, std::owner_less<Hdl>> clients;      // open WebSockets
+  std::set<Hdl, std::owner_less<Hdl>> connections;  // every open TCP connection
   CommandHandler on_command;
   ApiHandler on_api;
   WelcomeHandler on_welcome;
@@ -99,9 +102,16 @@ struct ConsoleServer::Impl {
     return StaticFile(path);
   }
 
+  bool Crowded() {
+    if (static_cast<int>(connections.size()) <= options.max_connections) return false;
+    ++stats.connections_refused;
+    return true;
+  }
+
   void OnHttp(Hdl hdl) {
     ++stats.http_requests;
     const WsServer::connection_ptr con = server.get_con_from_hdl(hdl);
+    if (Crowded()) return Reply(con, Error(503, "busy: too many connections, try again"));
     try {
       Reply(con, Route(con->get_request().get_method(), con->get_resource()));
     } catch (const std::exception& e) {
@@ -133,6 +143,7 @@ struct ConsoleServer::Impl {
   }
 
   void OnClose(Hdl hdl) {
+    connections.erase(hdl);
     if (clients.erase(hdl)) ++stats.clients_closed;
   }
 
@@ -202,6 +213,8 @@ bool ConsoleServer::Start(std::string* error) {
   s.set_reuse_addr(true);
   s.set_max_message_size(static_cast<size_t>(m.options.max_message_bytes));
   s.set_max_http_body_size(static_cast<size_t>(m.options.max_message_bytes));
+  s.set_tcp_pre_init_handler([&m](Hdl h) { m.connections.insert(h); });
+  s.set_validate_handler([&m](Hdl) { return !m.Crowded(); });
   s.set_http_handler([&m](Hdl h) { m.OnHttp(h); });
   s.set_open_handler([&m](Hdl h) { m.OnOpen(h); });
   s.set_close_handler([&m](Hdl h) { m.OnClose(h); });

@@ -131,7 +131,15 @@ TEST(VlocConsole, SurvivesMalformedRequestsAndDisconnects) {
     w3.Send(std::string("\x81\xff\x7f\xff\xff\xff\xff\xff\xff\xff\x01\x02\x03\x04", 14));
     EXPECT_FALSE(w1.WaitFor("never", 2));
   }
+  {  // more idle connections than allowed: a request is refused with 503, not queued without end
+    std::vector<std::unique_ptr<RawClient>> crowd;
+    for (int i = 0; i < 70; ++i) crowd.push_back(std::make_unique<RawClient>(c.port));
+    EXPECT_EQ(RawClient::StatusOf(RawClient::Get(c.port, "/")), 503);
+  }
   // Still serving, still answering.
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (RawClient::StatusOf(RawClient::Get(c.port, "/")) != 200 && std::chrono::steady_clock::now() < until) {
+  }
   EXPECT_EQ(RawClient::StatusOf(RawClient::Get(c.port, "/")), 200);
   ws.SendText(R"({"type":"auth"})");
   EXPECT_TRUE(ws.WaitFor("may_act", 5));

@@ -7,7 +7,9 @@
 // Safety: only files inside web_root are served (static_files.h); a
 // client whose unsent data exceeds max_client_buffer_bytes is dropped (a
 // slow client never grows the process); malformed HTTP or WebSocket input
-// closes that one connection; a WebSocket message that is not a JSON
+// closes that one connection; beyond max_connections open TCP connections
+// a request gets 503 (idle sockets end after websocketpp's 5 s handshake
+// timeout); a WebSocket message that is not a JSON
 // object gets an error reply. "Acting" (decided by the command handler) is
 // allowed when the message's "token" matches the configured one; with no
 // token configured, only when bound to a loopback address.
@@ -30,6 +32,7 @@ struct ConsoleServerOptions {
   int64_t max_client_buffer_bytes = 8 << 20;        // bytes, unsent data per client before it is dropped as too slow
   int64_t max_message_bytes = 1 << 20;              // bytes, largest WebSocket message accepted from a browser
   int64_t max_file_bytes = 16 << 20;                // bytes, largest file served
+  int max_connections = 64;                         // open TCP connections; beyond, requests get 503 / are refused
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
@@ -44,6 +47,7 @@ struct HttpReply {
 struct ConsoleServerStats {
   int64_t http_requests = 0, http_rejected = 0;  // requests, of which refused (4xx)
   int64_t clients_opened = 0, clients_closed = 0, clients_dropped_slow = 0;
+  int64_t connections_refused = 0;                  // over max_connections
   int64_t messages_in = 0, messages_bad = 0, broadcasts = 0;
 };
 
