@@ -51,7 +51,11 @@ const handlers = {
   hello: () => {},
   traverse: onTraverse,
   site_pose: (m) => { if (m.source === 'dr') site(m.site).dr = m; dirtyMap(); },
-  localization: (m) => { site(m.site).localization = m; dirtyMap(); if (vloc.selected === m.site) showSite(m.site); },
+  localization: (m) => {
+    site(m.site).localization = m; dirtyMap();
+    if (vloc.selected === m.site) showSite(m.site);
+    if (isShown(m.site)) fillPairSelect();
+  },
   frontend_status: (m) => { site(m.current).frontend = m; if (vloc.selected === m.current) showSite(m.current); autoPair(m.previous, m.current); },
   tie_points: (m) => { vloc.tiePoints[m.current] = m; autoPair(m.previous, m.current); if (isShown(m.current)) drawImages(); },
   images: (m) => { vloc.images[m.site] = m.pairs; fillImageSelects(); },
@@ -198,7 +202,14 @@ function fillPairSelect() {
   const want = vloc.pair ? vloc.pair.previous + '>' + vloc.pair.current : '';
   sel.innerHTML = [...pairs].sort((a, b) => Number(a.split('>')[1]) - Number(b.split('>')[1]))
     .map((p) => `<option value="${p}"${p === want ? ' selected' : ''}>${p.replace('>', ' -> ')}</option>`).join('');
-  $('pair-title').textContent = vloc.pair ? `site ${vloc.pair.previous} -> ${vloc.pair.current}` : '';
+  $('pair-title').textContent = vloc.pair ? `site ${vloc.pair.previous} -> ${vloc.pair.current}` + pairState() : '';
+}
+// What the front end and the BA made of the shown pair, for its title.
+function pairState() {
+  const s = vloc.sites[vloc.pair.current] || {}, f = s.frontend, l = s.localization;
+  if (l && l.reference === vloc.pair.previous) return `: BA ${l.status}, ${l.used} tie points, rms ${Number(l.final_rms_px).toFixed(2)} px`;
+  if (f && f.previous === vloc.pair.previous && !f.ok) return `: front end ${f.status} - pick tie points by hand`;
+  return '';
 }
 function fillImageSelects() {
   if (!vloc.pair) return;

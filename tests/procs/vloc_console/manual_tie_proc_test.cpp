@@ -133,6 +133,8 @@ TEST(ManualTies, TurnAFailedSitePairIntoALocalizedOne) {
   EXPECT_LT(after, before);
   ASSERT_GE(bus.statuses.size(), 2u);
   EXPECT_NE(bus.statuses[1].message.find("manual:"), std::string::npos) << bus.statuses[1].message;
+  std::cout << "front end: " << bus.statuses[1].message << "\n";
+
 
   // 3. Clicks for a site the front end no longer holds: one clear status, nothing solved.
   ASSERT_TRUE(Publish(*lcm, "MANUAL_TIE_POINTS", TiesMessage(7, 8, ties)));
