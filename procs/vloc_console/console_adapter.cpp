@@ -122,7 +122,7 @@ void ConsoleAdapter::SubscribeRover() {
   if (o.stereo_channel.empty()) return;
   Watch<stereo_image_t>(
       o.stereo_channel,
-      [this](const stereo_image_t& m) { OnLeftImage(m.site_id, m.pair_index, ImageFromMessage(m.left)); },
+      [this](const stereo_image_t& m) { OnLeftImage(m.site_id, m.pair_index, m.left); },
       kStereoQueue);
 }
 
@@ -187,20 +187,22 @@ void ConsoleAdapter::TrimSites() {
   }
 }
 
-void ConsoleAdapter::OnLeftImage(int site, int pair, const cv::Mat& left) {
-  if (left.empty()) throw std::invalid_argument("empty left image");
-  left_images_[site][pair] = left;
-  png_cache_.erase({site, pair});
+void ConsoleAdapter::OnLeftImage(int site, int pair, const image_t& left) {
+  if (left.width <= 0 || left.height <= 0 || left.data.empty()) throw std::invalid_argument("empty left image");
+  KeptImage& kept = left_images_[site][pair];
+  kept.message = left;
+  kept.served.clear();
+  if (left.encoding == image_t::ENCODING_PNG || left.encoding == image_t::ENCODING_JPEG) {
+    kept.served.assign(left.data.begin(), left.data.end());
+    kept.type = left.encoding == image_t::ENCODING_PNG ? "image/png" : "image/jpeg";
+  }
   while (static_cast<int>(left_images_.size()) > options_.image_sites_kept) {
-    const int oldest = left_images_.begin()->first;
+    picture_.erase(SiteKey("images", left_images_.begin()->first));
     left_images_.erase(left_images_.begin());
-    for (auto it = png_cache_.begin(); it != png_cache_.end();)
-      it = it->first.first == oldest ? png_cache_.erase(it) : std::next(it);
-    picture_.erase(SiteKey("images", oldest));
   }
   json pairs = json::array();
   for (const auto& [index, image] : left_images_[site])
-    pairs.push_back({{"pair", index}, {"width", image.cols}, {"height", image.rows}});
+    pairs.push_back({{"pair", index}, {"width", image.message.width}, {"height", image.message.height}});
   Post(SiteKey("images", site), {{"type", "images"}, {"site", site}, {"pairs", std::move(pairs)}});
 }
 
@@ -299,13 +301,14 @@ bool ConsoleAdapter::ImageReply(const std::map<std::string, std::string>& query,
   }
   const auto s = left_images_.find(site);
   if (s == left_images_.end() || !s->second.count(pair)) return false;
-  std::string& png = png_cache_[{site, pair}];
-  if (png.empty()) {
+  KeptImage& kept = s->second.at(pair);
+  if (kept.served.empty()) {
     std::vector<uchar> bytes;
-    cv::imencode(".png", s->second.at(pair), bytes);
-    png.assign(bytes.begin(), bytes.end());
+    cv::imencode(".png", ImageFromMessage(kept.message), bytes);  // throws on bad pixels: 500, logged
+    kept.served.assign(bytes.begin(), bytes.end());
+    kept.type = "image/png";
   }
-  *reply = {200, "image/png", png};
+  *reply = {200, kept.type, kept.served};
   return true;
 }
 

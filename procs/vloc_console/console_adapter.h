@@ -18,6 +18,7 @@
 #include "vloc/common/pose.h"
 #include "vloc/console/console_server.h"
 #include "vloc/lcm_io/transport.h"
+#include "vloc/image_t.hpp"
 #include "vloc/lcm_io/typed.h"
 #include "vloc/localization_t.hpp"
 #include "vloc/tie_points_t.hpp"
@@ -87,7 +88,9 @@ class ConsoleAdapter {
   // Sends `j` to the browsers and keeps it under `key` for later ones.
   void Post(const std::string& key, const nlohmann::json& j);
   void TrimSites();
-  void OnLeftImage(int site, int pair, const cv::Mat& left);
+  // Keeps a left image as it came: PNG / JPEG bytes are served as they are,
+  // raw pixels are encoded to PNG when first asked for.
+  void OnLeftImage(int site, int pair, const image_t& left);
   void OnTiePoints(const tie_points_t& msg);
   void RefreshTiePoints(int current_site);
   bool ImageReply(const std::map<std::string, std::string>& query, HttpReply* reply);
@@ -97,8 +100,12 @@ class ConsoleAdapter {
   ConsoleServer& server_;
   ConsoleProcOptions options_;
   std::map<std::string, std::string> picture_;         // key -> JSON text, the current picture
-  std::map<int, std::map<int, cv::Mat>> left_images_;  // site -> pair -> left image (newest sites)
-  std::map<std::pair<int, int>, std::string> png_cache_;
+  struct KeptImage {
+    image_t message;     // as received
+    std::string served;  // the bytes served (PNG / JPEG); "" until first asked for raw pixels
+    std::string type;    // their MIME type
+  };
+  std::map<int, std::map<int, KeptImage>> left_images_;  // site -> pair -> left image (newest sites)
   std::map<int, tie_points_t> tie_points_;  // by current site (newest pairs)
   std::map<int, Pose3> relative_poses_;     // BA previous_from_current by current site
   std::deque<std::string> uav_states_;

@@ -19,6 +19,7 @@
 #include "vloc/manual_tie_points_t.hpp"
 #include "vloc/procman_order_t.hpp"
 #include "vloc/procman_status_t.hpp"
+#include "vloc/stereo_image_t.hpp"
 #include "vloc/testing/subprocess.h"
 #include "vloc/traverse_t.hpp"
 
@@ -235,6 +236,22 @@ TEST(VlocConsole, BridgesWhatAnOperatorWatches) {
   auto ps = ws.WaitFor("\"procman\"", 5);
   ASSERT_TRUE(ps);
   EXPECT_EQ(json::parse(*ps)["procs"][0]["restarts"], 2);
+  // A raw left image is announced and served as PNG; an image not kept is 404.
+  stereo_image_t stereo{};
+  stereo.site_id = 5;
+  stereo.num_pairs = 1;
+  for (image_t* image : {&stereo.left, &stereo.right}) {
+    image->width = image->height = 16;
+    image->encoding = image_t::ENCODING_GRAY8;
+    image->data.assign(256, 77);
+    image->size = 256;
+  }
+  ASSERT_TRUE(Publish(*lcm, "NAVCAM_STEREO", stereo));
+  ASSERT_TRUE(ws.WaitFor("\"images\"", 5));
+  const std::string png = RawClient::Get(c.port, "/api/image?site=5&pair=0");
+  EXPECT_EQ(RawClient::StatusOf(png), 200);
+  EXPECT_EQ(Body(png).substr(0, 4), "\x89PNG");
+  EXPECT_EQ(RawClient::StatusOf(RawClient::Get(c.port, "/api/image?site=4&pair=0")), 404);
   // A browser that connects later gets the whole picture first.
   RawClient late(c.port);
   ASSERT_TRUE(late.Upgrade());
