@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <regex>
 
@@ -20,6 +21,7 @@
 #include "vloc/procman_order_t.hpp"
 #include "vloc/procman_status_t.hpp"
 #include "vloc/stereo_image_t.hpp"
+#include "vloc/uav_state_t.hpp"
 #include "vloc/testing/subprocess.h"
 #include "vloc/traverse_t.hpp"
 
@@ -252,6 +254,26 @@ TEST(VlocConsole, BridgesWhatAnOperatorWatches) {
   EXPECT_EQ(RawClient::StatusOf(png), 200);
   EXPECT_EQ(Body(png).substr(0, 4), "\x89PNG");
   EXPECT_EQ(RawClient::StatusOf(RawClient::Get(c.port, "/api/image?site=4&pair=0")), 404);
+  // UAV: each state goes out live, the mosaic preview is served as sent.
+  uav_state_t uav{};
+  uav.frame_index = 41;
+  uav.status = uav_state_t::STATUS_TRACKING;
+  uav.height = 52.5;
+  uav.latitude = uav.longitude = std::numeric_limits<double>::quiet_NaN();  // not georeferenced: null, not NaN
+  ASSERT_TRUE(Publish(*lcm, "UAV_STATE", uav));
+  auto us = ws.WaitFor("\"uav_state\"", 5);
+  ASSERT_TRUE(us);
+  EXPECT_EQ(json::parse(*us)["status"], "tracking");
+  EXPECT_DOUBLE_EQ(json::parse(*us)["height"].get<double>(), 52.5);
+  image_t mosaic{};
+  mosaic.frame_id = "uav_mosaic";
+  mosaic.width = mosaic.height = 2;
+  mosaic.encoding = image_t::ENCODING_JPEG;
+  mosaic.data = {0xff, 0xd8, 0xff, 0xe0, 1, 2, 3};
+  mosaic.size = 7;
+  ASSERT_TRUE(Publish(*lcm, "UAV_MOSAIC", mosaic));
+  ASSERT_TRUE(ws.WaitFor("\"uav_mosaic\"", 5));
+  EXPECT_EQ(Body(RawClient::Get(c.port, "/api/uav_mosaic")), std::string("\xff\xd8\xff\xe0\x01\x02\x03", 7));
   // A browser that connects later gets the whole picture first.
   RawClient late(c.port);
   ASSERT_TRUE(late.Upgrade());
@@ -259,6 +281,9 @@ TEST(VlocConsole, BridgesWhatAnOperatorWatches) {
   RawClient late2(c.port);
   ASSERT_TRUE(late2.Upgrade());
   EXPECT_TRUE(late2.WaitFor("flat sand", 5));
+  RawClient late3(c.port);
+  ASSERT_TRUE(late3.Upgrade());
+  EXPECT_TRUE(late3.WaitFor("\"uav_history\"", 5)) << "the UAV route so far";
   // A corrupt message on a watched channel is skipped; the console goes on.
   const std::string junk(64, '\x7f');
   lcm->Publish("TRAVERSE", junk.data(), junk.size());
