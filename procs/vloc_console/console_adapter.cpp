@@ -250,7 +250,8 @@ json ConsoleAdapter::Act(const json& command) {
     if (!OrderFromJson(command, WallMicros(), &order, &error)) return Refused(error);
     if (!Publish(transport_, options_.orders_channel, order)) return Refused("the order could not be sent");
     ++orders_sent_;
-    LOG(INFO) << "console: order " << command.dump() << " sent";
+    LOG(INFO) << "console: order " << command.value("action", "") << " " << command.value("target", "") << " on host '"
+              << command.value("host", "") << "' sent";
     return {{"ok", true}};
   }
   manual_tie_points_t ties;

@@ -21,7 +21,6 @@ void ConsoleServerOptions::Visit(OptionsReader& r) {
   r.Optional("bind_address", &bind_address, "address to listen on (127.0.0.1: this machine only)");
   r.Optional("port", &port, "TCP port (0: any free port)");
   r.Optional("web_root", &web_root, "folder whose files are served");
-  r.Optional("token", &token, "required by acting commands when set");
   r.Optional("max_client_buffer_bytes", &max_client_buffer_bytes, "bytes unsent per client before it is dropped");
   r.Optional("max_message_bytes", &max_message_bytes, "bytes, largest WebSocket message accepted");
   r.Optional("max_file_bytes", &max_file_bytes, "bytes, largest file served");

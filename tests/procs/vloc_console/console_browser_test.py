@@ -143,8 +143,8 @@ def group_file(folder, http_port):
     text += proc("feature_frontend", ["--config", flat_frontend_config(folder)])
     text += proc("crosssite_ba", ["--config", "config/procs/crosssite_ba.yaml", "--state-dir", folder])
     text += proc("traverse_graph", ["--config", "config/procs/traverse_graph.yaml"])
-    text += proc("vloc_console", ["--config", console_config(folder), "--port", str(http_port),
-                                  "--token", TOKEN])
+    text += proc("vloc_console", ["--config", console_config(folder), "--port", str(http_port)],
+                 "    env: {VLOC_CONSOLE_TOKEN: %s}\n" % TOKEN)
     text += proc("sim_rover", ["--config", SIM_CONFIG, "--speed", "0"],
                  "    depends_on: [dead_reckoning, feature_frontend, crosssite_ba, traverse_graph, vloc_console]\n"
                  "    start_delay: 1.0\n    restart: never\n")

@@ -352,6 +352,8 @@ TEST(VlocConsole, OnlyAClientWithTheTokenActs) {
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
   while ((orders.empty() || ties.empty()) && std::chrono::steady_clock::now() < deadline) lcm->Handle(100);
   lcm->Handle(300);
+  c.process->Drain();
+  EXPECT_EQ(c.process->output().find("s3cret"), std::string::npos) << "the token never reaches the log";
   ASSERT_EQ(orders.size(), 1u) << "only the order with the token is sent";
   EXPECT_EQ(orders[0].target, "crosssite_ba");
   EXPECT_EQ(orders[0].host, "rover");

@@ -28,7 +28,8 @@ struct ConsoleServerOptions {
   std::string bind_address = "127.0.0.1";           // IPv4 or IPv6 address to listen on (0.0.0.0: every interface)
   int port = 8765;                                  // TCP port (0: any free port, printed at start)
   std::string web_root = "procs/vloc_console/web";  // folder whose files are served (relative: to the working dir)
-  std::string token;                                // required by acting commands when set ("" = act only on loopback)
+  std::string token;  // required by acting commands when set ("" = act only on loopback); not a config key (it
+                      // would be echoed in the log): $VLOC_CONSOLE_TOKEN or --token
   int64_t max_client_buffer_bytes = 8 << 20;        // bytes, unsent data per client before it is dropped as too slow
   int64_t max_message_bytes = 1 << 20;              // bytes, largest WebSocket message accepted from a browser
   int64_t max_file_bytes = 16 << 20;                // bytes, largest file served
