@@ -230,12 +230,32 @@ def check_manual_tie_points(driver, shots):
     driver.screenshot(os.path.join(shots, "console_localized_pair.png"))
 
 
+def check_watch_only_without_token(driver):
+    """The same page without the token: buttons disabled, and a forced order is refused by the console."""
+    url = driver.js("return location.href")
+    driver.open(url.split("#")[0])
+    wait_for(driver, "return window.vloc.connected && Object.keys(window.vloc.procman).length", 20, "the page again")
+    time.sleep(0.5)
+    assert not driver.js("return window.vloc.mayAct"), "without the token the page must only watch"
+    assert driver.js("return document.querySelector(\"button[data-action='restart']\").disabled")
+    driver.js("document.getElementById('token').value = ''; window.vloc.lastOrderReply = null;"
+              "document.querySelector(\"button[data-action='restart']\").disabled = false;"
+              "document.querySelector(\"button[data-action='restart']\").click();")
+    reply = wait_for(driver, "return window.vloc.lastOrderReply", 10, "the console's answer to a forced order")
+    assert not reply.get("ok") and "only watches" in reply.get("error", ""), reply
+    driver.open(url)
+    driver.call("POST", driver.s("/refresh"), {})  # only the fragment changed: load the page anew
+    wait_for(driver, "return window.vloc.connected && window.vloc.mayAct", 20, "the page with the token again")
+    print("without the token: buttons disabled, a forced order refused (%s)" % reply["error"])
+
+
 def check_restart_from_page(driver, shots):
     row = "const r = (window.vloc.procman['%s'] || {procs: []}).procs.find(p => p.name == 'crosssite_ba'); "
     host = wait_for(driver, "const h = Object.keys(window.vloc.procman); return h.length && h[0]", 20,
                     "PROCMAN_STATUS")  # 'host:launcher pid'
     before = wait_for(driver, row % host + "return r && r.state == 'running' && r", 20, "crosssite_ba running")
     assert driver.js("return window.vloc.mayAct"), "the token given in the URL should allow acting"
+    check_watch_only_without_token(driver)
     driver.js("document.getElementById('procs-panel').scrollIntoView()")
     driver.click("tr[data-proc='crosssite_ba'] button[data-action='restart']")
     reply = wait_for(driver, "return window.vloc.lastOrderReply", 10, "the console's answer to the order")
