@@ -304,7 +304,7 @@ void FeatureFrontendAdapter::Process(int site_id, Collecting& c) {
   } else {
     before_previous_ = std::move(previous_);
   }
-  previous_ = std::move(site);  // without revisits the older site's images are released here
+  previous_ = std::move(site);  // without revisits the site before before_previous_ is released here
 }
 
 void FeatureFrontendAdapter::RunPair(const CrossSiteFrontend& frontend, const SiteImages& previous,

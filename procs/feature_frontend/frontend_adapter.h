@@ -2,8 +2,9 @@
 // LCM adapter of the feature front end: collects each site's stereo pairs
 // and DR pose, runs vloc::CrossSiteFrontend when a site's imaging is done
 // and the previous site is known, and publishes TIE_POINTS and
-// FRONTEND_STATUS. Only the previous site's images are kept once a site
-// pair has been processed, unless revisits are on (loop_max_distance_m > 0):
+// FRONTEND_STATUS. Only the newest site pair's images are kept once it has
+// been processed (for an operator's manual tie points, MANUAL_TIE_POINTS:
+// OnManualTies), unless revisits are on (loop_max_distance_m > 0):
 // then earlier sites go to a vloc::SiteArchive (libs/crosssite, which
 // chooses the revisits), and for each revisit the front end also runs on
 // (earlier, new) and publishes TIE_POINTS / FRONTEND_STATUS with
