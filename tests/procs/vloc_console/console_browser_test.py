@@ -219,7 +219,9 @@ def check_manual_tie_points(driver, shots):
     print("manual tie: %d clicks -> BA %s, used %d, rms %.3f px, moved %.3f m from dead reckoning" %
           (len(points), loc["status"], loc["used"], loc["final_rms_px"], shift))
     assert loc["used"] >= 6
-    wait_for(driver, "const s = window.vloc.sites[1]; return s.opt && true", 30, "the optimised traverse")
+    wait_for(driver, "const s = window.vloc.sites[1], l = s.localization; "
+                     "return s.opt && Math.hypot(s.opt.x - l.x, s.opt.y - l.y) < 0.05", 30,
+             "the optimised traverse on the map moving site 1 to the BA's pose")
     click_site(driver, 1)
     wait_for(driver, "return document.getElementById('site-info').textContent.includes('BA vs 0: ok')", 10,
              "site 1's BA summary on the page")
