@@ -15,6 +15,7 @@ PACKAGES=(
   python3-numpy python3-matplotlib
   libexiv2-dev exiv2 libgdal-dev gdal-bin
   iproute2 procps nftables
+  libwebsocketpp-dev libasio-dev nlohmann-json3-dev chromium chromium-driver   # vloc_console and its browser test
 )
 
 missing=()

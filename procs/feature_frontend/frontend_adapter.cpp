@@ -8,6 +8,7 @@
 #include "vloc/common/options.h"
 #include "vloc/lcm_io/convert.h"
 #include "vloc/lcm_io/convert_rover.h"
+#include "vloc/manual_tie_points_t.hpp"
 #include "vloc/site_event_t.hpp"
 #include "vloc/site_pose_t.hpp"
 #include "vloc/stereo_image_t.hpp"
@@ -35,6 +36,7 @@ void FeatureFrontendProcOptions::Visit(OptionsReader& r) {
              "regions.max_position_sigma_fraction of the revisit front end");
   r.Optional("max_sites_in_memory", &max_sites_in_memory, "earlier sites whose images stay in memory");
   r.Optional("site_cache_dir", &site_cache_dir, "older sites' images are written here (PNG); empty = dropped");
+  r.Optional("manual_ties_channel", &manual_ties_channel, "subscribed manual_tie_points_t channel (\"\" = off)");
 }
 
 bool FeatureFrontendProcOptions::Check(std::string* error) const {
@@ -76,6 +78,20 @@ frontend_status_t FrontendStatusToMessage(const FrontendSummary& s, int64_t utim
 }
 
 namespace {
+
+// The clicks of a manual_tie_points_t; throws on a click that is not a pixel.
+std::vector<ManualTie> ManualTiesFromMessage(const manual_tie_points_t& m) {
+  std::vector<ManualTie> ties;
+  for (int i = 0; i < m.num_points; ++i) {
+    ManualTie t{m.previous_pair[i], {m.previous_u[i], m.previous_v[i]}, m.current_pair[i],
+                {m.current_u[i], m.current_v[i]}};
+    if (!(t.previous_px.allFinite() && t.current_px.allFinite() && t.previous_px.minCoeff() >= 0 &&
+          t.current_px.minCoeff() >= 0))
+      throw std::invalid_argument("manual tie point " + std::to_string(i) + " is not a pixel position");
+    ties.push_back(t);
+  }
+  return ties;
+}
 
 FrontendOptions LoopFrontendOptions(const FeatureFrontendProcOptions& o) {
   FrontendOptions f = o.frontend;
@@ -126,6 +142,47 @@ void FeatureFrontendAdapter::Subscribe() {
           OnTraverse(std::move(poses));
         },
         kSmallMessageQueue));
+  if (!options_.manual_ties_channel.empty())
+    stats_.push_back(vloc::Subscribe<manual_tie_points_t>(
+        transport_, options_.manual_ties_channel,
+        [this](const std::string&, const manual_tie_points_t& m) {
+          LOG(INFO) << "manual tie points from " << m.source << ": " << m.num_points << " for sites "
+                    << m.previous_site_id << " -> " << m.current_site_id;
+          OnManualTies(m.previous_site_id, m.current_site_id, ManualTiesFromMessage(m), m.utime);
+        },
+        kSmallMessageQueue));
+}
+
+std::optional<SiteImages> FeatureFrontendAdapter::KeptSite(int site_id) {
+  if (previous_ && previous_->site_id == site_id) return previous_;
+  if (before_previous_ && before_previous_->site_id == site_id) return before_previous_;
+  if (options_.loop_max_distance_m > 0) return archive_.Restore(site_id);
+  return std::nullopt;
+}
+
+void FeatureFrontendAdapter::OnManualTies(int previous_site_id, int current_site_id, const std::vector<ManualTie>& ties,
+                                          int64_t utime) {
+  std::optional<SiteImages> previous = KeptSite(previous_site_id), current = KeptSite(current_site_id);
+  if (!previous || !current) {
+    FrontendSummary summary;
+    summary.status = FrontendStatus::kMissingInput;
+    summary.message = "manual tie points for sites " + std::to_string(previous_site_id) + " -> " +
+                      std::to_string(current_site_id) + ": the images of site " +
+                      std::to_string(previous ? current_site_id : previous_site_id) +
+                      " are no longer kept (only the newest two sites are, unless revisits are on)";
+    LOG(WARNING) << summary.message;
+    Publish(transport_, options_.status_channel,
+            FrontendStatusToMessage(summary, utime, previous_site_id, current_site_id));
+    return;
+  }
+  const FrontendResult r = frontend_.RunManual(*previous, *current, ties);
+  LOG(INFO) << "manual sites " << previous_site_id << " -> " << current_site_id << ": " << r.summary.BriefReport();
+  if (r.summary.IsUsable()) {
+    Publish(transport_, options_.tie_points_channel, TiePointsToMessage(r.tie_points));
+    ++manual_published_;
+  }
+  Publish(transport_, options_.status_channel,
+          FrontendStatusToMessage(r.summary, r.tie_points.utime, previous_site_id, current_site_id));
 }
 
 void FeatureFrontendAdapter::OnTraverse(std::map<int, PoseWithCovariance> optimised) {
@@ -244,8 +301,10 @@ void FeatureFrontendAdapter::Process(int site_id, Collecting& c) {
   if (options_.loop_max_distance_m > 0) {
     TryRevisits(site);
     archive_.Add(std::move(*previous_));
+  } else {
+    before_previous_ = std::move(previous_);
   }
-  previous_ = std::move(site);  // without revisits the older site's images are released here
+  previous_ = std::move(site);  // without revisits the site before before_previous_ is released here
 }
 
 void FeatureFrontendAdapter::RunPair(const CrossSiteFrontend& frontend, const SiteImages& previous,
@@ -284,7 +343,8 @@ void FeatureFrontendAdapter::TryRevisits(const SiteImages& current) {
 std::string FeatureFrontendAdapter::StatusLine() const {
   return "site pairs matched " + std::to_string(sites_processed_) + ", incomplete sites dropped " +
          std::to_string(sites_dropped_) + ", revisits published " +
-         std::to_string(loops_published_) + "; " + SubscriptionSummary(stats_);
+         std::to_string(loops_published_) + ", manual tie sets published " + std::to_string(manual_published_) + "; " +
+         SubscriptionSummary(stats_);
 }
 
 }  // namespace vloc

@@ -2,8 +2,9 @@
 // LCM adapter of the feature front end: collects each site's stereo pairs
 // and DR pose, runs vloc::CrossSiteFrontend when a site's imaging is done
 // and the previous site is known, and publishes TIE_POINTS and
-// FRONTEND_STATUS. Only the previous site's images are kept once a site
-// pair has been processed, unless revisits are on (loop_max_distance_m > 0):
+// FRONTEND_STATUS. Only the newest site pair's images are kept once it has
+// been processed (for an operator's manual tie points, MANUAL_TIE_POINTS:
+// OnManualTies), unless revisits are on (loop_max_distance_m > 0):
 // then earlier sites go to a vloc::SiteArchive (libs/crosssite, which
 // chooses the revisits), and for each revisit the front end also runs on
 // (earlier, new) and publishes TIE_POINTS / FRONTEND_STATUS with
@@ -43,6 +44,7 @@ struct FeatureFrontendProcOptions {
   double loop_max_position_sigma_fraction = 3.0;      // regions.max_position_sigma_fraction of the revisit front end
   int max_sites_in_memory = 3;                        // earlier sites whose images stay in memory for revisits
   std::string site_cache_dir;                         // older sites' images go here (PNG); empty = dropped
+  std::string manual_ties_channel = "MANUAL_TIE_POINTS";  // subscribed: manual_tie_points_t (operator's clicks; "" = off)
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
@@ -66,6 +68,12 @@ class FeatureFrontendAdapter {
   void OnSitePoseDr(int site_id, const PoseWithCovariance& world_from_body);
   // The pose graph's optimised poses (all sites of one TRAVERSE message).
   void OnTraverse(std::map<int, PoseWithCovariance> optimised);
+  // An operator's clicks for a site pair whose images are still kept (the
+  // newest two sites, or archived ones): refined (CrossSiteFrontend::RunManual)
+  // and published as TIE_POINTS + FRONTEND_STATUS; else FRONTEND_STATUS
+  // MISSING_INPUT saying why.
+  void OnManualTies(int previous_site_id, int current_site_id, const std::vector<ManualTie>& ties, int64_t utime);
+  int manual_published() const { return manual_published_; }
 
   int loops_tried() const { return loops_tried_; }
   int loops_published() const { return loops_published_; }
@@ -91,6 +99,8 @@ class FeatureFrontendAdapter {
   void TryProcess();
   void Process(int site_id, Collecting& site);
   void TryRevisits(const SiteImages& current);
+  // The images of `site_id` if still kept (newest two sites, or the archive).
+  std::optional<SiteImages> KeptSite(int site_id);
   void RunPair(const CrossSiteFrontend& frontend, const SiteImages& previous, const SiteImages& current,
                const char* what);
 
@@ -102,8 +112,10 @@ class FeatureFrontendAdapter {
   static constexpr int kSmallMessageQueue = 1000;  // site events, DR poses, traverses: small, and none may be lost
   static constexpr int kMaxSitesCollecting = 8;  // sites waiting for their images at once; beyond, the oldest goes
   std::optional<SiteImages> previous_;
+  std::optional<SiteImages> before_previous_;          // the site before previous_ (manual tie points), revisits off
   SiteArchive archive_;                                // sites before previous_, poses (revisits on)
   int sites_processed_ = 0, loops_tried_ = 0, loops_published_ = 0;
+  int manual_published_ = 0;               // manual tie-point sets published as TIE_POINTS
   int sites_dropped_ = 0;                  // incomplete sites reported MISSING_INPUT and dropped
   std::vector<std::shared_ptr<SubscriptionStats>> stats_;
 };

@@ -201,12 +201,28 @@ struct FrontendResult {
   FrontendSummary summary;
 };
 
+// A tie point an operator picked by hand: the same ground point clicked in
+// a left image of each site (raw px, as the images were received).
+struct ManualTie {
+  int previous_pair = 0;                                   // pair_index at the previous site
+  Eigen::Vector2d previous_px = Eigen::Vector2d::Zero();   // px, raw left image
+  int current_pair = 0;                                    // pair_index at the current site
+  Eigen::Vector2d current_px = Eigen::Vector2d::Zero();    // px, raw left image
+};
+
 class CrossSiteFrontend {
  public:
   CrossSiteFrontend(NavcamModel navcam, FrontendOptions options);
 
   // Never throws for bad data: problems end up in summary.status/message.
   FrontendResult Run(const SiteImages& previous, const SiteImages& current) const;
+  // The tie points of an operator's clicks (manual_ties.cpp): each click
+  // refined as the front end refines its own matches (cross-site LSM of the
+  // current click from the previous one, kept at sigma_unrefined_px when LSM
+  // cannot refine it; ZNCC + LSM stereo at both sites; intersection). Usable
+  // when at least one click survives; the BA decides whether they suffice.
+  FrontendResult RunManual(const SiteImages& previous, const SiteImages& current,
+                           const std::vector<ManualTie>& ties) const;
 
   const FrontendOptions& options() const { return options_; }
   const NavcamModel& navcam() const { return navcam_; }

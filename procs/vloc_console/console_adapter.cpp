@@ -1,0 +1,325 @@
+#include "console_adapter.h"
+
+#include <glog/logging.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iterator>
+#include <opencv2/imgcodecs.hpp>
+#include <set>
+
+#include "console_json.h"
+#include "vloc/common/options.h"
+#include "vloc/lcm_io/convert.h"
+#include "vloc/lcm_io/convert_rover.h"
+#include "vloc/stereo_image_t.hpp"
+
+namespace vloc {
+
+using nlohmann::json;
+
+namespace {
+
+// The prefixes of the picture's per-site keys (TrimSites drops a site's all).
+const char* const kSiteKeys[] = {"dr", "visual", "localization", "frontend", "tie_points", "images"};
+
+std::string SiteKey(const char* prefix, int site) {
+  char buf[48];
+  std::snprintf(buf, sizeof(buf), "%s/%09d", prefix, site);
+  return buf;
+}
+
+int64_t WallMicros() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+json Refused(const std::string& why) { return {{"ok", false}, {"error", why}}; }
+
+}  // namespace
+
+void OrthoimageOptions::Visit(OptionsReader& r) {
+  r.Optional("path", &path, "PNG / JPEG orthoimage under the map (\"\" = none)");
+  r.Optional("x_min_m", &x_min_m, "m, world x of its west edge");
+  r.Optional("y_max_m", &y_max_m, "m, world y of its north edge");
+  r.Optional("m_per_px", &m_per_px, "m per pixel");
+}
+
+bool OrthoimageOptions::Check(std::string* error) const {
+  if (!std::isfinite(x_min_m) || !std::isfinite(y_max_m) || !(m_per_px > 0 && m_per_px < 1e4))
+    return Fail(error, "orthoimage: x_min_m and y_max_m must be finite and m_per_px in (0, 1e4)");
+  return true;
+}
+
+void ConsoleProcOptions::Visit(OptionsReader& r) {
+  r.Child("server", [&](OptionsReader& c) { server.Visit(c); });
+  r.Optional("traverse_channel", &traverse_channel, "traverse_t in");
+  r.Optional("dr_channel", &dr_channel, "site_pose_t in (dead reckoning)");
+  r.Optional("visual_channel", &visual_channel, "localization_t in (BA results)");
+  r.Optional("frontend_status_channel", &frontend_status_channel, "frontend_status_t in");
+  r.Optional("tie_points_channel", &tie_points_channel, "tie_points_t in");
+  r.Optional("stereo_channel", &stereo_channel, "stereo_image_t in (\"\" = no images)");
+  r.Optional("procman_status_channel", &procman_status_channel, "procman_status_t in");
+  r.Optional("uav_state_channel", &uav_state_channel, "uav_state_t in");
+  r.Optional("uav_mosaic_channel", &uav_mosaic_channel, "image_t in (JPEG mosaic preview)");
+  r.Optional("orders_channel", &orders_channel, "procman_order_t out");
+  r.Optional("manual_ties_channel", &manual_ties_channel, "manual_tie_points_t out");
+  r.Optional("max_sites", &max_sites, "sites whose poses and statuses are kept");
+  r.Optional("image_sites_kept", &image_sites_kept, "newest sites whose left images are kept");
+  r.Optional("max_uav_states", &max_uav_states, "UAV states kept for the plots");
+  r.Optional("max_manual_points", &max_manual_points, "picks in one manual tie-point command");
+  r.Child("orthoimage", [&](OptionsReader& c) { orthoimage.Visit(c); });
+}
+
+bool ConsoleProcOptions::Check(std::string* error) const {
+  for (const std::string* c :
+       {&traverse_channel, &dr_channel, &visual_channel, &frontend_status_channel, &tie_points_channel,
+        &procman_status_channel, &uav_state_channel, &uav_mosaic_channel, &orders_channel, &manual_ties_channel})
+    if (c->empty()) return Fail(error, "channel names must not be empty (only stereo_channel may be)");
+  if (max_sites < 1 || image_sites_kept < 2 || max_uav_states < 1 || max_manual_points < 1)
+    return Fail(error, "max_sites, max_uav_states, max_manual_points must be >= 1 and image_sites_kept >= 2");
+  return server.Check(error) && orthoimage.Check(error);
+}
+
+ConsoleAdapter::ConsoleAdapter(Transport& transport, ConsoleServer& server, const ConsoleProcOptions& options)
+    : transport_(transport), server_(server), options_(options) {
+  server_.SetWelcomeHandler([this] { return Welcome(); });
+  server_.SetCommandHandler([this](const json& c, bool may_act) { return OnCommand(c, may_act); });
+  server_.SetApiHandler([this](const std::string& rest, const std::map<std::string, std::string>& q, HttpReply* r) {
+    return OnApi(rest, q, r);
+  });
+}
+
+template <class Msg>
+void ConsoleAdapter::Watch(const std::string& channel, std::function<void(const Msg&)> handle, int queue) {
+  stats_.push_back(vloc::Subscribe<Msg>(
+      transport_, channel, [handle = std::move(handle)](const std::string&, const Msg& m) { handle(m); }, queue));
+}
+
+void ConsoleAdapter::Subscribe() {
+  SubscribeRover();
+  SubscribeUav();
+  Watch<procman_status_t>(options_.procman_status_channel, [this](const procman_status_t& m) {
+    Post("procman/" + m.host + ":" + std::to_string(m.launcher_pid), ProcmanJson(m));
+  });
+}
+
+void ConsoleAdapter::SubscribeRover() {
+  const ConsoleProcOptions& o = options_;
+  Watch<traverse_t>(o.traverse_channel, [this](const traverse_t& m) {
+    json j = TraverseJson(m);
+    j["console_us"] = WallMicros();  // the page measures receipt -> drawn from it
+    Post("traverse", j);
+  });
+  Watch<site_pose_t>(o.dr_channel, [this](const site_pose_t& m) { Post(SiteKey("dr", m.site_id), SitePoseJson(m)); });
+  Watch<localization_t>(o.visual_channel, [this](const localization_t& m) { OnLocalization(m); });
+  Watch<frontend_status_t>(o.frontend_status_channel, [this](const frontend_status_t& m) {
+    Post(SiteKey("frontend", m.current_site_id), FrontendStatusJson(m));
+  });
+  Watch<tie_points_t>(o.tie_points_channel, [this](const tie_points_t& m) { OnTiePoints(m); });
+  if (o.stereo_channel.empty()) return;
+  Watch<stereo_image_t>(
+      o.stereo_channel,
+      [this](const stereo_image_t& m) { OnLeftImage(m.site_id, m.pair_index, m.left); },
+      kStereoQueue);
+}
+
+void ConsoleAdapter::SubscribeUav() {
+  Watch<uav_state_t>(options_.uav_state_channel, [this](const uav_state_t& m) {
+    const std::string text = UavStateJson(m).dump();
+    server_.Broadcast(text);
+    uav_states_.push_back(text);
+    while (static_cast<int>(uav_states_.size()) > options_.max_uav_states) uav_states_.pop_front();
+  });
+  Watch<image_t>(
+      options_.uav_mosaic_channel,
+      [this](const image_t& m) {
+        if (m.encoding != image_t::ENCODING_JPEG) throw std::invalid_argument("the mosaic preview is not JPEG");
+        uav_mosaic_jpeg_.assign(m.data.begin(), m.data.end());
+        Post("uav_mosaic",
+             {{"type", "uav_mosaic"}, {"seq", ++uav_mosaic_seq_}, {"width", m.width}, {"height", m.height}});
+      },
+      kMosaicQueue);
+}
+
+void ConsoleAdapter::OnLocalization(const localization_t& m) {
+  Post(SiteKey("localization", m.site_id), LocalizationJson(m));
+  if (m.status == localization_t::STATUS_OK)
+    relative_poses_[m.site_id] = PoseFromMessage(m.relative_pose).pose;
+  else
+    relative_poses_.erase(m.site_id);
+  RefreshTiePoints(m.site_id);
+}
+
+bool ConsoleAdapter::LoadOrthoimage(std::string* error) {
+  const OrthoimageOptions& o = options_.orthoimage;
+  if (o.path.empty()) return true;
+  const cv::Mat image = cv::imread(o.path, cv::IMREAD_UNCHANGED);
+  std::ifstream in(o.path, std::ios::binary);
+  orthoimage_bytes_.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  if (image.empty() || orthoimage_bytes_.empty())
+    return Fail(error, "orthoimage '" + o.path + "' is not a readable PNG or JPEG image (fix orthoimage.path)");
+  orthoimage_type_ = orthoimage_bytes_.rfind("\x89PNG", 0) == 0 ? "image/png" : "image/jpeg";
+  picture_["orthoimage"] = json{{"type", "orthoimage"},   {"x_min", o.x_min_m},  {"y_max", o.y_max_m},
+                                {"m_per_px", o.m_per_px}, {"width", image.cols}, {"height", image.rows}}
+                               .dump();
+  return true;
+}
+
+void ConsoleAdapter::Post(const std::string& key, const json& j) {
+  std::string text = j.dump(-1, ' ', false, json::error_handler_t::replace);
+  server_.Broadcast(text);
+  picture_[key] = std::move(text);
+  TrimSites();
+}
+
+void ConsoleAdapter::TrimSites() {
+  std::set<int> sites;
+  for (const char* prefix : kSiteKeys)
+    for (auto it = picture_.lower_bound(std::string(prefix) + "/");
+         it != picture_.end() && it->first.rfind(std::string(prefix) + "/", 0) == 0; ++it)
+      sites.insert(std::stoi(it->first.substr(std::string(prefix).size() + 1)));
+  while (static_cast<int>(sites.size()) > options_.max_sites) {
+    for (const char* prefix : kSiteKeys) picture_.erase(SiteKey(prefix, *sites.begin()));
+    sites.erase(sites.begin());
+  }
+}
+
+void ConsoleAdapter::OnLeftImage(int site, int pair, const image_t& left) {
+  if (left.width <= 0 || left.height <= 0 || left.data.empty()) throw std::invalid_argument("empty left image");
+  KeptImage& kept = left_images_[site][pair];
+  kept.message = left;
+  kept.served.clear();
+  if (left.encoding == image_t::ENCODING_PNG || left.encoding == image_t::ENCODING_JPEG) {
+    kept.served.assign(left.data.begin(), left.data.end());
+    kept.type = left.encoding == image_t::ENCODING_PNG ? "image/png" : "image/jpeg";
+  }
+  while (static_cast<int>(left_images_.size()) > options_.image_sites_kept) {
+    picture_.erase(SiteKey("images", left_images_.begin()->first));
+    left_images_.erase(left_images_.begin());
+  }
+  json pairs = json::array();
+  for (const auto& [index, image] : left_images_[site])
+    pairs.push_back({{"pair", index}, {"width", image.message.width}, {"height", image.message.height}});
+  Post(SiteKey("images", site), {{"type", "images"}, {"site", site}, {"pairs", std::move(pairs)}});
+}
+
+void ConsoleAdapter::OnTiePoints(const tie_points_t& msg) {
+  tie_points_[msg.current_site_id] = msg;
+  while (static_cast<int>(tie_points_.size()) > options_.image_sites_kept) tie_points_.erase(tie_points_.begin());
+  RefreshTiePoints(msg.current_site_id);
+}
+
+void ConsoleAdapter::RefreshTiePoints(int current_site) {
+  const auto it = tie_points_.find(current_site);
+  if (it == tie_points_.end()) return;
+  const auto rel = relative_poses_.find(current_site);
+  const std::optional<Pose3> relative = rel == relative_poses_.end() ? std::nullopt : std::optional<Pose3>(rel->second);
+  Post(SiteKey("tie_points", current_site), TiePointsJson(it->second, relative));
+}
+
+std::vector<std::string> ConsoleAdapter::Welcome() const {
+  std::vector<std::string> out;
+  out.push_back(json{{"type", "hello"}, {"uav_states", uav_states_.size()}}.dump());
+  for (const auto& [key, text] : picture_) out.push_back(text);
+  if (!uav_states_.empty()) {
+    std::string history = "{\"type\":\"uav_history\",\"states\":[";
+    for (size_t i = 0; i < uav_states_.size(); ++i) history += (i ? "," : "") + uav_states_[i];
+    out.push_back(history + "]}");
+  }
+  return out;
+}
+
+json ConsoleAdapter::OnCommand(const json& command, bool may_act) {
+  const std::string type = command.value("type", std::string());
+  if (type == "auth") return {{"ok", true}, {"may_act", may_act}};
+  if (type != "order" && type != "manual_tie") return Refused("unknown command type '" + type + "'");
+  if (!may_act) {
+    ++refused_;
+    return Refused("this console only watches: a valid token is needed to act");
+  }
+  return Act(command);
+}
+
+json ConsoleAdapter::Act(const json& command) {
+  std::string error;
+  if (command["type"] == "order") {
+    procman_order_t order;
+    if (!OrderFromJson(command, WallMicros(), &order, &error)) return Refused(error);
+    if (!Publish(transport_, options_.orders_channel, order)) return Refused("the order could not be sent");
+    ++orders_sent_;
+    LOG(INFO) << "console: order " << command.value("action", "") << " " << command.value("target", "") << " on host '"
+              << command.value("host", "") << "' sent";
+    return {{"ok", true}};
+  }
+  manual_tie_points_t ties;
+  if (!ManualTiesFromJson(command, WallMicros(), options_.max_manual_points, &ties, &error)) return Refused(error);
+  if (!Publish(transport_, options_.manual_ties_channel, ties)) return Refused("the tie points could not be sent");
+  ++manual_sent_;
+  LOG(INFO) << "console: " << ties.num_points << " manual tie points for sites " << ties.previous_site_id << " -> "
+            << ties.current_site_id << " sent";
+  return {{"ok", true}, {"points", ties.num_points}};
+}
+
+bool ConsoleAdapter::OnApi(const std::string& rest, const std::map<std::string, std::string>& query, HttpReply* reply) {
+  if (rest == "image") return ImageReply(query, reply);
+  if (rest == "orthoimage" && !orthoimage_bytes_.empty()) {
+    *reply = {200, orthoimage_type_, orthoimage_bytes_};
+    return true;
+  }
+  if (rest == "uav_mosaic" && !uav_mosaic_jpeg_.empty()) {
+    *reply = {200, "image/jpeg", uav_mosaic_jpeg_};
+    return true;
+  }
+  if (rest == "status") {
+    const ConsoleServerStats& s = server_.stats();
+    *reply = {200, "application/json",
+              json{{"clients", server_.num_clients()},
+                   {"http_requests", s.http_requests},
+                   {"http_rejected", s.http_rejected},
+                   {"dropped_slow", s.clients_dropped_slow},
+                   {"connections_refused", s.connections_refused},
+                   {"messages_bad", s.messages_bad},
+                   {"orders_sent", orders_sent_},
+                   {"manual_sent", manual_sent_},
+                   {"refused", refused_}}
+                  .dump()};
+    return true;
+  }
+  return false;
+}
+
+bool ConsoleAdapter::ImageReply(const std::map<std::string, std::string>& query, HttpReply* reply) {
+  int site = -1, pair = -1;
+  try {
+    site = std::stoi(query.at("site"));
+    pair = std::stoi(query.at("pair"));
+  } catch (const std::exception&) {
+    *reply = {400, "text/plain", "image needs ?site=<id>&pair=<index>\n"};
+    return true;
+  }
+  const auto s = left_images_.find(site);
+  if (s == left_images_.end() || !s->second.count(pair)) return false;
+  KeptImage& kept = s->second.at(pair);
+  if (kept.served.empty()) {
+    std::vector<uchar> bytes;
+    cv::imencode(".png", ImageFromMessage(kept.message), bytes);  // throws on bad pixels: 500, logged
+    kept.served.assign(bytes.begin(), bytes.end());
+    kept.type = "image/png";
+  }
+  *reply = {200, kept.type, kept.served};
+  return true;
+}
+
+std::string ConsoleAdapter::StatusLine() const {
+  const ConsoleServerStats& s = server_.stats();
+  return "browsers " + std::to_string(s.clients_opened) + " opened (" + std::to_string(s.clients_dropped_slow) +
+         " dropped as too slow), HTTP requests " + std::to_string(s.http_requests) + " (" +
+         std::to_string(s.http_rejected) + " refused), orders sent " + std::to_string(orders_sent_) +
+         ", manual tie sets sent " + std::to_string(manual_sent_) + ", refused commands " + std::to_string(refused_) +
+         "; " + SubscriptionSummary(stats_);
+}
+
+}  // namespace vloc
