@@ -416,7 +416,7 @@ TEST(OverlapWarp, TileRegistrationCorrectsTheDrError) {
   EXPECT_TRUE(work.registered);
   EXPECT_GE(work.tile_inliers, FrontendOptions().min_tile_inliers);
   // Previous px -> grid -> current px is the true motion within a fraction of a px.
-  for (const Eigen::Vector2d p : {Eigen::Vector2d(150, 150), Eigen::Vector2d(350, 300)}) {
+  for (const Eigen::Vector2d& p : {Eigen::Vector2d(150, 150), Eigen::Vector2d(350, 300)}) {
     const Eigen::Vector2d c = ApplyHomography(work.current_from_train, ApplyHomography(work.train_from_previous, p));
     EXPECT_NEAR((c - (p + w.s)).norm(), 0.0, 0.3) << p.transpose();
   }
@@ -835,7 +835,7 @@ TEST(GroundPlanes, FittedToSparseStereoOfTheGround) {
   const NavcamModel navcam;
   const MastPointing mp{0.0, 0.25};  // looking 14 deg down: ground from ~2 to ~20 m
   const double slope = 5 * M_PI / 180;
-  for (const Eigen::Vector4d truth : {Eigen::Vector4d(0, 0, 1, 0),
+  for (const Eigen::Vector4d& truth : {Eigen::Vector4d(0, 0, 1, 0),
                                       Eigen::Vector4d(-std::sin(slope), 0, std::cos(slope), 0.1)}) {
     cv::Mat left, right;
     GroundStereo(navcam, mp, truth, &left, &right);
