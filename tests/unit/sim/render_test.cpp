@@ -171,6 +171,39 @@ TEST(SimRender, RendersThroughLensDistortion) {
   EXPECT_GT(cv::norm(image.image, undistorted.image, cv::NORM_L1) / (512.0 * 512.0), 2.0);
 }
 
+// The rover's deck: a side view looking down sees it at the bottom of the
+// image, at under 2 m, and the same pixels at any rover pose; a view straight
+// ahead does not.
+TEST(SimRender, DeckInSideViewsAtTheSamePixelsEverywhere) {
+  const NavcamModel model = HalfNavcam();
+  NavcamRenderOptions options;
+  options.deck = true;
+  options.add_noise = false;
+  const NavcamRenderer renderer(TestTerrain(), model, options);
+  const double side_pan = 78 * M_PI / 180, tilt = 25 * M_PI / 180;
+  const RenderedPair a = renderer.RenderPair(MakePose(0, 0, 0, 0, 0, 0), side_pan, tilt, 1, true);
+  const RenderedPair b = renderer.RenderPair(MakePose(6, -3, 0.2, 0, 0, 0.4), side_pan, tilt, 1, true);
+  const RenderedPair ahead = renderer.RenderPair(MakePose(0, 0, 0, 0, 0, 0), 0.0, tilt, 1, true);
+  const int n = cv::countNonZero(a.left.deck);
+  std::printf("deck: %d of %d px of the side view (%.1f %%)\n", n, 512 * 512, 100.0 * n / (512 * 512));
+  EXPECT_GT(n, 512 * 20);                                    // at least 20 rows' worth
+  EXPECT_EQ(cv::countNonZero(a.left.deck.rowRange(0, 256)), 0);  // only in the lower half
+  EXPECT_EQ(cv::countNonZero(ahead.left.deck), 0);
+  cv::Mat depth_on_deck;
+  a.left.depth.copyTo(depth_on_deck, a.left.deck);
+  double nearest = 0, farthest = 0;
+  cv::minMaxLoc(depth_on_deck, &nearest, &farthest, nullptr, nullptr, a.left.deck);
+  EXPECT_GT(nearest, 0.3);
+  EXPECT_LT(farthest, 1.5);                                  // the deck is within reach of the mast
+  // Same pixels, same values at both rover poses (the sun is fixed, the deck level in both).
+  EXPECT_EQ(cv::countNonZero(a.left.deck != b.left.deck), 0);
+  cv::Mat diff;
+  cv::absdiff(a.left.image, b.left.image, diff);
+  double worst = 0;
+  cv::minMaxLoc(diff, nullptr, &worst, nullptr, nullptr, a.left.deck);
+  EXPECT_LE(worst, 1.0);
+}
+
 TEST(SimRender, SameSeedSameBytes) {
   const NavcamModel model = HalfNavcam();
   NavcamRenderOptions options;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 
 #include "vloc/common/options.h"
@@ -30,6 +31,11 @@ void NavcamRenderOptions::Visit(OptionsReader& r) {
   r.Optional("vignetting", &vignetting, "fraction of light lost at the corner");
   r.Optional("adc_bits", &adc_bits, "8 or 12 (12: square-root companded to 8)");
   r.Optional("hot_pixel_fraction", &hot_pixel_fraction, "fraction of pixels stuck at 255");
+  r.Optional("deck", &deck, "draw the rover's deck (side and low views see it)");
+  r.Optional("deck_top_m", &deck_top_m, "m, deck height above the body origin");
+  r.Optional("deck_front_m", &deck_front_m, "m, deck front edge along body x");
+  r.Optional("deck_rear_m", &deck_rear_m, "m, deck rear edge along body x");
+  r.Optional("deck_half_width_m", &deck_half_width_m, "m, deck half width across");
   r.Optional("num_threads", &num_threads, "OpenMP threads");
 }
 
@@ -47,6 +53,8 @@ bool NavcamRenderOptions::Check(std::string* error) const {
   if (!(vignetting >= 0 && vignetting < 1)) return Fail(error, "render vignetting must be in [0, 1)");
   if (adc_bits != 8 && adc_bits != 12) return Fail(error, "render adc_bits must be 8 or 12");
   if (!(hot_pixel_fraction >= 0 && hot_pixel_fraction < 0.01)) return Fail(error, "render hot_pixel_fraction must be in [0, 0.01)");
+  if (deck && !(deck_top_m > 0 && deck_front_m > deck_rear_m && deck_half_width_m > 0))
+    return Fail(error, "render deck needs deck_top_m > 0, deck_front_m > deck_rear_m and deck_half_width_m > 0");
   if (num_threads < 1) return Fail(error, "render num_threads must be >= 1");
   return true;
 }
@@ -88,8 +96,29 @@ double Reflectance(const NavcamRenderOptions& o, double mu0, double mu, double g
   return lunar * (1.0 + surge);
 }
 
+namespace {
+
+// Where a ray (body frame) meets the deck's top, as its distance along the ray; nothing when it misses.
+std::optional<double> HitDeck(const NavcamRenderOptions& o, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir) {
+  if (dir.z() >= -1e-9 || origin.z() <= o.deck_top_m) return std::nullopt;
+  const double t = (o.deck_top_m - origin.z()) / dir.z();
+  const Eigen::Vector3d p = origin + t * dir;
+  if (p.x() < o.deck_rear_m || p.x() > o.deck_front_m || std::abs(p.y()) > o.deck_half_width_m) return std::nullopt;
+  return t;
+}
+
+// Solar cells (dark) in a grid of bright frames, 15 cm apart (body frame, m).
+double DeckAlbedo(const Eigen::Vector3d& p) {
+  const double cell = 0.15, frame = 0.012;
+  const double fx = std::fmod(std::abs(p.x()), cell), fy = std::fmod(std::abs(p.y()), cell);
+  return fx < frame || fy < frame ? 0.7 : 0.12;
+}
+
+}  // namespace
+
 RenderedImage NavcamRenderer::Render(const PinholeCamera& camera, const Pose3& world_from_camera,
-                                     uint64_t noise_seed, bool with_depth, double gain_factor) const {
+                                     uint64_t noise_seed, bool with_depth, double gain_factor,
+                                     const Pose3* world_from_body) const {
   const auto start = std::chrono::steady_clock::now();
   std::vector<Eigen::Vector3f> own_rays;
   const std::vector<Eigen::Vector3f>* rays = nullptr;
@@ -113,6 +142,11 @@ RenderedImage NavcamRenderer::Render(const PinholeCamera& camera, const Pose3& w
   const bool lambert = options_.photometric == "lambert";
   const double corner2 = camera.cx * camera.cx + camera.cy * camera.cy;
   const uint64_t hot_seed = SameCamera(camera, model_.rig.right) ? 2 : 1;  // stuck pixels belong to the sensor
+  const bool deck = options_.deck && world_from_body != nullptr;
+  const Pose3 body_from_world = deck ? world_from_body->inverse() : Pose3::Identity();
+  const Eigen::Vector3d origin_body = body_from_world * origin;
+  const double deck_sun = deck ? std::max(0.0, (world_from_body->linear() * Eigen::Vector3d::UnitZ()).dot(sun)) : 0.0;
+  if (deck) out.deck = cv::Mat::zeros(camera.height, camera.width, CV_8UC1);
   int sky = 0;
 #pragma omp parallel for schedule(dynamic, 4) num_threads(options_.num_threads) reduction(+ : sky)
   for (int v = 0; v < camera.height; ++v) {
@@ -124,8 +158,14 @@ RenderedImage NavcamRenderer::Render(const PinholeCamera& camera, const Pose3& w
       const double ray_norm = ray_cam.norm();
       const Eigen::Vector3d dir = R * (ray_cam / ray_norm);
       double signal = 0.0;
-      const auto hit = terrain_.Raycast(origin, dir, options_.max_range_m);
-      if (hit) {
+      const auto deck_t = deck ? HitDeck(options_, origin_body, body_from_world.linear() * dir) : std::nullopt;
+      const auto hit = deck_t ? std::nullopt : terrain_.Raycast(origin, dir, options_.max_range_m);
+      if (deck_t) {
+        const Eigen::Vector3d q = origin_body + *deck_t * (body_from_world.linear() * dir);
+        signal = options_.exposure_gain_dn * gain_factor * DeckAlbedo(q) * (ambient + (1.0 - ambient) * deck_sun);
+        if (depth_row) depth_row[u] = static_cast<float>(*deck_t / ray_norm);
+        out.deck.at<uint8_t>(v, u) = 255;
+      } else if (hit) {
         const Eigen::Vector3d& p = hit->point;
         const Eigen::Vector3d n = terrain_.Normal(p.x(), p.y());
         const double cos_view = std::max(0.05, std::abs(dir.dot(n)));
@@ -188,8 +228,9 @@ RenderedPair NavcamRenderer::RenderPair(const Pose3& world_from_body, double pan
   RenderedPair pair;
   const Pose3 world_from_left = world_from_body * model_.mast.BodyFromLeft(pan, tilt, model_.rig);
   const Pose3 world_from_right = world_from_body * model_.mast.BodyFromRight(pan, tilt, model_.rig);
-  pair.left = Render(model_.rig.left, world_from_left, noise_seed, with_depth, gain_factor);
-  pair.right = Render(model_.rig.right, world_from_right, HashMix(noise_seed ^ 0x52494748ULL), with_depth, gain_factor);
+  pair.left = Render(model_.rig.left, world_from_left, noise_seed, with_depth, gain_factor, &world_from_body);
+  pair.right = Render(model_.rig.right, world_from_right, HashMix(noise_seed ^ 0x52494748ULL), with_depth, gain_factor,
+                      &world_from_body);
   return pair;
 }
 

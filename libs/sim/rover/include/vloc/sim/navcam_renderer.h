@@ -54,6 +54,14 @@ struct NavcamRenderOptions {
   int adc_bits = 8;                      // 8 (linear) or 12: exposure_gain_dn, black level and noise in 12-bit DN,
                                          // then companded to 8 bits by a square-root table (like MSL's Navcams)
   double hot_pixel_fraction = 0.0;       // fraction of pixels stuck at 255 (fixed per camera)
+  // The rover's own deck (RenderPair only): a flat slab of solar cells at deck_top_m above the body origin,
+  // from deck_rear_m to deck_front_m along the body x axis and +-deck_half_width_m across. Side and low views
+  // see it at the image bottom, at the same place at every site.
+  bool deck = false;
+  double deck_top_m = 0.9;
+  double deck_front_m = 0.3;
+  double deck_rear_m = -1.1;
+  double deck_half_width_m = 0.75;
   int num_threads = 2;                   // OpenMP threads
 
   void Visit(OptionsReader& reader);
@@ -70,6 +78,7 @@ struct RenderedImage {
   cv::Mat depth;        // CV_32F, camera-frame z (m) of each pixel's hit, 0 = none; empty unless asked
   Pose3 world_from_camera = Pose3::Identity();
   int sky_pixels = 0;   // pixels that hit no terrain
+  cv::Mat deck;         // CV_8UC1, 255 where the rover's own deck is seen; empty unless the deck is drawn
   double seconds = 0;   // wall time of the render
 };
 
@@ -86,8 +95,9 @@ class NavcamRenderer {
 
   // Renders one camera at world_from_camera (camera: x right, y down, z forward).
   // gain_factor: this exposure's gain relative to exposure_gain_dn (auto-exposure differing between sites).
+  // world_from_body (optional): the rover body, to draw its deck when options.deck.
   RenderedImage Render(const PinholeCamera& camera, const Pose3& world_from_camera, uint64_t noise_seed,
-                       bool with_depth = false, double gain_factor = 1.0) const;
+                       bool with_depth = false, double gain_factor = 1.0, const Pose3* world_from_body = nullptr) const;
 
   // Renders the stereo pair for the rover at world_from_body with the mast
   // at pan/tilt (rad, as in MastKinematics). The right image uses a noise
