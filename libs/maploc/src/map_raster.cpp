@@ -72,8 +72,11 @@ cv::Mat ReadBand(GDALDataset* ds, int band) {
 
 bool LoadGeoTiff(const std::string& path, MapRaster* map, std::string* error) {
   RegisterGdal();
+  CPLPushErrorHandler(CPLQuietErrorHandler);  // GDAL's own message goes into ours, not to stderr
   GDALDataset* ds = static_cast<GDALDataset*>(GDALOpen(path.c_str(), GA_ReadOnly));
-  if (!ds) return Fail(error, "map " + path + ": GDAL cannot open it (not a GeoTIFF?)");
+  const std::string gdal_message = CPLGetLastErrorMsg();
+  CPLPopErrorHandler();
+  if (!ds) return Fail(error, "map " + path + ": GDAL cannot open it as a GeoTIFF (" + gdal_message + ")");
   double gt[6];
   const bool geo = ds->GetGeoTransform(gt) == CE_None;
   const int bands = ds->GetRasterCount();

@@ -299,16 +299,25 @@ bool SubPixelPeak(const cv::Mat& score, cv::Point p, Eigen::Vector2d* offset, Ei
   return true;
 }
 
-// Parabola through the best fine heading and its neighbours: offset (rad) and curvature (per rad^2).
-void HeadingParabola(const std::vector<HeadingScore>& fine, size_t k, double step, double* offset, double* curvature) {
+// Least-squares parabola through every fine heading's sub-pixel peak value:
+// the heading offset from the best fine sample (rad, within the sweep) and
+// the curvature (per rad^2, < 0 at a maximum; 0 when there is none).
+void HeadingParabola(const std::vector<HeadingScore>& fine, size_t k, double* offset, double* curvature) {
   *offset = 0;
   *curvature = 0;
-  if (k == 0 || k + 1 >= fine.size()) return;
-  const double a = fine[k - 1].peak_value, b = fine[k].peak_value, c = fine[k + 1].peak_value;
-  const double second = a - 2 * b + c;
-  if (!(second < 0)) return;
-  *offset = std::clamp(0.5 * (a - c) / second, -1.0, 1.0) * step;
-  *curvature = second / (step * step);
+  if (fine.size() < 3) return;
+  Eigen::MatrixXd A(fine.size(), 3);
+  Eigen::VectorXd b(fine.size());
+  for (size_t i = 0; i < fine.size(); ++i) {
+    const double d = fine[i].heading - fine[k].heading;
+    A.row(i) << 1.0, d, d * d;
+    b(i) = fine[i].peak_value;
+  }
+  const Eigen::Vector3d c = A.colPivHouseholderQr().solve(b);
+  if (!(c(2) < 0)) return;
+  const double lo = fine.front().heading - fine[k].heading, hi = fine.back().heading - fine[k].heading;
+  *offset = std::clamp(-c(1) / (2 * c(2)), std::min(lo, hi), std::max(lo, hi));
+  *curvature = 2 * c(2);
 }
 
 bool Decide(RegistrationState* s, const HeadingScore& best, bool heading_at_edge, MapFix* fix) {
@@ -386,7 +395,7 @@ MapFix RegisterToMap(const MapRaster& ground_ortho, const MapRaster& map, const 
     return finish(false);
   }
   double dh = 0, curvature = 0;
-  HeadingParabola(fine, kf, step / options.fine_steps, &dh, &curvature);
+  HeadingParabola(fine, kf, &dh, &curvature);
   const Eigen::Vector2d xy = s.crop.WorldOfPixel(best.best.x + s.origin_px.x + offset.x(),
                                                  best.best.y + s.origin_px.y + offset.y());
   fix.xyh << xy.x(), xy.y(), WrapAngle(best.heading + dh);
