@@ -1,10 +1,31 @@
 // map_localizer: rover sites localised against an aerial map (SITE_POSE_FIX).
 //   map_localizer --config config/procs/map_localizer.yaml [--map FILE] [--lcm-url URL]
+#include <chrono>
+#include <filesystem>
 #include <iostream>
+#include <thread>
 
 #include "map_localizer_adapter.h"
 #include "vloc/common/logging.h"
 #include "vloc/lcm_io/process.h"
+
+namespace {
+
+// Waits up to `seconds` for `path` to appear (a map another process is
+// still writing, e.g. vloc_render_map in the same group); false on a stop signal.
+bool WaitForFile(const std::string& path, double seconds) {
+  if (seconds <= 0 || std::filesystem::exists(path)) return true;
+  LOG(INFO) << "map_localizer: waiting up to " << seconds << " s for the map " << path;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (!std::filesystem::exists(path) && std::chrono::steady_clock::now() < deadline) {
+    if (vloc::StopSignalPending()) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // let the writer finish the file
+  return true;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
@@ -26,6 +47,7 @@ int main(int argc, char** argv) {
     std::cerr << "map_localizer: " << e.what() << "\n";
     return 1;
   }
+  if (!WaitForFile(options.map_path, options.wait_for_map_s)) return 0;
   if (!vloc::maploc::LoadMapRaster(options.map_path, &map, &error,
                                    Eigen::Vector2d(options.map_offset_xy[0], options.map_offset_xy[1]))) {
     std::cerr << "map_localizer: " << error << "\n";

@@ -15,6 +15,7 @@ void MapLocalizerProcOptions::Visit(OptionsReader& r) {
   r.Optional("map_path", &map_path, "GeoTIFF or PNG + world file of the aerial map");
   r.Optional("map_offset_xy", &map_offset_xy, "m, subtracted from the map coordinates");
   r.Optional("reload_map_on_change", &reload_map_on_change, "re-read the map file when it changes");
+  r.Optional("wait_for_map_s", &wait_for_map_s, "s, wait at start for the map file to appear");
   r.Optional("stereo_channel", &stereo_channel, "stereo_image_t in");
   r.Optional("traverse_channel", &traverse_channel, "traverse_t in");
   r.Optional("dr_channel", &dr_channel, "site_pose_t in (prior before the graph has the site)");
@@ -31,6 +32,7 @@ bool MapLocalizerProcOptions::Check(std::string* error) const {
   if (stereo_channel.empty() || traverse_channel.empty() || fix_channel.empty())
     return Fail(error, "stereo_channel, traverse_channel and fix_channel must not be empty");
   if (fix_every < 1) return Fail(error, "fix_every must be >= 1");
+  if (!(wait_for_map_s >= 0)) return Fail(error, "wait_for_map_s must be >= 0");
   if (queue_capacity < 1) return Fail(error, "queue_capacity must be >= 1");
   std::string sub;
   if (!ortho.Check(&sub)) return Fail(error, "ortho." + sub);

@@ -31,6 +31,7 @@ struct MapLocalizerProcOptions {
   std::string map_path = "";                         // GeoTIFF (grey [+ height band]) or PNG/JPEG + world file
   std::vector<double> map_offset_xy = {0.0, 0.0};    // m, subtracted from the map's coordinates (-> world frame)
   bool reload_map_on_change = true;                  // re-read map_path when the file changes (a mosaic being updated)
+  double wait_for_map_s = 0.0;                       // s, wait this long at start for map_path to appear (0 = not)
   std::string stereo_channel = "NAVCAM_STEREO";      // stereo_image_t in
   std::string traverse_channel = "TRAVERSE";         // traverse_t in: predicted pose + covariance
   std::string dr_channel = "SITE_POSE_DR";           // site_pose_t in: prior before the graph has the site

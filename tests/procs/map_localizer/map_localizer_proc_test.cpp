@@ -118,6 +118,12 @@ TEST(MapLocalizerProcess, BadMapFileStopsWithOneErrorLine) {
     if (line.rfind("map_localizer: ", 0) == 0 || line.find("ERROR") != std::string::npos) lines.push_back(line);
   ASSERT_EQ(lines.size(), 1u) << proc.output();
   EXPECT_NE(lines[0].find("map.tif"), std::string::npos) << lines[0];
+  // The shipped config parses; the bad map (given by --map) still stops it at once.
+  testing::Subprocess shipped({testing::BinPath("map_localizer"), "--config", "config/procs/map_localizer.yaml",
+                               "--map", (dir / "map.tif").string(), "--lcm-url", "memq://"});
+  EXPECT_EQ(shipped.WaitExit(20), 1) << shipped.output();
+  EXPECT_NE(shipped.output().find("map_localizer: map " + (dir / "map.tif").string()), std::string::npos)
+      << shipped.output();
   std::filesystem::remove_all(dir);
 }
 

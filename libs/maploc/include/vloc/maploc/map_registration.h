@@ -42,7 +42,7 @@ struct RegistrationOptions {
   double highpass_sigma_m = 1.5;      // m, Gaussian removed from both rasters (high pass)
   double lowpass_sigma_px = 0.7;      // px, Gaussian applied to both rasters (anti-alias)
   double gray_weight = 1.0;           // weight of the grey-level ZNCC
-  double height_weight = 1.0;         // weight of the height ZNCC (when the map has heights)
+  double height_weight = 2.0;         // weight of the height ZNCC (when the map has heights; sun-independent)
   int min_valid_cells = 300;          // orthophoto cells with data, at the map's resolution
   double min_overlap = 0.9;           // fraction of the orthophoto that must fall on valid map cells
   double min_gray_texture = 0.5;      // grey levels, high-passed std below this = featureless (grey scale 0..255)
@@ -51,7 +51,7 @@ struct RegistrationOptions {
   double max_peak_ratio = 0.8;        // second peak / best peak above this = ambiguous
   double exclusion_radius_m = 2.0;    // m, the second peak: the best local maximum this far from the best, any heading
   double covariance_scale = 60.0;     // k in cov = k (1 - rho) H^-1 / N, position (calibrated: bench_maploc_sites)
-  double heading_covariance_scale = 150.0;  // k of the heading variance (calibrated likewise)
+  double heading_covariance_scale = 50.0;   // k of the heading variance (calibrated likewise)
   double min_position_sigma_m = 0.02; // m, floor of the reported position sigma
   double min_heading_sigma_deg = 0.05;// deg, floor of the reported heading sigma
   double tilt_sigma_rad = 0.5;        // rad, roll/pitch sigma of the published fix (the map does not see them)
