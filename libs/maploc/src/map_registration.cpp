@@ -32,6 +32,7 @@ void RegistrationOptions::Visit(OptionsReader& r) {
   r.Optional("max_heading_range_deg", &max_heading_range_deg, "deg, largest heading half range");
   r.Optional("heading_step_deg", &heading_step_deg, "deg, coarse heading step");
   r.Optional("fine_steps", &fine_steps, "fine heading steps per coarse step");
+  r.Optional("heading_fit_half_width", &heading_fit_half_width, "fine steps each side in the heading parabola");
   r.Optional("highpass_sigma_m", &highpass_sigma_m, "m, Gaussian removed (high pass)");
   r.Optional("lowpass_sigma_px", &lowpass_sigma_px, "px, anti-alias Gaussian");
   r.Optional("gray_weight", &gray_weight, "weight of the grey ZNCC");
@@ -59,6 +60,7 @@ bool RegistrationOptions::Check(std::string* error) const {
     return Fail(error, "need 0 <= min_heading_range_deg <= max_heading_range_deg <= 180");
   if (!(heading_step_deg > 0.01 && heading_step_deg <= 10)) return Fail(error, "heading_step_deg must be in (0.01, 10]");
   if (fine_steps < 1 || fine_steps > 20) return Fail(error, "fine_steps must be in 1..20");
+  if (heading_fit_half_width < 1) return Fail(error, "heading_fit_half_width must be >= 1");
   if (!(highpass_sigma_m > 0) || !(lowpass_sigma_px >= 0)) return Fail(error, "highpass_sigma_m > 0, lowpass_sigma_px >= 0");
   if (!(gray_weight >= 0 && height_weight >= 0 && gray_weight + height_weight > 0))
     return Fail(error, "gray_weight and height_weight must be >= 0, not both 0");
@@ -299,23 +301,28 @@ bool SubPixelPeak(const cv::Mat& score, cv::Point p, Eigen::Vector2d* offset, Ei
   return true;
 }
 
-// Least-squares parabola through every fine heading's sub-pixel peak value:
+// Least-squares parabola through the fine headings' sub-pixel peak values
+// within half_width steps of the best:
 // the heading offset from the best fine sample (rad, within the sweep) and
 // the curvature (per rad^2, < 0 at a maximum; 0 when there is none).
-void HeadingParabola(const std::vector<HeadingScore>& fine, size_t k, double* offset, double* curvature) {
+void HeadingParabola(const std::vector<HeadingScore>& fine, size_t k, int half_width, double* offset,
+                     double* curvature) {
   *offset = 0;
   *curvature = 0;
-  if (fine.size() < 3) return;
-  Eigen::MatrixXd A(fine.size(), 3);
-  Eigen::VectorXd b(fine.size());
-  for (size_t i = 0; i < fine.size(); ++i) {
-    const double d = fine[i].heading - fine[k].heading;
+  const size_t first = k >= static_cast<size_t>(half_width) ? k - half_width : 0;
+  const size_t last = std::min(fine.size() - 1, k + half_width);
+  if (last - first < 2) return;
+  const int n = static_cast<int>(last - first + 1);
+  Eigen::MatrixXd A(n, 3);
+  Eigen::VectorXd b(n);
+  for (int i = 0; i < n; ++i) {
+    const double d = fine[first + i].heading - fine[k].heading;
     A.row(i) << 1.0, d, d * d;
-    b(i) = fine[i].peak_value;
+    b(i) = fine[first + i].peak_value;
   }
   const Eigen::Vector3d c = A.colPivHouseholderQr().solve(b);
   if (!(c(2) < 0)) return;
-  const double lo = fine.front().heading - fine[k].heading, hi = fine.back().heading - fine[k].heading;
+  const double lo = fine[first].heading - fine[k].heading, hi = fine[last].heading - fine[k].heading;
   *offset = std::clamp(-c(1) / (2 * c(2)), std::min(lo, hi), std::max(lo, hi));
   *curvature = 2 * c(2);
 }
@@ -395,7 +402,7 @@ MapFix RegisterToMap(const MapRaster& ground_ortho, const MapRaster& map, const 
     return finish(false);
   }
   double dh = 0, curvature = 0;
-  HeadingParabola(fine, kf, &dh, &curvature);
+  HeadingParabola(fine, kf, options.heading_fit_half_width, &dh, &curvature);
   const Eigen::Vector2d xy = s.crop.WorldOfPixel(best.best.x + s.origin_px.x + offset.x(),
                                                  best.best.y + s.origin_px.y + offset.y());
   fix.xyh << xy.x(), xy.y(), WrapAngle(best.heading + dh);

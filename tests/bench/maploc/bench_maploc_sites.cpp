@@ -4,7 +4,7 @@
 // by sigma_xy / sigma_heading. Prints each site's error and the summary:
 // median horizontal error, heading error, mean NEES (x, y: dimension 2;
 // x, y, heading: 3). Used to calibrate RegistrationOptions::covariance_scale.
-//   bench_maploc_sites [--sites 12] [--seed 7] [--res 0.2] [--sigma-xy 1.0] [--sigma-heading-deg 2] [--scale K] [--heading-scale K] [--height-weight W] [--max-peak-ratio R] [--max-range M]
+//   bench_maploc_sites [--sites 12] [--seed 7] [--res 0.2] [--sigma-xy 1.0] [--sigma-heading-deg 2] [--scale K] [--heading-scale K] [--height-weight W] [--max-peak-ratio R] [--max-range M] [--heading-fit N] [--sigma-multiple S]
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -42,6 +42,8 @@ int main(int argc, char** argv) {
   reg.covariance_scale = Arg(argc, argv, "--scale", reg.covariance_scale);
   reg.heading_covariance_scale = Arg(argc, argv, "--heading-scale", reg.heading_covariance_scale);
   reg.height_weight = Arg(argc, argv, "--height-weight", reg.height_weight);
+  reg.heading_fit_half_width = static_cast<int>(Arg(argc, argv, "--heading-fit", reg.heading_fit_half_width));
+  reg.sigma_multiple = Arg(argc, argv, "--sigma-multiple", reg.sigma_multiple);
   reg.max_peak_ratio = Arg(argc, argv, "--max-peak-ratio", reg.max_peak_ratio);
   const double max_range = Arg(argc, argv, "--max-range", 12.0);
   const sim::RoverWorld world(testing::MaplocWorldOptions(s));

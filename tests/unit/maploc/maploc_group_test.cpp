@@ -4,19 +4,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdlib>
 
 #include "vloc/launch/group_file.h"
 
 namespace vloc::launch {
 namespace {
-
-VariableLookup Vars(std::map<std::string, std::string> vars) {
-  return [vars](const std::string& name) -> std::optional<std::string> {
-    auto it = vars.find(name);
-    if (it == vars.end()) return std::nullopt;
-    return it->second;
-  };
-}
 
 const ProcessSpec& Find(const GroupFile& file, const std::string& name) {
   const auto it = std::find_if(file.processes.begin(), file.processes.end(),
@@ -26,9 +19,13 @@ const ProcessSpec& Find(const GroupFile& file, const std::string& name) {
 }
 
 TEST(RoverSimMapGroup, ParsesWithTheMapLocalizerBeforeTheSimulator) {
-  std::map<std::string, std::string> vars = {{"VLOC_BIN", "/b"}, {"VLOC_ROOT", "/r"},
-                                             {"VLOC_LCM_URL", "udpm://239.255.76.67:7667?ttl=0"}, {"VLOC_LOG_DIR", "/logs"}};
-  const GroupFile file = ParseGroupFile("config/groups/rover_sim_map.yaml", Vars(vars));
+  // The launcher's variables, as vloc_launch sets them, from this test's environment.
+  setenv("VLOC_BIN", "/b", 1);
+  setenv("VLOC_ROOT", "/r", 1);
+  setenv("VLOC_LCM_URL", "udpm://239.255.76.67:7667?ttl=0", 1);
+  setenv("VLOC_LOG_DIR", "/logs", 1);
+  unsetenv("VLOC_MAP_NAME");
+  const GroupFile file = ParseGroupFile("config/groups/rover_sim_map.yaml");
   EXPECT_EQ(file.Groups(), std::vector<std::string>{"rover_sim_map"});
   const ProcessSpec& localizer = Find(file, "map_localizer");
   EXPECT_EQ(localizer.command, "/b/map_localizer");
@@ -36,8 +33,8 @@ TEST(RoverSimMapGroup, ParsesWithTheMapLocalizerBeforeTheSimulator) {
   EXPECT_EQ(Find(file, "render_map").args[3], "/logs/sim_map_20cm.tif");
   const auto& sim_deps = Find(file, "sim_rover").depends_on;
   EXPECT_NE(std::find(sim_deps.begin(), sim_deps.end(), "map_localizer"), sim_deps.end());
-  vars["VLOC_MAP_NAME"] = "orbital.tif";
-  EXPECT_EQ(Find(ParseGroupFile("config/groups/rover_sim_map.yaml", Vars(vars)), "map_localizer").args.back(),
+  setenv("VLOC_MAP_NAME", "orbital.tif", 1);
+  EXPECT_EQ(Find(ParseGroupFile("config/groups/rover_sim_map.yaml"), "map_localizer").args.back(),
             "/logs/orbital.tif");
 }
 

@@ -39,6 +39,7 @@ struct RegistrationOptions {
   double max_heading_range_deg = 30.0;// deg, ... up to this
   double heading_step_deg = 1.0;      // deg, coarse heading step
   int fine_steps = 4;                 // the best coarse heading refined at heading_step_deg / this
+  int heading_fit_half_width = 4;     // fine steps each side of the best in the heading parabola (least squares)
   double highpass_sigma_m = 1.5;      // m, Gaussian removed from both rasters (high pass)
   double lowpass_sigma_px = 0.7;      // px, Gaussian applied to both rasters (anti-alias)
   double gray_weight = 1.0;           // weight of the grey-level ZNCC
