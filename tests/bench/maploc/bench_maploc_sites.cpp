@@ -63,7 +63,13 @@ int main(int argc, char** argv) {
         maploc::BuildGroundOrtho(world.RenderSite(site.site_id), world.options().navcam, rpy.x(), rpy.y(), ortho_options, &os);
     const maploc::MapFix fix = maploc::RegisterToMap(ortho, map, maploc::SitePriorFromPose(prior), reg);
     std::printf("site %2d: ortho %s\n         %s\n", site.site_id, os.BriefReport().c_str(), fix.BriefReport().c_str());
-    if (!fix.usable) continue;
+    if (!fix.usable) {
+      std::printf("         prior off by %.2f m, %.2f deg; truth at %.1f, %.1f\n",
+                  (prior.pose.translation() - truth.translation()).head<2>().norm(),
+                  WrapAngle(Heading(prior.pose) - Heading(truth)) * 180 / M_PI, truth.translation().x(),
+                  truth.translation().y());
+      continue;
+    }
     ++fixes;
     Eigen::Vector3d e(fix.xyh.x() - truth.translation().x(), fix.xyh.y() - truth.translation().y(),
                       WrapAngle(fix.xyh.z() - Heading(truth)));

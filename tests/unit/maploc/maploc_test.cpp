@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
@@ -205,6 +206,7 @@ TEST(MapLocalization, FeaturelessSandGivesNoFixWithTheReason) {
   const auto results = LocaliseSites(s, {1}, &sand, &sand);
   EXPECT_FALSE(results[0].fix.usable) << results[0].fix.BriefReport();
   EXPECT_NE(results[0].fix.message.find("featureless"), std::string::npos) << results[0].fix.message;
+  std::printf("featureless sand: %s\n", results[0].fix.BriefReport().c_str());
 }
 
 // The wrong map (another terrain): no fix.
@@ -214,7 +216,13 @@ TEST(MapLocalization, WrongMapGivesNoFix) {
   sim::TerrainOptions other = testing::MaplocWorldOptions(s).terrain;
   other.seed = 99;
   const auto results = LocaliseSites(s, {1, 2}, &other);
-  for (const SiteResult& r : results) EXPECT_FALSE(r.fix.usable) << r.fix.BriefReport();
+  for (const SiteResult& r : results) {
+    EXPECT_FALSE(r.fix.usable) << r.fix.BriefReport();
+    EXPECT_TRUE(r.fix.message.find("weak correlation") != std::string::npos ||
+                r.fix.message.find("ambiguous") != std::string::npos)
+        << r.fix.message;
+    std::printf("wrong map: %s\n", r.fix.BriefReport().c_str());
+  }
 }
 
 // A map older than the rover's view: the rocks are different (another rock
@@ -228,6 +236,7 @@ TEST(MapLocalization, OlderMapWithOtherRocksGivesARightFixOrNone) {
   older.rock_density = 2.0 * now.rock_density;  // a different rock field
   const auto results = LocaliseSites(s, {1, 2}, &older);
   for (const SiteResult& r : results) {
+    std::printf("older map: %s\n", r.fix.BriefReport().c_str());
     if (!r.fix.usable) continue;
     const Eigen::Vector3d e = FixError(r);
     EXPECT_LT(e.head<2>().dot(r.fix.covariance.topLeftCorner<2, 2>().inverse() * e.head<2>()), 13.8)
