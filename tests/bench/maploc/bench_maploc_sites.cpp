@@ -1,10 +1,11 @@
 // Absolute fixes of simulated rover sites against a rendered aerial map:
-// per site the Navcam panorama (512 x 512 Navcam) -> ground orthophoto ->
+// per site the Navcam panorama (512 x 512 Navcam: the shipped 1024 x 1024 Navcam at
+// map_localizer's downsample 2) -> ground orthophoto ->
 // registration to a 20 cm/px map under another sun, from a prior perturbed
 // by sigma_xy / sigma_heading. Prints each site's error and the summary:
 // median horizontal error, heading error, mean NEES (x, y: dimension 2;
 // x, y, heading: 3). Used to calibrate RegistrationOptions::covariance_scale.
-//   bench_maploc_sites [--sites 12] [--seed 7] [--res 0.2] [--sigma-xy 1.0] [--sigma-heading-deg 2] [--scale K] [--heading-scale K] [--height-weight W] [--max-peak-ratio R] [--max-range M] [--heading-fit N] [--sigma-multiple S]
+//   bench_maploc_sites [--sites 12] [--seed 7] [--res 0.2] [--sigma-xy 1.0] [--sigma-heading-deg 2] [--scale K] [--heading-scale K] [--height-weight W] [--max-peak-ratio R] [--max-range M] [--heading-fit N] [--downsample 1] [--sigma-multiple S]
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -51,6 +52,7 @@ int main(int argc, char** argv) {
   maploc::GroundOrthoOptions ortho_options;
   ortho_options.m_per_px = s.map_m_per_px;
   ortho_options.max_range_m = max_range;
+  ortho_options.downsample = static_cast<int>(Arg(argc, argv, "--downsample", 1));  // 512 px rendered = the real 1024 px / 2
   std::mt19937 rng(s.seed);
   std::vector<double> errors, heading_errors, nees2, nees3;
   int fixes = 0;

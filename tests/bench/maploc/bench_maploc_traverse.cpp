@@ -7,7 +7,7 @@
 // Prints per site the distance driven and the horizontal error of both, and
 // the summary (end error, worst error, sites where the fused estimate is
 // worse than the chain).
-//   bench_maploc_traverse [--sites 50] [--fix-every 5] [--seed 3] [--leg-noise 0.01] [--leg-heading-deg 0.2]
+//   bench_maploc_traverse [--sites 50] [--fix-every 5] [--seed 3] [--leg-noise 0.01] [--leg-heading-deg 0.2] [--downsample 1]
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -75,6 +75,7 @@ int Run(int argc, char** argv) {
   const maploc::MapRaster map = testing::RenderMapOf(world.options().terrain, s);
   maploc::GroundOrthoOptions ortho_options;
   ortho_options.m_per_px = s.map_m_per_px;
+  ortho_options.downsample = static_cast<int>(Arg(argc, argv, "--downsample", 1));  // 512 px = the real 1024 px / 2
   const maploc::RegistrationOptions reg;
   posegraph::TraverseGraph chain(GraphOptions()), fused(GraphOptions());
   std::mt19937 rng(s.seed);

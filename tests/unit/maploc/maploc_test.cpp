@@ -131,13 +131,15 @@ struct SiteResult {
 std::vector<SiteResult> LocaliseSites(const testing::MaplocScenarioOptions& s, const std::vector<int>& sites,
                                       const sim::TerrainOptions* map_terrain = nullptr,
                                       const sim::TerrainOptions* world_terrain = nullptr, double sigma_xy = 1.0,
-                                      MapRaster* ortho_out = nullptr, std::unique_ptr<sim::RoverWorld>* world_out = nullptr) {
+                                      MapRaster* ortho_out = nullptr, std::unique_ptr<sim::RoverWorld>* world_out = nullptr,
+                                      int downsample = 2) {
   sim::RoverWorldOptions wo = testing::MaplocWorldOptions(s);
   if (world_terrain) wo.terrain = *world_terrain;
   auto world = std::make_unique<sim::RoverWorld>(wo);
   const MapRaster map = testing::RenderMapOf(map_terrain ? *map_terrain : wo.terrain, s);
   GroundOrthoOptions oo;
   oo.m_per_px = s.map_m_per_px;
+  oo.downsample = downsample;
   std::mt19937 rng(s.seed);
   std::vector<SiteResult> out;
   for (int id : sites) {
@@ -159,7 +161,8 @@ Eigen::Vector3d FixError(const SiteResult& r) {
           WrapAngle(r.fix.xyh.z() - Heading(r.truth))};
 }
 
-// Three sites of a 6-site traverse, map at 20 cm/px under another sun, prior
+// Three sites of a 6-site traverse (512 px images at full size: the shipped
+// 1024 px Navcam at map_localizer's downsample 2), map at 20 cm/px under another sun, prior
 // 1 m / 2 deg off: every site fixed within 0.2 m and 0.5 deg of the truth, and
 // within the 99.9 % ellipse of its covariance. The orthophoto's heights agree
 // with the terrain. (The NEES mean over many sites: bench_maploc_sites.)
@@ -167,7 +170,7 @@ TEST(MapLocalization, SitesFixedAgainstA20cmMapUnderAnotherSun) {
   testing::MaplocScenarioOptions s;
   MapRaster ortho;
   std::unique_ptr<sim::RoverWorld> world;
-  const auto results = LocaliseSites(s, {1, 3, 5}, nullptr, nullptr, 1.0, &ortho, &world);
+  const auto results = LocaliseSites(s, {1, 3, 5}, nullptr, nullptr, 1.0, &ortho, &world, /*downsample=*/1);
   for (const SiteResult& r : results) {
     ASSERT_TRUE(r.fix.usable) << r.fix.BriefReport();
     const Eigen::Vector3d e = FixError(r);
