@@ -5,7 +5,7 @@
 // by sigma_xy / sigma_heading. Prints each site's error and the summary:
 // median horizontal error, heading error, mean NEES (x, y: dimension 2;
 // x, y, heading: 3). Used to calibrate RegistrationOptions::covariance_scale.
-//   bench_maploc_sites [--sites 12] [--seed 7] [--res 0.2] [--sigma-xy 1.0] [--sigma-heading-deg 2] [--scale K] [--heading-scale K] [--height-weight W] [--max-peak-ratio R] [--max-range M] [--heading-fit N] [--downsample 1] [--sigma-multiple S]
+//   bench_maploc_sites [--sites 12] [--seed 7] [--res 0.2] [--sigma-xy 1.0] [--sigma-heading-deg 2] [--scale K] [--heading-scale K] [--height-weight W] [--max-peak-ratio R] [--max-range M] [--heading-fit N] [--downsample 1] [--sigma-multiple S] [--dump DIR]
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -14,6 +14,10 @@
 #include <random>
 #include <string>
 
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "../../../libs/maploc/src/masked_correlation.h"
 #include "vloc/maploc/ground_ortho.h"
 #include "vloc/maploc/map_registration.h"
 #include "vloc/testing/maploc_scenario.h"
@@ -24,6 +28,49 @@ double Arg(int argc, char** argv, const char* name, double fallback) {
   for (int i = 1; i + 1 < argc; ++i)
     if (!std::strcmp(argv[i], name)) return std::atof(argv[i + 1]);
   return fallback;
+}
+
+const char* StringArg(int argc, char** argv, const char* name) {
+  for (int i = 1; i + 1 < argc; ++i)
+    if (!std::strcmp(argv[i], name)) return argv[i + 1];
+  return nullptr;
+}
+
+// A band as 8-bit for a picture: min..max over valid cells -> 0..255, unseen cells black.
+cv::Mat Picture(const cv::Mat& band, const cv::Mat& valid, int scale) {
+  double lo, hi;
+  cv::minMaxLoc(band, &lo, &hi, nullptr, nullptr, valid);
+  cv::Mat out;
+  band.convertTo(out, CV_8U, 254.0 / std::max(hi - lo, 1e-6), 1 - 254.0 * lo / std::max(hi - lo, 1e-6));
+  out.setTo(0, valid == 0);
+  cv::resize(out, out, cv::Size(), scale, scale, cv::INTER_NEAREST);
+  return out;
+}
+
+// Side by side, north up, same extent: the rover's orthophoto grey and height turned by the fix's
+// heading, the map's grey and height around the fix. Written to <dir>/maploc_site<N>.png.
+void DumpPicture(const char* dir, int site, const vloc::maploc::MapRaster& ortho, const vloc::maploc::MapRaster& map,
+                 const vloc::maploc::MapFix& fix) {
+  using namespace vloc::maploc;
+  const MapRaster rover = ResampleRaster(ortho, map.m_per_px);
+  const Eigen::Vector2d o = rover.PixelOfWorld(Eigen::Vector2d::Zero());
+  const cv::Point2d centre(o.x(), o.y());
+  cv::Mat valid;
+  rover.valid.convertTo(valid, CV_32F);
+  valid = internal::RotateAbout(valid, fix.xyh.z(), centre, cv::INTER_NEAREST) > 0;
+  const MapRaster crop = CropRaster(map, fix.xyh.head<2>(), (rover.gray.cols / 2 - 0.5) * map.m_per_px);
+  cv::Mat crop_valid = crop.valid(cv::Rect(0, 0, valid.cols, valid.rows)).clone();
+  std::vector<cv::Mat> tiles = {
+      Picture(internal::RotateAbout(rover.gray, fix.xyh.z(), centre, cv::INTER_LINEAR), valid, 3),
+      Picture(crop.gray(cv::Rect(0, 0, valid.cols, valid.rows)), crop_valid, 3),
+      Picture(internal::RotateAbout(rover.height, fix.xyh.z(), centre, cv::INTER_LINEAR), valid, 3),
+      Picture(crop.height(cv::Rect(0, 0, valid.cols, valid.rows)), crop_valid, 3)};
+  cv::Mat row;
+  cv::hconcat(tiles, row);
+  const std::string path = std::string(dir) + "/maploc_site" + std::to_string(site) + ".png";
+  cv::imwrite(path, row);
+  std::printf("         wrote %s (rover grey | map grey | rover height | map height, north up, %.0f m wide)\n",
+              path.c_str(), valid.cols * map.m_per_px);
 }
 
 }  // namespace
@@ -65,6 +112,7 @@ int main(int argc, char** argv) {
         maploc::BuildGroundOrtho(world.RenderSite(site.site_id), world.options().navcam, rpy.x(), rpy.y(), ortho_options, &os);
     const maploc::MapFix fix = maploc::RegisterToMap(ortho, map, maploc::SitePriorFromPose(prior), reg);
     std::printf("site %2d: ortho %s\n         %s\n", site.site_id, os.BriefReport().c_str(), fix.BriefReport().c_str());
+    if (fix.usable && StringArg(argc, argv, "--dump")) DumpPicture(StringArg(argc, argv, "--dump"), site.site_id, ortho, map, fix);
     if (!fix.usable) {
       std::printf("         prior off by %.2f m, %.2f deg; truth at %.1f, %.1f\n",
                   (prior.pose.translation() - truth.translation()).head<2>().norm(),
