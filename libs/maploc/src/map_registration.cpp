@@ -229,7 +229,6 @@ HeadingScore ScoreHeading(const RegistrationState& s, double heading) {
   cv::Mat map_valid;
   s.crop.valid.convertTo(map_valid, CV_32F, 1.0 / 255);
   const double total_weight = s.gray_weight + s.height_weight;
-  h.score = cv::Mat::zeros(1, 1, CV_32F);
   auto correlate = [&](const cv::Mat& templ, const cv::Mat& image) {
     return MaskedZncc(image, map_valid, RotateAbout(templ, angle, s.origin_px, cv::INTER_LINEAR), mask, s.o.min_overlap);
   };

@@ -1,6 +1,6 @@
 // A 50-site simulated traverse: the relative chain (cross-site results with
 // known noise: per leg 1 % of its length per horizontal axis, 0.2 deg of
-// heading) alone, against the same chain in the traverse pose graph with an
+// heading; plus dead reckoning at 5 %/m, 0.002 rad/m as weak edges) alone, against the same chain in the traverse pose graph with an
 // absolute fix attempted at every fifth site (real fixes: the site's Navcam
 // panorama rendered, its ground orthophoto registered to a 20 cm/px aerial
 // map under another sun, from the graph's predicted pose and covariance).
@@ -30,9 +30,21 @@ double Arg(int argc, char** argv, const char* name, double fallback) {
 
 struct ChainNoise {
   double position_fraction = 0.01;  // 1-sigma per horizontal axis, fraction of the leg length
-  double heading_rad = 0.2 * M_PI / 180;
+  double heading_rad = 0.2 * M_PI / 180;  // 1-sigma per leg ...
+  double heading_per_metre = 0;            // ... plus this per metre of the leg (rad/m)
   double tilt_rad = 0.05 * M_PI / 180;
 };
+
+// Dead reckoning as the graph's per-metre DR model describes it (PoseGraphOptions defaults:
+// 5 % of the distance per horizontal axis, 0.002 rad/m of heading, 0.005 rad of tilt).
+ChainNoise DeadReckoningNoise() {
+  ChainNoise n;
+  n.position_fraction = 0.05;
+  n.heading_rad = 0;
+  n.heading_per_metre = 0.002;
+  n.tilt_rad = 0.005;
+  return n;
+}
 
 // previous_from_current of the truth with the chain's noise, and its covariance.
 PoseWithCovariance NoisyLeg(const Pose3& previous, const Pose3& current, const ChainNoise& n, std::mt19937* rng) {
@@ -41,7 +53,7 @@ PoseWithCovariance NoisyLeg(const Pose3& previous, const Pose3& current, const C
   const double len = std::max(0.5, rel.translation().norm());
   const double sp = n.position_fraction * len, sz = 0.5 * sp;
   Vector6d sigma;
-  sigma << sp, sp, sz, n.tilt_rad, n.tilt_rad, n.heading_rad;
+  sigma << sp, sp, sz, n.tilt_rad, n.tilt_rad, n.heading_rad + n.heading_per_metre * len;
   Vector6d e;
   for (int k = 0; k < 6; ++k) e(k) = sigma(k) * g(*rng);
   PoseWithCovariance out;
@@ -83,10 +95,11 @@ int Run(int argc, char** argv) {
   int fixes = 0, attempts = 0, worse = 0;
   double worst_chain = 0, worst_fused = 0;
   std::printf("site  distance_m  chain_err_m  fused_err_m  fix\n");
+  PoseWithCovariance dr;  // dead reckoning with its own noise (weak per-metre edges in both graphs)
   for (size_t i = 0; i < sites.size(); ++i) {
     const Pose3& truth = sites[i].world_from_body;
-    PoseWithCovariance dr;
-    dr.pose = truth;  // node initial value; DR edges are weak (per metre)
+    if (i == 0) dr.pose = truth;
+    else dr.pose = dr.pose * NoisyLeg(sites[i - 1].world_from_body, truth, DeadReckoningNoise(), &rng).pose;
     for (posegraph::TraverseGraph* g : {&chain, &fused}) g->AddDeadReckoning(static_cast<int>(i), dr);
     if (i > 0) {
       const PoseWithCovariance leg = NoisyLeg(sites[i - 1].world_from_body, truth, noise, &rng);
