@@ -49,7 +49,9 @@ void RegistrationOptions::Visit(OptionsReader& r) {
   r.Optional("min_position_sigma_m", &min_position_sigma_m, "m, floor of the position sigma");
   r.Optional("min_heading_sigma_deg", &min_heading_sigma_deg, "deg, floor of the heading sigma");
   r.Optional("tilt_sigma_rad", &tilt_sigma_rad, "rad, roll/pitch sigma of the published fix");
-  r.Optional("vertical_sigma_m", &vertical_sigma_m, "m, z sigma added to the prior's");
+  r.Optional("vertical_sigma_m", &vertical_sigma_m, "m, z sigma added to the prior's (map without heights)");
+  r.Optional("min_vertical_sigma_m", &min_vertical_sigma_m, "m, floor of the z sigma from the map's heights");
+  r.Optional("vertical_correlation_cells", &vertical_correlation_cells, "cells per independent height difference");
 }
 
 bool RegistrationOptions::Check(std::string* error) const {
@@ -72,6 +74,8 @@ bool RegistrationOptions::Check(std::string* error) const {
   if (!(covariance_scale > 0 && heading_covariance_scale > 0)) return Fail(error, "covariance scales must be > 0");
   if (!(min_position_sigma_m > 0 && min_heading_sigma_deg > 0 && tilt_sigma_rad > 0 && vertical_sigma_m > 0))
     return Fail(error, "sigma floors and fix sigmas must be > 0");
+  if (!(min_vertical_sigma_m > 0 && vertical_correlation_cells >= 1))
+    return Fail(error, "min_vertical_sigma_m must be > 0, vertical_correlation_cells >= 1");
   if (!(min_gray_texture >= 0 && min_height_texture_m >= 0)) return Fail(error, "texture thresholds must be >= 0");
   return true;
 }
@@ -91,7 +95,8 @@ std::string MapFix::BriefReport() const {
   s << (usable ? "fix" : "no fix") << " (" << message << "): x " << xyh.x() << " y " << xyh.y() << " heading "
     << xyh.z() / kDeg << " deg, sigma " << std::sqrt(covariance(0, 0)) << " / " << std::sqrt(covariance(1, 1))
     << " m, " << std::sqrt(covariance(2, 2)) / kDeg << " deg; peak " << peak_score << " (grey " << gray_score
-    << ", height " << height_score << "), second " << second_score << ", " << valid_cells << " cells, window "
+    << ", height " << height_score << "), z " << (has_z ? std::to_string(z) + " +- " + std::to_string(z_sigma) : "-")
+    << ", second " << second_score << ", " << valid_cells << " cells, window "
     << search_radius_m << " m +-" << heading_range_deg << " deg, " << headings_tried << " headings, " << seconds
     << " s";
   return s.str();
@@ -345,6 +350,34 @@ bool Decide(RegistrationState* s, const HeadingScore& best, bool heading_at_edge
   return true;
 }
 
+// The body's world z: median over the placed orthophoto of map height minus
+// orthophoto height (heights of the level frame are relative to the body).
+void MeasureHeight(const RegistrationState& s, const HeadingScore& best, MapFix* fix) {
+  if (!s.crop.has_height() || !s.rover.has_height()) return;
+  cv::Mat mask;
+  s.rover_bands.mask.copyTo(mask);
+  mask = RotateAbout(mask, best.heading, s.origin_px, cv::INTER_LINEAR);
+  const cv::Mat height = RotateAbout(s.rover.height, best.heading, s.origin_px, cv::INTER_LINEAR);
+  std::vector<double> dz;
+  for (int r = 0; r < mask.rows; ++r)
+    for (int c = 0; c < mask.cols; ++c) {
+      const int mr = best.best.y + r, mc = best.best.x + c;
+      if (mask.at<float>(r, c) < 0.999 || mr >= s.crop.height.rows || mc >= s.crop.height.cols ||
+          !s.crop.valid.at<uint8_t>(mr, mc))
+        continue;
+      dz.push_back(s.crop.height.at<float>(mr, mc) - height.at<float>(r, c));
+    }
+  if (dz.size() < 10) return;
+  std::nth_element(dz.begin(), dz.begin() + dz.size() / 2, dz.end());
+  const double median = dz[dz.size() / 2];
+  for (double& d : dz) d = std::abs(d - median);
+  std::nth_element(dz.begin(), dz.begin() + dz.size() / 2, dz.end());
+  const double spread = 1.4826 * dz[dz.size() / 2];
+  fix->has_z = true;
+  fix->z = median;
+  fix->z_sigma = std::hypot(spread / std::sqrt(dz.size() / s.o.vertical_correlation_cells), s.o.min_vertical_sigma_m);
+}
+
 void FillCovariance(const RegistrationState& s, const Eigen::Matrix2d& H, double heading_curvature, MapFix* fix) {
   const RegistrationOptions& o = s.o;
   const double rho = std::clamp(fix->peak_score, 0.0, 0.999);
@@ -406,6 +439,7 @@ MapFix RegisterToMap(const MapRaster& ground_ortho, const MapRaster& map, const 
                                                  best.best.y + s.origin_px.y + offset.y());
   fix.xyh << xy.x(), xy.y(), WrapAngle(best.heading + dh);
   FillCovariance(s, H, curvature, &fix);
+  MeasureHeight(s, best, &fix);
   return finish(true);
 }
 
@@ -413,12 +447,14 @@ PoseWithCovariance FixToPose(const MapFix& fix, const PoseWithCovariance& predic
   const Eigen::Vector3d rpy = RollPitchYawFromRotation(predicted.pose.linear());
   PoseWithCovariance out;
   out.utime = predicted.utime;
-  out.pose = MakePose(fix.xyh.x(), fix.xyh.y(), predicted.pose.translation().z(), rpy.x(), rpy.y(), fix.xyh.z());
+  const double z = fix.has_z ? fix.z : predicted.pose.translation().z();
+  out.pose = MakePose(fix.xyh.x(), fix.xyh.y(), z, rpy.x(), rpy.y(), fix.xyh.z());
   out.covariance.setZero();
   const int idx[3] = {0, 1, 5};
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) out.covariance(idx[i], idx[j]) = fix.covariance(i, j);
-  out.covariance(2, 2) = std::max(0.0, predicted.covariance(2, 2)) + o.vertical_sigma_m * o.vertical_sigma_m;
+  out.covariance(2, 2) = fix.has_z ? fix.z_sigma * fix.z_sigma
+                                   : std::max(0.0, predicted.covariance(2, 2)) + o.vertical_sigma_m * o.vertical_sigma_m;
   out.covariance(3, 3) = out.covariance(4, 4) = o.tilt_sigma_rad * o.tilt_sigma_rad;
   return out;
 }

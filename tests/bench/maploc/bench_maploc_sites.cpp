@@ -101,7 +101,7 @@ int main(int argc, char** argv) {
   ortho_options.max_range_m = max_range;
   ortho_options.downsample = static_cast<int>(Arg(argc, argv, "--downsample", 1));  // 512 px rendered = the real 1024 px / 2
   std::mt19937 rng(s.seed);
-  std::vector<double> errors, heading_errors, nees2, nees3;
+  std::vector<double> errors, heading_errors, nees2, nees3, z_errors, z_nees;
   int fixes = 0;
   for (const auto& site : world.traverse().sites) {
     const Pose3& truth = site.world_from_body;
@@ -127,8 +127,11 @@ int main(int argc, char** argv) {
     heading_errors.push_back(std::abs(e.z()) * 180 / M_PI);
     nees2.push_back(e.head<2>().dot(fix.covariance.topLeftCorner<2, 2>().inverse() * e.head<2>()));
     nees3.push_back(e.dot(fix.covariance.inverse() * e));
-    std::printf("         error %.3f m, heading %.3f deg, NEES xy %.2f xyh %.2f\n", errors.back(), heading_errors.back(),
-                nees2.back(), nees3.back());
+    const double ez = fix.has_z ? fix.z - truth.translation().z() : std::nan("");
+    if (fix.has_z) z_nees.push_back(ez * ez / (fix.z_sigma * fix.z_sigma));
+    if (fix.has_z) z_errors.push_back(std::abs(ez));
+    std::printf("         error %.3f m, heading %.3f deg, z %.3f m, NEES xy %.2f xyh %.2f\n", errors.back(),
+                heading_errors.back(), ez, nees2.back(), nees3.back());
   }
   auto median = [](std::vector<double> v) {
     if (v.empty()) return std::nan("");
@@ -146,5 +149,7 @@ int main(int argc, char** argv) {
               errors.empty() ? NAN : *std::max_element(errors.begin(), errors.end()), median(heading_errors),
               heading_errors.empty() ? NAN : *std::max_element(heading_errors.begin(), heading_errors.end()),
               mean(nees2), mean(nees3));
+  std::printf("height from the map: median |z error| %.3f m, mean z NEES %.2f (dim 1), %zu fixes with z\n", median(z_errors),
+              mean(z_nees), z_errors.size());
   return 0;
 }

@@ -95,6 +95,7 @@ TEST(MapLocalizerProcess, PublishesAFixOfASimulatedSiteAndSurvivesGarbage) {
   const PoseWithCovariance fix = PoseFromMessage(fixes[0].pose);
   EXPECT_LT((fix.pose.translation() - truth.translation()).head<2>().norm(), 0.2);
   EXPECT_LT(std::abs(WrapAngle(Heading(fix.pose) - Heading(truth))), 1.0 * kDeg);
+  EXPECT_LT(std::abs(fix.pose.translation().z() - truth.translation().z()), 0.1);  // from the map's heights
   EXPECT_GT(fix.covariance(0, 0), 0.0);
   EXPECT_LT(fix.covariance(0, 0), 0.04);  // sigma below 0.2 m
   EXPECT_EQ(fixes[0].utime, prior.utime);

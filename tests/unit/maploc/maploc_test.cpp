@@ -164,7 +164,8 @@ Eigen::Vector3d FixError(const SiteResult& r) {
 // Two sites of a 6-site traverse (512 px images at full size: the shipped
 // 1024 px Navcam at map_localizer's downsample 2), map at 20 cm/px under another sun, prior
 // 1 m / 2 deg off: every site fixed within 0.2 m and 0.5 deg of the truth, and
-// within the 99.9 % ellipse of its covariance (16 sites: bench_maploc_sites). The orthophoto's heights agree
+// within the 99.9 % ellipse of its covariance (16 sites: bench_maploc_sites), its height from
+// the map's heights within 2 sigma. The orthophoto's heights agree
 // with the terrain. (The NEES mean over many sites: bench_maploc_sites.)
 TEST(MapLocalization, SitesFixedAgainstA20cmMapUnderAnotherSun) {
   testing::MaplocScenarioOptions s;
@@ -179,6 +180,9 @@ TEST(MapLocalization, SitesFixedAgainstA20cmMapUnderAnotherSun) {
     const double nees = e.head<2>().dot(r.fix.covariance.topLeftCorner<2, 2>().inverse() * e.head<2>());
     EXPECT_LT(nees, 13.8) << "outside the 99.9 % ellipse: " << r.fix.BriefReport();
     EXPECT_GT(r.ortho.valid_cells, 2000);
+    // The body's height from the map's heights, within its sigma (its floor: 5 cm).
+    ASSERT_TRUE(r.fix.has_z);
+    EXPECT_LT(std::abs(r.fix.z - r.truth.translation().z()), 2 * r.fix.z_sigma) << r.fix.BriefReport();
   }
   // The last site's orthophoto: cell heights vs the terrain under them (level frame -> world).
   const Pose3& truth = results.back().truth;

@@ -13,7 +13,9 @@
 //      sub-pixel by a quadratic fit, heading by a parabola.
 //   5. Tests: peak score, ambiguity (second peak outside an exclusion zone),
 //      peak on the window's edge; any failure is "no fix" with the reason.
-//   6. Covariance from the peak curvature: cov = k (1 - rho) H^-1 / N,
+//   6. Height (when the map has one): the body's z = median of map height
+//      minus orthophoto height over the placed orthophoto, sigma from their spread.
+//   7. Covariance from the peak curvature: cov = k (1 - rho) H^-1 / N,
 //      k calibrated in simulation (NEES), one k for position, one for heading.
 //
 //   MapFix fix = RegisterToMap(ortho, map, SitePriorFromPose(predicted), options);
@@ -56,7 +58,9 @@ struct RegistrationOptions {
   double min_position_sigma_m = 0.02; // m, floor of the reported position sigma
   double min_heading_sigma_deg = 0.05;// deg, floor of the reported heading sigma
   double tilt_sigma_rad = 0.5;        // rad, roll/pitch sigma of the published fix (the map does not see them)
-  double vertical_sigma_m = 5.0;      // m, z sigma of the published fix (added to the prior's)
+  double vertical_sigma_m = 5.0;      // m, z sigma of the published fix without a map height (added to the prior's)
+  double min_vertical_sigma_m = 0.05; // m, floor of the z sigma measured against the map's heights
+  double vertical_correlation_cells = 100;  // cells per independent height difference (z sigma = spread / sqrt(N / this))
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
@@ -78,6 +82,9 @@ struct MapFix {
   double gray_score = 0;        // grey ZNCC at the peak
   double height_score = 0;      // height ZNCC at the peak (0 without heights)
   double second_score = 0;      // best score outside the exclusion zone
+  bool has_z = false;           // the map's heights gave the body's height
+  double z = 0;                 // m, world z of the body origin (when has_z)
+  double z_sigma = 0;           // m
   int valid_cells = 0;          // orthophoto cells used (map resolution)
   double search_radius_m = 0;   // m
   double heading_range_deg = 0; // deg, +-
@@ -89,8 +96,9 @@ struct MapFix {
 MapFix RegisterToMap(const MapRaster& ground_ortho, const MapRaster& map, const SitePrior& prior,
                      const RegistrationOptions& options);
 
-// The fix as a world_from_body pose: x, y, heading from the fix; z, roll,
-// pitch from the prediction with the weak sigmas of `options`.
+// The fix as a world_from_body pose: x, y, heading (and z when has_z) from
+// the fix; roll, pitch (and z otherwise) from the prediction with the weak
+// sigmas of `options`.
 PoseWithCovariance FixToPose(const MapFix& fix, const PoseWithCovariance& predicted, const RegistrationOptions& options);
 
 }  // namespace vloc::maploc
