@@ -395,6 +395,22 @@ void FillCovariance(const RegistrationState& s, const Eigen::Matrix2d& H, double
   fix->covariance(2, 2) = var_h;
 }
 
+// Sub-pixel position (quadratic fit at the best heading), heading (parabola
+// over the fine sweep), and the covariance from their curvatures.
+bool RefinePeak(RegistrationState* s, const std::vector<HeadingScore>& fine, size_t kf, MapFix* fix) {
+  const HeadingScore& best = fine[kf];
+  Eigen::Vector2d offset;
+  Eigen::Matrix2d H;
+  if (!SubPixelPeak(best.score, best.best, &offset, &H)) return Failed(s, "correlation peak is not a clean maximum");
+  double dh = 0, curvature = 0;
+  HeadingParabola(fine, kf, s->o.heading_fit_half_width, &dh, &curvature);
+  const Eigen::Vector2d xy = s->crop.WorldOfPixel(best.best.x + s->origin_px.x + offset.x(),
+                                                  best.best.y + s->origin_px.y + offset.y());
+  fix->xyh << xy.x(), xy.y(), WrapAngle(best.heading + dh);
+  FillCovariance(*s, H, curvature, fix);
+  return true;
+}
+
 }  // namespace
 
 MapFix RegisterToMap(const MapRaster& ground_ortho, const MapRaster& map, const SitePrior& prior,
@@ -427,18 +443,7 @@ MapFix RegisterToMap(const MapRaster& ground_ortho, const MapRaster& map, const 
   fix.valid_cells = best.cells;
   const bool heading_at_edge = coarse.size() > 1 && (kc == 0 || kc + 1 == coarse.size());
   if (!Decide(&s, best, heading_at_edge, &fix)) return finish(false);
-  Eigen::Vector2d offset;
-  Eigen::Matrix2d H;
-  if (!SubPixelPeak(best.score, best.best, &offset, &H)) {
-    s.failure = "correlation peak is not a clean maximum";
-    return finish(false);
-  }
-  double dh = 0, curvature = 0;
-  HeadingParabola(fine, kf, options.heading_fit_half_width, &dh, &curvature);
-  const Eigen::Vector2d xy = s.crop.WorldOfPixel(best.best.x + s.origin_px.x + offset.x(),
-                                                 best.best.y + s.origin_px.y + offset.y());
-  fix.xyh << xy.x(), xy.y(), WrapAngle(best.heading + dh);
-  FillCovariance(s, H, curvature, &fix);
+  if (!RefinePeak(&s, fine, kf, &fix)) return finish(false);
   MeasureHeight(s, best, &fix);
   return finish(true);
 }
