@@ -1,0 +1,179 @@
+#include "map_localizer_adapter.h"
+
+#include <glog/logging.h>
+
+#include <algorithm>
+#include <filesystem>
+
+#include "vloc/lcm_io/convert.h"
+#include "vloc/lcm_io/convert_rover.h"
+
+namespace vloc {
+
+void MapLocalizerProcOptions::Visit(OptionsReader& r) {
+  r.Optional("navcam_config", &navcam_config, "Navcam calibration file");
+  r.Optional("map_path", &map_path, "GeoTIFF or PNG + world file of the aerial map");
+  r.Optional("map_offset_xy", &map_offset_xy, "m, subtracted from the map coordinates");
+  r.Optional("reload_map_on_change", &reload_map_on_change, "re-read the map file when it changes");
+  r.Optional("wait_for_map_s", &wait_for_map_s, "s, wait at start for the map file to appear");
+  r.Optional("stereo_channel", &stereo_channel, "stereo_image_t in");
+  r.Optional("traverse_channel", &traverse_channel, "traverse_t in");
+  r.Optional("dr_channel", &dr_channel, "site_pose_t in (prior before the graph has the site)");
+  r.Optional("fix_channel", &fix_channel, "site_pose_t out");
+  r.Optional("fix_every", &fix_every, "attempt a fix at every n-th site");
+  r.Optional("queue_capacity", &queue_capacity, "messages per subscription queue");
+  r.Child("ortho", [this](OptionsReader& c) { ortho.Visit(c); });
+  r.Child("registration", [this](OptionsReader& c) { registration.Visit(c); });
+}
+
+bool MapLocalizerProcOptions::Check(std::string* error) const {
+  if (map_path.empty()) return Fail(error, "map_path must name the map file (GeoTIFF, or PNG + world file)");
+  if (map_offset_xy.size() != 2) return Fail(error, "map_offset_xy must hold two numbers [x, y]");
+  if (stereo_channel.empty() || traverse_channel.empty() || fix_channel.empty())
+    return Fail(error, "stereo_channel, traverse_channel and fix_channel must not be empty");
+  if (fix_every < 1) return Fail(error, "fix_every must be >= 1");
+  if (!(wait_for_map_s >= 0)) return Fail(error, "wait_for_map_s must be >= 0");
+  if (queue_capacity < 1) return Fail(error, "queue_capacity must be >= 1");
+  std::string sub;
+  if (!ortho.Check(&sub)) return Fail(error, "ortho." + sub);
+  if (!registration.Check(&sub)) return Fail(error, "registration." + sub);
+  return true;
+}
+
+namespace {
+
+int64_t FileTime(const std::string& path) {
+  std::error_code ec;
+  const auto t = std::filesystem::last_write_time(path, ec);
+  return ec ? 0 : static_cast<int64_t>(t.time_since_epoch().count());
+}
+
+}  // namespace
+
+MapLocalizerAdapter::MapLocalizerAdapter(Transport& transport, const MapLocalizerProcOptions& options,
+                                         const NavcamModel& navcam, maploc::MapRaster map)
+    : transport_(transport), options_(options), navcam_(navcam), map_(std::move(map)) {
+  map_mtime_ = FileTime(options_.map_path);
+  options_.ortho.m_per_px = map_.m_per_px;
+  stereo_stats_ = Subscribe<stereo_image_t>(
+      transport_, options_.stereo_channel, [this](const std::string&, const stereo_image_t& m) { OnStereo(m); },
+      options_.queue_capacity);
+  traverse_stats_ = Subscribe<traverse_t>(
+      transport_, options_.traverse_channel, [this](const std::string&, const traverse_t& m) { OnTraverse(m); },
+      options_.queue_capacity);
+  if (!options_.dr_channel.empty())
+    dr_stats_ = Subscribe<site_pose_t>(
+        transport_, options_.dr_channel, [this](const std::string&, const site_pose_t& m) { OnDeadReckoning(m); },
+        options_.queue_capacity);
+}
+
+void MapLocalizerAdapter::OnStereo(const stereo_image_t& msg) {
+  const bool plausible = msg.site_id >= 0 && msg.num_pairs >= 1 && msg.num_pairs <= kMaxPairsPerSite &&
+                         msg.pair_index >= 0 && msg.pair_index < msg.num_pairs &&
+                         (newest_site_ < 0 || msg.site_id <= newest_site_ + kMaxSiteIdJump);
+  if (!plausible) {
+    ++skipped_pairs_;
+    LOG(WARNING) << "stereo pair with implausible site " << msg.site_id << " / pair " << msg.pair_index << " of "
+                 << msg.num_pairs << ": skipped";
+    return;
+  }
+  if (msg.site_id % options_.fix_every != 0) return;  // no fix attempted at this site
+  newest_site_ = std::max(newest_site_, static_cast<int>(msg.site_id));
+  StereoPair pair = StereoPairFromMessage(msg);  // throws on undecodable images: counted by Subscribe
+  expected_pairs_[msg.site_id] = msg.num_pairs;
+  pairs_[msg.site_id].push_back(std::move(pair));
+  // Sites left incomplete (a lost message) are dropped once two newer sites arrive.
+  while (!pairs_.empty() && pairs_.begin()->first < newest_site_ - 2 * options_.fix_every) {
+    LOG(WARNING) << "site " << pairs_.begin()->first << ": panorama incomplete (" << pairs_.begin()->second.size()
+                 << " of " << expected_pairs_[pairs_.begin()->first] << " pairs); no fix attempted";
+    expected_pairs_.erase(pairs_.begin()->first);
+    pairs_.erase(pairs_.begin());
+  }
+  ProcessReadySites();
+}
+
+void MapLocalizerAdapter::OnTraverse(const traverse_t& msg) {
+  const size_t n = std::min(msg.site_ids.size(), msg.poses.size());
+  for (size_t k = 0; k < n; ++k) {
+    PoseWithCovariance pose = PoseFromMessage(msg.poses[k]);
+    std::string why;
+    if (IsPlausiblePose(pose, &why)) graph_poses_[msg.site_ids[k]] = pose;
+  }
+  ProcessReadySites();
+}
+
+void MapLocalizerAdapter::OnDeadReckoning(const site_pose_t& msg) {
+  PoseWithCovariance pose = PoseFromMessage(msg.pose);
+  pose.utime = msg.utime;
+  std::string why;
+  if (!IsPlausiblePose(pose, &why)) {
+    LOG(WARNING) << "dead reckoning of site " << msg.site_id << " not plausible (" << why << "): ignored";
+    return;
+  }
+  dr_poses_[msg.site_id] = pose;
+  ProcessReadySites();
+}
+
+void MapLocalizerAdapter::ProcessReadySites() {
+  for (auto it = pairs_.begin(); it != pairs_.end();) {
+    const int site = it->first;
+    const bool complete = static_cast<int>(it->second.size()) >= expected_pairs_[site];
+    const auto graph = graph_poses_.find(site);
+    const auto dr = dr_poses_.find(site);
+    if (!complete || (graph == graph_poses_.end() && dr == dr_poses_.end())) {
+      ++it;
+      continue;
+    }
+    PoseWithCovariance prior = graph != graph_poses_.end() ? graph->second : dr->second;
+    if (dr != dr_poses_.end()) prior.utime = dr->second.utime;
+    std::vector<StereoPair> pairs = std::move(it->second);
+    expected_pairs_.erase(site);
+    it = pairs_.erase(it);
+    LocaliseSite(site, std::move(pairs), prior);
+  }
+}
+
+void MapLocalizerAdapter::LocaliseSite(int site_id, std::vector<StereoPair> pairs, const PoseWithCovariance& prior) {
+  const Eigen::Vector3d rpy = RollPitchYawFromRotation(prior.pose.linear());
+  maploc::GroundOrthoSummary ortho_summary;
+  const maploc::MapRaster ortho =
+      maploc::BuildGroundOrtho(pairs, navcam_, rpy.x(), rpy.y(), options_.ortho, &ortho_summary);
+  maploc::MapFix fix;
+  if (!ortho_summary.usable) fix.message = "ground orthophoto: " + ortho_summary.message;
+  else fix = maploc::RegisterToMap(ortho, map_, maploc::SitePriorFromPose(prior), options_.registration);
+  last_result_ = "site " + std::to_string(site_id) + ": " + fix.BriefReport();
+  if (!fix.usable) {
+    ++no_fixes_;
+    LOG(WARNING) << "site " << site_id << ": no fix: " << fix.message << " (" << ortho_summary.BriefReport() << ")";
+    return;
+  }
+  ++fixes_;
+  LOG(INFO) << last_result_ << "; ortho " << ortho_summary.BriefReport();
+  const PoseWithCovariance pose = maploc::FixToPose(fix, prior, options_.registration);
+  Publish(transport_, options_.fix_channel, SitePoseToMessage(site_id, kSourceMapFix, pose));
+}
+
+void MapLocalizerAdapter::OnIdle() {
+  if (!options_.reload_map_on_change) return;
+  const int64_t t = FileTime(options_.map_path);
+  if (t == 0 || t == map_mtime_) return;
+  map_mtime_ = t;
+  maploc::MapRaster map;
+  std::string error;
+  if (!maploc::LoadMapRaster(options_.map_path, &map, &error,
+                             Eigen::Vector2d(options_.map_offset_xy[0], options_.map_offset_xy[1]))) {
+    LOG(ERROR) << "map changed but not reloaded, keeping the previous one: " << error;
+    return;
+  }
+  map_ = std::move(map);
+  options_.ortho.m_per_px = map_.m_per_px;
+  LOG(INFO) << "map reloaded: " << map_.gray.cols << " x " << map_.gray.rows << " at " << map_.m_per_px << " m/px";
+}
+
+std::string MapLocalizerAdapter::StatusLine() const {
+  return std::to_string(fixes_) + " fixes, " + std::to_string(no_fixes_) + " sites without a fix, " +
+         std::to_string(skipped_pairs_) + " implausible pairs skipped; last: " + last_result_ + "; " +
+         SubscriptionSummary({stereo_stats_, traverse_stats_, dr_stats_});
+}
+
+}  // namespace vloc
