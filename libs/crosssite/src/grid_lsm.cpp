@@ -51,22 +51,22 @@ bool ZnccPeakNear(const cv::Mat& templ, const Eigen::Vector2d& templ_px, const c
 }
 
 bool RefineOnGrid(const OverlapWork& work, const LsmImage& lt, const LsmImage& lw, const FrontendOptions& o,
-                  Candidate* c) {
+                  const LsmOptions& lsm, Candidate* c) {
   const Eigen::Vector2d pt = ApplyHomography(work.train_from_previous, c->prev_left);
   Eigen::Vector2d wt = ApplyHomography(work.current_from_train.inv(), c->cur_left);
   // The feature positions of the two sites differ by a few grid px
   // (different scales of detection): start LSM at the correlation peak near them.
-  const int half_y = o.grid_lsm.half_height > 0 ? o.grid_lsm.half_height : o.grid_lsm.half_window;
-  if (!ZnccPeakNear(work.previous_crop, pt, work.warped, o.grid_search_px, o.grid_lsm.half_window, half_y,
+  const int half_y = lsm.half_height > 0 ? lsm.half_height : lsm.half_window;
+  if (!ZnccPeakNear(work.previous_crop, pt, work.warped, o.grid_search_px, lsm.half_window, half_y,
                     o.grid_min_zncc, o.grid_min_margin, &wt))
     return false;
-  const LsmResult r = LeastSquaresMatch(lt, pt, lw, wt, Eigen::Matrix2d::Identity(), o.grid_lsm);
+  const LsmResult r = LeastSquaresMatch(lt, pt, lw, wt, Eigen::Matrix2d::Identity(), lsm);
   if (!r.ok) {
     VLOG(2) << "grid LSM: " << r.why << " corr " << r.correlation << " sigma " << r.sigma_px;
     return false;
   }
   if (o.grid_back_check_px > 0) {
-    const LsmResult back = LeastSquaresMatch(lw, r.target, lt, pt, r.affine.inverse(), o.grid_lsm);
+    const LsmResult back = LeastSquaresMatch(lw, r.target, lt, pt, r.affine.inverse(), lsm);
     if (!back.ok || (back.target - pt).norm() > o.grid_back_check_px) {
       VLOG(2) << "grid LSM: back match " << (back.ok ? "misses" : back.why) << " by " << (back.target - pt).norm();
       return false;
@@ -95,18 +95,17 @@ int RefineOverlapOnGrid(const FrontendOptions& o, OverlapWork* work) {
   const LsmImage lt = MakeLsmImage(work->previous_crop, o.grid_lsm.bspline),
                  lw = MakeLsmImage(work->warped, o.grid_lsm.bspline);
   int refined = 0;
-  for (Candidate& c : work->candidates) refined += RefineOnGrid(*work, lt, lw, o, &c) ? 1 : 0;
+  for (Candidate& c : work->candidates) refined += RefineOnGrid(*work, lt, lw, o, o.grid_lsm, &c) ? 1 : 0;
   VLOG(1) << "grid LSM refined " << refined << " of " << work->candidates.size();
   if (refined >= o.grid_retry_below) return refined;
   // Poor texture: the candidates left unrefined again, with the larger window.
-  FrontendOptions retry = o;
-  retry.grid_lsm = o.grid_lsm_retry;
+  const LsmOptions& retry = o.grid_lsm_retry;
   const int first = refined;
   for (Candidate& c : work->candidates)
-    if (!c.grid_refined) refined += RefineOnGrid(*work, lt, lw, retry, &c) ? 1 : 0;
-  VLOG(1) << "grid LSM retry (" << 2 * retry.grid_lsm.half_window + 1 << " x "
-          << 2 * (retry.grid_lsm.half_height > 0 ? retry.grid_lsm.half_height : retry.grid_lsm.half_window) + 1
-          << "): " << refined - first << " more";
+    if (!c.grid_refined) refined += RefineOnGrid(*work, lt, lw, o, retry, &c) ? 1 : 0;
+  VLOG(1) << "grid LSM retry (" << 2 * retry.half_window + 1 << " x "
+          << 2 * (retry.half_height > 0 ? retry.half_height : retry.half_window) + 1 << "): " << refined - first
+          << " more";
   return refined;
 }
 

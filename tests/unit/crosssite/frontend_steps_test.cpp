@@ -492,7 +492,7 @@ OverlapWork GridScene(const Eigen::Matrix2d& A, const Eigen::Vector2d& t) {
 
 bool GridRefine(const OverlapWork& w, const FrontendOptions& o, Candidate* c) {
   const LsmImage lt = MakeLsmImage(w.previous_crop), lw = MakeLsmImage(w.warped);
-  return RefineOnGrid(w, lt, lw, o, c);
+  return RefineOnGrid(w, lt, lw, o, o.grid_lsm, c);
 }
 
 TEST(GridLsm, RefinesASubPixelShift) {

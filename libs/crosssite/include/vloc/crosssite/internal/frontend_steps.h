@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "vloc/common/stopwatch.h"
 #include "vloc/crosssite/frontend.h"
 
 namespace vloc::frontend_internal {
@@ -100,6 +101,33 @@ struct OverlapWork {
   int tile_inliers = 0;                 // tiles agreeing on that correction
   FeatureSet warped_features;           // ASIFT on `warped`
   std::vector<Candidate> candidates;    // matches of this overlap
+};
+
+// The stages of one front-end run (Run, RunManual): each named step timed
+// and its count kept in result->summary.stages; Finish closes the summary
+// with the status, the tie-point count and the total time.
+class StageLog {
+ public:
+  explicit StageLog(FrontendResult* result) : result_(result) {}
+  template <class Body>
+  int Step(const char* name, Body&& body) {
+    const Stopwatch watch;
+    const int count = body();
+    result_->summary.stages.push_back({name, count, watch.Seconds()});
+    return count;
+  }
+  FrontendResult Finish(FrontendStatus status, const std::string& message) {
+    FrontendSummary& sum = result_->summary;
+    sum.status = status;
+    sum.message = message;
+    sum.total_seconds = total_.Seconds();
+    sum.num_tie_points = static_cast<int>(result_->tie_points.points.size());
+    return *result_;
+  }
+
+ private:
+  FrontendResult* result_;
+  const Stopwatch total_;
 };
 
 struct SitePairState {
@@ -187,9 +215,10 @@ bool ZnccPeakNear(const cv::Mat& templ, const Eigen::Vector2d& templ_px, const c
                   int half_y, double min_score, double min_margin, Eigen::Vector2d* target_px);
 // Cross-site LSM of one candidate on the previous region's grid, with the
 // relief gates (back match, shear). `previous` and `warped` are the LSM
-// forms of work.previous_crop and work.warped. False: not refined.
+// forms of work.previous_crop and work.warped; `lsm` the window and gates
+// (options.grid_lsm, or options.grid_lsm_retry on a second try). False: not refined.
 bool RefineOnGrid(const OverlapWork& work, const LsmImage& previous, const LsmImage& warped,
-                  const FrontendOptions& options, Candidate* candidate);
+                  const FrontendOptions& options, const LsmOptions& lsm, Candidate* candidate);
 // RefineOnGrid on every candidate of the overlap; returns how many were refined.
 int RefineOverlapOnGrid(const FrontendOptions& options, OverlapWork* work);
 
