@@ -9,7 +9,6 @@
 #include <sstream>
 
 #include "vloc/common/options.h"
-#include "vloc/common/stopwatch.h"
 #include "vloc/crosssite/internal/frontend_steps.h"
 
 namespace vloc {
@@ -204,77 +203,64 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous, const SiteImag
   TiePointSet& tps = result.tie_points;
   const FrontendOptions& o = options_;
   const NavcamModel& navcam = navcam_;
-  const Stopwatch total;
-  // One step: timed, and its count reported, under `name`.
-  auto step = [&](const char* name, auto&& body) {
-    const Stopwatch w;
-    const int count = body();
-    sum.stages.push_back({name, count, w.Seconds()});
-    return count;
-  };
-  auto finish = [&](FrontendStatus status, const std::string& message) {
-    sum.status = status;
-    sum.message = message;
-    sum.total_seconds = total.Seconds();
-    sum.num_tie_points = static_cast<int>(tps.points.size());
-    return result;
-  };
+  StageLog stages(&result);
   try {
     SitePairState s;
-    if (auto problem = CheckInput(previous, current, navcam, &s)) return finish(FrontendStatus::kMissingInput, *problem);
+    if (auto problem = CheckInput(previous, current, navcam, &s))
+      return stages.Finish(FrontendStatus::kMissingInput, *problem);
     InitTiePointSet(s, &tps);
-    step("prepare_images", [&] {
+    stages.Step("prepare_images", [&] {
       PrepareImages(navcam, o, &s);
       return static_cast<int>(2 * (s.previous.pairs.size() + s.current.pairs.size()));
     });
-    step("ground_planes", [&] { return FitGroundPlanes(navcam, tps, o, &s); });
-    sum.num_overlaps = step("region_prediction", [&] {
+    stages.Step("ground_planes", [&] { return FitGroundPlanes(navcam, tps, o, &s); });
+    sum.num_overlaps = stages.Step("region_prediction", [&] {
       s.prediction = PredictRegions(navcam, s.previous.world_from_body, s.current.world_from_body,
                                     tps.previous_pointing, tps.current_pointing, o.regions, s.ground_planes);
       return static_cast<int>(s.prediction.overlaps.size());
     });
     if (s.prediction.overlaps.empty())
-      return finish(FrontendStatus::kNoOverlap,
+      return stages.Finish(FrontendStatus::kNoOverlap,
                     "no current image sees ground that a previous image sees within the range limits "
                     "(check the DR poses, mast pointing and regions.max_range_*)");
-    step("region_wallis_zoom", [&] { return MakeWorkRegions(o, &s); });
+    stages.Step("region_wallis_zoom", [&] { return MakeWorkRegions(o, &s); });
     if (s.largest_region_std < o.min_region_std) {
       std::ostringstream os;
       os << "the overlap regions are flat (largest grey-level std " << s.largest_region_std << " < min_region_std "
          << o.min_region_std << "): too little texture to match";
-      return finish(FrontendStatus::kLowTexture, os.str());
+      return stages.Finish(FrontendStatus::kLowTexture, os.str());
     }
-    step("current_wallis", [&] {
+    stages.Step("current_wallis", [&] {
       ChooseOverlaps(o, &s);
       int n = 0;
       for (const cv::Mat& m : s.current_filtered) n += m.empty() ? 0 : 1;
       return n;
     });
-    step("region_asift", [&] { return DetectRegionFeatures(o, &s); });
+    stages.Step("region_asift", [&] { return DetectRegionFeatures(o, &s); });
 
     // Forward overlaps, each step over all of them in parallel.
     s.overlaps.assign(s.prediction.overlaps.size(), OverlapWork());
-    step("overlap_warp_tiles", [&] {
+    stages.Step("overlap_warp_tiles", [&] {
       ForEachForwardOverlap(s, o.num_threads, [&](int k) { s.overlaps[k] = WarpOverlap(s.prediction.overlaps[k], s, o); });
       int n = 0;
       for (const OverlapWork& w : s.overlaps) n += w.registered ? 1 : 0;
       return n;
     });
-    step("overlap_asift", [&] {
+    stages.Step("overlap_asift", [&] {
       ForEachForwardOverlap(s, o.num_threads, [&](int k) { DetectWarpedFeatures(o, &s.overlaps[k]); });
       size_t n = 0;
       for (const OverlapWork& w : s.overlaps) n += w.warped_features.size();
       s.num_current_features += n;
       return static_cast<int>(n);
     });
-    step("overlap_matching", [&] {
+    stages.Step("overlap_matching", [&] {
       ForEachForwardOverlap(s, o.num_threads,
                             [&](int k) { MatchOverlap(k, s.prediction.overlaps[k], s, o, &s.overlaps[k]); });
       int n = 0;
       for (const OverlapWork& w : s.overlaps) n += static_cast<int>(w.candidates.size());
       return n;
     });
-    step("overlap_grid_lsm", [&] {
+    stages.Step("overlap_grid_lsm", [&] {
       int n = 0;
       ForEachForwardOverlap(s, o.num_threads, [&](int k) {
         const int refined = RefineOverlapOnGrid(o, &s.overlaps[k]);
@@ -283,7 +269,7 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous, const SiteImag
       });
       return n;
     });
-    step("backward_matching", [&] {
+    stages.Step("backward_matching", [&] {
       int n = 0;
       for (size_t k = 0; k < s.prediction.overlaps.size(); ++k) {
         if (!s.prediction.overlaps[k].backward) continue;
@@ -294,40 +280,40 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous, const SiteImag
     });
     for (OverlapWork& w : s.overlaps) s.candidates.insert(s.candidates.end(), w.candidates.begin(), w.candidates.end());
     if (s.num_current_features < static_cast<size_t>(kMinCurrentFeatures))
-      return finish(FrontendStatus::kLowTexture, "ASIFT found almost no features in the current regions (" +
+      return stages.Finish(FrontendStatus::kLowTexture, "ASIFT found almost no features in the current regions (" +
                                                      std::to_string(s.num_current_features) + "): too little texture");
     s.overlaps.clear();  // the warped images are no longer needed
 
-    step("cross_lsm_merge", [&] { return RefineCrossSite(o, &s); });
-    step("stereo_zncc", [&] { return CorrelateStereo(navcam, o, &s); });
-    step("median_filter", [&] { return MedianFilterDisparities(o, &s); });
-    step("stereo_lsm", [&] { return RefineStereoAndIntersect(navcam, tps, o, &s); });
+    stages.Step("cross_lsm_merge", [&] { return RefineCrossSite(o, &s); });
+    stages.Step("stereo_zncc", [&] { return CorrelateStereo(navcam, o, &s); });
+    stages.Step("median_filter", [&] { return MedianFilterDisparities(o, &s); });
+    stages.Step("stereo_lsm", [&] { return RefineStereoAndIntersect(navcam, tps, o, &s); });
     Verification v;
-    step("distance_consistency", [&] {
+    stages.Step("distance_consistency", [&] {
       v = CheckConsistency(s.candidates, o);
       return v.num_consistent;
     });
-    step("motion_consistency", [&] {
+    stages.Step("motion_consistency", [&] {
       CheckMotion(s.candidates, o, &v);
       return v.num_kept;
     });
     MakeTiePoints(s.candidates, v, s.prediction, o, &tps);
     std::optional<std::string> dr_problem;
-    step("dr_check", [&] {
+    stages.Step("dr_check", [&] {
       dr_problem = CheckAgainstDeadReckoning(s.prediction, o, &tps);
       return static_cast<int>(tps.points.size());
     });
-    if (dr_problem) return finish(FrontendStatus::kTooFewPoints, *dr_problem);
+    if (dr_problem) return stages.Finish(FrontendStatus::kTooFewPoints, *dr_problem);
     if (static_cast<int>(tps.points.size()) < o.min_tie_points) {
       std::ostringstream os;
       os << "only " << tps.points.size() << " verified tie points (need " << o.min_tie_points << ")";
       if (s.candidates.empty()) os << "; matches were lost before the consistency check";
-      return finish(FrontendStatus::kTooFewPoints, os.str());
+      return stages.Finish(FrontendStatus::kTooFewPoints, os.str());
     }
-    return finish(FrontendStatus::kOk, "");
+    return stages.Finish(FrontendStatus::kOk, "");
   } catch (const std::exception& e) {
     tps.points.clear();
-    return finish(FrontendStatus::kError, std::string("internal error: ") + e.what());
+    return stages.Finish(FrontendStatus::kError, std::string("internal error: ") + e.what());
   }
 }
 

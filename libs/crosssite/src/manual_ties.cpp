@@ -3,7 +3,6 @@
 // stereo_lsm + intersection, tie points), each timed like Run()'s steps.
 #include <sstream>
 
-#include "vloc/common/stopwatch.h"
 #include "vloc/crosssite/internal/frontend_steps.h"
 
 namespace vloc {
@@ -57,38 +56,24 @@ int RefineClicks(const FrontendOptions& o, SitePairState* s) {
 FrontendResult CrossSiteFrontend::RunManual(const SiteImages& previous, const SiteImages& current,
                                             const std::vector<ManualTie>& ties) const {
   FrontendResult result;
-  FrontendSummary& sum = result.summary;
-  const Stopwatch total;
-  auto step = [&](const char* name, auto&& body) {
-    const Stopwatch w;
-    const int count = body();
-    sum.stages.push_back({name, count, w.Seconds()});
-    return count;
-  };
-  auto finish = [&](FrontendStatus status, const std::string& message) {
-    sum.status = status;
-    sum.message = message;
-    sum.total_seconds = total.Seconds();
-    sum.num_tie_points = static_cast<int>(result.tie_points.points.size());
-    return result;
-  };
+  StageLog stages(&result);
   try {
     SitePairState s;
     if (auto problem = CheckInput(previous, current, navcam_, &s))
-      return finish(FrontendStatus::kMissingInput, *problem);
+      return stages.Finish(FrontendStatus::kMissingInput, *problem);
     InitTiePointSet(s, &result.tie_points);
     s.candidates = ClickCandidates(navcam_, s, ties);
     if (s.candidates.empty())
-      return finish(FrontendStatus::kTooFewPoints, "manual: none of the " + std::to_string(ties.size()) +
+      return stages.Finish(FrontendStatus::kTooFewPoints, "manual: none of the " + std::to_string(ties.size()) +
                                                        " clicks names a pair of both sites inside its image");
-    step("prepare_images", [&] {
+    stages.Step("prepare_images", [&] {
       PrepareImages(navcam_, options_, &s);
       return static_cast<int>(s.candidates.size());
     });
-    const int refined = step("manual_cross_lsm", [&] { return RefineClicks(options_, &s); });
-    step("stereo_zncc", [&] { return CorrelateStereo(navcam_, options_, &s); });
+    const int refined = stages.Step("manual_cross_lsm", [&] { return RefineClicks(options_, &s); });
+    stages.Step("stereo_zncc", [&] { return CorrelateStereo(navcam_, options_, &s); });
     const int kept =
-        step("stereo_lsm", [&] { return RefineStereoAndIntersect(navcam_, result.tie_points, options_, &s); });
+        stages.Step("stereo_lsm", [&] { return RefineStereoAndIntersect(navcam_, result.tie_points, options_, &s); });
     Verification all;
     all.keep.assign(s.candidates.size(), true);
     all.weights.assign(s.candidates.size(), 1);
@@ -99,9 +84,9 @@ FrontendResult CrossSiteFrontend::RunManual(const SiteImages& previous, const Si
     std::ostringstream os;
     os << "manual: " << ties.size() << " clicks, " << refined << " refined by cross-site LSM, " << kept
        << " through stereo at both sites";
-    return finish(kept > 0 ? FrontendStatus::kOk : FrontendStatus::kTooFewPoints, os.str());
+    return stages.Finish(kept > 0 ? FrontendStatus::kOk : FrontendStatus::kTooFewPoints, os.str());
   } catch (const std::exception& e) {
-    return finish(FrontendStatus::kError, std::string("manual tie points: internal error: ") + e.what());
+    return stages.Finish(FrontendStatus::kError, std::string("manual tie points: internal error: ") + e.what());
   }
 }
 
