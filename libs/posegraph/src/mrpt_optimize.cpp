@@ -401,6 +401,18 @@ Matrix6d VlocFromLocalCovariance(const Pose3& a_from_b, const Matrix6d& covarian
   return J * covariance * J.transpose();
 }
 
+OptimizerResult ToOptimizerResult(const SolverSummary& s, double seconds) {
+  OptimizerResult r;
+  r.iterations = s.iterations;
+  r.initial_chi2 = s.initial_cost;
+  r.final_chi2 = s.final_cost;
+  r.num_downweighted = s.num_downweighted;
+  r.marginals_valid = s.marginals_valid;
+  r.marginal_seconds = s.marginal_seconds;
+  r.seconds = seconds;
+  return r;
+}
+
 namespace {
 
 template <int D, class Graph>
@@ -425,19 +437,12 @@ OptimizerResult OptimizeSparse(Graph& graph, const OptimizerOptions& options, co
   if constexpr (D == 3) {
     if (marginals) {
       marginals->clear();
-      result.marginals_valid = s.marginals_valid;
-      result.marginal_seconds = s.marginal_seconds;
       if (s.marginals_valid)
         for (size_t k = 0; k < ids.size(); ++k)
           if (!problem.fixed[k]) (*marginals)[ids[k]] = blocks[k];
     }
   }
-  result.iterations = s.iterations;
-  result.initial_chi2 = s.initial_cost;
-  result.final_chi2 = s.final_cost;
-  result.num_downweighted = s.num_downweighted;
-  result.seconds = watch.Seconds();
-  return result;
+  return ToOptimizerResult(s, watch.Seconds());
 }
 
 }  // namespace

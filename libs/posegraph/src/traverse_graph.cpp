@@ -400,20 +400,12 @@ OptimizerResult TraverseGraph::SolveSparse(const std::vector<double>& robust) {
   std::vector<PoseGraph3::Information> blocks;
   const SolverSummary summary = SolvePoseGraph(&problem, solver, options_.compute_marginals ? &blocks : nullptr);
   if (!summary.usable) throw std::runtime_error("pose graph solver: " + summary.message);
-  OptimizerResult r;
   for (size_t p = 0; p < ids.size(); ++p) {
     if (problem.fixed[p]) continue;
     graph_.nodes.at(ids[p]) = ToMrpt(MakePose(problem.poses[p].R, problem.poses[p].t));
     if (summary.marginals_valid) marginals_[ids[p]] = blocks[p];
   }
-  r.iterations = summary.iterations;
-  r.initial_chi2 = summary.initial_cost;
-  r.final_chi2 = summary.final_cost;
-  r.num_downweighted = summary.num_downweighted;
-  r.marginals_valid = summary.marginals_valid;
-  r.marginal_seconds = summary.marginal_seconds;
-  r.seconds = watch.Seconds();
-  return r;
+  return ToOptimizerResult(summary, watch.Seconds());
 }
 
 std::vector<double> TraverseGraph::RobustEdgeScales() const {

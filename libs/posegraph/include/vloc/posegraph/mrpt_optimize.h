@@ -80,6 +80,9 @@ struct OptimizerResult {
   double marginal_seconds = 0.0;
 };
 
+// A sparse solve's summary as an optimiser result; `seconds`: the wall time of the whole call.
+OptimizerResult ToOptimizerResult(const SolverSummary& summary, double seconds);
+
 // Optimises every node but graph.root. A graph with no free node or no edge
 // is left unchanged. Throws std::runtime_error when MRPT fails.
 // 3D: mrpt_max_iterations of MRPT's optimize_graph_spa_levmarq, then a
