@@ -168,61 +168,91 @@ void InsertEdge(GraphFile* file, TNodeID i, TNodeID j, const mrpt::poses::CPose3
   file->graph3.insertEdge(i, j, edge);
 }
 
-bool ParseG2o(const std::string& text, GraphFile* file, std::string* error) {
-  std::istringstream lines(text);
-  std::string line;
+// One line of a graph file with a record on it: the key, the values after
+// it, and how to fail naming the line.
+struct Record {
+  std::string key;
+  std::istringstream rest;
   int line_number = 0;
+  std::string line;
+  std::string* error = nullptr;
+  bool Bad() const { return Fail(error, "line " + std::to_string(line_number) + ": cannot parse '" + line + "'"); }
+  bool Unknown(const std::string& graph_kind) const {
+    return Fail(error, "line " + std::to_string(line_number) + ": unknown record '" + key + "' in a " + graph_kind);
+  }
+};
+
+// Calls on_record for every line that holds a record (blank lines and '#'
+// comments skipped) and reads FIX records itself (*root, *had_root). False
+// as soon as a record fails (on_record returns false with *error set).
+template <class OnRecord>
+bool ForEachRecord(const std::string& text, std::string* error, TNodeID* root, bool* had_root, OnRecord&& on_record) {
+  std::istringstream lines(text);
+  Record r;
+  r.error = error;
+  while (std::getline(lines, r.line)) {
+    ++r.line_number;
+    r.rest.clear();
+    r.rest.str(r.line);
+    if (!(r.rest >> r.key) || r.key[0] == '#') continue;
+    if (r.key == "FIX") {
+      TNodeID id;
+      if (!(r.rest >> id)) return r.Bad();
+      *root = id;
+      *had_root = true;
+    } else if (!on_record(r)) {
+      return false;
+    }
+  }
+  return true;
+}
+
+bool ParseG2o(const std::string& text, GraphFile* file, std::string* error) {
   bool had_root = false;
-  while (std::getline(lines, line)) {
-    ++line_number;
-    std::istringstream s(line);
-    std::string key;
-    if (!(s >> key) || key[0] == '#') continue;
-    auto bad = [&]() { return Fail(error, "line " + std::to_string(line_number) + ": cannot parse '" + line + "'"); };
+  const bool ok = ForEachRecord(text, error, file->dimension == 2 ? &file->graph2.root : &file->graph3.root, &had_root, [&](Record& rec) {
+    std::istringstream& s = rec.rest;
+    const std::string& key = rec.key;
     if (key == "VERTEX_SE3:QUAT") {
       TNodeID id;
       double x, y, z, qx, qy, qz, qw;
-      if (file->dimension != 3 || !(s >> id) || !Numbers{s}.Read(&x, &y, &z, &qx, &qy, &qz, &qw)) return bad();
+      if (file->dimension != 3 || !(s >> id) || !Numbers{s}.Read(&x, &y, &z, &qx, &qy, &qz, &qw)) return rec.Bad();
       file->graph3.nodes[id] = PoseFromQuat(x, y, z, qx, qy, qz, qw);
     } else if (key == "EDGE_SE3:QUAT") {
       TNodeID i, j;
       double x, y, z, qx, qy, qz, qw;
       Matrix6 info;
-      if (file->dimension != 3 || !(s >> i >> j) || !Numbers{s}.Read(&x, &y, &z, &qx, &qy, &qz, &qw)) return bad();
+      if (file->dimension != 3 || !(s >> i >> j) || !Numbers{s}.Read(&x, &y, &z, &qx, &qy, &qz, &qw)) return rec.Bad();
       for (int r = 0; r < 6; ++r)
         for (int c = r; c < 6; ++c) {
-          if (!Numbers{s}.One(&info(r, c))) return bad();
+          if (!Numbers{s}.One(&info(r, c))) return rec.Bad();
           info(c, r) = info(r, c);
         }
       Matrix6 information = QuatScale() * info * QuatScale();
-      if (!AcceptInformation<6>(file, std::isfinite(x + y + z + qx + qy + qz + qw), &information)) continue;
+      if (!AcceptInformation<6>(file, std::isfinite(x + y + z + qx + qy + qz + qw), &information)) return true;
       InsertEdge(file, i, j, PoseFromQuat(x, y, z, qx, qy, qz, qw), information);
     } else if (key == "VERTEX_SE2") {
       TNodeID id;
       double x, y, th;
-      if (file->dimension != 2 || !(s >> id) || !Numbers{s}.Read(&x, &y, &th)) return bad();
+      if (file->dimension != 2 || !(s >> id) || !Numbers{s}.Read(&x, &y, &th)) return rec.Bad();
       file->graph2.nodes[id] = mrpt::poses::CPose2D(x, y, th);
     } else if (key == "EDGE_SE2") {
       TNodeID i, j;
       double x, y, th;
       Eigen::Matrix3d info;
-      if (file->dimension != 2 || !(s >> i >> j) || !Numbers{s}.Read(&x, &y, &th)) return bad();
+      if (file->dimension != 2 || !(s >> i >> j) || !Numbers{s}.Read(&x, &y, &th)) return rec.Bad();
       for (int r = 0; r < 3; ++r)
         for (int c = r; c < 3; ++c) {
-          if (!Numbers{s}.One(&info(r, c))) return bad();
+          if (!Numbers{s}.One(&info(r, c))) return rec.Bad();
           info(c, r) = info(r, c);
         }
-      if (!AcceptInformation<3>(file, std::isfinite(x + y + th), &info)) continue;
+      if (!AcceptInformation<3>(file, std::isfinite(x + y + th), &info)) return true;
       InsertEdge(file, i, j, mrpt::poses::CPose2D(x, y, th), info);
-    } else if (key == "FIX") {
-      TNodeID id;
-      if (!(s >> id)) return bad();
-      (file->dimension == 2 ? file->graph2.root : file->graph3.root) = id;
-      had_root = true;
     } else {
       if (file->num_skipped++ == 0) file->first_skipped = key;
     }
-  }
+    return true;
+  });
+  if (!ok) return false;
   if (file->dimension == 2) FinishGraph(&file->graph2, had_root);
   else FinishGraph(&file->graph3, had_root);
   return true;
@@ -236,42 +266,33 @@ bool ParseG2o(const std::string& text, GraphFile* file, std::string* error) {
 bool ParseMrpt3D(const std::string& text, GraphFile* file, std::string* error) {
   static const int kOrder[21][2] = {{0, 0}, {0, 1}, {0, 2}, {0, 5}, {0, 4}, {0, 3}, {1, 1}, {1, 2}, {1, 5}, {1, 4}, {1, 3},
                                     {2, 2}, {2, 5}, {2, 4}, {2, 3}, {5, 5}, {5, 4}, {5, 3}, {4, 4}, {4, 3}, {3, 3}};
-  std::istringstream lines(text);
-  std::string line;
-  int line_number = 0;
   bool had_root = false;
-  while (std::getline(lines, line)) {
-    ++line_number;
-    std::istringstream s(line);
-    std::string key;
-    if (!(s >> key) || key[0] == '#') continue;
-    auto bad = [&]() { return Fail(error, "line " + std::to_string(line_number) + ": cannot parse '" + line + "'"); };
+  const bool ok = ForEachRecord(text, error, &file->graph3.root, &had_root, [&](Record& rec) {
+    std::istringstream& s = rec.rest;
+    const std::string& key = rec.key;
     if (key == "VERTEX3") {
       TNodeID id;
       mrpt::math::TPose3D p;
-      if (!(s >> id) || !Numbers{s}.Read(&p.x, &p.y, &p.z, &p.roll, &p.pitch, &p.yaw)) return bad();
+      if (!(s >> id) || !Numbers{s}.Read(&p.x, &p.y, &p.z, &p.roll, &p.pitch, &p.yaw)) return rec.Bad();
       file->graph3.nodes[id] = mrpt::poses::CPose3D(p);
     } else if (key == "EDGE3") {
       TNodeID i, j;
       mrpt::math::TPose3D p;
-      if (!(s >> i >> j) || !Numbers{s}.Read(&p.x, &p.y, &p.z, &p.roll, &p.pitch, &p.yaw)) return bad();
+      if (!(s >> i >> j) || !Numbers{s}.Read(&p.x, &p.y, &p.z, &p.roll, &p.pitch, &p.yaw)) return rec.Bad();
       Matrix6 info = Matrix6::Identity();
       double v;
       for (const auto& rc : kOrder) {
-        if (!Numbers{s}.One(&v)) return bad();
+        if (!Numbers{s}.One(&v)) return rec.Bad();
         info(rc[0], rc[1]) = info(rc[1], rc[0]) = v;
       }
-      if (!AcceptInformation<6>(file, std::isfinite(p.x + p.y + p.z + p.roll + p.pitch + p.yaw), &info)) continue;
+      if (!AcceptInformation<6>(file, std::isfinite(p.x + p.y + p.z + p.roll + p.pitch + p.yaw), &info)) return true;
       InsertEdge(file, i, j, mrpt::poses::CPose3D(p), info);
-    } else if (key == "FIX") {
-      TNodeID id;
-      if (!(s >> id)) return bad();
-      file->graph3.root = id;
-      had_root = true;
     } else if (key != "EQUIV") {
-      return Fail(error, "line " + std::to_string(line_number) + ": unknown record '" + key + "' in a 3D MRPT graph");
+      return rec.Unknown("3D MRPT graph");
     }
-  }
+    return true;
+  });
+  if (!ok) return false;
   FinishGraph(&file->graph3, had_root);
   return true;
 }
@@ -280,38 +301,29 @@ bool ParseMrpt3D(const std::string& text, GraphFile* file, std::string* error) {
 // dx dy dtheta I_xx I_xy I_yy I_tt I_xt I_yt (TORO's information order; MRPT
 // 2.5's reader takes them in g2o's order, which swaps the cross terms).
 bool ParseToro2D(const std::string& text, GraphFile* file, std::string* error) {
-  std::istringstream lines(text);
-  std::string line;
-  int line_number = 0;
   bool had_root = false;
-  while (std::getline(lines, line)) {
-    ++line_number;
-    std::istringstream s(line);
-    std::string key;
-    if (!(s >> key) || key[0] == '#') continue;
-    auto bad = [&]() { return Fail(error, "line " + std::to_string(line_number) + ": cannot parse '" + line + "'"); };
+  const bool ok = ForEachRecord(text, error, &file->graph2.root, &had_root, [&](Record& rec) {
+    std::istringstream& s = rec.rest;
+    const std::string& key = rec.key;
     if (key == "VERTEX2" || key == "VERTEX") {
       TNodeID id;
       double x, y, th;
-      if (!(s >> id) || !Numbers{s}.Read(&x, &y, &th)) return bad();
+      if (!(s >> id) || !Numbers{s}.Read(&x, &y, &th)) return rec.Bad();
       file->graph2.nodes[id] = mrpt::poses::CPose2D(x, y, th);
     } else if (key == "EDGE2" || key == "EDGE") {
       TNodeID i, j;
       double x, y, th, xx, xy, yy, tt, xt, yt;
-      if (!(s >> i >> j) || !Numbers{s}.Read(&x, &y, &th, &xx, &xy, &yy, &tt, &xt, &yt)) return bad();
+      if (!(s >> i >> j) || !Numbers{s}.Read(&x, &y, &th, &xx, &xy, &yy, &tt, &xt, &yt)) return rec.Bad();
       Eigen::Matrix3d info;
       info << xx, xy, xt, xy, yy, yt, xt, yt, tt;
-      if (!AcceptInformation<3>(file, std::isfinite(x + y + th), &info)) continue;
+      if (!AcceptInformation<3>(file, std::isfinite(x + y + th), &info)) return true;
       InsertEdge(file, i, j, mrpt::poses::CPose2D(x, y, th), info);
-    } else if (key == "FIX") {
-      TNodeID id;
-      if (!(s >> id)) return bad();
-      file->graph2.root = id;
-      had_root = true;
     } else if (key != "EQUIV") {
-      return Fail(error, "line " + std::to_string(line_number) + ": unknown record '" + key + "' in a 2D TORO graph");
+      return rec.Unknown("2D TORO graph");
     }
-  }
+    return true;
+  });
+  if (!ok) return false;
   FinishGraph(&file->graph2, had_root);
   return true;
 }
