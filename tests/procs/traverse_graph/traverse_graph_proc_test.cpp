@@ -73,6 +73,31 @@ localization_t VisualMessage(int i) {
   return m;
 }
 
+// The shipped config with graph_path set to `graph_path_yaml` (a YAML value), written to `config`.
+void WriteConfig(const std::string& config, const std::string& graph_path_yaml) {
+  std::ifstream in("config/procs/traverse_graph.yaml");
+  std::ofstream out(config);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("graph_path:", 0) == 0) line = "graph_path: " + graph_path_yaml;
+    out << line << "\n";
+  }
+}
+
+// Sites 0..n-1: each site's DR pose, then (from site 1 on) its visual pose,
+// each waited for in a TRAVERSE.
+void PublishSites(Transport& transport, int n, const std::vector<traverse_t>& received, const Subprocess& proc) {
+  for (int i = 0; i < n; ++i) {
+    Publish(transport, "SITE_POSE_DR", DrMessage(i));
+    ASSERT_TRUE(WaitFor(transport, 10, [&] { return !received.empty() && received.back().num_sites == i + 1; }))
+        << proc.output();
+    if (i == 0) continue;
+    const size_t before = received.size();
+    Publish(transport, "SITE_POSE_VISUAL", VisualMessage(i));
+    ASSERT_TRUE(WaitFor(transport, 10, [&] { return received.size() > before; })) << proc.output();
+  }
+}
+
 TEST(TraverseGraphProcess, OptimisesPublishesSavesAndReloads) {
   const std::string url = TestLcmUrl(7780);
   const auto dir = std::filesystem::temp_directory_path() / "vloc_traverse_graph_proc_test";
@@ -80,16 +105,7 @@ TEST(TraverseGraphProcess, OptimisesPublishesSavesAndReloads) {
   std::filesystem::create_directories(dir);
   const std::string graph_path = (dir / "traverse.graph").string();
   const std::string config = (dir / "traverse_graph.yaml").string();
-  // The shipped config with graph_path replaced.
-  {
-    std::ifstream in("config/procs/traverse_graph.yaml");
-    std::ofstream out(config);
-    std::string line;
-    while (std::getline(in, line)) {
-      if (line.rfind("graph_path:", 0) == 0) line = "graph_path: " + graph_path;
-      out << line << "\n";
-    }
-  }
+  WriteConfig(config, graph_path);
   std::string error;
   auto transport = MakeLcmTransport(url, &error);
   ASSERT_TRUE(transport) << error;
@@ -98,15 +114,7 @@ TEST(TraverseGraphProcess, OptimisesPublishesSavesAndReloads) {
   {
     Subprocess proc({BinPath("traverse_graph"), "--config", config, "--lcm-url", url});
     ASSERT_TRUE(proc.WaitForOutput("waiting for", 30)) << proc.output();
-    for (int i = 0; i < 4; ++i) {
-      Publish(*transport, "SITE_POSE_DR", DrMessage(i));
-      ASSERT_TRUE(WaitFor(*transport, 10, [&] { return !received.empty() && received.back().num_sites == i + 1; }))
-          << proc.output();
-      if (i == 0) continue;
-      const size_t before = received.size();
-      Publish(*transport, "SITE_POSE_VISUAL", VisualMessage(i));
-      ASSERT_TRUE(WaitFor(*transport, 10, [&] { return received.size() > before; })) << proc.output();
-    }
+    ASSERT_NO_FATAL_FAILURE(PublishSites(*transport, 4, received, proc));
     // A failed BA result adds nothing.
     localization_t failed = VisualMessage(3);
     failed.status = localization_t::STATUS_TOO_FEW_POINTS;
@@ -164,15 +172,7 @@ TEST(TraverseGraphProcess, SavesAndReloadsItsGraphInG2o) {
   std::filesystem::create_directories(dir);
   const std::string graph_path = (dir / "traverse.g2o").string();
   const std::string config = (dir / "traverse_graph.yaml").string();
-  {
-    std::ifstream in("config/procs/traverse_graph.yaml");
-    std::ofstream out(config);
-    std::string line;
-    while (std::getline(in, line)) {
-      if (line.rfind("graph_path:", 0) == 0) line = "graph_path: " + graph_path;
-      out << line << "\n";
-    }
-  }
+  WriteConfig(config, graph_path);
   std::string error;
   auto transport = MakeLcmTransport(url, &error);
   ASSERT_TRUE(transport) << error;
@@ -181,15 +181,7 @@ TEST(TraverseGraphProcess, SavesAndReloadsItsGraphInG2o) {
   {
     Subprocess proc({BinPath("traverse_graph"), "--config", config, "--lcm-url", url});
     ASSERT_TRUE(proc.WaitForOutput("waiting for", 30)) << proc.output();
-    for (int i = 0; i < 3; ++i) {
-      Publish(*transport, "SITE_POSE_DR", DrMessage(i));
-      ASSERT_TRUE(WaitFor(*transport, 10, [&] { return !received.empty() && received.back().num_sites == i + 1; }))
-          << proc.output();
-      if (i == 0) continue;
-      const size_t before = received.size();
-      Publish(*transport, "SITE_POSE_VISUAL", VisualMessage(i));
-      ASSERT_TRUE(WaitFor(*transport, 10, [&] { return received.size() > before; })) << proc.output();
-    }
+    ASSERT_NO_FATAL_FAILURE(PublishSites(*transport, 3, received, proc));
     proc.Signal(SIGTERM);
     EXPECT_EQ(proc.WaitExit(20), 0) << proc.output();
   }
@@ -226,15 +218,7 @@ TEST(TraverseGraphProcess, RevisitOfAnEarlierSiteClosesTheLoop) {
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   const std::string config = (dir / "traverse_graph.yaml").string();
-  {
-    std::ifstream in("config/procs/traverse_graph.yaml");
-    std::ofstream out(config);
-    std::string line;
-    while (std::getline(in, line)) {
-      if (line.rfind("graph_path:", 0) == 0) line = "graph_path: \"\"";
-      out << line << "\n";
-    }
-  }
+  WriteConfig(config, "\"\"");
   auto truth = [](int i) { return i == 6 ? Truth(2) : MakePose(i <= 4 ? 10.0 * i : 40.0 - 10.0 * (i - 4), i <= 4 ? 0 : 8, 0, 0, 0, 0); };
   std::string error;
   auto transport = MakeLcmTransport(url, &error);
