@@ -45,6 +45,31 @@ void PublishDrPose(Transport& transport, int site) {
   Publish(transport, "SITE_POSE_DR", SitePoseToMessage(site, site_pose_t::SOURCE_DEAD_RECKONING, pose));
 }
 
+// FRONTEND_STATUS as it arrives: how many, and the last one.
+struct StatusWatch {
+  std::atomic<int> received{0};
+  frontend_status_t last;
+  explicit StatusWatch(Transport& transport) {
+    Subscribe<frontend_status_t>(transport, "FRONTEND_STATUS", [this](const std::string&, const frontend_status_t& m) {
+      last = m;
+      ++received;
+    });
+  }
+  // Handles the transport until a status arrives or `seconds` pass.
+  void WaitForFirst(Transport& transport, int seconds) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(seconds);
+    while (received == 0 && std::chrono::steady_clock::now() < deadline) transport.Handle(100);
+  }
+};
+
+// SIGTERM to the process, then its wait status.
+int Stop(pid_t pid) {
+  kill(pid, SIGTERM);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return status;
+}
+
 // A whole textureless site: its DR pose, then 3 stereo pairs.
 void PublishTexturelessSite(Transport& transport, int site) {
   PublishDrPose(transport, site);
@@ -58,27 +83,19 @@ TEST(FeatureFrontendProc, TexturelessSitesGiveLowTextureStatus) {
   std::string error;
   auto transport = MakeLcmTransport(kUrl, &error);
   ASSERT_TRUE(transport) << error;
-  std::atomic<int> received{0};
-  frontend_status_t last;
-  Subscribe<frontend_status_t>(*transport, "FRONTEND_STATUS", [&](const std::string&, const frontend_status_t& m) {
-    last = m;
-    ++received;
-  });
+  StatusWatch watch(*transport);
   const pid_t pid = Start("config/procs/feature_frontend.yaml");
   ASSERT_GT(pid, 0);
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // process start-up (no handshake channel)
   for (int site = 0; site < 2; ++site) PublishTexturelessSite(*transport, site);
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-  while (received == 0 && std::chrono::steady_clock::now() < deadline) transport->Handle(100);
-  kill(pid, SIGTERM);
-  int status = 0;
-  waitpid(pid, &status, 0);
-  ASSERT_EQ(received.load(), 1);
-  EXPECT_EQ(last.previous_site_id, 0);
-  EXPECT_EQ(last.current_site_id, 1);
-  EXPECT_EQ(static_cast<int>(last.status), static_cast<int>(frontend_status_t::STATUS_LOW_TEXTURE)) << last.message;
-  EXPECT_FALSE(last.message.empty());
-  EXPECT_EQ(last.num_stages, static_cast<int>(last.stage_names.size()));
+  watch.WaitForFirst(*transport, 60);
+  const int status = Stop(pid);
+  ASSERT_EQ(watch.received.load(), 1);
+  EXPECT_EQ(watch.last.previous_site_id, 0);
+  EXPECT_EQ(watch.last.current_site_id, 1);
+  EXPECT_EQ(static_cast<int>(watch.last.status), static_cast<int>(frontend_status_t::STATUS_LOW_TEXTURE)) << watch.last.message;
+  EXPECT_FALSE(watch.last.message.empty());
+  EXPECT_EQ(watch.last.num_stages, static_cast<int>(watch.last.stage_names.size()));
   EXPECT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 0);
 }
@@ -90,12 +107,7 @@ TEST(FeatureFrontendProc, SiteWithoutImagesIsReportedNotAwaited) {
   std::string error;
   auto transport = MakeLcmTransport(kUrl, &error);
   ASSERT_TRUE(transport) << error;
-  std::atomic<int> received{0};
-  frontend_status_t last;
-  Subscribe<frontend_status_t>(*transport, "FRONTEND_STATUS", [&](const std::string&, const frontend_status_t& m) {
-    last = m;
-    ++received;
-  });
+  StatusWatch watch(*transport);
   const pid_t pid = Start("config/procs/feature_frontend.yaml");
   ASSERT_GT(pid, 0);
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));
@@ -110,18 +122,15 @@ TEST(FeatureFrontendProc, SiteWithoutImagesIsReportedNotAwaited) {
   Publish(*transport, "ROVER_SITE", SiteEventToMessage(done));
   const auto wait_until = std::chrono::steady_clock::now() + std::chrono::milliseconds(1500);
   while (std::chrono::steady_clock::now() < wait_until) transport->Handle(100);
-  EXPECT_EQ(received.load(), 0) << "reported before the rover moved on (images may still be on their way)";
+  EXPECT_EQ(watch.received.load(), 0) << "reported before the rover moved on (images may still be on their way)";
   // The rover reaches site 2: site 1's images are not coming.
   PublishDrPose(*transport, 2);
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
-  while (received == 0 && std::chrono::steady_clock::now() < deadline) transport->Handle(100);
-  kill(pid, SIGTERM);
-  int status = 0;
-  waitpid(pid, &status, 0);
-  ASSERT_EQ(received.load(), 1);
-  EXPECT_EQ(static_cast<int>(last.status), static_cast<int>(frontend_status_t::STATUS_MISSING_INPUT)) << last.message;
-  EXPECT_EQ(last.current_site_id, 1);
-  EXPECT_NE(last.message.find("0 of 3 pairs (missing 0, 1, 2)"), std::string::npos) << last.message;
+  watch.WaitForFirst(*transport, 20);
+  const int status = Stop(pid);
+  ASSERT_EQ(watch.received.load(), 1);
+  EXPECT_EQ(static_cast<int>(watch.last.status), static_cast<int>(frontend_status_t::STATUS_MISSING_INPUT)) << watch.last.message;
+  EXPECT_EQ(watch.last.current_site_id, 1);
+  EXPECT_NE(watch.last.message.find("0 of 3 pairs (missing 0, 1, 2)"), std::string::npos) << watch.last.message;
   EXPECT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 0);
 }
