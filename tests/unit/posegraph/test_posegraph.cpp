@@ -30,6 +30,15 @@ Pose3 Perturb(const Pose3& pose, const Matrix6d& covariance, std::mt19937& rng) 
   return MakePose(ExpSO3(d.tail<3>()) * pose.linear(), pose.translation() + d.head<3>());
 }
 
+// One dead-reckoning step `rel` perturbed by the options' per-metre DR model.
+Pose3 PerturbedDrStep(const Pose3& rel, const PoseGraphOptions& o, std::mt19937& rng) {
+  const double d = rel.translation().norm();
+  Vector6d sd;
+  sd << o.dr_position_sigma_per_metre * d, o.dr_position_sigma_per_metre * d, o.dr_vertical_sigma_per_metre * d,
+      o.dr_tilt_sigma, o.dr_tilt_sigma, o.dr_heading_sigma_per_metre * d;
+  return Perturb(rel, sd.array().square().matrix().asDiagonal(), rng);
+}
+
 Matrix6d Diag(double p, double r) {
   Vector6d d;
   d << p * p, p * p, p * p, r * r, r * r, r * r;
@@ -345,14 +354,7 @@ TEST(TraverseGraph, RevisitOfAnEarlierSiteClosesTheLoop) {
   TraverseGraph g(o);
   Pose3 chain = truth[0];
   for (int i = 0; i < 21; ++i) {
-    if (i > 0) {
-      const Pose3 rel = truth[i - 1].inverse() * truth[i];
-      const double d = rel.translation().norm();
-      Vector6d sd;  // the per-metre model of the options
-      sd << o.dr_position_sigma_per_metre * d, o.dr_position_sigma_per_metre * d, o.dr_vertical_sigma_per_metre * d,
-          o.dr_tilt_sigma, o.dr_tilt_sigma, o.dr_heading_sigma_per_metre * d;
-      chain = chain * Perturb(rel, sd.array().square().matrix().asDiagonal(), rng);
-    }
+    if (i > 0) chain = chain * PerturbedDrStep(truth[i - 1].inverse() * truth[i], o, rng);
     PoseWithCovariance p;
     p.pose = chain;
     p.utime = i;
@@ -407,14 +409,7 @@ TEST(TraverseGraph, FalseLoopClosuresAreDownWeighted) {
   std::vector<Measurement> clean;
   Pose3 chain = truth[0];
   for (int i = 0; i < 21; ++i) {
-    if (i > 0) {
-      const Pose3 rel = truth[i - 1].inverse() * truth[i];
-      const double d = rel.translation().norm();
-      Vector6d sd;
-      sd << o.dr_position_sigma_per_metre * d, o.dr_position_sigma_per_metre * d, o.dr_vertical_sigma_per_metre * d,
-          o.dr_tilt_sigma, o.dr_tilt_sigma, o.dr_heading_sigma_per_metre * d;
-      chain = chain * Perturb(rel, sd.array().square().matrix().asDiagonal(), rng);
-    }
+    if (i > 0) chain = chain * PerturbedDrStep(truth[i - 1].inverse() * truth[i], o, rng);
     PoseWithCovariance p;
     p.pose = chain;
     p.utime = i;
