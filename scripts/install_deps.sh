@@ -13,6 +13,7 @@ PACKAGES=(
   googletest libgtest-dev libgmock-dev libbenchmark-dev
   default-jdk-headless libjchart2d-java
   python3-numpy python3-matplotlib
+  libzip-dev python3-skimage   # scikit-image ships Middlebury 2014 Motorcycle (stereo with sub-pixel truth)
   libexiv2-dev exiv2 libgdal-dev gdal-bin
   iproute2 procps nftables
   libwebsocketpp-dev libasio-dev nlohmann-json3-dev chromium chromium-driver   # vloc_console and its browser test

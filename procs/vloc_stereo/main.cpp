@@ -1,6 +1,9 @@
 // vloc_stereo: ZNCC + least-squares matching of a rectified stereo pair
 // (operators' tool).
-//   vloc_stereo LEFT RIGHT [--min-disp 0] [--max-disp 128] [--step 4] [--threads 2] --out disp.png|disp.pfm
+//   vloc_stereo LEFT RIGHT [--config stereo.yaml] [--min-disp 0] [--max-disp 128] [--step 4] [--threads 2]
+//               --out disp.png|disp.pfm
+// --config: a YAML of vloc::DenseStereoOptions keys (see dense_stereo.h);
+// the flags override it.
 // Matches the left pixels of a grid (every --step px) along their row of the
 // right image within [min-disp, max-disp] by ZNCC (with a left-right check),
 // filters the disparities with the median test and refines them by row LSM
@@ -15,6 +18,7 @@
 
 #include "vloc/common/command_line.h"
 #include "vloc/common/logging.h"
+#include "vloc/common/options.h"
 #include "vloc/features/dense_stereo.h"
 
 namespace {
@@ -34,8 +38,8 @@ int main(int argc, char** argv) {
   vloc::CommandLine args;
   std::string error;
   const char* usage =
-      "usage: vloc_stereo LEFT RIGHT [--min-disp 0] [--max-disp 128] [--step 4] [--threads 2] [--no-lsm] --out disp.png|disp.pfm";
-  if (!args.Parse(argc, argv, {"min-disp", "max-disp", "step", "threads", "no-lsm", "out", "help"}, &error) ||
+      "usage: vloc_stereo LEFT RIGHT [--config stereo.yaml] [--min-disp 0] [--max-disp 128] [--step 4] [--threads 2] [--no-lsm] --out disp.png|disp.pfm";
+  if (!args.Parse(argc, argv, {"config", "min-disp", "max-disp", "step", "threads", "no-lsm", "out", "help"}, &error) ||
       args.Has("help") || args.positional().size() != 2 || !args.Has("out")) {
     std::cerr << (error.empty() ? usage : "vloc_stereo: " + error + "\n" + usage) << "\n";
     return args.Has("help") ? 0 : 1;
@@ -47,20 +51,29 @@ int main(int argc, char** argv) {
               << args.positional()[1] << "\n";
     return 1;
   }
-  const double dmin = args.GetDouble("min-disp", 0), dmax = args.GetDouble("max-disp", 128);
-  const int step = std::max(1, args.GetInt("step", 4)), threads = std::max(1, args.GetInt("threads", 2));
+  vloc::DenseStereoOptions o;
+  if (args.Has("config")) {
+    try {
+      o = vloc::LoadOptionsFile<vloc::DenseStereoOptions>(args.Get("config"));
+    } catch (const std::exception& e) {
+      std::cerr << "vloc_stereo: " << e.what() << "\n";
+      return 1;
+    }
+  }
+  const double dmin = args.GetDouble("min-disp", o.min_disparity), dmax = args.GetDouble("max-disp", o.max_disparity);
+  const int step = std::max(1, args.GetInt("step", args.Has("config") ? o.step : 4));
+  const int threads = std::max(1, args.GetInt("threads", o.num_threads));
   if (!(dmax > dmin && dmin >= 0)) {
     std::cerr << "vloc_stereo: need 0 <= --min-disp < --max-disp\n";
     return 1;
   }
   const std::string out = args.Get("out");
   const bool pfm = out.size() > 4 && out.substr(out.size() - 4) == ".pfm";
-  vloc::DenseStereoOptions o;
   o.min_disparity = dmin;
   o.max_disparity = dmax;
   o.step = step;
   o.num_threads = threads;
-  o.lsm_enabled = !args.Has("no-lsm");
+  if (args.Has("no-lsm")) o.lsm_enabled = false;
   std::string check_error;
   if (!o.Check(&check_error)) {
     std::cerr << "vloc_stereo: " << check_error << "\n";

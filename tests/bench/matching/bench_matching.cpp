@@ -8,14 +8,19 @@
 //   ground-truth pixels, and on the pixels both matched, the fraction of
 //   > 1 px errors, median |error|, mean signed error, and the first two
 //   against the truth + 0.25 px (its integer steps sit 0.25 px low).
+// - Middlebury 2014 Motorcycle (741 x 500, python3-skimage, sub-pixel
+//   truth): the same counters, without the offset.
+// Each pair with the default options and the photograph settings
+// (config/stereo_photo.yaml).
 //   build/bench/bench_matching --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
-// (2 threads for both sides; skips with a message when opencv-doc is absent)
+// (2 threads for both sides; skips with a message when opencv-doc or python3-skimage is absent)
 #include <benchmark/benchmark.h>
 
 #include <iostream>
 #include <opencv2/core.hpp>
 
 #include "../../unit/features/real_pairs.h"
+#include "vloc/common/options.h"
 #include "vloc/features/dense_stereo.h"
 #include "vloc/features/homography_match.h"
 
@@ -55,64 +60,88 @@ void BM_Homography_Vloc(benchmark::State& state) {
 }
 BENCHMARK(BM_Homography_Vloc)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 
-const vloc::testing::AloePair& Aloe() {
-  static const vloc::testing::AloePair aloe = vloc::testing::LoadAloe();
-  return aloe;
-}
-constexpr int kMinDisparity = 16, kNumDisparities = 224;  // GT spans 40-215 px
+// The stereo pairs: Aloe (integer truth, scored also against truth + 0.25
+// px) and Motorcycle (sub-pixel truth).
+struct StereoCase {
+  vloc::testing::StereoPair pair;
+  double truth_offset = 0;  // second scoring against truth + this (0 = none)
+  cv::Mat sgbm, vloc;       // the maps of this run
+};
 
-cv::Mat& SgbmMap() {
-  static cv::Mat map;
-  return map;
+StereoCase& Aloe() {
+  static StereoCase c = [] {
+    StereoCase s;
+    s.pair = vloc::testing::LoadAloe();
+    s.truth_offset = 0.25;
+    return s;
+  }();
+  return c;
 }
-cv::Mat& VlocMap() {
-  static cv::Mat map;
-  return map;
+
+StereoCase& Motorcycle() {
+  static StereoCase c = [] {
+    StereoCase s;
+    s.pair = vloc::testing::LoadMotorcycle();
+    return s;
+  }();
+  return c;
 }
 
 // Scores `mine` on all its pixels and, with `other` (when computed), on
 // the pixels both matched.
-void SetStereoCounters(benchmark::State& state, const cv::Mat& mine, const cv::Mat& other) {
-  const auto& aloe = Aloe();
-  const vloc::testing::DisparityScore all = vloc::testing::ScoreDisparity(mine, aloe.gt, 1);
+void SetStereoCounters(benchmark::State& state, const StereoCase& c, const cv::Mat& mine, const cv::Mat& other) {
+  const vloc::testing::DisparityScore all = vloc::testing::ScoreDisparity(mine, c.pair.gt, 1);
   state.counters["coverage"] = all.coverage;
   state.counters["bad1_all"] = all.bad1;
   if (other.empty()) return;
   const cv::Mat both = vloc::testing::BothMatched(mine, other);
-  const vloc::testing::DisparityScore s = vloc::testing::ScoreDisparity(mine, aloe.gt, 1, both);
+  const vloc::testing::DisparityScore s = vloc::testing::ScoreDisparity(mine, c.pair.gt, 1, both);
   state.counters["both_bad1"] = s.bad1;
   state.counters["both_median_px"] = s.median_abs;
   state.counters["both_mean_signed_px"] = s.mean_signed;
-  // Against the truth + 0.25 px (the centre of its integer steps, see real_pairs.h).
-  const vloc::testing::DisparityScore c = vloc::testing::ScoreDisparity(mine, aloe.gt, 1, both, 0.25);
-  state.counters["both_bad1_gt+0.25"] = c.bad1;
-  state.counters["both_median_gt+0.25"] = c.median_abs;
+  if (c.truth_offset == 0) return;
+  // Against the truth + 0.25 px (the centre of Aloe's integer steps, see real_pairs.h).
+  const vloc::testing::DisparityScore o = vloc::testing::ScoreDisparity(mine, c.pair.gt, 1, both, c.truth_offset);
+  state.counters["both_bad1_gt+0.25"] = o.bad1;
+  state.counters["both_median_gt+0.25"] = o.median_abs;
 }
 
-void BM_Stereo_OpenCV_SGBM(benchmark::State& state) {
-  if (!Aloe().ok) return state.SkipWithError(("missing " + Aloe().missing).c_str());
+void StereoSgbm(benchmark::State& state, StereoCase& c) {
+  if (!c.pair.ok) return state.SkipWithError(("missing " + c.pair.missing).c_str());
   cv::setNumThreads(kThreads);
-  for (auto _ : state) SgbmMap() = vloc::testing::SgbmDisparity(Aloe().left, Aloe().right, kMinDisparity, kNumDisparities);
-  SetStereoCounters(state, SgbmMap(), VlocMap());
+  for (auto _ : state) c.sgbm = vloc::testing::SgbmDisparity(c.pair.left, c.pair.right, c.pair.min_disparity, c.pair.num_disparities);
+  SetStereoCounters(state, c, c.sgbm, c.vloc);
 }
 
-void BM_Stereo_Vloc(benchmark::State& state) {
-  if (!Aloe().ok) return state.SkipWithError(("missing " + Aloe().missing).c_str());
+// vloc::DenseStereo with the defaults or, when `options_file` is set, with
+// that YAML (config/stereo_photo.yaml: the photograph settings).
+void StereoVloc(benchmark::State& state, StereoCase& c, const char* options_file) {
+  if (!c.pair.ok) return state.SkipWithError(("missing " + c.pair.missing).c_str());
   vloc::DenseStereoOptions o;
-  o.min_disparity = kMinDisparity;
-  o.max_disparity = kMinDisparity + kNumDisparities - 1;
+  if (options_file) o = vloc::LoadOptionsFile<vloc::DenseStereoOptions>(std::string(VLOC_SOURCE_DIR "/") + options_file);
+  o.min_disparity = c.pair.min_disparity;
+  o.max_disparity = c.pair.min_disparity + c.pair.num_disparities - 1;
   o.step = 1;
   o.num_threads = kThreads;
   vloc::DenseStereoSummary s;
-  for (auto _ : state) VlocMap() = vloc::DenseStereo(Aloe().left, Aloe().right, o, &s);
-  SetStereoCounters(state, VlocMap(), SgbmMap());
+  for (auto _ : state) c.vloc = vloc::DenseStereo(c.pair.left, c.pair.right, o, &s);
+  SetStereoCounters(state, c, c.vloc, c.sgbm);
   state.counters["zncc_s"] = s.zncc_seconds;
   state.counters["lsm_s"] = s.lsm_seconds;
 }
-// SGBM first, vloc (scored on both), SGBM again (scored on both).
-BENCHMARK(BM_Stereo_OpenCV_SGBM)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
-BENCHMARK(BM_Stereo_Vloc)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
-BENCHMARK(BM_Stereo_OpenCV_SGBM)->Name("BM_Stereo_OpenCV_SGBM_scored_on_both")->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+
+// Per pair: SGBM first, vloc (scored on both), SGBM again (scored on both).
+constexpr const char* kPhoto = "config/stereo_photo.yaml";
+BENCHMARK_CAPTURE(StereoSgbm, Aloe_OpenCV_SGBM, Aloe())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(StereoVloc, Aloe_Vloc, Aloe(), nullptr)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(StereoSgbm, Aloe_OpenCV_SGBM_scored_on_both, Aloe())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(StereoVloc, Aloe_Vloc_photo, Aloe(), kPhoto)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(StereoSgbm, Aloe_OpenCV_SGBM_scored_on_both_photo, Aloe())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(StereoSgbm, Motorcycle_OpenCV_SGBM, Motorcycle())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(StereoVloc, Motorcycle_Vloc, Motorcycle(), nullptr)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(StereoSgbm, Motorcycle_OpenCV_SGBM_scored_on_both, Motorcycle())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(StereoVloc, Motorcycle_Vloc_photo, Motorcycle(), kPhoto)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(StereoSgbm, Motorcycle_OpenCV_SGBM_scored_on_both_photo, Motorcycle())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 
 }  // namespace
 

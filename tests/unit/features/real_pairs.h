@@ -11,6 +11,12 @@
 //   perfect sub-pixel matcher then has errors spread over [-0.25, 0.75) and
 //   a median |error| of 0.25 px; a matcher that locks onto whole pixels (as
 //   SGBM's sub-pixel step does) scores better against it than it is.
+// - Middlebury 2014 "Motorcycle" as scikit-image ships it (python3-skimage,
+//   /usr/lib/python3/dist-packages/skimage/data): 741 x 500, downsampled
+//   4x from the perfectly rectified originals, PNG, ground truth float
+//   disparity (structured light, sub-pixel; NaN = unknown) in
+//   motorcycle_disp.npz. The pair for sub-pixel accuracy: Aloe's integer,
+//   offset truth cannot tell a median of 0.25 px from a better one.
 // - graf1.png / graf3.png / H1to3p.xml: Oxford affine-covariant "Graffiti",
 //   a planar wall seen from about 40 degrees apart; H13 maps graf1 px to
 //   graf3 px.
@@ -28,6 +34,8 @@
 #include <string>
 #include <vector>
 
+#include "vloc/testing/npz.h"
+
 namespace vloc::testing {
 
 inline std::string OpencvSampleDir() {
@@ -37,27 +45,53 @@ inline std::string OpencvSampleDir() {
 
 inline bool FileExists(const std::string& p) { return static_cast<bool>(std::ifstream(p)); }
 
-struct AloePair {
+// The first of `files` missing in `dir`, named with its package ("" = all there).
+inline std::string FirstMissing(const std::string& dir, std::initializer_list<const char*> files, const char* package) {
+  for (const char* f : files)
+    if (!FileExists(dir + f)) return dir + f + " (Debian package " + package + ")";
+  return "";
+}
+
+struct StereoPair {
   cv::Mat left, right;  // CV_8UC1
-  cv::Mat gt;           // CV_32F, px, NaN = unknown
+  cv::Mat gt;           // CV_32F, px (left x - right x), NaN = unknown
+  int min_disparity = 0, num_disparities = 0;  // the search range that covers the truth
   bool ok = false;
-  std::string missing;  // the file that was not found
+  std::string missing;  // what was not found
 };
 
-inline AloePair LoadAloe() {
-  AloePair p;
+inline StereoPair LoadAloe() {
+  StereoPair p;
   const std::string d = OpencvSampleDir() + "/";
-  for (const char* f : {"aloeL.jpg", "aloeR.jpg", "aloeGT.png"})
-    if (!FileExists(d + f)) {
-      p.missing = d + f + " (Debian package opencv-doc)";
-      return p;
-    }
+  p.missing = FirstMissing(d, {"aloeL.jpg", "aloeR.jpg", "aloeGT.png"}, "opencv-doc");
+  if (!p.missing.empty()) return p;
   p.left = cv::imread(d + "aloeL.jpg", cv::IMREAD_GRAYSCALE);
   p.right = cv::imread(d + "aloeR.jpg", cv::IMREAD_GRAYSCALE);
   const cv::Mat g = cv::imread(d + "aloeGT.png", cv::IMREAD_GRAYSCALE);
   g.convertTo(p.gt, CV_32F);
   p.gt.setTo(std::numeric_limits<float>::quiet_NaN(), g == 0);
+  p.min_disparity = 16;
+  p.num_disparities = 224;  // truth spans 40-215 px
   p.ok = !p.left.empty() && !p.right.empty() && !g.empty();
+  return p;
+}
+
+inline std::string SkimageDataDir() {
+  const char* env = std::getenv("VLOC_SKIMAGE_DATA");
+  return env ? env : "/usr/lib/python3/dist-packages/skimage/data";
+}
+
+inline StereoPair LoadMotorcycle() {
+  StereoPair p;
+  const std::string d = SkimageDataDir() + "/";
+  p.missing = FirstMissing(d, {"motorcycle_left.png", "motorcycle_right.png", "motorcycle_disp.npz"}, "python3-skimage");
+  if (!p.missing.empty()) return p;
+  p.left = cv::imread(d + "motorcycle_left.png", cv::IMREAD_GRAYSCALE);
+  p.right = cv::imread(d + "motorcycle_right.png", cv::IMREAD_GRAYSCALE);
+  p.gt = ReadNpzFloat2d(d + "motorcycle_disp.npz", "arr_0.npy", &p.missing);
+  p.min_disparity = 0;
+  p.num_disparities = 64;  // truth spans 7.2-59.9 px
+  p.ok = !p.left.empty() && !p.right.empty() && p.gt.size() == p.left.size();
   return p;
 }
 
@@ -71,11 +105,8 @@ struct GrafPair {
 inline GrafPair LoadGraf() {
   GrafPair p;
   const std::string d = OpencvSampleDir() + "/";
-  for (const char* f : {"graf1.png", "graf3.png", "H1to3p.xml"})
-    if (!FileExists(d + f)) {
-      p.missing = d + f + " (Debian package opencv-doc)";
-      return p;
-    }
+  p.missing = FirstMissing(d, {"graf1.png", "graf3.png", "H1to3p.xml"}, "opencv-doc");
+  if (!p.missing.empty()) return p;
   p.a = cv::imread(d + "graf1.png", cv::IMREAD_GRAYSCALE);
   p.b = cv::imread(d + "graf3.png", cv::IMREAD_GRAYSCALE);
   cv::FileStorage fs(d + "H1to3p.xml", cv::FileStorage::READ);
@@ -118,7 +149,7 @@ struct DisparityScore {
 // (j step, i step)) against the full-size truth; `mask` (grid size, CV_8U,
 // optional) restricts the scored cells (e.g. to those both methods matched).
 // `truth_offset` is added to the truth (Aloe: +0.25 centres its integer
-// steps, see AloePair).
+// steps, see the notes at the top).
 inline DisparityScore ScoreDisparity(const cv::Mat& disp, const cv::Mat& gt, int step, const cv::Mat& mask = cv::Mat(),
                                      double truth_offset = 0) {
   DisparityScore s;
