@@ -9,6 +9,8 @@
 #include <benchmark/benchmark.h>
 
 #include <chrono>
+#include <map>
+#include <string>
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
 
@@ -21,10 +23,9 @@ const vloc::testing::SimSitePair& Scene() {
   return scene;
 }
 
-void BM_Frontend(benchmark::State& state) {
-  const auto& s = Scene();
+// The front end with `threads` threads on `s`; counters: tie points.
+void RunFrontend(benchmark::State& state, const vloc::testing::SimSitePair& s, int threads) {
   vloc::FrontendOptions o;
-  const int threads = static_cast<int>(state.range(0));
   o.num_threads = threads;
   o.asift.num_threads = threads;
   o.matching.num_threads = threads;
@@ -38,7 +39,25 @@ void BM_Frontend(benchmark::State& state) {
   }
   state.counters["tie_points"] = points;
 }
+
+void BM_Frontend(benchmark::State& state) { RunFrontend(state, Scene(), static_cast<int>(state.range(0))); }
 BENCHMARK(BM_Frontend)->Arg(1)->Arg(2)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+
+// The same pair rendered in each simulator profile (config/procs/sim_rover_<profile>.yaml), 2 threads: the time
+// per profile (a pair that fails stops early, at the stage that failed).
+void BM_FrontendProfile(benchmark::State& state, const char* profile) {
+  static std::map<std::string, vloc::testing::SimSitePair> scenes;  // rendered once per profile
+  if (!scenes.count(profile)) {
+    vloc::testing::SimSitePairOptions so;
+    so.profile = profile;
+    scenes.emplace(profile, vloc::testing::MakeSimSitePair(so));
+  }
+  RunFrontend(state, scenes.at(profile), 2);
+}
+BENCHMARK_CAPTURE(BM_FrontendProfile, hard, "config/procs/sim_rover_hard.yaml")
+    ->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(BM_FrontendProfile, extreme, "config/procs/sim_rover_extreme.yaml")
+    ->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 
 // The plain approach on one previous and one current image (the full pair
 // has 14 images and 21 overlapping image pairs: at this machine's speed it
