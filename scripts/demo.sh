@@ -5,7 +5,7 @@
 #   vloc_launch over real LCM, records both runs, evaluates them against
 #   their ground truth, prints the accuracy and writes plots and the mosaic.
 #
-#   scripts/demo.sh [--sites N] [--flight-seconds S] [--profile default|hard|extreme] [--out DIR]
+#   scripts/demo.sh [--sites N] [--flight-seconds S] [--profile default|hard|extreme] [--seed S] [--out DIR]
 #
 # A second run reinstalls and rebuilds nothing.
 set -euo pipefail
@@ -15,13 +15,15 @@ out="$root/out/demo"
 sites=12
 flight_s=70
 profile=default   # rover simulator profile: config/procs/sim_rover.yaml, or sim_rover_<profile>.yaml
+seed=-1          # traverse seed (-1 = the profile's)
 while [ $# -gt 0 ]; do
   case "$1" in
     --sites) sites="$2"; shift 2 ;;
     --profile) profile="$2"; shift 2 ;;
+    --seed) seed="$2"; shift 2 ;;
     --flight-seconds) flight_s="$2"; shift 2 ;;
     --out) out="$2"; shift 2 ;;
-    *) echo "demo.sh: unknown option $1 (use --sites N, --flight-seconds S, --profile NAME, --out DIR)" >&2; exit 2 ;;
+    *) echo "demo.sh: unknown option $1 (use --sites N, --flight-seconds S, --profile NAME, --seed S, --out DIR)" >&2; exit 2 ;;
   esac
 done
 t0=$(date +%s)
@@ -69,7 +71,7 @@ sim_config=config/procs/sim_rover.yaml
 [ "$profile" = default ] || sim_config="config/procs/sim_rover_$profile.yaml"
 [ -f "$root/$sim_config" ] || { echo "demo.sh: no profile '$profile' ($sim_config)" >&2; exit 2; }
 say "rover_sim: $sites sites, profile $profile (simulator, dead reckoning, front end, BA, pose graph, logger)"
-VLOC_SIM_CONFIG="$sim_config" VLOC_SIM_SITES="$sites" run_group rover_sim "$out/rover" feature_frontend.log \
+VLOC_SIM_CONFIG="$sim_config" VLOC_SIM_SITES="$sites" VLOC_SIM_SEED="$seed" run_group rover_sim "$out/rover" feature_frontend.log \
   "sites [0-9]+ -> [0-9]+: front end: [a-z ]+, [0-9]+ tie points in [0-9.]+ s"
 say "uav_sim: ${flight_s} s flight (simulator, mosaicker, logger)"
 VLOC_SIM_UAV_SECONDS="$flight_s" run_group uav_sim "$out/uav" uav_mosaicker.log \

@@ -1,6 +1,7 @@
 // sim_rover: the simulated lunar rover world (terrain, traverse, Navcam, IMU, wheels).
-//   sim_rover [--config config/procs/sim_rover.yaml] [--speed X] [--sites N] [--revisit K]
+//   sim_rover [--config config/procs/sim_rover.yaml] [--speed X] [--sites N] [--revisit K] [--seed S]
 //       --revisit K: one extra final site back at site K (loop closure; -1 = none)
+//       --seed S: traverse.seed (another plan over the same terrain, other sensor noise; -1 = the config's)
 //       publishes NAVCAM_STEREO, ROVER_SITE, IMU, WHEEL_ODOM, GT_POSE, SITE_POSE_GT over LCM
 //       in real time (x speed; 0 = as fast as possible)
 //   sim_rover ... --log FILE           writes the messages straight to an LCM log, as fast as it
@@ -25,9 +26,9 @@ int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
   auto setup = vloc::SetupProcess(argc, argv,
                                   {"sim_rover",
-                                   {"log", "speed", "sites", "revisit", "render-sample"},
+                                   {"log", "speed", "sites", "revisit", "seed", "render-sample"},
                                    false,
-                                   "[--config config/procs/sim_rover.yaml] [--speed X] [--sites N] [--revisit K] "
+                                   "[--config config/procs/sim_rover.yaml] [--speed X] [--sites N] [--revisit K] [--seed S] "
                                    "[--log FILE | --render-sample DIR]",
                                    {"log", "render-sample"}});
   if (!setup) return 1;
@@ -47,11 +48,15 @@ int main(int argc, char** argv) {
     }
     if (setup->args.Has("revisit"))
       options.world.traverse.plan.revisit_site = setup->args.GetInt("revisit", options.world.traverse.plan.revisit_site);
+    if (setup->args.Has("seed")) {
+      const long long seed = std::stoll(setup->args.Get("seed"));
+      if (seed >= 0) options.world.traverse.seed = static_cast<uint64_t>(seed);
+    }
     std::string error;
     if (!options.Check(&error)) throw vloc::ConfigError("command line: " + error);
     LOG(INFO) << "sim_rover options:\n"
               << echo << "\n(overrides: speed " << options.speed << ", sites " << options.world.traverse.plan.num_sites
-              << ", revisit " << options.world.traverse.plan.revisit_site << ")";
+              << ", revisit " << options.world.traverse.plan.revisit_site << ", seed " << options.world.traverse.seed << ")";
   } catch (const vloc::ConfigError& e) {
     std::cerr << "sim_rover: " << e.what() << "\n";
     return 1;

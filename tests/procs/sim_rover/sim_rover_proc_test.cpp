@@ -175,19 +175,21 @@ std::string ReadFile(const std::string& path) {
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
+// Same seed, same bytes; --seed 2 (another traverse seed) a different log;
+// --seed -1 keeps the config's seed.
 TEST(SimRoverProcess, SameSeedSameLogBytes) {
   const std::string config = WriteSmallConfig();
-  const std::string a = TempPath("a.lcmlog"), b = TempPath("b.lcmlog");
-  for (const std::string& log : {a, b}) {
-    Subprocess sim({BinPath("sim_rover"), "--config", config, "--log", log, "--sites", "1"});
+  const std::string a = TempPath("a.lcmlog"), b = TempPath("b.lcmlog"), c = TempPath("c.lcmlog");
+  const std::vector<std::pair<std::string, std::string>> runs{{a, "-1"}, {b, "1"}, {c, "2"}};  // config seed: 1
+  for (const auto& [log, seed] : runs) {
+    Subprocess sim({BinPath("sim_rover"), "--config", config, "--log", log, "--sites", "1", "--seed", seed});
     ASSERT_EQ(sim.WaitExit(120), 0) << sim.output();
   }
-  const std::string bytes_a = ReadFile(a), bytes_b = ReadFile(b);
+  const std::string bytes_a = ReadFile(a), bytes_b = ReadFile(b), bytes_c = ReadFile(c);
   EXPECT_GT(bytes_a.size(), 100000u);
-  EXPECT_TRUE(bytes_a == bytes_b) << "two runs with the same config wrote different logs";
-  std::filesystem::remove(a);
-  std::filesystem::remove(b);
-  std::filesystem::remove(config);
+  EXPECT_TRUE(bytes_a == bytes_b) << "two runs with the same seed wrote different logs";
+  EXPECT_FALSE(bytes_a == bytes_c) << "--seed 2 wrote the same log as seed 1";
+  for (const std::string& f : {a, b, c, config}) std::filesystem::remove(f);
 }
 
 TEST(SimRoverProcess, RenderSampleWritesTheNavcamPairAsPng) {
