@@ -48,8 +48,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (!WaitForFile(options.map_path, options.wait_for_map_s)) return 0;
-  if (!vloc::maploc::LoadMapRaster(options.map_path, &map, &error,
-                                   Eigen::Vector2d(options.map_offset_xy[0], options.map_offset_xy[1]))) {
+  if (!vloc::maploc::LoadMapRaster(options.map_path, &map, &error, options.Georeference())) {
     std::cerr << "map_localizer: " << error << "\n";
     return 1;
   }
