@@ -51,7 +51,7 @@ say "rendering the UAV's ground (the rover terrain under the map's sun)"
   --res 0.05 --sun-azimuth 60 --sun-elevation 50 --region -40,-100,80,40
 VLOC_SIM_UAV_SECONDS="$flight_s" run_group uav_coop
 [ -f "$out/uav_mosaic.pgw" ] || { echo "coop_demo.sh: the mosaic is not georeferenced (no $out/uav_mosaic.pgw)" >&2; exit 1; }
-say "mosaic: $(grep -h 'mosaic written' "$out/uav_mosaicker.log" | tail -n 1 | sed 's/.*mosaic written: //')"
+say "mosaic: $(grep -h 'mosaic written' "$out/uav_mosaicker.log" | tail -n 1 | sed 's/.*uav_mosaicker: mosaic written to //')"
 VLOC_SIM_SITES="$sites" run_group rover_coop
 say "map_localizer: $(grep -hE 'fixes, [0-9]+ sites without' "$out/map_localizer.log" | tail -n 1 | sed 's/.*map_localizer: //' | cut -c1-120)"
 "$build/bin/vloc_eval" "$out/rover_coop.lcmlog" --out "$out/eval" --quiet --no-plots > /dev/null

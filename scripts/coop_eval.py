@@ -214,7 +214,7 @@ def figure(path, mosaic_g, valid_g, x_min, y_max, res, sites, fixes):
         if pts:
             ax.plot([p[0] for p in pts], [p[1] for p in pts], **kw)
 
-    line("gt_x", "gt_y", color="lime", lw=2.2, marker="o", ms=4, label="truth")
+    line("gt_x", "gt_y", color="lime", lw=5, alpha=0.7, marker="o", ms=7, label="truth")
     line("dr_x", "dr_y", color="orange", lw=1.4, marker=".", label="dead reckoning")
     line("vis_x", "vis_y", color="deepskyblue", lw=1.2, ls="--", marker=".", label="chained visual (no fixes)")
     line("opt_x", "opt_y", color="magenta", lw=1.4, marker="x", ms=5, label="optimised (with fixes)")

@@ -12,7 +12,7 @@ PACKAGES=(
   libyaml-cpp-dev
   googletest libgtest-dev libgmock-dev libbenchmark-dev
   default-jdk-headless libjchart2d-java
-  python3-numpy python3-matplotlib
+  python3-numpy python3-matplotlib python3-opencv   # python3-opencv: scripts/coop_eval.py
   libexiv2-dev exiv2 libgdal-dev gdal-bin
   iproute2 procps nftables
   libwebsocketpp-dev libasio-dev nlohmann-json3-dev chromium chromium-driver   # vloc_console and its browser test
