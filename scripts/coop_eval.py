@@ -227,7 +227,8 @@ def figure(path, mosaic_g, valid_g, x_min, y_max, res, sites, fixes):
     ax.set_xlabel("x east (m)")
     ax.set_ylabel("y north (m)")
     ax.set_title("rover traverse over the UAV mosaic (10 cm/px, GPS-tied)", fontsize=10)
-    ax.legend(loc="best", fontsize=7, framealpha=0.8)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="best", fontsize=7, framealpha=0.8)
     fig.tight_layout()
     fig.savefig(path, dpi=110, pil_kwargs={"quality": 82, "optimize": True})
     print("figure:", path)
