@@ -12,7 +12,7 @@ PACKAGES=(
   libyaml-cpp-dev
   googletest libgtest-dev libgmock-dev libbenchmark-dev
   default-jdk-headless libjchart2d-java
-  python3-numpy python3-matplotlib
+  python3-numpy python3-matplotlib python3-opencv   # python3-opencv: scripts/coop_eval.py
   libzip-dev python3-skimage   # scikit-image ships Middlebury 2014 Motorcycle (stereo with sub-pixel truth)
   libexiv2-dev exiv2 libgdal-dev gdal-bin
   iproute2 procps nftables

@@ -1,5 +1,5 @@
 // map_localizer: rover sites localised against an aerial map (SITE_POSE_FIX).
-//   map_localizer --config config/procs/map_localizer.yaml [--map FILE] [--lcm-url URL]
+//   map_localizer --config config/procs/map_localizer.yaml [--map FILE] [--fix-every N] [--lcm-url URL]
 #include <chrono>
 #include <filesystem>
 #include <iostream>
@@ -30,11 +30,13 @@ bool WaitForFile(const std::string& path, double seconds) {
 int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
   auto setup = vloc::SetupProcess(
-      argc, argv, {"map_localizer", {"map"}, true, "--config config/procs/map_localizer.yaml [--map FILE] [--lcm-url URL]"});
+      argc, argv, {"map_localizer", {"map", "fix-every"}, true,
+                   "--config config/procs/map_localizer.yaml [--map FILE] [--fix-every N] [--lcm-url URL]"});
   if (!setup) return 1;
   const auto loaded = vloc::LoadProcessOptions<vloc::MapLocalizerProcOptions>(
       *setup, [&](vloc::MapLocalizerProcOptions& o) {
         if (setup->args.Has("map")) o.map_path = setup->args.Get("map");
+        if (setup->args.Has("fix-every")) o.fix_every = setup->args.GetInt("fix-every", o.fix_every);
       });
   if (!loaded) return 1;
   const vloc::MapLocalizerProcOptions& options = *loaded;
@@ -48,8 +50,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (!WaitForFile(options.map_path, options.wait_for_map_s)) return 0;
-  if (!vloc::maploc::LoadMapRaster(options.map_path, &map, &error,
-                                   Eigen::Vector2d(options.map_offset_xy[0], options.map_offset_xy[1]))) {
+  if (!vloc::maploc::LoadMapRaster(options.map_path, &map, &error, options.Georeference())) {
     std::cerr << "map_localizer: " << error << "\n";
     return 1;
   }

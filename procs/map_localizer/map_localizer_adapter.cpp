@@ -3,6 +3,7 @@
 #include <glog/logging.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 
 #include "vloc/lcm_io/convert.h"
@@ -14,6 +15,9 @@ void MapLocalizerProcOptions::Visit(OptionsReader& r) {
   r.Optional("navcam_config", &navcam_config, "Navcam calibration file");
   r.Optional("map_path", &map_path, "GeoTIFF or PNG + world file of the aerial map");
   r.Optional("map_offset_xy", &map_offset_xy, "m, subtracted from the map coordinates");
+  r.Optional("map_geographic_origin", &map_geographic_origin,
+             "[lat, lon] deg: the map is in WGS84 degrees and this is the world origin ([] = metres)");
+  r.Optional("map_m_per_px", &map_m_per_px, "m, resample the map to this cell size (0 = the file's)");
   r.Optional("reload_map_on_change", &reload_map_on_change, "re-read the map file when it changes");
   r.Optional("wait_for_map_s", &wait_for_map_s, "s, wait at start for the map file to appear");
   r.Optional("stereo_channel", &stereo_channel, "stereo_image_t in");
@@ -29,6 +33,11 @@ void MapLocalizerProcOptions::Visit(OptionsReader& r) {
 bool MapLocalizerProcOptions::Check(std::string* error) const {
   if (map_path.empty()) return Fail(error, "map_path must name the map file (GeoTIFF, or PNG + world file)");
   if (map_offset_xy.size() != 2) return Fail(error, "map_offset_xy must hold two numbers [x, y]");
+  if (!map_geographic_origin.empty() &&
+      (map_geographic_origin.size() != 2 || !(std::abs(map_geographic_origin[0]) <= 90) ||
+       !(std::abs(map_geographic_origin[1]) <= 180)))
+    return Fail(error, "map_geographic_origin must be [] or [latitude, longitude] in degrees");
+  if (!(map_m_per_px >= 0) || !std::isfinite(map_m_per_px)) return Fail(error, "map_m_per_px must be >= 0 (0 = the file's)");
   if (stereo_channel.empty() || traverse_channel.empty() || fix_channel.empty())
     return Fail(error, "stereo_channel, traverse_channel and fix_channel must not be empty");
   if (fix_every < 1) return Fail(error, "fix_every must be >= 1");
@@ -38,6 +47,18 @@ bool MapLocalizerProcOptions::Check(std::string* error) const {
   if (!ortho.Check(&sub)) return Fail(error, "ortho." + sub);
   if (!registration.Check(&sub)) return Fail(error, "registration." + sub);
   return true;
+}
+
+maploc::MapGeoreference MapLocalizerProcOptions::Georeference() const {
+  maploc::MapGeoreference g;
+  g.offset_xy = Eigen::Vector2d(map_offset_xy[0], map_offset_xy[1]);
+  g.geographic = map_geographic_origin.size() == 2;
+  if (g.geographic) {
+    g.origin_latitude = map_geographic_origin[0];
+    g.origin_longitude = map_geographic_origin[1];
+  }
+  g.m_per_px = map_m_per_px;
+  return g;
 }
 
 namespace {
@@ -160,8 +181,7 @@ void MapLocalizerAdapter::OnIdle() {
   map_mtime_ = t;
   maploc::MapRaster map;
   std::string error;
-  if (!maploc::LoadMapRaster(options_.map_path, &map, &error,
-                             Eigen::Vector2d(options_.map_offset_xy[0], options_.map_offset_xy[1]))) {
+  if (!maploc::LoadMapRaster(options_.map_path, &map, &error, options_.Georeference())) {
     LOG(ERROR) << "map changed but not reloaded, keeping the previous one: " << error;
     return;
   }

@@ -19,6 +19,7 @@
 #include "vloc/lcm_io/transport.h"
 #include "vloc/lcm_io/typed.h"
 #include "vloc/maploc/ground_ortho.h"
+#include "vloc/maploc/map_raster.h"
 #include "vloc/maploc/map_registration.h"
 #include "vloc/site_pose_t.hpp"
 #include "vloc/stereo_image_t.hpp"
@@ -30,6 +31,9 @@ struct MapLocalizerProcOptions {
   std::string navcam_config = "config/navcam.yaml";  // Navcam calibration (rig + mast)
   std::string map_path = "";                         // GeoTIFF (grey [+ height band]) or PNG/JPEG + world file
   std::vector<double> map_offset_xy = {0.0, 0.0};    // m, subtracted from the map's coordinates (-> world frame)
+  std::vector<double> map_geographic_origin = {};    // [lat, lon] deg: the map's coordinates are WGS84 degrees (the
+                                                     // UAV mosaic's world file) and this point is the world origin
+  double map_m_per_px = 0.0;                         // m, resample the map to this cell size on load (0 = the file's)
   bool reload_map_on_change = true;                  // re-read map_path when the file changes (a mosaic being updated)
   double wait_for_map_s = 0.0;                       // s, wait this long at start for map_path to appear (0 = not)
   std::string stereo_channel = "NAVCAM_STEREO";      // stereo_image_t in
@@ -43,6 +47,8 @@ struct MapLocalizerProcOptions {
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
+  // How the map file's coordinates become world metres.
+  maploc::MapGeoreference Georeference() const;
 };
 
 // site_pose_t::source of a map fix (site_pose_t's constants stop at 3; the

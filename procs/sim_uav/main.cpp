@@ -1,5 +1,5 @@
 // sim_uav: a simulated small UAV with a nadir camera over textured ground.
-//   sim_uav [--config config/procs/sim_uav.yaml] [--speed X] [--duration S] [--fps F]
+//   sim_uav [--config config/procs/sim_uav.yaml] [--speed X] [--duration S] [--fps F] [--orthomap FILE.png] [--gps-sigma M]
 //       publishes UAV_CAMERA, UAV_GPS, UAV_GT over LCM in real time (x speed; 0 = as fast as possible)
 //   sim_uav ... --log FILE      writes the messages straight to an LCM log, as fast as it can
 //   sim_uav ... --snapshot FILE.png [--at T]   saves the frame at T s (default 1) and exits
@@ -21,10 +21,10 @@ int main(int argc, char** argv) {
   auto setup = vloc::SetupProcess(
       argc, argv,
       {"sim_uav",
-       {"log", "duration", "fps", "speed", "snapshot", "at"},
+       {"log", "duration", "fps", "speed", "snapshot", "at", "orthomap", "gps-sigma"},
        false,
-       "[--config config/procs/sim_uav.yaml] [--speed X] [--duration S] [--fps F] [--log FILE] "
-       "[--snapshot FILE.png --at T]",
+       "[--config config/procs/sim_uav.yaml] [--speed X] [--duration S] [--fps F] [--orthomap FILE.png] [--gps-sigma M] "
+       "[--log FILE] [--snapshot FILE.png --at T]",
        {"log", "snapshot"}});
   if (!setup) return 1;
 
@@ -35,10 +35,14 @@ int main(int argc, char** argv) {
     if (setup->args.Has("duration")) options.duration = setup->args.GetDouble("duration", options.duration);
     if (setup->args.Has("fps")) options.world.fps = setup->args.GetDouble("fps", options.world.fps);
     if (setup->args.Has("speed")) options.speed = setup->args.GetDouble("speed", options.speed);
+    if (setup->args.Has("orthomap")) options.world.orthomap.image = setup->args.Get("orthomap");
+    if (setup->args.Has("gps-sigma"))
+      options.world.gps.horizontal_sigma = setup->args.GetDouble("gps-sigma", options.world.gps.horizontal_sigma);
     std::string error;
     if (!options.Check(&error)) throw vloc::ConfigError("command line: " + error);
     LOG(INFO) << "sim_uav options:\n" << echo << "\n(overrides: duration " << options.duration << " s, fps "
-              << options.world.fps << ", speed " << options.speed << ")";
+              << options.world.fps << ", speed " << options.speed << ", orthomap image '"
+              << options.world.orthomap.image << "', GPS horizontal sigma " << options.world.gps.horizontal_sigma << " m)";
   } catch (const vloc::ConfigError& e) {
     std::cerr << "sim_uav: " << e.what() << "\n";
     return 1;

@@ -4,7 +4,8 @@
 // In: UAV_CAMERA (image_t), UAV_GPS (uav_gps_t). Out: UAV_STATE (uav_state_t,
 // every frame), UAV_MOSAIC (image_t JPEG preview, ~1 Hz). `kill -USR1 <pid>`
 // writes the full mosaic (PNG + .pgw when tied to GPS) to `output`; it is
-// also written at SIGINT/SIGTERM.
+// also written at SIGINT/SIGTERM and, with write_every_s, periodically once
+// tied to GPS (atomic replacement: a live map for map_localizer).
 #include <glog/logging.h>
 #include <signal.h>
 

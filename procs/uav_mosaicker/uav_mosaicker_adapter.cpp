@@ -20,6 +20,7 @@ void UavMosaickerProcOptions::Visit(OptionsReader& r) {
   r.Optional("preview_max_side", &preview_max_side, "px");
   r.Optional("preview_jpeg_quality", &preview_jpeg_quality, "1..100");
   r.Optional("output", &output, "full mosaic PNG path, written on SIGUSR1 and at exit");
+  r.Optional("write_every_s", &write_every_s, "s of message time between periodic writes once tied to GPS (0 = none)");
   r.Optional("camera_queue", &camera_queue, "frames queued before the oldest is dropped");
   r.Optional("report_every_n_frames", &report_every_n_frames, "summary log period");
   r.Child("mosaicker", [&](OptionsReader& c) { mosaicker.Visit(c); });
@@ -30,6 +31,7 @@ bool UavMosaickerProcOptions::Check(std::string* error) const {
   if (!(preview_period >= 0)) return Fail(error, "preview_period must be >= 0 s");
   if (preview_max_side < 64) return Fail(error, "preview_max_side must be >= 64 px");
   if (preview_jpeg_quality < 1 || preview_jpeg_quality > 100) return Fail(error, "preview_jpeg_quality must be in 1..100");
+  if (!(write_every_s >= 0)) return Fail(error, "write_every_s must be >= 0 s (0 = no periodic writes)");
   if (camera_queue < 1) return Fail(error, "camera_queue must be >= 1");
   if (report_every_n_frames < 1) return Fail(error, "report_every_n_frames must be >= 1");
   return mosaicker.Check(error);
@@ -106,6 +108,11 @@ void UavMosaickerAdapter::OnFrame(const image_t& msg) {
   if (options_.preview_period > 0 && !options_.mosaic_channel.empty() &&
       msg.utime - last_preview_utime_ >= static_cast<int64_t>(options_.preview_period * 1e6))
     PublishPreview(msg.utime);
+  if (options_.write_every_s > 0 && state.georeferenced &&
+      msg.utime - last_write_utime_ >= static_cast<int64_t>(options_.write_every_s * 1e6)) {
+    last_write_utime_ = msg.utime;
+    WriteMosaic();
+  }
 }
 
 void UavMosaickerAdapter::PublishPreview(int64_t utime) {

@@ -2,7 +2,9 @@
 // LCM adapter of the UAV mosaicker (libs/mosaic): UAV_CAMERA frames and
 // UAV_GPS fixes in, UAV_STATE (every frame) and a JPEG UAV_MOSAIC preview
 // (about once per second of message time) out. The full mosaic (PNG +
-// .pgw world file when tied to GPS) is written on SIGUSR1 and at shutdown.
+// .pgw world file when tied to GPS) is written on SIGUSR1, at shutdown and,
+// with write_every_s, periodically once tied to GPS (each write replaces the
+// files atomically: a live map for map_localizer).
 
 #include <cstdint>
 #include <memory>
@@ -29,6 +31,8 @@ struct UavMosaickerProcOptions {
   int preview_max_side = 1024;                 // px, longest side of the preview
   int preview_jpeg_quality = 80;               // 1..100
   std::string output = "out/uav_mosaic.png";   // full mosaic, written on SIGUSR1 and at exit ("" = never)
+  double write_every_s = 0.0;                  // s of message time: also write it this often once it is tied to
+                                               // GPS (a live map for map_localizer; 0 = not)
   int camera_queue = 8;                        // frames queued before LCM drops the oldest (real time)
   int report_every_n_frames = 300;             // log a summary line every n frames
   mosaic::MosaickerOptions mosaicker;          // the algorithm
@@ -61,6 +65,7 @@ class UavMosaickerAdapter {
   mosaic::UavMosaicker mosaicker_;
   std::shared_ptr<SubscriptionStats> camera_stats_, gps_stats_;
   int64_t last_preview_utime_ = INT64_MIN / 2;
+  int64_t last_write_utime_ = INT64_MIN / 2;
   int64_t frames_ = 0;
   int64_t undecodable_frames_ = 0;   // image bytes that are no image (counted as lost frames)
   RateLimitedLog undecodable_log_;

@@ -61,10 +61,10 @@ LogData ReadLog(const std::string& path, bool progress) {
     }
     const std::string& ch = ev->channel;
     try {
-      if (ch == "SITE_POSE_GT" || ch == "SITE_POSE_DR") {
+      if (ch == "SITE_POSE_GT" || ch == "SITE_POSE_DR" || ch == "SITE_POSE_FIX") {
         site_pose_t m;
         if (!DecodeEvent(*ev, &m)) throw std::invalid_argument("decode");
-        (ch == "SITE_POSE_GT" ? d.gt : d.dr)[m.site_id] = PoseFromMessage(m.pose);
+        (ch == "SITE_POSE_GT" ? d.gt : ch == "SITE_POSE_DR" ? d.dr : d.fix)[m.site_id] = PoseFromMessage(m.pose);
       } else if (ch == "SITE_POSE_VISUAL") {
         localization_t m;
         if (!DecodeEvent(*ev, &m)) throw std::invalid_argument("decode");
@@ -178,6 +178,56 @@ Summary Evaluate(const LogData& d) {
     s.vis_end_heading = last.vis_heading_err;
     s.opt_end_heading = last.opt_heading_err;
   }
+  // Absolute fixes against the site's truth: error and NEES in x, y, heading.
+  std::vector<double> errs, headings;
+  double nees2 = 0, nees3 = 0;
+  int nees_count = 0;
+  for (const auto& [id, fix] : d.fix) {
+    const auto gt = d.gt.find(id);
+    if (gt == d.gt.end()) continue;
+    FixRow r;
+    r.site = id;
+    r.x = fix.pose.translation().x();
+    r.y = fix.pose.translation().y();
+    r.heading_deg = Deg(Heading(fix.pose));
+    r.err_x = r.x - gt->second.pose.translation().x();
+    r.err_y = r.y - gt->second.pose.translation().y();
+    r.err_xy = std::hypot(r.err_x, r.err_y);
+    const double dh = WrapAngle(Heading(fix.pose) - Heading(gt->second.pose));
+    r.heading_err_deg = Deg(dh);
+    Eigen::Matrix3d cov;  // x, y, yaw of the 6x6 (x y z roll pitch yaw)
+    const int idx[3] = {0, 1, 5};
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) cov(i, j) = fix.covariance(idx[i], idx[j]);
+    r.sigma_x = std::sqrt(std::max(0.0, cov(0, 0)));
+    r.sigma_y = std::sqrt(std::max(0.0, cov(1, 1)));
+    r.sigma_heading_deg = Deg(std::sqrt(std::max(0.0, cov(2, 2))));
+    const Eigen::Vector3d e(r.err_x, r.err_y, dh);
+    if (cov.determinant() > 0) {
+      r.nees_xy = e.head<2>().dot(cov.topLeftCorner<2, 2>().ldlt().solve(e.head<2>()));
+      r.nees_xyh = e.dot(cov.ldlt().solve(e));
+      nees2 += r.nees_xy;
+      nees3 += r.nees_xyh;
+      ++nees_count;
+    }
+    errs.push_back(r.err_xy);
+    headings.push_back(std::abs(r.heading_err_deg));
+    s.fixes.push_back(r);
+  }
+  auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+  };
+  if (!errs.empty()) {
+    s.fix_median_err = median(errs);
+    s.fix_max_err = *std::max_element(errs.begin(), errs.end());
+    s.fix_median_heading = median(headings);
+    s.fix_max_heading = *std::max_element(headings.begin(), headings.end());
+  }
+  if (nees_count) {
+    s.fix_mean_nees_xy = nees2 / nees_count;
+    s.fix_mean_nees_xyh = nees3 / nees_count;
+  }
   // UAV: each state matched to the ground truth nearest in time.
   if (!d.uav_gt.empty() && !d.uav_state.empty()) {
     std::vector<double> flown(d.uav_gt.size(), 0.0);
@@ -259,6 +309,14 @@ void WriteOutputs(const Summary& s, const std::string& dir) {
         << F(p.err_pct, 6) << ',' << F(p.nees, 6) << '\n';
   }
   {
+    auto f = open("fixes.csv");
+    f << "site,x,y,heading_deg,sigma_x,sigma_y,sigma_heading_deg,err_x,err_y,err_xy,heading_err_deg,nees_xy,nees_xyh\n";
+    for (const FixRow& r : s.fixes)
+      f << r.site << ',' << r.x << ',' << r.y << ',' << r.heading_deg << ',' << r.sigma_x << ',' << r.sigma_y << ','
+        << r.sigma_heading_deg << ',' << r.err_x << ',' << r.err_y << ',' << r.err_xy << ',' << r.heading_err_deg << ','
+        << F(r.nees_xy, 4) << ',' << F(r.nees_xyh, 4) << '\n';
+  }
+  {
     auto f = open("uav.csv");
     f << "utime,t_s,height_m,gt_height_m,height_err_m,east_m,north_m,gt_east_m,gt_north_m,route_err_m,flown_m\n";
     for (const UavRow& u : s.uav)
@@ -281,6 +339,16 @@ void WriteOutputs(const Summary& s, const std::string& dir) {
           << F(Pct(r.dr_err, r.distance), 2) << " | " << F(r.dr_heading_err, 2) << " | " << F(r.vis_err) << " | "
           << F(Pct(r.vis_err, r.distance), 2) << " | " << F(r.opt_err) << " | " << F(Pct(r.opt_err, r.distance), 2)
           << " | " << F(r.opt_heading_err, 2) << " |\n";
+      f << "\n";
+    }
+    if (!s.fixes.empty()) {
+      f << "## Absolute fixes against the map (SITE_POSE_FIX)\n\n| site | error m | error x m | error y m | "
+           "sigma x / y m | heading error deg | sigma deg | NEES xy (2) | NEES xyh (3) |\n"
+           "|---|---|---|---|---|---|---|---|---|\n";
+      for (const FixRow& r : s.fixes)
+        f << "| " << r.site << " | " << F(r.err_xy) << " | " << F(r.err_x) << " | " << F(r.err_y) << " | "
+          << F(r.sigma_x) << " / " << F(r.sigma_y) << " | " << F(r.heading_err_deg, 2) << " | "
+          << F(r.sigma_heading_deg, 2) << " | " << F(r.nees_xy, 2) << " | " << F(r.nees_xyh, 2) << " |\n";
       f << "\n";
     }
     if (!s.pairs.empty()) {
@@ -307,6 +375,11 @@ std::string ShortTable(const Summary& s) {
        << F(s.opt_end_heading, 2) << " |\n\n";
     os << "visual pairs OK: " << s.pairs_ok << " of " << s.pairs.size() << "; median new-site error "
        << F(s.pair_median_pct, 3) << " % of spacing; mean NEES " << F(s.pair_mean_nees, 2) << " (3 expected)\n";
+    if (!s.fixes.empty())
+      os << "map fixes: " << s.fixes.size() << "; horizontal error median " << F(s.fix_median_err) << " m (max "
+         << F(s.fix_max_err) << "), heading median " << F(s.fix_median_heading, 2) << " deg (max "
+         << F(s.fix_max_heading, 2) << "); mean NEES " << F(s.fix_mean_nees_xy, 2) << " (xy, 2 expected) / "
+         << F(s.fix_mean_nees_xyh, 2) << " (xyh, 3)\n";
   }
   if (!s.uav.empty()) {
     os << "\n| UAV (" << s.uav.size() << " frames, " << F(s.uav_flown, 1) << " m flown) | value |\n|---|---|\n";

@@ -1,8 +1,9 @@
 #pragma once
 // vloc_eval: accuracy of a recorded run against the ground truth in its log.
-// Reads SITE_POSE_GT / SITE_POSE_DR (site_pose_t), SITE_POSE_VISUAL
-// (localization_t), the last TRAVERSE (traverse_t), UAV_GT (pose_t) and
-// UAV_STATE (uav_state_t); writes CSVs and report.md into an output folder.
+// Reads SITE_POSE_GT / SITE_POSE_DR / SITE_POSE_FIX (site_pose_t; FIX: the
+// map_localizer's absolute fixes), SITE_POSE_VISUAL (localization_t), the
+// last TRAVERSE (traverse_t), UAV_GT (pose_t) and UAV_STATE (uav_state_t);
+// writes CSVs and report.md into an output folder.
 
 #include <cstdint>
 #include <map>
@@ -28,6 +29,7 @@ struct UavSample {
 // Everything read from a log.
 struct LogData {
   std::map<int, PoseWithCovariance> gt, dr;
+  std::map<int, PoseWithCovariance> fix;       // SITE_POSE_FIX, the last per site
   std::vector<VisualPair> visual;
   std::map<int, PoseWithCovariance> traverse;  // the last TRAVERSE
   std::vector<std::pair<int64_t, Pose3>> uav_gt;
@@ -56,6 +58,14 @@ struct PairRow {
   double spacing = 0, err = NAN, err_pct = NAN, nees = NAN;
 };
 
+// An absolute fix against a map (SITE_POSE_FIX) against the site's truth.
+struct FixRow {
+  int site = 0;
+  double x = 0, y = 0, heading_deg = 0, sigma_x = 0, sigma_y = 0, sigma_heading_deg = 0;
+  double err_x = 0, err_y = 0, err_xy = 0, heading_err_deg = 0;  // fix - truth (m, m, m, deg signed)
+  double nees_xy = NAN, nees_xyh = NAN;                           // dim 2 / 3, with the fix's covariance
+};
+
 struct UavRow {
   int64_t utime = 0;
   double t = 0, height = 0, gt_height = 0, east = 0, north = 0, gt_east = 0, gt_north = 0, flown = 0;
@@ -64,6 +74,9 @@ struct UavRow {
 struct Summary {
   std::vector<SiteRow> sites;
   std::vector<PairRow> pairs;
+  std::vector<FixRow> fixes;
+  double fix_median_err = NAN, fix_max_err = NAN, fix_median_heading = NAN, fix_max_heading = NAN,
+         fix_mean_nees_xy = NAN, fix_mean_nees_xyh = NAN;
   std::vector<UavRow> uav;
   // End of traverse (last site with ground truth), m and % of distance.
   double distance = 0;
@@ -77,7 +90,7 @@ struct Summary {
 
 Summary Evaluate(const LogData& data);
 
-// Writes sites.csv, pairs.csv, uav.csv and report.md into `dir` (created).
+// Writes sites.csv, pairs.csv, fixes.csv, uav.csv and report.md into `dir` (created).
 void WriteOutputs(const Summary& s, const std::string& dir);
 // The short accuracy table printed to stdout.
 std::string ShortTable(const Summary& s);

@@ -2,10 +2,13 @@
 #include "vloc/maploc/map_raster.h"
 
 #include <gdal_priv.h>
+#include <ogr_spatialref.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <mutex>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -70,7 +73,15 @@ cv::Mat ReadBand(GDALDataset* ds, int band) {
   return m;
 }
 
-bool LoadGeoTiff(const std::string& path, MapRaster* map, std::string* error) {
+// A map file before georeferencing: its bands (NaN = no data) in the file's
+// pixel grid and the affine taking a pixel centre (col, row) to the file's
+// coordinates (metres or degrees).
+struct FileRaster {
+  cv::Mat gray, height;
+  cv::Matx23d file_from_pixel;
+};
+
+bool LoadGeoTiff(const std::string& path, FileRaster* raw, std::string* error) {
   RegisterGdal();
   CPLPushErrorHandler(CPLQuietErrorHandler);  // GDAL's own message goes into ours, not to stderr
   GDALDataset* ds = static_cast<GDALDataset*>(GDALOpen(path.c_str(), GA_ReadOnly));
@@ -80,24 +91,24 @@ bool LoadGeoTiff(const std::string& path, MapRaster* map, std::string* error) {
   double gt[6];
   const bool geo = ds->GetGeoTransform(gt) == CE_None;
   const int bands = ds->GetRasterCount();
-  bool ok = geo && gt[2] == 0 && gt[4] == 0 && gt[1] > 0 && std::abs(gt[1] + gt[5]) < 1e-9 * gt[1] && bands >= 1;
+  bool ok = geo && bands >= 1;
   if (ok) {
     const bool colour = bands >= 3 && ds->GetRasterBand(1)->GetRasterDataType() == GDT_Byte;
-    map->gray = ReadBand(ds, 1);
+    raw->gray = ReadBand(ds, 1);
     if (colour) {
-      for (int b = 2; b <= 3; ++b) map->gray += ReadBand(ds, b);
-      map->gray /= 3.0;
+      for (int b = 2; b <= 3; ++b) raw->gray += ReadBand(ds, b);
+      raw->gray /= 3.0;
+      if (bands >= 4) raw->gray.setTo(std::numeric_limits<float>::quiet_NaN(), ReadBand(ds, 4) == 0);  // alpha
     } else if (bands >= 2) {
-      map->height = ReadBand(ds, 2);
+      raw->height = ReadBand(ds, 2);
     }
-    map->x_min = gt[0];
-    map->y_max = gt[3];
-    map->m_per_px = gt[1];
-    ok = !map->gray.empty() && (bands < 2 || colour || !map->height.empty());
+    // The geotransform refers to the top-left corner of pixel (0, 0); its centre is half a cell in.
+    raw->file_from_pixel = cv::Matx23d(gt[1], gt[2], gt[0] + 0.5 * (gt[1] + gt[2]),  //
+                                       gt[4], gt[5], gt[3] + 0.5 * (gt[4] + gt[5]));
+    ok = !raw->gray.empty() && (bands < 2 || colour || !raw->height.empty());
   }
   GDALClose(ds);
-  if (!ok) return Fail(error, "map " + path + ": needs a north-up geotransform with square cells and readable bands");
-  MarkNoData(map);
+  if (!ok) return Fail(error, "map " + path + ": needs a geotransform and readable bands");
   return true;
 }
 
@@ -111,54 +122,186 @@ std::vector<std::string> WorldFileCandidates(const std::string& path) {
   return out;
 }
 
-bool ReadWorldFile(const std::string& image_path, double v[6], std::string* error) {
+// World file lines A D B E C F: x = A col + B row + C, y = D col + E row + F
+// at the centre of pixel (col, row).
+bool ReadWorldFile(const std::string& image_path, cv::Matx23d* file_from_pixel, std::string* error) {
   for (const std::string& candidate : WorldFileCandidates(image_path)) {
     std::ifstream in(candidate);
     if (!in) continue;
+    double v[6];
     for (int k = 0; k < 6; ++k)
       if (!(in >> v[k]) || !std::isfinite(v[k]))
-        return Fail(error, "world file " + candidate + ": needs six numbers (A D B E C F)");
-    if (v[1] != 0 || v[2] != 0 || !(v[0] > 0) || std::abs(v[0] + v[3]) > 1e-9 * v[0])
-      return Fail(error, "world file " + candidate + ": only north-up square cells are supported (D = B = 0, E = -A)");
+        return Fail(error, "world file " + candidate + ": needs six finite numbers (A D B E C F)");
+    if (!(std::abs(v[0] * v[3] - v[1] * v[2]) > 0))
+      return Fail(error, "world file " + candidate + ": its cells have no area (A E - B D = 0)");
+    *file_from_pixel = cv::Matx23d(v[0], v[2], v[4], v[1], v[3], v[5]);
     return true;
   }
   return Fail(error, "map " + image_path + ": no world file beside it (.pgw, .wld or <ext>w)");
 }
 
-bool LoadImageWithWorldFile(const std::string& path, MapRaster* map, std::string* error) {
+bool LoadImageWithWorldFile(const std::string& path, FileRaster* raw, std::string* error) {
   const cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
   if (image.empty() || image.depth() != CV_8U) return Fail(error, "map " + path + ": cannot read it as an 8-bit image");
-  double v[6];
-  if (!ReadWorldFile(path, v, error)) return false;
+  if (!ReadWorldFile(path, &raw->file_from_pixel, error)) return false;
   cv::Mat gray, alpha;
   if (image.channels() == 4) cv::extractChannel(image, alpha, 3);
   if (image.channels() >= 3) cv::cvtColor(image, gray, image.channels() == 4 ? cv::COLOR_BGRA2GRAY : cv::COLOR_BGR2GRAY);
   else gray = image;
-  gray.convertTo(map->gray, CV_32F);
-  map->gray.setTo(std::numeric_limits<float>::quiet_NaN(), alpha.empty() ? (gray == 0) : (alpha == 0));
-  map->height.release();
-  map->m_per_px = v[0];
-  map->x_min = v[4] - 0.5 * v[0];
-  map->y_max = v[5] + 0.5 * v[0];
-  MarkNoData(map);
+  gray.convertTo(raw->gray, CV_32F);
+  raw->gray.setTo(std::numeric_limits<float>::quiet_NaN(), alpha.empty() ? (gray == 0) : (alpha == 0));
+  raw->height.release();
+  return true;
+}
+
+cv::Point2d Apply(const cv::Matx23d& m, const cv::Point2d& p) {
+  return {m(0, 0) * p.x + m(0, 1) * p.y + m(0, 2), m(1, 0) * p.x + m(1, 1) * p.y + m(1, 2)};
+}
+
+// The affine taking file coordinates in WGS84 degrees to metres east / north of
+// the origin: GDAL's transverse Mercator on the WGS84 ellipsoid centred there
+// (the local tangent plane to < 1 cm within a few km), sampled at three corners.
+bool DegreesToMetres(const cv::Matx23d& deg_from_pixel, cv::Size size, const MapGeoreference& geo,
+                     const std::string& path, cv::Matx23d* metres_from_pixel, std::string* error) {
+  const cv::Point2d corners[3] = {{0, 0}, {static_cast<double>(size.width), 0}, {0, static_cast<double>(size.height)}};
+  double lon[3], lat[3];
+  for (int k = 0; k < 3; ++k) {
+    const cv::Point2d p = Apply(deg_from_pixel, corners[k]);
+    lon[k] = p.x;
+    lat[k] = p.y;
+    if (!(std::abs(p.x) <= 180 && std::abs(p.y) <= 90))
+      return Fail(error, "map " + path + ": coordinates (" + std::to_string(p.x) + ", " + std::to_string(p.y) +
+                             ") are not longitude / latitude degrees; drop map_geographic_origin for a map in metres");
+  }
+  const double cell_deg = std::sqrt(std::abs(deg_from_pixel(0, 0) * deg_from_pixel(1, 1) -
+                                             deg_from_pixel(0, 1) * deg_from_pixel(1, 0)));
+  if (cell_deg > 0.01)
+    return Fail(error, "map " + path + ": cells of " + std::to_string(cell_deg) +
+                           " deg are not a local map (> 1 km); is the world file in degrees?");
+  RegisterGdal();
+  OGRSpatialReference wgs, local;
+  wgs.importFromEPSG(4326);
+  wgs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  local.SetWellKnownGeogCS("WGS84");
+  local.SetTM(geo.origin_latitude, geo.origin_longitude, 1.0, 0.0, 0.0);
+  local.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::unique_ptr<OGRCoordinateTransformation> t(OGRCreateCoordinateTransformation(&wgs, &local));
+  if (!t || !t->Transform(3, lon, lat))
+    return Fail(error, "map " + path + ": GDAL cannot turn its degrees into metres around the origin");
+  const cv::Point2d e0(lon[0], lat[0]), ex = (cv::Point2d(lon[1], lat[1]) - e0) / size.width,
+      ey = (cv::Point2d(lon[2], lat[2]) - e0) / size.height;
+  *metres_from_pixel = cv::Matx23d(ex.x, ey.x, e0.x, ex.y, ey.y, e0.y);
+  return true;
+}
+
+// A projected world file whose cells are below 0.1 mm and whose coordinates
+// fit longitude / latitude is almost surely in degrees.
+bool LooksLikeDegrees(const cv::Matx23d& m) {
+  const double cell = std::max({std::abs(m(0, 0)), std::abs(m(0, 1)), std::abs(m(1, 0)), std::abs(m(1, 1))});
+  return cell < 1e-4 && std::abs(m(0, 2)) <= 180 && std::abs(m(1, 2)) <= 90;
+}
+
+// Bands resampled north-up with square cells of `m_per_px` covering the
+// footprint of `world_from_pixel`; cells reaching outside the source or onto
+// its no-data are no-data.
+MapRaster WarpNorthUp(const FileRaster& raw, const cv::Matx23d& world_from_pixel, double m_per_px) {
+  double x_lo = 1e300, x_hi = -1e300, y_lo = 1e300, y_hi = -1e300;
+  for (const cv::Point2d c : {cv::Point2d(-0.5, -0.5), cv::Point2d(raw.gray.cols - 0.5, -0.5),
+                              cv::Point2d(-0.5, raw.gray.rows - 0.5), cv::Point2d(raw.gray.cols - 0.5, raw.gray.rows - 0.5)}) {
+    const cv::Point2d w = Apply(world_from_pixel, c);
+    x_lo = std::min(x_lo, w.x), x_hi = std::max(x_hi, w.x), y_lo = std::min(y_lo, w.y), y_hi = std::max(y_hi, w.y);
+  }
+  MapRaster out;
+  out.m_per_px = m_per_px;
+  out.x_min = x_lo;
+  out.y_max = y_hi;
+  const cv::Size size(std::max(1, static_cast<int>(std::ceil((x_hi - x_lo) / m_per_px))),
+                      std::max(1, static_cast<int>(std::ceil((y_hi - y_lo) / m_per_px))));
+  // Output cell (c, r) -> world -> source pixel.
+  const cv::Matx33d world_from_out(m_per_px, 0, x_lo + 0.5 * m_per_px, 0, -m_per_px, y_hi - 0.5 * m_per_px, 0, 0, 1);
+  const cv::Matx33d world_from_src(world_from_pixel(0, 0), world_from_pixel(0, 1), world_from_pixel(0, 2),
+                                   world_from_pixel(1, 0), world_from_pixel(1, 1), world_from_pixel(1, 2), 0, 0, 1);
+  const cv::Matx33d src_from_out = world_from_src.inv() * world_from_out;
+  const cv::Matx23d warp = src_from_out.get_minor<2, 3>(0, 0);
+  cv::Mat finite = raw.gray == raw.gray;  // false on NaN
+  if (!raw.height.empty()) finite &= raw.height == raw.height;
+  cv::Mat weight;
+  finite.convertTo(weight, CV_32F, 1.0 / 255);
+  auto warp_band = [&](const cv::Mat& band) {
+    cv::Mat clean = band.clone(), warped;
+    clean.setTo(0, ~finite);
+    cv::warpAffine(clean, warped, warp, size, cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT, 0);
+    return warped;
+  };
+  const cv::Mat w = warp_band(weight);
+  out.valid = w > 0.999f;  // every source pixel under the bilinear footprint observed
+  out.gray = warp_band(raw.gray);
+  out.gray.setTo(0, ~out.valid);
+  if (!raw.height.empty()) {
+    out.height = warp_band(raw.height);
+    out.height.setTo(0, ~out.valid);
+  }
+  return out;
+}
+
+// The file's raster in the world frame: degrees -> metres, offset, north-up, cell size.
+bool Georeference(FileRaster raw, const MapGeoreference& geo, const std::string& path, MapRaster* map,
+                  std::string* error) {
+  cv::Matx23d world_from_pixel = raw.file_from_pixel;
+  if (geo.geographic) {
+    if (!DegreesToMetres(raw.file_from_pixel, raw.gray.size(), geo, path, &world_from_pixel, error)) return false;
+  } else if (LooksLikeDegrees(raw.file_from_pixel)) {
+    return Fail(error, "map " + path + ": its coordinates look like longitude / latitude degrees; set "
+                       "map_geographic_origin [lat, lon] (the world frame's origin) to read them");
+  }
+  world_from_pixel(0, 2) -= geo.offset_xy.x();
+  world_from_pixel(1, 2) -= geo.offset_xy.y();
+  const cv::Matx23d& m = world_from_pixel;
+  const double cell = std::sqrt(std::abs(m(0, 0) * m(1, 1) - m(0, 1) * m(1, 0)));
+  const double tolerance = 1e-9 * cell;
+  const bool north_up = m(0, 0) > 0 && std::abs(m(0, 1)) <= tolerance && std::abs(m(1, 0)) <= tolerance &&
+                        std::abs(m(0, 0) + m(1, 1)) <= tolerance;
+  MapRaster out;
+  if (north_up) {
+    out.gray = raw.gray;
+    out.height = raw.height;
+    out.m_per_px = m(0, 0);
+    out.x_min = m(0, 2) - 0.5 * m(0, 0);
+    out.y_max = m(1, 2) + 0.5 * m(0, 0);
+    MarkNoData(&out);
+  } else {
+    out = WarpNorthUp(raw, world_from_pixel, cell);
+  }
+  if (geo.m_per_px > 0) out = ResampleRaster(out, geo.m_per_px);
+  *map = std::move(out);
   return true;
 }
 
 }  // namespace
 
-bool LoadMapRaster(const std::string& path, MapRaster* map, std::string* error, const Eigen::Vector2d& offset_xy) {
+bool LoadMapRaster(const std::string& path, MapRaster* map, std::string* error, const MapGeoreference& georeference) {
   if (!std::filesystem::is_regular_file(path)) return Fail(error, "map " + path + ": no such file");
+  if (georeference.geographic &&
+      !(std::abs(georeference.origin_latitude) <= 90 && std::abs(georeference.origin_longitude) <= 180))
+    return Fail(error, "map " + path + ": the geographic origin must be [latitude, longitude] in degrees");
+  if (!(georeference.m_per_px >= 0) || !std::isfinite(georeference.m_per_px))
+    return Fail(error, "map " + path + ": the requested cell size must be >= 0 m (0 = the file's)");
   const std::string ext = Lower(std::filesystem::path(path).extension().string());
+  FileRaster raw;
+  const bool ok = (ext == ".tif" || ext == ".tiff") ? LoadGeoTiff(path, &raw, error)
+                                                    : LoadImageWithWorldFile(path, &raw, error);
   MapRaster loaded;
-  const bool ok = (ext == ".tif" || ext == ".tiff") ? LoadGeoTiff(path, &loaded, error)
-                                                    : LoadImageWithWorldFile(path, &loaded, error);
-  if (!ok) return false;
-  loaded.x_min -= offset_xy.x();
-  loaded.y_max -= offset_xy.y();
+  if (!ok || !Georeference(std::move(raw), georeference, path, &loaded, error)) return false;
   if (cv::countNonZero(loaded.valid) == 0) return Fail(error, "map " + path + ": every cell is no-data");
   if (!loaded.Check(error)) return Fail(error, "map " + path + ": " + *error);
   *map = std::move(loaded);
   return true;
+}
+
+bool LoadMapRaster(const std::string& path, MapRaster* map, std::string* error, const Eigen::Vector2d& offset_xy) {
+  MapGeoreference georeference;
+  georeference.offset_xy = offset_xy;
+  return LoadMapRaster(path, map, error, georeference);
 }
 
 bool WriteMapGeoTiff(const MapRaster& map, const std::string& path, std::string* error) {

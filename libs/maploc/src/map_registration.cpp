@@ -48,6 +48,8 @@ void RegistrationOptions::Visit(OptionsReader& r) {
   r.Optional("heading_covariance_scale", &heading_covariance_scale, "k of the heading variance (calibrated)");
   r.Optional("min_position_sigma_m", &min_position_sigma_m, "m, floor of the position sigma");
   r.Optional("min_heading_sigma_deg", &min_heading_sigma_deg, "deg, floor of the heading sigma");
+  r.Optional("map_position_sigma_m", &map_position_sigma_m, "m, the map's georeferencing error per axis (added)");
+  r.Optional("map_heading_sigma_deg", &map_heading_sigma_deg, "deg, the map's orientation error (added)");
   r.Optional("tilt_sigma_rad", &tilt_sigma_rad, "rad, roll/pitch sigma of the published fix");
   r.Optional("vertical_sigma_m", &vertical_sigma_m, "m, z sigma added to the prior's (map without heights)");
   r.Optional("min_vertical_sigma_m", &min_vertical_sigma_m, "m, floor of the z sigma from the map's heights");
@@ -77,6 +79,8 @@ bool RegistrationOptions::Check(std::string* error) const {
   if (!(min_vertical_sigma_m > 0 && vertical_correlation_cells >= 1))
     return Fail(error, "min_vertical_sigma_m must be > 0, vertical_correlation_cells >= 1");
   if (!(min_gray_texture >= 0 && min_height_texture_m >= 0)) return Fail(error, "texture thresholds must be >= 0");
+  if (!(map_position_sigma_m >= 0 && map_heading_sigma_deg >= 0))
+    return Fail(error, "map_position_sigma_m and map_heading_sigma_deg must be >= 0");
   return true;
 }
 
@@ -386,10 +390,11 @@ void FillCovariance(const RegistrationState& s, const Eigen::Matrix2d& H, double
   // Pixel rows grow southward: flip the y axis of the pixel Hessian.
   Eigen::Matrix2d flip = Eigen::Vector2d(1, -1).asDiagonal();
   Eigen::Matrix2d cov_xy = o.covariance_scale * (1 - rho) / n * (flip * (-H).inverse() * flip) * res * res;
-  cov_xy += Eigen::Matrix2d::Identity() * o.min_position_sigma_m * o.min_position_sigma_m;
+  cov_xy += Eigen::Matrix2d::Identity() * (o.min_position_sigma_m * o.min_position_sigma_m +
+                                           o.map_position_sigma_m * o.map_position_sigma_m);
   double var_h = heading_curvature < 0 ? o.heading_covariance_scale * (1 - rho) / (n * -heading_curvature)
                                        : std::pow(s.o.heading_step_deg * kDeg, 2);
-  var_h += std::pow(o.min_heading_sigma_deg * kDeg, 2);
+  var_h += std::pow(o.min_heading_sigma_deg * kDeg, 2) + std::pow(o.map_heading_sigma_deg * kDeg, 2);
   fix->covariance.setZero();
   fix->covariance.topLeftCorner<2, 2>() = cov_xy;
   fix->covariance(2, 2) = var_h;

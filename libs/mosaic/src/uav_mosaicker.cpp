@@ -1014,34 +1014,52 @@ bool UavMosaicker::WriteMosaic(const std::string& png_path, std::string* error) 
   std::error_code ec;
   const std::filesystem::path path(png_path);
   if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path(), ec);
+  // Written under temporary names, then renamed world file first, image last:
+  // a reader watching the image (map_localizer) never sees half a file or an
+  // image with another export's world file.
+  std::filesystem::path world = path, tmp_png = path, tmp_world;
+  world.replace_extension(".pgw");
+  tmp_png.replace_filename("." + path.stem().string() + ".writing" + path.extension().string());
+  tmp_world = tmp_png;
+  tmp_world.replace_extension(".pgw");
   bool written = false;
   try {
-    written = cv::imwrite(png_path, bgra);
+    written = cv::imwrite(tmp_png.string(), bgra);
   } catch (const cv::Exception& e) {
     written = false;
   }
   if (!written) {
+    std::filesystem::remove(tmp_png, ec);
     if (error) *error = "cannot write " + png_path + " (folder writable? name ends in .png?)";
     return false;
   }
-  std::filesystem::path world = path;
-  world.replace_extension(".pgw");
   if (enu_from_flipped_ && origin_fix_) {
     // pixel (col,row) -> mosaic px origin + (col,row)/scale -> (x,-y) -> ENU -> lon/lat.
     const Similarity2& T = *enu_from_flipped_;
     const double lat0 = origin_fix_->latitude, lon0 = origin_fix_->longitude;
     const double ke = 1.0 / (kEarthRadius * std::cos(lat0 * kDeg)) / kDeg, kn = 1.0 / kEarthRadius / kDeg;
     const double a = T.a, b = T.b, s = scale, ox = origin.x, oy = origin.y;
-    std::ofstream out(world);
+    std::ofstream out(tmp_world);
     out << std::setprecision(12) << ke * a / s << "\n"
         << kn * b / s << "\n"
         << ke * b / s << "\n"
         << -kn * a / s << "\n"
         << lon0 + ke * (a * ox + b * oy + T.tx) << "\n"
         << lat0 + kn * (b * ox - a * oy + T.ty) << "\n";
-    if (!out && error) *error = "mosaic written but not its world file " + world.string();
+    out.close();
+    if (!out) {
+      std::filesystem::remove(tmp_world, ec);
+      if (error) *error = "mosaic written but not its world file " + world.string();
+    } else {
+      std::filesystem::rename(tmp_world, world, ec);
+    }
   } else {
     std::filesystem::remove(world, ec);
+  }
+  std::filesystem::rename(tmp_png, path, ec);
+  if (ec) {
+    if (error) *error = "cannot rename " + tmp_png.string() + " to " + png_path + ": " + ec.message();
+    return false;
   }
   LOG(INFO) << "mosaic written: " << png_path << " (" << bgra.cols << "x" << bgra.rows << ", "
             << metres_per_pixel_ / scale << " m/px" << (enu_from_flipped_ ? ", world file " + world.string() : "")

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
@@ -15,6 +16,7 @@
 #include "../../../libs/maploc/src/masked_correlation.h"
 #include "vloc/maploc/ground_ortho.h"
 #include "vloc/maploc/map_registration.h"
+#include "vloc/sim/uav_geo.h"
 #include "vloc/testing/maploc_scenario.h"
 
 namespace vloc::maploc {
@@ -84,10 +86,125 @@ TEST(MapRaster, BadFilesGiveOneLineNamingTheFile) {
   ASSERT_TRUE(cv::imwrite((dir / "noworld.png").string(), img));
   EXPECT_FALSE(LoadMapRaster((dir / "noworld.png").string(), &m, &error));
   EXPECT_NE(error.find("world file"), std::string::npos) << error;
-  std::ofstream((dir / "noworld.pgw").string()) << "0.2\n0.1\n0\n-0.2\n5\n5\n";  // rotated
+  std::ofstream((dir / "noworld.pgw").string()) << "0.2\n0.1\n0.4\n0.2\n5\n5\n";  // A E - B D = 0
   EXPECT_FALSE(LoadMapRaster((dir / "noworld.png").string(), &m, &error));
-  EXPECT_NE(error.find("north-up"), std::string::npos) << error;
+  EXPECT_NE(error.find("no area"), std::string::npos) << error;
   EXPECT_EQ(error.find('\n'), std::string::npos);
+  std::ofstream((dir / "noworld.pgw").string()) << "2e-6\n0\n0\n-2e-6\n9.19\n45.46\n";  // degrees
+  EXPECT_FALSE(LoadMapRaster((dir / "noworld.png").string(), &m, &error));
+  EXPECT_NE(error.find("map_geographic_origin"), std::string::npos) << error;
+  EXPECT_EQ(error.find('\n'), std::string::npos);
+  MapGeoreference geographic;
+  geographic.geographic = true;
+  geographic.origin_latitude = 45.46;
+  geographic.origin_longitude = 9.19;
+  std::ofstream((dir / "noworld.pgw").string()) << "0.2\n0\n0\n-0.2\n500100\n5040000\n";  // UTM metres
+  EXPECT_FALSE(LoadMapRaster((dir / "noworld.png").string(), &m, &error, geographic));
+  EXPECT_NE(error.find("not longitude / latitude"), std::string::npos) << error;
+  EXPECT_EQ(error.find('\n'), std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
+// A smooth pattern of the world position (period ~4 m: 5 cm of misplacement
+// changes it by ~5 grey levels), for checking where a loaded map puts its cells.
+double Pattern(const Eigen::Vector2d& xy) {
+  return 128 + 50 * std::sin(1.6 * xy.x() + 0.3 * xy.y()) * std::cos(1.3 * xy.y() - 0.2 * xy.x());
+}
+
+// An 8-bit BGRA image whose pixel (c, r) shows Pattern at world_from_pixel(c, r);
+// alpha 0 (no data) in its top-left corner block.
+cv::Mat PatternImage(cv::Size size, const std::function<Eigen::Vector2d(double, double)>& world_from_pixel) {
+  cv::Mat image(size, CV_8UC4);
+  for (int r = 0; r < size.height; ++r)
+    for (int c = 0; c < size.width; ++c) {
+      const uint8_t g = cv::saturate_cast<uint8_t>(Pattern(world_from_pixel(c, r)));
+      image.at<cv::Vec4b>(r, c) = cv::Vec4b(g, g, g, (r < 40 && c < 40) ? 0 : 255);
+    }
+  return image;
+}
+
+// Largest |loaded grey - Pattern| over valid cells; counts valid cells.
+double PatternError(const MapRaster& map, int* valid_cells) {
+  double worst = 0;
+  *valid_cells = 0;
+  for (int r = 0; r < map.gray.rows; ++r)
+    for (int c = 0; c < map.gray.cols; ++c) {
+      if (!map.valid.at<uint8_t>(r, c)) continue;
+      ++*valid_cells;
+      worst = std::max(worst, std::abs(map.gray.at<float>(r, c) - Pattern(map.WorldOfPixel(c, r))));
+    }
+  return worst;
+}
+
+TEST(MapRaster, RotatedWorldFileIsResampledNorthUpWithItsNoDataMasked) {
+  const auto dir = TempDir("rotated");
+  // 0.1 m cells turned 30 deg: x = A c + B r + C, y = D c + E r + F.
+  const double s = 0.1, angle = 30 * kDeg;
+  const double A = s * std::cos(angle), D = s * std::sin(angle), B = s * std::sin(angle), E = -s * std::cos(angle);
+  const double C = 40.0, F = -12.0;
+  const cv::Mat image = PatternImage(cv::Size(300, 200), [&](double c, double r) {
+    return Eigen::Vector2d(A * c + B * r + C, D * c + E * r + F);
+  });
+  ASSERT_TRUE(cv::imwrite((dir / "rot.png").string(), image));
+  std::ofstream((dir / "rot.pgw").string()) << A << "\n" << D << "\n" << B << "\n" << E << "\n" << C << "\n" << F << "\n";
+  MapRaster map;
+  std::string error;
+  ASSERT_TRUE(LoadMapRaster((dir / "rot.png").string(), &map, &error)) << error;
+  EXPECT_NEAR(map.m_per_px, s, 1e-6);  // same cell area (world file to 6 digits)
+  // Footprint: the bounding box of the turned 30 x 20 m image.
+  EXPECT_NEAR(map.gray.cols * s, 30 * std::cos(angle) + 20 * std::sin(angle), 2 * s);
+  EXPECT_NEAR(map.gray.rows * s, 30 * std::sin(angle) + 20 * std::cos(angle), 2 * s);
+  int valid = 0;
+  EXPECT_LT(PatternError(map, &valid), 6.0);  // bilinear resampling + 8 bits; 5 cm off would give ~5 more
+  EXPECT_NEAR(valid, 300 * 200 - 40 * 40, 0.03 * 300 * 200);  // the image's area less its alpha-0 corner
+  // The alpha-0 corner (around pixel (20, 20) of the image) is no-data in the map.
+  const Eigen::Vector2d corner = map.PixelOfWorld({A * 20 + B * 20 + C, D * 20 + E * 20 + F});
+  EXPECT_EQ(map.valid.at<uint8_t>(static_cast<int>(std::lround(corner.y())), static_cast<int>(std::lround(corner.x()))), 0);
+  // Resampled to a requested cell size on load.
+  MapGeoreference coarse;
+  coarse.m_per_px = 0.2;
+  ASSERT_TRUE(LoadMapRaster((dir / "rot.png").string(), &map, &error, coarse)) << error;
+  EXPECT_NEAR(map.m_per_px, 0.2, 2e-3);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(MapRaster, WorldFileInDegreesBecomesMetresAroundTheGeographicOrigin) {
+  // A mosaic-like world file: lon / lat degrees, turned 15 deg, 8 cm cells, placed
+  // 120 m east and 80 m north of the world origin (the UAV simulator's GPS origin).
+  const LocalTangentPlane plane(45.4642, 9.19, 120.0);
+  const double s = 0.08, angle = 15 * kDeg;
+  auto metres_of_pixel = [&](double c, double r) {
+    return Eigen::Vector2d(120 + s * (std::cos(angle) * c + std::sin(angle) * r),
+                           80 + s * (std::sin(angle) * c - std::cos(angle) * r));
+  };
+  auto degrees_of_pixel = [&](double c, double r) {
+    const Eigen::Vector2d m = metres_of_pixel(c, r);
+    double lat, lon, alt;
+    plane.ToGeodetic(m.x(), m.y(), 0, &lat, &lon, &alt);
+    return Eigen::Vector2d(lon, lat);
+  };
+  const Eigen::Vector2d o = degrees_of_pixel(0, 0), dc = degrees_of_pixel(1, 0) - o, dr = degrees_of_pixel(0, 1) - o;
+  const auto dir = TempDir("degrees");
+  ASSERT_TRUE(cv::imwrite((dir / "mosaic.png").string(), PatternImage(cv::Size(320, 240), metres_of_pixel)));
+  std::ofstream w((dir / "mosaic.pgw").string());
+  w.precision(15);
+  w << dc.x() << "\n" << dc.y() << "\n" << dr.x() << "\n" << dr.y() << "\n" << o.x() << "\n" << o.y() << "\n";
+  w.close();
+  MapGeoreference geo;
+  geo.geographic = true;
+  geo.origin_latitude = 45.4642;
+  geo.origin_longitude = 9.19;
+  MapRaster map;
+  std::string error;
+  ASSERT_TRUE(LoadMapRaster((dir / "mosaic.png").string(), &map, &error, geo)) << error;
+  EXPECT_NEAR(map.m_per_px, s, 1e-4);
+  int valid = 0;
+  EXPECT_LT(PatternError(map, &valid), 6.0);
+  EXPECT_GT(valid, 0.9 * (320 * 240 - 40 * 40));
+  // The image's centre lands where it was drawn (to well under a cell).
+  const Eigen::Vector2d centre = metres_of_pixel(159.5, 119.5);
+  const Eigen::Vector2d mid = map.WorldOfPixel(0.5 * map.gray.cols - 0.5, 0.5 * map.gray.rows - 0.5);
+  EXPECT_LT((mid - centre).norm(), 0.5 * s + 0.02);
   std::filesystem::remove_all(dir);
 }
 

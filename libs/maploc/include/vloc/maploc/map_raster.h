@@ -30,14 +30,29 @@ struct MapRaster {
   bool Check(std::string* error) const;
 };
 
+// How a map file's coordinates become world metres (x east, y north).
+struct MapGeoreference {
+  Eigen::Vector2d offset_xy = Eigen::Vector2d::Zero();  // m, subtracted from projected map coordinates
+  bool geographic = false;         // the file's coordinates are WGS84 degrees (x = longitude, y = latitude),
+                                   // e.g. the UAV mosaicker's world file; they become metres east / north of
+                                   // the origin below (transverse Mercator on the WGS84 ellipsoid, via GDAL)
+  double origin_latitude = 0;      // deg, WGS84 latitude of the world frame's origin (geographic)
+  double origin_longitude = 0;     // deg, WGS84 longitude of the world frame's origin (geographic)
+  double m_per_px = 0;             // m, cell size of the loaded raster; 0 = the file's (a rotated or non-square
+                                   // file: the side of a square of the same area)
+};
+
 // Reads a map. GeoTIFF (.tif/.tiff, via GDAL): band 1 = grey (several
 // colour bands are averaged when there is no height band), a float band 2
-// (when band 1 is not the first of 3-4 colour bands) = height in m; the
-// geotransform must be north-up without rotation. Other images (PNG, JPEG)
-// need a world file beside them (.pgw, .pngw, .jgw, .wld or <file>w);
-// grey 0 (or alpha 0) marks no data. `offset_xy` is subtracted from the
-// file's coordinates (projected map coordinates -> the world frame).
-// False with *error naming the file and the fix.
+// (when band 1 is not the first of 3-4 colour bands) = height in m. Other
+// images (PNG, JPEG) need a world file beside them (.pgw, .pngw, .jgw, .wld
+// or <file>w); grey 0 (or alpha 0, e.g. the mosaic's uncovered pixels)
+// marks no data. A rotated or sheared geotransform / world file (B, D != 0)
+// or non-square cells are resampled north-up (no-data outside the image).
+// False with *error (one line) naming the file and the fix.
+bool LoadMapRaster(const std::string& path, MapRaster* map, std::string* error, const MapGeoreference& georeference);
+// The same for projected coordinates in metres: `offset_xy` is subtracted
+// from the file's coordinates (projected map coordinates -> the world frame).
 bool LoadMapRaster(const std::string& path, MapRaster* map, std::string* error,
                    const Eigen::Vector2d& offset_xy = Eigen::Vector2d::Zero());
 

@@ -57,6 +57,9 @@ struct RegistrationOptions {
   double heading_covariance_scale = 50.0;   // k of the heading variance (calibrated likewise)
   double min_position_sigma_m = 0.02; // m, floor of the reported position sigma
   double min_heading_sigma_deg = 0.05;// deg, floor of the reported heading sigma
+  double map_position_sigma_m = 0.0;  // m, 1-sigma per axis of the map's own georeferencing error, added to the fix's
+                                      // (a UAV mosaic tied to GPS: its tie error; an orthophoto: its stated accuracy)
+  double map_heading_sigma_deg = 0.0; // deg, 1-sigma of the map's own orientation error, added likewise
   double tilt_sigma_rad = 0.5;        // rad, roll/pitch sigma of the published fix (the map does not see them)
   double vertical_sigma_m = 5.0;      // m, z sigma of the published fix without a map height (added to the prior's)
   double min_vertical_sigma_m = 0.05; // m, floor of the z sigma measured against the map's heights

@@ -1,0 +1,68 @@
+#!/usr/bin/env bash
+# The cooperative run (issue 20): the simulated UAV flies over the rover's area first and its
+# mosaic is the rover's map. Both halves run through vloc_launch over real LCM:
+#   1. vloc_render_map: the rover simulator's terrain from above under the map's sun (azimuth 60,
+#      elevation 50), 5 cm/px, as the UAV simulator's ground (world frame = rover site 0's, ENU)
+#   2. group uav_coop: sim_uav (lawnmower at 40 m, GPS 1.5 m) + uav_mosaicker (GPS-tied mosaic,
+#      10 cm/px, PNG + lon/lat world file, rewritten every 10 s) + logger
+#   3. group rover_coop: the rover pipeline (Navcam under the rover's sun, azimuth 135, elevation 30)
+#      with map_localizer on that mosaic + logger
+#   4. vloc_eval on the rover log, scripts/coop_eval.py: fixes vs truth, the mosaic's georeferencing
+#      error (mosaic vs the rendered orthomap), the picture of the traverse over the mosaic
+#
+#   scripts/coop_demo.sh [--sites N] [--out DIR] [--flight-seconds S] [--uav-only]
+# VLOC_UAV_GPS_SIGMA=M sets the UAV's horizontal GPS sigma (0.05 m, RTK; 1.5 = consumer GNSS);
+# --uav-only stops after the mosaic and its georeferencing error.
+set -euo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)"
+build="${VLOC_BUILD_DIR:-$root/build}"
+out="$root/out/coop"
+sites=11
+flight_s=0
+uav_only=0
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --sites) sites="$2"; shift 2 ;;
+    --out) out="$2"; shift 2 ;;
+    --flight-seconds) flight_s="$2"; shift 2 ;;
+    --uav-only) uav_only=1; shift ;;
+    *) echo "coop_demo.sh: unknown option $1 (use --sites N, --out DIR, --flight-seconds S, --uav-only)" >&2; exit 2 ;;
+  esac
+done
+for exe in vloc_launch vloc_render_map sim_uav uav_mosaicker sim_rover dead_reckoning feature_frontend crosssite_ba \
+           traverse_graph map_localizer vloc_logger vloc_eval; do
+  [ -x "$build/bin/$exe" ] || { echo "coop_demo.sh: $build/bin/$exe missing: cmake --build build" >&2; exit 1; }
+done
+t0=$(date +%s)
+say() { printf '[coop %4ds] %s\n' "$(( $(date +%s) - t0 ))" "$*"; }
+rm -rf "$out"; mkdir -p "$out"
+out="$(cd "$out" && pwd)"
+export VLOC_BIN="$build/bin" VLOC_ROOT="$root"
+export VLOC_LCM_URL="${VLOC_LCM_URL:-udpm://239.255.76.67:7951?ttl=0&recv_buf_size=33554432}"
+
+run_group() {  # $1 group; extra environment from the caller
+  say "group $1"
+  if ! "$build/bin/vloc_launch" --config "$root/config/groups/$1.yaml" --log-dir "$out" \
+       --lcm-url "$VLOC_LCM_URL" --exit-when-done > "$out/vloc_launch_$1.out" 2>&1; then
+    echo "coop_demo.sh: group $1 failed; process logs in $out" >&2
+    tail -n 20 "$out/vloc_launch_$1.out" >&2
+    exit 1
+  fi
+}
+
+say "rendering the UAV's ground (the rover terrain under the map's sun)"
+"$build/bin/vloc_render_map" --config "$root/config/procs/sim_rover.yaml" --out "$out/coop_orthomap.png" \
+  --res 0.05 --sun-azimuth 60 --sun-elevation 50 --region -40,-100,80,40
+VLOC_SIM_UAV_SECONDS="$flight_s" run_group uav_coop
+[ -f "$out/uav_mosaic.pgw" ] || { echo "coop_demo.sh: the mosaic is not georeferenced (no $out/uav_mosaic.pgw)" >&2; exit 1; }
+say "mosaic: $(grep -h 'mosaic written' "$out/uav_mosaicker.log" | tail -n 1 | sed 's/.*uav_mosaicker: mosaic written to //')"
+if [ "$uav_only" = 1 ]; then
+  /usr/bin/python3 "$root/scripts/coop_eval.py" --dir "$out"
+  say "done (UAV only)"
+  exit 0
+fi
+VLOC_SIM_SITES="$sites" run_group rover_coop
+say "map_localizer: $(grep -hE 'fixes, [0-9]+ sites without' "$out/map_localizer.log" | tail -n 1 | sed 's/.*map_localizer: //' | cut -c1-120)"
+"$build/bin/vloc_eval" "$out/rover_coop.lcmlog" --out "$out/eval" --quiet --no-plots > /dev/null
+/usr/bin/python3 "$root/scripts/coop_eval.py" --dir "$out"
+say "done"
