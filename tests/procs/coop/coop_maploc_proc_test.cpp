@@ -138,7 +138,7 @@ TEST(CoopProcess, TheUavMosaicIsTheRoverMapThroughBothGroups) {
   std::string error;
   ASSERT_TRUE(maploc::LoadMapRaster((dir / "uav_mosaic.png").string(), &map, &error, geo)) << error;
   EXPECT_NEAR(map.m_per_px, 0.1, 0.003);  // uav_mosaicker_coop.yaml's 10 cm/px, GPS-scaled
-  for (const Eigen::Vector2d site : {Eigen::Vector2d(0, 0), Eigen::Vector2d(23.6, -7.9)}) {
+  for (const Eigen::Vector2d& site : {Eigen::Vector2d(0, 0), Eigen::Vector2d(23.6, -7.9)}) {
     const maploc::MapRaster around = maploc::CropRaster(map, site, 12.0);
     EXPECT_GT(cv::countNonZero(around.valid), 0.95 * around.valid.total()) << "the mosaic misses site at " << site.transpose();
   }
