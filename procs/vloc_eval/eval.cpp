@@ -42,6 +42,61 @@ std::string F(double v, int prec = 3) {
   return os.str();
 }
 
+// Median of `v` (mean of the middle two for an even count); `v` not empty.
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+// Absolute fixes (SITE_POSE_FIX) against the site's truth: error and NEES in x, y, heading.
+void EvaluateFixes(const LogData& d, Summary* s) {
+  std::vector<double> errs, headings;
+  double nees2 = 0, nees3 = 0;
+  int nees_count = 0;
+  for (const auto& [id, fix] : d.fix) {
+    const auto gt = d.gt.find(id);
+    if (gt == d.gt.end()) continue;
+    FixRow r;
+    r.site = id;
+    r.x = fix.pose.translation().x();
+    r.y = fix.pose.translation().y();
+    r.heading_deg = Deg(Heading(fix.pose));
+    r.err_x = r.x - gt->second.pose.translation().x();
+    r.err_y = r.y - gt->second.pose.translation().y();
+    r.err_xy = std::hypot(r.err_x, r.err_y);
+    const double dh = WrapAngle(Heading(fix.pose) - Heading(gt->second.pose));
+    r.heading_err_deg = Deg(dh);
+    Eigen::Matrix3d cov;  // x, y, yaw of the 6x6 (x y z roll pitch yaw)
+    const int idx[3] = {0, 1, 5};
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) cov(i, j) = fix.covariance(idx[i], idx[j]);
+    r.sigma_x = std::sqrt(std::max(0.0, cov(0, 0)));
+    r.sigma_y = std::sqrt(std::max(0.0, cov(1, 1)));
+    r.sigma_heading_deg = Deg(std::sqrt(std::max(0.0, cov(2, 2))));
+    const Eigen::Vector3d e(r.err_x, r.err_y, dh);
+    if (cov.determinant() > 0) {
+      r.nees_xy = e.head<2>().dot(cov.topLeftCorner<2, 2>().ldlt().solve(e.head<2>()));
+      r.nees_xyh = e.dot(cov.ldlt().solve(e));
+      nees2 += r.nees_xy;
+      nees3 += r.nees_xyh;
+      ++nees_count;
+    }
+    errs.push_back(r.err_xy);
+    headings.push_back(std::abs(r.heading_err_deg));
+    s->fixes.push_back(r);
+  }
+  if (!errs.empty()) {
+    s->fix_median_err = Median(errs);
+    s->fix_max_err = *std::max_element(errs.begin(), errs.end());
+    s->fix_median_heading = Median(headings);
+    s->fix_max_heading = *std::max_element(headings.begin(), headings.end());
+  }
+  if (nees_count) {
+    s->fix_mean_nees_xy = nees2 / nees_count;
+    s->fix_mean_nees_xyh = nees3 / nees_count;
+  }
+}
+
 }  // namespace
 
 LogData ReadLog(const std::string& path, bool progress) {
@@ -162,11 +217,7 @@ Summary Evaluate(const LogData& d) {
           r.vis_heading_err = HeadingError(r.visual, r.gt);
         }
   }
-  if (!pcts.empty()) {
-    std::sort(pcts.begin(), pcts.end());
-    s.pair_median_pct = pcts[pcts.size() / 2];
-    if (pcts.size() % 2 == 0) s.pair_median_pct = 0.5 * (pcts[pcts.size() / 2 - 1] + pcts[pcts.size() / 2]);
-  }
+  if (!pcts.empty()) s.pair_median_pct = Median(pcts);
   if (nees_n) s.pair_mean_nees = nees_sum / nees_n;
   if (!s.sites.empty()) {
     const SiteRow& last = s.sites.back();
@@ -178,56 +229,7 @@ Summary Evaluate(const LogData& d) {
     s.vis_end_heading = last.vis_heading_err;
     s.opt_end_heading = last.opt_heading_err;
   }
-  // Absolute fixes against the site's truth: error and NEES in x, y, heading.
-  std::vector<double> errs, headings;
-  double nees2 = 0, nees3 = 0;
-  int nees_count = 0;
-  for (const auto& [id, fix] : d.fix) {
-    const auto gt = d.gt.find(id);
-    if (gt == d.gt.end()) continue;
-    FixRow r;
-    r.site = id;
-    r.x = fix.pose.translation().x();
-    r.y = fix.pose.translation().y();
-    r.heading_deg = Deg(Heading(fix.pose));
-    r.err_x = r.x - gt->second.pose.translation().x();
-    r.err_y = r.y - gt->second.pose.translation().y();
-    r.err_xy = std::hypot(r.err_x, r.err_y);
-    const double dh = WrapAngle(Heading(fix.pose) - Heading(gt->second.pose));
-    r.heading_err_deg = Deg(dh);
-    Eigen::Matrix3d cov;  // x, y, yaw of the 6x6 (x y z roll pitch yaw)
-    const int idx[3] = {0, 1, 5};
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) cov(i, j) = fix.covariance(idx[i], idx[j]);
-    r.sigma_x = std::sqrt(std::max(0.0, cov(0, 0)));
-    r.sigma_y = std::sqrt(std::max(0.0, cov(1, 1)));
-    r.sigma_heading_deg = Deg(std::sqrt(std::max(0.0, cov(2, 2))));
-    const Eigen::Vector3d e(r.err_x, r.err_y, dh);
-    if (cov.determinant() > 0) {
-      r.nees_xy = e.head<2>().dot(cov.topLeftCorner<2, 2>().ldlt().solve(e.head<2>()));
-      r.nees_xyh = e.dot(cov.ldlt().solve(e));
-      nees2 += r.nees_xy;
-      nees3 += r.nees_xyh;
-      ++nees_count;
-    }
-    errs.push_back(r.err_xy);
-    headings.push_back(std::abs(r.heading_err_deg));
-    s.fixes.push_back(r);
-  }
-  auto median = [](std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-  };
-  if (!errs.empty()) {
-    s.fix_median_err = median(errs);
-    s.fix_max_err = *std::max_element(errs.begin(), errs.end());
-    s.fix_median_heading = median(headings);
-    s.fix_max_heading = *std::max_element(headings.begin(), headings.end());
-  }
-  if (nees_count) {
-    s.fix_mean_nees_xy = nees2 / nees_count;
-    s.fix_mean_nees_xyh = nees3 / nees_count;
-  }
+  EvaluateFixes(d, &s);
   // UAV: each state matched to the ground truth nearest in time.
   if (!d.uav_gt.empty() && !d.uav_state.empty()) {
     std::vector<double> flown(d.uav_gt.size(), 0.0);
