@@ -48,10 +48,7 @@ int main(int argc, char** argv) {
     }
     if (setup->args.Has("revisit"))
       options.world.traverse.plan.revisit_site = setup->args.GetInt("revisit", options.world.traverse.plan.revisit_site);
-    if (setup->args.Has("seed")) {
-      const long long seed = std::stoll(setup->args.Get("seed"));
-      if (seed >= 0) options.world.traverse.seed = static_cast<uint64_t>(seed);
-    }
+    if (const int seed = setup->args.GetInt("seed", -1); seed >= 0) options.world.traverse.seed = static_cast<uint64_t>(seed);
     std::string error;
     if (!options.Check(&error)) throw vloc::ConfigError("command line: " + error);
     LOG(INFO) << "sim_rover options:\n"

@@ -1,7 +1,8 @@
 #include "vloc/common/command_line.h"
 
 #include <algorithm>
-#include <stdexcept>
+
+#include "vloc/common/options.h"
 
 namespace vloc {
 
@@ -49,7 +50,7 @@ double CommandLine::GetDouble(const std::string& name, double fallback) const {
   try {
     return std::stod(it->second);
   } catch (const std::exception&) {
-    throw std::invalid_argument("--" + name + " expects a number, got '" + it->second + "'");
+    throw ConfigError("--" + name + " expects a number, got '" + it->second + "'");
   }
 }
 
@@ -59,7 +60,7 @@ int CommandLine::GetInt(const std::string& name, int fallback) const {
   try {
     return std::stoi(it->second);
   } catch (const std::exception&) {
-    throw std::invalid_argument("--" + name + " expects an integer, got '" + it->second + "'");
+    throw ConfigError("--" + name + " expects an integer, got '" + it->second + "'");
   }
 }
 

@@ -236,5 +236,23 @@ TEST(CommandLine, ParsesFlagsAndRejectsUnknown) {
   EXPECT_NE(error.find("unknown option --confg"), std::string::npos);
 }
 
+// A flag value that is not a number is a configuration error naming the
+// flag, which every process reports as its one error line.
+TEST(CommandLine, NonNumericValueIsAConfigErrorNamingTheFlag) {
+  const char* argv[] = {"prog", "--sites", "ten", "--speed", "fast", "--seed", "7"};
+  CommandLine cl;
+  std::string error;
+  ASSERT_TRUE(cl.Parse(7, const_cast<char**>(argv), {"sites", "speed", "seed"}, &error)) << error;
+  EXPECT_EQ(cl.GetInt("seed", -1), 7);
+  EXPECT_EQ(cl.GetInt("absent", -1), -1);
+  try {
+    cl.GetInt("sites", 1);
+    ADD_FAILURE() << "no error for --sites ten";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()), "--sites expects an integer, got 'ten'");
+  }
+  EXPECT_THROW(cl.GetDouble("speed", 1.0), ConfigError);
+}
+
 }  // namespace
 }  // namespace vloc

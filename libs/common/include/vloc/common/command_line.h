@@ -16,6 +16,8 @@ class CommandLine {
 
   bool Has(const std::string& name) const { return values_.count(name) > 0; }
   std::string Get(const std::string& name, const std::string& fallback = "") const;
+  // A value that is not a number throws ConfigError naming the flag (the
+  // processes report it as their one error line).
   double GetDouble(const std::string& name, double fallback) const;
   int GetInt(const std::string& name, int fallback) const;
   const std::vector<std::string>& positional() const { return positional_; }
