@@ -3,7 +3,7 @@
 # mosaic is the rover's map. Both halves run through vloc_launch over real LCM:
 #   1. vloc_render_map: the rover simulator's terrain from above under the map's sun (azimuth 60,
 #      elevation 50), 5 cm/px, as the UAV simulator's ground (world frame = rover site 0's, ENU)
-#   2. group uav_coop: sim_uav (lawnmower at 40 m, GPS 1.5 m) + uav_mosaicker (GPS-tied mosaic,
+#   2. group uav_coop: sim_uav (lawnmower at 40 m, RTK GPS 5 cm) + uav_mosaicker (GPS-tied mosaic,
 #      10 cm/px, PNG + lon/lat world file, rewritten every 10 s) + logger
 #   3. group rover_coop: the rover pipeline (Navcam under the rover's sun, azimuth 135, elevation 30)
 #      with map_localizer on that mosaic + logger
