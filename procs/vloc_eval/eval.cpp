@@ -196,9 +196,11 @@ Summary Evaluate(const LogData& d) {
       if (p.status == 0) {
         const Eigen::Vector3d e = p.relative.pose.translation() - true_rel.translation();  // reference frame
         row.err = e.norm();
+        row.err_xyz = e;
         row.err_pct = Pct(row.err, row.spacing);
         pcts.push_back(row.err_pct);
         const Eigen::Matrix3d cov = p.relative.covariance.topLeftCorner<3, 3>();
+        row.sigma_xyz = cov.diagonal().cwiseMax(0.0).cwiseSqrt();
         if (cov.determinant() > 0) {
           row.nees = e.dot(cov.ldlt().solve(e));
           nees_sum += row.nees;
@@ -305,10 +307,14 @@ void WriteOutputs(const Summary& s, const std::string& dir) {
   }
   {
     auto f = open("pairs.csv");
-    f << "reference,site,status,spacing_m,err_m,err_pct,nees\n";
-    for (const PairRow& p : s.pairs)
+    f << "reference,site,status,spacing_m,err_m,err_pct,nees,err_x,err_y,err_z,sigma_x,sigma_y,sigma_z\n";
+    for (const PairRow& p : s.pairs) {
       f << p.reference << ',' << p.site << ',' << p.status << ',' << p.spacing << ',' << F(p.err, 6) << ','
-        << F(p.err_pct, 6) << ',' << F(p.nees, 6) << '\n';
+        << F(p.err_pct, 6) << ',' << F(p.nees, 6);
+      for (int i = 0; i < 3; ++i) f << ',' << F(p.err_xyz[i], 6);
+      for (int i = 0; i < 3; ++i) f << ',' << F(p.sigma_xyz[i], 6);
+      f << '\n';
+    }
   }
   {
     auto f = open("fixes.csv");

@@ -56,6 +56,8 @@ struct SiteRow {
 struct PairRow {
   int reference = 0, site = 0, status = 0;
   double spacing = 0, err = NAN, err_pct = NAN, nees = NAN;
+  Eigen::Vector3d err_xyz = Eigen::Vector3d::Constant(NAN);    // m, estimate - truth in the reference site's frame
+  Eigen::Vector3d sigma_xyz = Eigen::Vector3d::Constant(NAN);  // m, the BA's stated sigma per axis
 };
 
 // An absolute fix against a map (SITE_POSE_FIX) against the site's truth.

@@ -76,6 +76,9 @@ void FrontendOptions::Visit(OptionsReader& r) {
   r.Optional("min_region_std", &min_region_std, "grey level, texture needed in the regions");
   r.Optional("duplicate_radius", &duplicate_radius, "px, tie points closer than this are merged");
   r.Optional("min_tie_points", &min_tie_points, "verified tie points needed for status OK");
+  r.Optional("vehicle_boxes_m", &vehicle_boxes_m,
+             "m, the rover's body as boxes in the body frame, 6 numbers each: x0 x1 y0 y1 z0 z1 (empty = none)");
+  r.Optional("vehicle_margin_px", &vehicle_margin_px, "px, the body's mask grows by this");
   r.Optional("num_threads", &num_threads, "OpenMP threads of the whole front end");
 }
 
@@ -112,6 +115,14 @@ bool FrontendOptions::Check(std::string* error) const {
   // keep_unrefined_cross, warp_current, match_previous_resolution,
   // grid_lsm_enabled, keep_grid_unrefined, tile_registration) have no bad value.
   // NaN fails every check below: each is written as !(good).
+  if (vehicle_boxes_m.size() % 6 != 0)
+    return Bad(error, "vehicle_boxes_m", vehicle_boxes_m.size(), "a multiple of 6 numbers (x0 x1 y0 y1 z0 z1 per box)");
+  for (size_t b = 0; b + 6 <= vehicle_boxes_m.size(); b += 6)
+    for (int a = 0; a < 3; ++a)
+      if (!(vehicle_boxes_m[b + 2 * a] < vehicle_boxes_m[b + 2 * a + 1]))
+        return Bad(error, "vehicle_boxes_m", "box " + std::to_string(b / 6), "finite, each min below its max");
+  if (!(vehicle_margin_px >= 0 && vehicle_margin_px <= 100))
+    return Bad(error, "vehicle_margin_px", vehicle_margin_px, "in [0, 100] px");
   if (!(ground_grid_px >= frontend_internal::kGroundMinGridPx)) return Bad(error, "ground_grid_px", ground_grid_px, ">= 8 px");
   if (!(ground_min_points >= 3)) return Bad(error, "ground_min_points", ground_min_points, ">= 3");
   if (!(ground_tolerance_m > 0)) return Bad(error, "ground_tolerance_m", ground_tolerance_m, "> 0 m");
@@ -247,7 +258,12 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous, const SiteImag
       return n;
     });
     stages.Step("overlap_asift", [&] {
-      ForEachForwardOverlap(s, o.num_threads, [&](int k) { DetectWarpedFeatures(o, &s.overlaps[k]); });
+      ForEachForwardOverlap(s, o.num_threads, [&](int k) {
+        OverlapWork& w = s.overlaps[k];
+        DetectWarpedFeatures(o, &w);
+        DropVehicleFeatures(s.current_left[s.prediction.overlaps[k].current_pair].vehicle, w.current_from_train,
+                            &w.warped_features);
+      });
       size_t n = 0;
       for (const OverlapWork& w : s.overlaps) n += w.warped_features.size();
       s.num_current_features += n;
@@ -279,6 +295,10 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous, const SiteImag
       return n;
     });
     for (OverlapWork& w : s.overlaps) s.candidates.insert(s.candidates.end(), w.candidates.begin(), w.candidates.end());
+    stages.Step("vehicle_mask", [&] {
+      DropVehicleCandidates(&s);
+      return static_cast<int>(s.candidates.size());
+    });
     if (s.num_current_features < static_cast<size_t>(kMinCurrentFeatures))
       return stages.Finish(FrontendStatus::kLowTexture, "ASIFT found almost no features in the current regions (" +
                                                      std::to_string(s.num_current_features) + "): too little texture");

@@ -1,5 +1,6 @@
 // Step 1: the input checked and sorted, the tie point set's header, and
-// every image undistorted into its matching and LSM forms.
+// every image undistorted into its matching and LSM forms, with the mask of
+// the rover's body in the left images.
 #include <omp.h>
 
 #include <algorithm>
@@ -49,15 +50,13 @@ void InitTiePointSet(const SitePairState& state, TiePointSet* tps) {
 
 namespace {
 
-PreparedImage Prepare(const cv::Mat& raw, const PinholeCamera& cam, bool bspline) {
-  PreparedImage p;
+void Prepare(const cv::Mat& raw, const PinholeCamera& cam, bool bspline, PreparedImage* p) {
   if (cam.HasDistortion()) {
-    cv::undistort(raw, p.gray, cv::Mat(cam.K()), cam.DistortionCoeffs(), cv::Mat(cam.K()));
+    cv::undistort(raw, p->gray, cv::Mat(cam.K()), cam.DistortionCoeffs(), cv::Mat(cam.K()));
   } else {
-    p.gray = raw;
+    p->gray = raw;
   }
-  p.lsm = MakeLsmImage(p.gray, bspline);
-  return p;
+  p->lsm = MakeLsmImage(p->gray, bspline);
 }
 
 }  // namespace
@@ -71,11 +70,16 @@ void PrepareImages(const NavcamModel& navcam, const FrontendOptions& o, SitePair
   // B-spline coefficients only when an LSM on these images resamples with them.
   const bool bs = o.lsm.bspline || o.cross_lsm.bspline;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
+  for (int k = 0; k < np + nc; ++k) {
+    if (k < np) s->previous_left[k].vehicle = VehicleMask(navcam, {s->previous.pairs[k].mast_pan, s->previous.pairs[k].mast_tilt}, o);
+    else s->current_left[k - np].vehicle = VehicleMask(navcam, {s->current.pairs[k - np].mast_pan, s->current.pairs[k - np].mast_tilt}, o);
+  }
+#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
   for (int k = 0; k < 2 * (np + nc); ++k) {
-    if (k < np) s->previous_left[k] = Prepare(s->previous.pairs[k].left, navcam.rig.left, bs);
-    else if (k < 2 * np) s->previous_right[k - np] = Prepare(s->previous.pairs[k - np].right, navcam.rig.right, bs);
-    else if (k < 2 * np + nc) s->current_left[k - 2 * np] = Prepare(s->current.pairs[k - 2 * np].left, navcam.rig.left, bs);
-    else s->current_right[k - 2 * np - nc] = Prepare(s->current.pairs[k - 2 * np - nc].right, navcam.rig.right, bs);
+    if (k < np) Prepare(s->previous.pairs[k].left, navcam.rig.left, bs, &s->previous_left[k]);
+    else if (k < 2 * np) Prepare(s->previous.pairs[k - np].right, navcam.rig.right, bs, &s->previous_right[k - np]);
+    else if (k < 2 * np + nc) Prepare(s->current.pairs[k - 2 * np].left, navcam.rig.left, bs, &s->current_left[k - 2 * np]);
+    else Prepare(s->current.pairs[k - 2 * np - nc].right, navcam.rig.right, bs, &s->current_right[k - 2 * np - nc]);
   }
 }
 

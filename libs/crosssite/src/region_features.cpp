@@ -91,6 +91,10 @@ int DetectRegionFeatures(const FrontendOptions& o, SitePairState* s) {
   for (size_t k = 0; k < jobs.size(); ++k)
     AddViewFeatures(jobs[k].view, job_sets[k],
                     jobs[k].current ? &s->current_regions[jobs[k].image] : &s->previous_regions[jobs[k].image]);
+  for (size_t j = 0; j < s->previous_regions.size() && j < s->previous_left.size(); ++j)
+    DropVehicleFeatures(s->previous_left[j].vehicle, cv::Matx33d::eye(), &s->previous_regions[j].features);
+  for (size_t i = 0; i < s->current_regions.size() && i < s->current_left.size(); ++i)
+    DropVehicleFeatures(s->current_left[i].vehicle, cv::Matx33d::eye(), &s->current_regions[i].features);
   int n = 0;
   for (const auto& w : s->previous_regions) n += static_cast<int>(w.features.size());
   for (const auto& w : s->current_regions) n += static_cast<int>(w.features.size());

@@ -157,7 +157,7 @@ TEST(FrontendSim, SitePairMeetsTheTiePointFigures) {
   EXPECT_EQ(names, (std::vector<std::string>{
                        "prepare_images", "ground_planes", "region_prediction", "region_wallis_zoom", "current_wallis",
                        "region_asift", "overlap_warp_tiles", "overlap_asift", "overlap_matching", "overlap_grid_lsm",
-                       "backward_matching", "cross_lsm_merge", "stereo_zncc", "median_filter", "stereo_lsm",
+                       "backward_matching", "vehicle_mask", "cross_lsm_merge", "stereo_zncc", "median_filter", "stereo_lsm",
                        "distance_consistency", "motion_consistency", "dr_check"}));
 }
 
@@ -169,9 +169,11 @@ TEST(FrontendSim, TurnedSitePairMeetsTheTiePointFigures) {
 }
 
 // The hard profile (regolith photometry, sun 20 deg up moving 30 deg of
-// azimuth between the sites, camera effects, JPEG): poor texture. The grid
-// LSM's larger-window retry makes it localize with margin: 35 tie points,
-// none wrong (14 without the retry, 12 needed).
+// azimuth between the sites, camera effects, JPEG, the rover's deck in the
+// side views): poor texture. The grid LSM's larger-window retry makes it
+// localize with margin: 32 tie points (14 without the retry, 12 needed). One
+// is 2.2 px from the truth (the tail of a 0.45 px median; without the deck
+// 35, none): no gross error, and at most one point past 2 px.
 TEST(FrontendSim, HardProfilePairLocalizes) {
   testing::SimSitePairOptions so;
   so.profile = "config/procs/sim_rover_hard.yaml";
@@ -179,7 +181,9 @@ TEST(FrontendSim, HardProfilePairLocalizes) {
   const testing::TruthCheck& t = run.truth;
   ASSERT_TRUE(run.result.summary.IsUsable()) << run.result.summary.message;
   EXPECT_GE(t.num_points, 25);
-  EXPECT_LT(t.num_wrong, 0.01 * t.num_points);
+  EXPECT_LE(t.num_wrong, 1);
+  ASSERT_FALSE(t.all_cross_error_px.empty());
+  EXPECT_LT(*std::max_element(t.all_cross_error_px.begin(), t.all_cross_error_px.end()), 3.0);
   EXPECT_LT(testing::Median(t.cross_error_px), 0.75);  // measured 0.50 px (default profile 0.33)
   EXPECT_LE(testing::Median(t.stereo_error_px), 0.2);  // measured 0.10 px (JPEG, companding)
 }

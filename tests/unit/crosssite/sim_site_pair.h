@@ -5,6 +5,7 @@
 // known error, and the rendered left depth maps for checking against truth.
 // Shared by the slow whole-pipeline test and the front end benchmark.
 
+#include <cstdio>
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -269,7 +270,12 @@ inline TruthCheck CheckAgainstTruth(const SimSitePair& s, const TiePointSet& tps
     const double err = q ? (*q - pl->uv).norm() : 1e9;
     out.all_cross_error_px.push_back(err);
     out.cross_error_vec.push_back(q ? Eigen::Vector2d(*q - pl->uv) : Eigen::Vector2d::Constant(NAN));
-    if (err > wrong_px) ++out.num_wrong;
+    if (err > wrong_px) {
+      ++out.num_wrong;
+      std::printf("wrong tie point: previous pair %d at (%.1f, %.1f), current pair %d at (%.1f, %.1f), depth %.2f m, "
+                  "%.1f px from the truth\n", pl->pair_index, pl->uv.x(), pl->uv.y(), cl->pair_index, cl->uv.x(),
+                  cl->uv.y(), z, err);
+    }
     else out.cross_error_px.push_back(err);
     if (pr) {
       // Previous right: true point seen from the previous right camera, via

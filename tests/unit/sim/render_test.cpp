@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "vloc/common/options.h"
+#include "vloc/crosssite/internal/frontend_steps.h"
 #include "vloc/sim/navcam_renderer.h"
 #include "vloc/sim/rover_world.h"
 #include "vloc/sim/terrain.h"
@@ -202,6 +203,43 @@ TEST(SimRender, DeckInSideViewsAtTheSamePixelsEverywhere) {
   double worst = 0;
   cv::minMaxLoc(diff, nullptr, &worst, nullptr, nullptr, a.left.deck);
   EXPECT_LE(worst, 1.0);
+}
+
+// The front end's mask of the rover's body (frontend.vehicle_boxes_m, the
+// deck's box as config/procs/feature_frontend.yaml gives it) covers every
+// deck pixel the renderer draws, with a margin of a few px and no more: the
+// ground next to the deck stays matchable.
+TEST(SimRender, FrontendVehicleMaskCoversTheRenderedDeck) {
+  const NavcamModel model = HalfNavcam();
+  NavcamRenderOptions options;
+  options.deck = true;
+  options.add_noise = false;
+  const NavcamRenderer renderer(TestTerrain(), model, options);
+  FrontendOptions frontend;
+  frontend.vehicle_boxes_m = {options.deck_rear_m, options.deck_front_m, -options.deck_half_width_m,
+                              options.deck_half_width_m, 0.3, options.deck_top_m};
+  frontend.vehicle_margin_px = 3;
+  int deck_views = 0;
+  for (double pan_deg : {-100.0, -78.0, -40.0, 0.0, 40.0, 78.0, 100.0, 180.0}) {
+    const double pan = pan_deg * M_PI / 180, tilt = 25 * M_PI / 180;
+    const RenderedPair pair = renderer.RenderPair(MakePose(3, 2, 0.1, 0.02, -0.01, 0.7), pan, tilt, 1, true);
+    const cv::Mat mask = frontend_internal::VehicleMask(model, {pan, tilt}, frontend);
+    const int deck = cv::countNonZero(pair.left.deck);
+    SCOPED_TRACE("pan " + std::to_string(pan_deg) + " deg");
+    if (deck == 0) {
+      EXPECT_TRUE(mask.empty() || cv::countNonZero(mask) < 512 * 8);  // at most the margin where the deck just misses
+      continue;
+    }
+    ++deck_views;
+    ASSERT_FALSE(mask.empty());
+    EXPECT_EQ(cv::countNonZero(pair.left.deck & ~mask), 0);  // every deck pixel masked
+    // Masked but not deck: the margin (3 px + half the 4 px ray grid) along the deck's edge, and the box's
+    // sides below the deck top; well under the deck's own area.
+    const int extra = cv::countNonZero(mask & ~pair.left.deck);
+    std::printf("pan %.0f deg: deck %d px, masked beyond it %d px\n", pan_deg, deck, extra);
+    EXPECT_LT(extra, deck / 2 + 512 * 8);
+  }
+  EXPECT_GE(deck_views, 2);  // both side views see the deck
 }
 
 TEST(SimRender, SameSeedSameBytes) {

@@ -169,6 +169,10 @@ struct FrontendOptions {
   double min_region_std = 4.0;         // grey level: regions flatter than this have too little texture
   double duplicate_radius = 1.5;       // px, tie points closer than this in a current left image are merged
   int min_tie_points = 12;             // fewer verified points: STATUS too few points
+  // The rover's body (deck, wheels, mast base) in the body frame: no feature or tie point on it. Boxes of 6
+  // numbers each (x0 x1 y0 y1 z0 z1, m); a pixel whose ray from the left camera meets one is masked.
+  std::vector<double> vehicle_boxes_m;
+  double vehicle_margin_px = 6.0;      // px, the mask grows by this (the boxes are approximate)
   int num_threads = 2;                 // OpenMP threads (stereo, LSM); asift/matching use their own
 
   void Visit(OptionsReader& reader);

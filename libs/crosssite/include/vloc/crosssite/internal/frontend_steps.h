@@ -52,8 +52,9 @@ constexpr double kMinPlaneNormal = 0.5;            // |n| of a fitted plane; zer
 
 // One image as the steps use it: ideal (undistorted) 8-bit and LSM form.
 struct PreparedImage {
-  cv::Mat gray;  // CV_8UC1, ideal pixels
-  LsmImage lsm;  // float + gradients
+  cv::Mat gray;     // CV_8UC1, ideal pixels
+  LsmImage lsm;     // float + gradients
+  cv::Mat vehicle;  // CV_8UC1, non-zero where the rover's body is (left images; empty = none in view)
 };
 
 // One image's part in the matching: the union of its overlaps' regions,
@@ -157,6 +158,18 @@ bool Triangulate(const Eigen::Vector3d& o1, const Eigen::Vector3d& d1, const Eig
                  const Eigen::Vector3d& d2, Eigen::Vector3d* p);
 
 // ---- steps
+
+// ---- the rover's body in the images (vehicle_mask.cpp)
+
+// Left-image mask (full size, dilated by vehicle_margin_px) of the pixels
+// whose ray meets one of vehicle_boxes_m; empty when none does.
+cv::Mat VehicleMask(const NavcamModel& navcam, const MastPointing& pointing, const FrontendOptions& options);
+bool OnVehicle(const cv::Mat& mask, const Eigen::Vector2d& px);
+// Removes the features whose image position (image_from_feature applied to
+// the feature's point) lies on the mask.
+void DropVehicleFeatures(const cv::Mat& mask, const cv::Matx33d& image_from_feature, FeatureSet* features);
+// Removes the candidates on the body in either left image; returns how many.
+int DropVehicleCandidates(SitePairState* state);
 
 // Sorts the pairs and checks every image (8-bit grey of the calibrated
 // size); the problem when not usable.
