@@ -13,10 +13,12 @@
 #include <stdexcept>
 
 #include "vloc/lcm_io/convert.h"
+#include "vloc/lcm_io/convert_rover.h"
 #include "vloc/lcm_io/log_reader.h"
 #include "vloc/lcm_io/typed.h"
 #include "vloc/localization_t.hpp"
 #include "vloc/site_pose_t.hpp"
+#include "vloc/tie_points_t.hpp"
 #include "vloc/traverse_t.hpp"
 #include "vloc/uav_state_t.hpp"
 
@@ -130,6 +132,10 @@ LogData ReadLog(const std::string& path, bool progress) {
         p.relative = PoseFromMessage(m.relative_pose);
         p.pose = PoseFromMessage(m.pose);
         d.visual.push_back(p);
+      } else if (ch == "TIE_POINTS") {
+        tie_points_t m;
+        if (!DecodeEvent(*ev, &m)) throw std::invalid_argument("decode");
+        d.tie_points.push_back(TiePointsFromMessage(m));
       } else if (ch == "TRAVERSE") {
         traverse_t m;
         if (!DecodeEvent(*ev, &m)) throw std::invalid_argument("decode");

@@ -1,7 +1,8 @@
 #pragma once
 // vloc_eval: accuracy of a recorded run against the ground truth in its log.
 // Reads SITE_POSE_GT / SITE_POSE_DR / SITE_POSE_FIX (site_pose_t; FIX: the
-// map_localizer's absolute fixes), SITE_POSE_VISUAL (localization_t), the
+// map_localizer's absolute fixes), SITE_POSE_VISUAL (localization_t),
+// TIE_POINTS (tie_points_t; checked against the terrain: tie_truth.h), the
 // last TRAVERSE (traverse_t), UAV_GT (pose_t) and UAV_STATE (uav_state_t);
 // writes CSVs and report.md into an output folder.
 
@@ -11,6 +12,7 @@
 #include <vector>
 
 #include "vloc/common/pose.h"
+#include "vloc/common/rover_data.h"
 
 namespace vloc::eval {
 
@@ -32,6 +34,7 @@ struct LogData {
   std::map<int, PoseWithCovariance> fix;       // SITE_POSE_FIX, the last per site
   std::vector<VisualPair> visual;
   std::map<int, PoseWithCovariance> traverse;  // the last TRAVERSE
+  std::vector<TiePointSet> tie_points;         // TIE_POINTS, every set
   std::vector<std::pair<int64_t, Pose3>> uav_gt;
   std::vector<UavSample> uav_state;
   int64_t messages = 0, decode_failures = 0;

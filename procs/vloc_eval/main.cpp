@@ -1,16 +1,21 @@
 // vloc_eval: accuracy of a recorded run against the ground truth in its log.
-//   vloc_eval LOG.lcmlog --out DIR [--terrain config/sim/terrain.yaml] [--ortho-m-per-px 0.08]
-//             [--scripts DIR] [--no-plots] [--quiet]
+//   vloc_eval LOG.lcmlog --out DIR [--terrain config/sim/terrain.yaml] [--navcam config/navcam.yaml]
+//             [--ortho-m-per-px 0.08] [--scripts DIR] [--no-plots] [--quiet]
 // Writes DIR/report.md, sites.csv, pairs.csv, uav.csv, with --terrain (a
 // simulated run) DIR/ortho.png + ortho.pgw (the terrain under the traverse),
-// then runs scripts/plot_eval.py for the PNG plots; prints a short accuracy table.
+// with --terrain and --navcam DIR/tiepoints.csv (every tie point against the
+// terrain: tie_truth.h), then runs scripts/plot_eval.py for the PNG plots;
+// prints a short accuracy table.
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 
 #include "eval.h"
 #include "ortho.h"
+#include "tie_truth.h"
 #include "vloc/common/command_line.h"
+#include "vloc/common/options.h"
 
 namespace fs = std::filesystem;
 
@@ -27,13 +32,31 @@ static std::string FindScripts(const vloc::CommandLine& args, const char* argv0)
   return "scripts";
 }
 
+// Every TIE_POINTS set against the terrain of a simulated run: tiepoints.csv,
+// and the summary line (also appended to report.md).
+static std::string CheckTiePointsAgainstTerrain(const vloc::eval::LogData& data, const std::string& terrain_config,
+                                                const std::string& navcam_config, const std::string& out) {
+  const YAML::Node root = vloc::LoadYamlFile(terrain_config);
+  const auto terrain_options =
+      vloc::LoadOptionsFile<vloc::sim::TerrainOptions>(terrain_config, root["terrain"] ? "terrain" : "");
+  const auto navcam = vloc::LoadOptionsFile<vloc::NavcamModel>(navcam_config);
+  const vloc::sim::Terrain terrain(terrain_options);
+  std::vector<vloc::eval::TieTruthPoint> points;
+  const auto rows = vloc::eval::CheckTiePoints(data.tie_points, data.gt, navcam, terrain, {}, &points);
+  vloc::eval::WriteTieTruth(rows, points, out);
+  const std::string summary = vloc::eval::TieTruthSummary(rows);
+  std::ofstream(out + "/report.md", std::ios::app) << "\n" << summary;
+  return summary;
+}
+
 int main(int argc, char** argv) {
   vloc::CommandLine args;
   std::string error;
-  if (!args.Parse(argc, argv, {"out", "terrain", "ortho-m-per-px", "scripts", "no-plots", "quiet", "help"}, &error) || args.Has("help") ||
+  if (!args.Parse(argc, argv, {"out", "terrain", "navcam", "ortho-m-per-px", "scripts", "no-plots", "quiet", "help"}, &error) || args.Has("help") ||
       args.positional().size() != 1 || !args.Has("out")) {
     if (!error.empty()) std::cerr << "vloc_eval: " << error << "\n";
-    std::cerr << "usage: vloc_eval LOG.lcmlog --out DIR [--terrain config/sim/terrain.yaml] [--ortho-m-per-px M]"
+    std::cerr << "usage: vloc_eval LOG.lcmlog --out DIR [--terrain config/sim/terrain.yaml] [--navcam config/navcam.yaml]"
+                 " [--ortho-m-per-px M]"
                  " [--scripts DIR] [--no-plots] [--quiet]\n";
     return 1;
   }
@@ -59,6 +82,8 @@ int main(int argc, char** argv) {
         std::cerr << "vloc_eval: no orthoimage under the map: " << ortho_error << "\n";
     }
     std::cout << vloc::eval::ShortTable(summary);
+    if (args.Has("terrain") && args.Has("navcam") && !data.tie_points.empty())
+      std::cout << CheckTiePointsAgainstTerrain(data, args.Get("terrain"), args.Get("navcam"), out);
     if (data.decode_failures)
       std::cerr << "vloc_eval: " << data.decode_failures << " messages could not be decoded (skipped)\n";
   } catch (const std::exception& e) {

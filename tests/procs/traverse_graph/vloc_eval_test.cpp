@@ -11,8 +11,13 @@
 #include <fstream>
 #include <sstream>
 
+#include "vloc/common/camera.h"
+#include "vloc/common/options.h"
 #include "vloc/lcm_io/convert.h"
+#include "vloc/lcm_io/convert_rover.h"
 #include "vloc/localization_t.hpp"
+#include "vloc/sim/terrain.h"
+#include "vloc/tie_points_t.hpp"
 #include "vloc/site_pose_t.hpp"
 #include "vloc/testing/subprocess.h"
 #include "vloc/traverse_t.hpp"
@@ -203,6 +208,92 @@ TEST(VlocEval, OrthoimageOfTheTerrainUnderTheMap) {
   EXPECT_EQ(bad.WaitExit(60), 0) << bad.output();
   EXPECT_NE(bad.output().find("no orthoimage under the map"), std::string::npos) << bad.output();
   EXPECT_FALSE(std::filesystem::exists(out + "/ortho.png"));  // the stale one is gone
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace vloc
+
+namespace vloc {
+namespace {
+
+// --terrain with --navcam checks every TIE_POINTS set against the terrain:
+// tie points made from the terrain itself (a grid of current-left pixels,
+// their true points projected into the previous left camera) come out
+// 0 px off, except 5 moved 3 px down, which are the set's wrong ones; the
+// stereo ranges are the true ones (0 %).
+TEST(VlocEval, TiePointsAgainstTheTerrain) {
+  const auto dir = std::filesystem::temp_directory_path() / "vloc_eval_ties_test";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string terrain_path = (dir / "terrain.yaml").string();
+  {
+    std::ofstream t(terrain_path);
+    t << "size_m: 51.2\nresolution_m: 0.08\norigin_x_m: -20.0\norigin_y_m: -20.0\nnum_threads: 1\n";
+  }
+  const sim::Terrain terrain(LoadOptionsFile<sim::TerrainOptions>(terrain_path));
+  const NavcamModel navcam = LoadOptionsFile<NavcamModel>("config/navcam.yaml");
+  const double tilt = 25 * M_PI / 180;
+  const Pose3 previous = MakePose(0, 0, terrain.Height(0, 0), 0, 0, 0);
+  const Pose3 current = MakePose(-3, 0.5, terrain.Height(-3, 0.5), 0, 0, 0.1);  // behind, looking the same way
+  const Pose3 body_from_left = navcam.mast.BodyFromLeft(0.0, tilt, navcam.rig);
+  TiePointSet set;
+  set.previous_site_id = 0;
+  set.current_site_id = 1;
+  set.previous_pointing = {{0.0, tilt}};
+  set.current_pointing = {{0.0, tilt}};
+  const Pose3 world_from_cl = current * body_from_left, world_from_pl = previous * body_from_left;
+  for (int v = 100; v < 1000 && set.points.size() < 40; v += 40) {
+    for (int u = 60; u < 1000 && set.points.size() < 40; u += 80) {
+      const Eigen::Vector2d cur_px(u, v);
+      const Eigen::Vector3d dir = (world_from_cl.linear() * navcam.rig.left.Ray(cur_px)).normalized();
+      const auto hit = terrain.Raycast(world_from_cl.translation(), dir, 100.0);
+      if (!hit) continue;
+      const auto prev_px = navcam.rig.left.ProjectIdeal(world_from_pl.inverse() * hit->point);
+      if (!prev_px || !navcam.rig.left.InImage(*prev_px)) continue;
+      TiePoint tp;
+      tp.id = static_cast<int>(set.points.size());
+      tp.p_previous = previous.inverse() * hit->point;
+      tp.p_current = current.inverse() * hit->point;
+      const Eigen::Vector2d moved = tp.id < 5 ? Eigen::Vector2d(0, 3) : Eigen::Vector2d::Zero();
+      TieObservation prev_obs, cur_obs;
+      prev_obs.site = SiteRole::kPrevious;
+      prev_obs.uv = *prev_px + moved;
+      cur_obs.site = SiteRole::kCurrent;
+      cur_obs.uv = cur_px;
+      tp.observations = {prev_obs, cur_obs};
+      set.points.push_back(tp);
+    }
+  }
+  ASSERT_GE(set.points.size(), 20u);
+  const std::string log_path = (dir / "run.lcmlog").string();
+  {
+    lcm::LogFile log(log_path, "w");
+    ASSERT_TRUE(log.good());
+    PoseWithCovariance p, c;
+    p.pose = previous;
+    c.pose = current;
+    Write(log, "SITE_POSE_GT", SitePoseToMessage(0, site_pose_t::SOURCE_GROUND_TRUTH, p), 1);
+    Write(log, "SITE_POSE_GT", SitePoseToMessage(1, site_pose_t::SOURCE_GROUND_TRUTH, c), 2);
+    Write(log, "TIE_POINTS", TiePointsToMessage(set), 3);
+  }
+  const std::string out = (dir / "eval").string();
+  testing::Subprocess proc({testing::BinPath("vloc_eval"), log_path, "--out", out, "--quiet", "--no-plots",
+                            "--terrain", terrain_path, "--navcam", "config/navcam.yaml"});
+  ASSERT_EQ(proc.WaitExit(60), 0) << proc.output();
+  EXPECT_NE(proc.output().find("tie points against the terrain"), std::string::npos) << proc.output();
+  auto sets = ReadCsv(out + "/tiepoints.csv");
+  ASSERT_EQ(sets.size(), 1u);
+  EXPECT_EQ(std::stoi(sets[0]["points"]), static_cast<int>(set.points.size()));
+  EXPECT_GE(std::stoi(sets[0]["checked"]), static_cast<int>(set.points.size()) - 2);  // a few may be hidden
+  EXPECT_EQ(std::stoi(sets[0]["wrong"]), 5);
+  EXPECT_NEAR(std::stod(sets[0]["cross_median_px"]), 0.0, 0.01);
+  EXPECT_NEAR(std::stod(sets[0]["range_err_median_pct_current"]), 0.0, 0.01);
+  EXPECT_NEAR(std::stod(sets[0]["range_err_median_pct_previous"]), 0.0, 0.01);
+  int moved = 0;
+  for (auto& row : ReadCsv(out + "/tiepoint_errors.csv"))
+    if (std::abs(std::stod(row["err_v"]) - 3.0) < 0.01 && std::abs(std::stod(row["err_u"])) < 0.01) ++moved;
+  EXPECT_EQ(moved, 5);
   std::filesystem::remove_all(dir);
 }
 

@@ -99,13 +99,15 @@ class Simulator {
       site.revisit_of = revisit ? o_.plan.revisit_site : -1;
       site.planned_xy = plan[i];
       site.arrived_utime = utime_;
-      site.world_from_body = MakePose(R_, p_);
       site.distance_from_start_m = out_.path_length_m;
       out_.sites.push_back(site);
       site_heading.push_back(yaw_);
       const std::vector<MastPointing> pointings = o_.panorama.Pointings();
       Event(i, SiteEventType::kArrived, static_cast<int>(pointings.size()));
+      // The suspension settles, then the rover rests: one pose for the whole panorama, the site's truth.
       Stationary(o_.panorama.settle_s);
+      at_rest_ = true;
+      out_.sites.back().world_from_body = MakePose(R_, p_);
       for (size_t k = 0; k < pointings.size(); ++k) {
         Exposure e;
         e.utime = utime_;
@@ -122,6 +124,7 @@ class Simulator {
       Event(i, SiteEventType::kImagingDone, static_cast<int>(pointings.size()));
       out_.sites.back().imaging_done_utime = utime_;
       if (i + 1 < num_planned) Stationary(o_.motion.stop_pause_s);
+      at_rest_ = false;
     }
     out_.duration_s = (utime_ - static_cast<int64_t>(o_.motion.start_utime)) * 1e-6;
     return std::move(out_);
@@ -230,8 +233,12 @@ class Simulator {
       *x_dot += acc * dt_;
       *x += *x_dot * dt_;
     };
-    filter(target.x(), &roll_, &roll_rate_);
-    filter(target.y(), &pitch_, &pitch_rate_);
+    if (at_rest_) {
+      roll_rate_ = pitch_rate_ = 0;  // at rest on its wheels: the attitude holds
+    } else {
+      filter(target.x(), &roll_, &roll_rate_);
+      filter(target.y(), &pitch_, &pitch_rate_);
+    }
     const Eigen::Matrix3d R_new = RotationFromRollPitchYaw(roll_, pitch_, yaw_);
     const double lateral = o_.ideal_sensors ? 0.0 : -o_.wheels.sideslip_per_rad_roll * roll_ * v;
     const Eigen::Vector3d dp = dt_ * (v * 0.5 * (R_.col(0) + R_new.col(0)) + lateral * R_new.col(1));
@@ -337,6 +344,7 @@ class Simulator {
   Eigen::Vector3d velocity_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d gyro_bias_ = Eigen::Vector3d::Zero();
   double yaw_ = 0, roll_ = 0, pitch_ = 0, roll_rate_ = 0, pitch_rate_ = 0;
+  bool at_rest_ = false;  // imaging at a site: roll and pitch hold (the suspension has settled)
   double wheel_distance_ = 0, last_wheel_distance_ = 0;
 };
 
