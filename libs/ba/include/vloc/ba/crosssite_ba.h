@@ -34,9 +34,10 @@ struct CrossSiteBaOptions {
   double max_correction_m = 10.0;          // a solution further than this from the dead-reckoning pose: NOT_CONVERGED
   double min_intersection_parallax_rad = 1e-3;  // rays closer than this do not intersect a point
   bool inflate_by_variance_factor = true;  // multiply the covariance by max(1, a-posteriori variance factor)
-  int max_independent_points = 200;        // ... and by max(1, points / this): the points of one site pair share
-                                           // errors (calibration, relief-biased matching) that do not average down
-                                           // with their number; 0 = off
+  int max_independent_points = 0;          // ... and by max(1, points / this): for points of one site pair that
+                                           // share errors (calibration, relief-biased matching) that do not
+                                           // average down with their number; 0 = off (the simulated traverses
+                                           // show none once the rover rests while it images)
   int num_threads = 2;                     // Ceres threads
 
   void Visit(OptionsReader& reader);
