@@ -78,7 +78,8 @@ VLOC_SIM_UAV_SECONDS="$flight_s" run_group uav_sim "$out/uav" uav_mosaicker.log 
   "height [0-9.]+ m, route [-0-9.]+, [-0-9.]+ m; frames [0-9]+"
 
 say "evaluating against ground truth"
-"$build/bin/vloc_eval" "$out/rover/rover_sim.lcmlog" --out "$out/rover/eval" --terrain "$root/config/sim/terrain.yaml"
+"$build/bin/vloc_eval" "$out/rover/rover_sim.lcmlog" --out "$out/rover/eval" --terrain "$root/config/sim/terrain.yaml" \
+    --navcam "$root/config/navcam.yaml"
 "$build/bin/vloc_eval" "$out/uav/uav_sim.lcmlog" --out "$out/uav/eval"
 
 echo
