@@ -94,20 +94,22 @@ class Simulator {
           Stationary(o_.motion.stop_pause_s);
         }
       }
+      // The suspension settles, then the rover rests and reports its arrival: one pose from arrival to
+      // departure, the site's truth, and the dead reckoning's site pose is taken at that same instant.
+      Stationary(o_.panorama.settle_s);
+      at_rest_ = true;
       SiteVisit site;
       site.site_id = i;
       site.revisit_of = revisit ? o_.plan.revisit_site : -1;
       site.planned_xy = plan[i];
       site.arrived_utime = utime_;
+      site.world_from_body = MakePose(R_, p_);
       site.distance_from_start_m = out_.path_length_m;
       out_.sites.push_back(site);
       site_heading.push_back(yaw_);
       const std::vector<MastPointing> pointings = o_.panorama.Pointings();
       Event(i, SiteEventType::kArrived, static_cast<int>(pointings.size()));
-      // The suspension settles, then the rover rests: one pose for the whole panorama, the site's truth.
-      Stationary(o_.panorama.settle_s);
-      at_rest_ = true;
-      out_.sites.back().world_from_body = MakePose(R_, p_);
+      Step(0.0, 0.0);  // the first exposure follows the arrival
       for (size_t k = 0; k < pointings.size(); ++k) {
         Exposure e;
         e.utime = utime_;
@@ -356,7 +358,7 @@ void PanoramaOptions::Visit(OptionsReader& r) {
   r.Optional("tilt_deg", &tilt_deg, "deg, mast tilt, positive down");
   r.Optional("backward_pair", &backward_pair, "add one pair looking backward");
   r.Optional("backward_tilt_deg", &backward_tilt_deg, "deg, tilt of the backward pair");
-  r.Optional("settle_s", &settle_s, "s from arrival to the first exposure");
+  r.Optional("settle_s", &settle_s, "s the suspension settles after the stop, before arrival and imaging");
   r.Optional("pair_interval_s", &pair_interval_s, "s between exposures");
 }
 

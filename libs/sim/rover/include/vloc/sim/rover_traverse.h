@@ -46,7 +46,7 @@ struct PanoramaOptions {
   double tilt_deg = 25.0;         // deg, mast tilt (positive down)
   bool backward_pair = false;     // add one pair looking backward (pan 180 deg)
   double backward_tilt_deg = 25.0;// deg, tilt of the backward pair
-  double settle_s = 2.0;          // s from arrival to the first exposure
+  double settle_s = 2.0;          // s the suspension settles after the stop, before the rover reports arrival and images
   double pair_interval_s = 4.0;   // s between exposures
 
   void Visit(OptionsReader& reader);
