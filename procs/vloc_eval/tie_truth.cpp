@@ -30,16 +30,15 @@ double RangeErrorPct(const Pose3& body_from_left, const Eigen::Vector3d& stereo_
 }
 
 struct PairCheck {
-  std::vector<double> cross_px, du_px, dv_px, range_prev_pct, range_cur_pct;
-  std::vector<TieTruthPoint> points;
+  std::vector<TieTruthPoint> points;  // the checked ones
+  std::vector<double> range_prev_pct, range_cur_pct;
 };
 
-// One tie point; false when the terrain gives no truth or the previous camera cannot see it.
-bool CheckOne(const TiePointSet& set, const TiePoint& tp, const Pose3& world_from_previous,
-              const Pose3& world_from_current, const NavcamModel& navcam, const sim::Terrain& terrain,
-              const TieTruthOptions& o, PairCheck* out) {
-  const TieObservation* pl = Find(tp, SiteRole::kPrevious);
-  const TieObservation* cl = Find(tp, SiteRole::kCurrent);
+// One tie point, by its two left observations; false when the terrain gives no truth or the previous camera
+// cannot see it.
+bool CheckOne(const TiePointSet& set, const TiePoint& tp, const TieObservation* pl, const TieObservation* cl,
+              const Pose3& world_from_previous, const Pose3& world_from_current, const NavcamModel& navcam,
+              const sim::Terrain& terrain, const TieTruthOptions& o, PairCheck* out) {
   if (pl->pair_index >= static_cast<int>(set.previous_pointing.size()) ||
       cl->pair_index >= static_cast<int>(set.current_pointing.size()))
     return false;
@@ -58,9 +57,6 @@ bool CheckOne(const TiePointSet& set, const TiePoint& tp, const Pose3& world_fro
   if (!back || back->range < to_x.norm() - o.occlusion_tolerance_m) return false;
   const auto q = navcam.rig.left.ProjectIdeal(world_from_pl.inverse() * x);
   if (!q) return false;
-  out->cross_px.push_back((*q - pl->uv).norm());
-  out->du_px.push_back(pl->uv.x() - q->x());
-  out->dv_px.push_back(pl->uv.y() - q->y());
   TieTruthPoint p;
   p.reference = set.previous_site_id;
   p.site = set.current_site_id;
@@ -90,16 +86,23 @@ std::vector<TieTruthRow> CheckTiePoints(const std::vector<TiePointSet>& sets,
     row.site = set.current_site_id;
     PairCheck c;
     for (const TiePoint& tp : set.points) {
-      if (!Find(tp, SiteRole::kPrevious) || !Find(tp, SiteRole::kCurrent)) continue;
+      const TieObservation *pl = Find(tp, SiteRole::kPrevious), *cl = Find(tp, SiteRole::kCurrent);
+      if (!pl || !cl) continue;
       ++row.points;
-      if (!CheckOne(set, tp, prev->second.pose, cur->second.pose, navcam, terrain, o, &c)) continue;
+      if (!CheckOne(set, tp, pl, cl, prev->second.pose, cur->second.pose, navcam, terrain, o, &c)) continue;
       ++row.checked;
-      if (c.cross_px.back() > o.wrong_px) ++row.wrong;
+      if (c.points.back().error_px.norm() > o.wrong_px) ++row.wrong;
     }
-    row.cross_median_px = Quantile(c.cross_px, 0.5);
-    row.cross_p90_px = Quantile(c.cross_px, 0.9);
-    row.cross_median_du_px = Quantile(c.du_px, 0.5);
-    row.cross_median_dv_px = Quantile(c.dv_px, 0.5);
+    std::vector<double> cross_px, du_px, dv_px;
+    for (const TieTruthPoint& p : c.points) {
+      cross_px.push_back(p.error_px.norm());
+      du_px.push_back(p.error_px.x());
+      dv_px.push_back(p.error_px.y());
+    }
+    row.cross_median_px = Quantile(cross_px, 0.5);
+    row.cross_p90_px = Quantile(cross_px, 0.9);
+    row.cross_median_du_px = Quantile(du_px, 0.5);
+    row.cross_median_dv_px = Quantile(dv_px, 0.5);
     row.range_error_median_pct_previous = Quantile(c.range_prev_pct, 0.5);
     row.range_error_median_pct_current = Quantile(c.range_cur_pct, 0.5);
     rows.push_back(row);

@@ -47,7 +47,7 @@ cv::Mat VehicleMask(const NavcamModel& navcam, const MastPointing& pointing, con
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
       const double u = x * kMaskStep + 0.5 * (kMaskStep - 1), v = y * kMaskStep + 0.5 * (kMaskStep - 1);
-      const Eigen::Vector3d dir = body_from_left.linear() * Eigen::Vector3d((u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, 1);
+      const Eigen::Vector3d dir = body_from_left.linear() * cam.Ray(Eigen::Vector2d(u, v));
       for (size_t b = 0; b + 6 <= o.vehicle_boxes_m.size(); b += 6) {
         const double* q = &o.vehicle_boxes_m[b];
         if (RayMeetsBox(origin, dir, {q[0], q[2], q[4]}, {q[1], q[3], q[5]})) {
