@@ -26,8 +26,8 @@ for e in $elevations; do
     out="$(VLOC_SIM_CACHE="$cache" VLOC_TEST_SIM_PROFILE="$profile" \
       "$build/tests/crosssite_frontend_sim_test" --gtest_filter='FrontendSim.SitePairMeets*' 2>&1 || true)"
     status="$(grep -o 'front end: [a-z ]*' <<<"$out" | head -1 | sed 's/front end: //')"
-    points="$(grep -o '^tie points [0-9]*' <<<"$out" | head -1 | grep -o '[0-9]*$' || echo 0)"
-    wrong="$(grep -o 'wrong [0-9]*' <<<"$out" | head -1 | grep -o '[0-9]*$' || echo -)"
+    points="$(grep -o '^tie points [0-9][0-9]*' <<<"$out" | head -1 | grep -o '[0-9]*$' || echo 0)"
+    wrong="$(grep -o 'wrong [0-9][0-9]*' <<<"$out" | head -1 | grep -o '[0-9]*$' || echo -)"
     echo "| $e deg | $a deg | ${status:-?} | ${points:-0} | ${wrong:-—} |"
   done
 done

@@ -24,6 +24,7 @@
 #include "vloc/common/command_line.h"
 #include "vloc/common/logging.h"
 #include "vloc/common/options.h"
+#include "vloc/common/stats.h"
 #include "vloc/mosaic/uav_mosaicker.h"
 #include "vloc/sim/uav_world.h"
 
@@ -68,11 +69,8 @@ std::vector<double> SurveyWaypoints(const vloc::UavWorldOptions& w, double secon
   return wp;
 }
 
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
+// Median, 0 for none (the report prints numbers).
+double MedianOr0(const std::vector<double>& v) { return v.empty() ? 0.0 : vloc::Median(v); }
 
 }  // namespace
 
@@ -218,10 +216,10 @@ int main(int argc, char** argv) {
               << max_route << " m (" << 100 * max_route / dist << " % of distance), final " << last_route
               << " m, max in GPS drop-outs " << max_route_dropout << " m (" << 100 * max_route_dropout / dist << " %)\n";
   std::cout << "CPU per frame (process, all threads; independent of load): tracking+height median "
-            << Median(cpu_track_ms) << " ms (frames not blended), all frames mean " << 1e3 * cpu_all_s / std::max(1, frames)
+            << MedianOr0(cpu_track_ms) << " ms (frames not blended), all frames mean " << 1e3 * cpu_all_s / std::max(1, frames)
             << " ms\n";
-  std::cout << "time per frame: tracking+height median " << Median(track_ms) << " ms, mosaic blend median "
-            << Median(mosaic_ms) << " ms (" << blends << " blends); throughput " << frames / std::max(1e-9, total_s)
+  std::cout << "time per frame: tracking+height median " << MedianOr0(track_ms) << " ms, mosaic blend median "
+            << MedianOr0(mosaic_ms) << " ms (" << blends << " blends); throughput " << frames / std::max(1e-9, total_s)
             << " frames/s, mosaic updates " << blends / std::max(1e-9, total_s) << " /s of processing; render "
             << 1e3 * render_s / std::max(1, frames) << " ms/frame (not counted)\n";
   std::cout << "memory: peak RSS " << PeakRssMb() << " MB, at the end " << StatusMb("VmRSS:")

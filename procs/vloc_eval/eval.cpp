@@ -12,6 +12,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "vloc/common/stats.h"
 #include "vloc/lcm_io/convert.h"
 #include "vloc/lcm_io/convert_rover.h"
 #include "vloc/lcm_io/log_reader.h"
@@ -42,12 +43,6 @@ std::string F(double v, int prec = 3) {
   std::ostringstream os;
   os << std::fixed << std::setprecision(prec) << v;
   return os.str();
-}
-
-// Median of `v` (mean of the middle two for an even count); `v` not empty.
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
 }
 
 // Absolute fixes (SITE_POSE_FIX) against the site's truth: error and NEES in x, y, heading.

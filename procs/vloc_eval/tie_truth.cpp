@@ -5,16 +5,11 @@
 #include <fstream>
 #include <sstream>
 
+#include "vloc/common/stats.h"
+
 namespace vloc::eval {
 
 namespace {
-
-double Quantile(std::vector<double> v, double q) {
-  if (v.empty()) return NAN;
-  const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())));
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
-}
 
 const TieObservation* Find(const TiePoint& tp, SiteRole site) {
   for (const auto& o : tp.observations)
@@ -131,7 +126,7 @@ void WriteTieTruth(const std::vector<TieTruthRow>& rows, const std::vector<TieTr
       << r.range_error_median_pct_current << '\n';
 }
 
-std::string TieTruthSummary(const std::vector<TieTruthRow>& rows) {
+std::string TieTruthSummary(const std::vector<TieTruthRow>& rows, const TieTruthOptions& options) {
   if (rows.empty()) return "";
   int points = 0, checked = 0, wrong = 0;
   std::vector<double> medians;
@@ -145,7 +140,7 @@ std::string TieTruthSummary(const std::vector<TieTruthRow>& rows) {
   os.setf(std::ios::fixed);
   os.precision(2);
   os << "tie points against the terrain: " << checked << " of " << points << " checked over " << rows.size()
-     << " sets, " << wrong << " more than 2 px off in the previous image ("
+     << " sets, " << wrong << " more than " << std::defaultfloat << options.wrong_px << std::fixed << " px off in the previous image ("
      << (checked > 0 ? 100.0 * wrong / checked : 0.0) << " %); median per set " << Quantile(medians, 0.5) << " px\n";
   return os.str();
 }

@@ -51,6 +51,6 @@ std::vector<TieTruthRow> CheckTiePoints(const std::vector<TiePointSet>& sets,
 // when no rows).
 void WriteTieTruth(const std::vector<TieTruthRow>& rows, const std::vector<TieTruthPoint>& points,
                    const std::string& dir);
-std::string TieTruthSummary(const std::vector<TieTruthRow>& rows);
+std::string TieTruthSummary(const std::vector<TieTruthRow>& rows, const TieTruthOptions& options = {});
 
 }  // namespace vloc::eval

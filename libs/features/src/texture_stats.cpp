@@ -9,16 +9,11 @@
 #include <stdexcept>
 #include <vector>
 
+#include "vloc/common/stats.h"
+
 namespace vloc {
 
 namespace {
-
-double Percentile(std::vector<float> v, double q) {
-  if (v.empty()) return 0;
-  const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * v.size()));
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(k), v.end());
-  return v[k];
-}
 
 std::array<double, 3> FeatureDensity(const cv::Mat& gray) {
   std::vector<cv::KeyPoint> keypoints;
@@ -36,7 +31,7 @@ std::array<double, 3> GradientPercentiles(const cv::Mat& gray) {
   cv::Sobel(gray, gy, CV_32F, 0, 1, 3, 1.0 / 8);
   cv::magnitude(gx, gy, magnitude);
   std::vector<float> v(magnitude.begin<float>(), magnitude.end<float>());
-  return {Percentile(v, 0.5), Percentile(v, 0.9), Percentile(v, 0.99)};
+  return {Quantile(v, 0.5), Quantile(v, 0.9), Quantile(v, 0.99)};
 }
 
 double LocalContrast(const cv::Mat& gray) {
@@ -47,7 +42,7 @@ double LocalContrast(const cv::Mat& gray) {
   cv::Mat variance = cv::max(mean_sq - mean.mul(mean), 0.0f), sd;
   cv::sqrt(variance, sd);
   std::vector<float> v(sd.begin<float>(), sd.end<float>());
-  return Percentile(v, 0.5);
+  return Quantile(v, 0.5);
 }
 
 // Radially averaged power spectrum of the largest centred square of the

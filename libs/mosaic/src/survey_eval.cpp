@@ -1,3 +1,4 @@
+#include "vloc/common/stats.h"
 #include "vloc/mosaic/survey_eval.h"
 
 #include <opencv2/calib3d.hpp>
@@ -23,12 +24,6 @@ bool FitRoute(const std::vector<cv::Point2d>& route_px, const std::vector<cv::Po
     to.push_back(gps_enu[i]);
   }
   return from.size() >= 3 && FitSimilarity(from, to, enu_from_flipped);
-}
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
 }
 
 }  // namespace
@@ -65,7 +60,7 @@ RouteComparison CompareRouteToGps(const std::vector<cv::Point2d>& route_px, cons
       res.push_back(d);
       if (d > worst_d) worst_d = d, worst = i;
     }
-    const double limit = std::max(options.outlier_sigmas * 1.4826 * Median(res), options.min_outlier_m);
+    const double limit = std::max(options.outlier_sigmas * 1.4826 * (res.empty() ? 0.0 : Median(res)), options.min_outlier_m);
     if (worst == n || worst_d <= limit) break;
     final_fit[worst] = false;
     r.outlier_frames.push_back(static_cast<int>(worst));

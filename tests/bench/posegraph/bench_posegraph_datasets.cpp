@@ -27,6 +27,7 @@
 #include <Eigen/Geometry>
 
 #include "vloc/common/command_line.h"
+#include "vloc/common/stats.h"
 #include "vloc/common/stopwatch.h"
 #include "vloc/posegraph/graph_io.h"
 #include "vloc/posegraph/mrpt_optimize.h"
@@ -43,11 +44,6 @@ struct Published {
 const Published kSets[] = {{"tinyGrid3D", 0, 0},        {"smallGrid3D", 0, 0},         {"parking-garage", 1.263, 0.47},
                            {"sphere2500", 1.687e3, 0.58}, {"intel", 52.35, 0.07},        {"manhattan", 6.432e3, 0.08},
                            {"city10000", 638.6, 1.58}};
-
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0.0 : v[v.size() / 2];
-}
 
 // The MRPT graph's information replaced by SE-Sync's isotropic weights.
 template <int D, class Graph>

@@ -13,6 +13,7 @@
 #include "vloc/ba/crosssite_ba.h"
 #include "vloc/ba/synthetic.h"
 #include "vloc/common/options.h"
+#include "vloc/common/stats.h"
 #include "vloc/deadreckoning/dead_reckoning.h"
 #include "vloc/sim/rover_traverse.h"
 #include "vloc/sim/terrain.h"
@@ -42,11 +43,6 @@ std::vector<PoseWithCovariance> DeadReckonSites(const sim::SimulatedTraverse& tr
     for (const auto& [site, pose] : dr.PopSitePoses()) sites[site] = pose;
   }
   return sites;
-}
-
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0 : v[v.size() / 2];
 }
 
 TEST(CrossSiteChainSim, BaBeatsDeadReckoningOnEverySitePair) {

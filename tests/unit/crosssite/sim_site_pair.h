@@ -17,6 +17,7 @@
 
 #include "vloc/common/camera.h"
 #include "vloc/common/options.h"
+#include "vloc/common/stats.h"
 #include "vloc/crosssite/frontend.h"
 #include "vloc/sim/navcam_renderer.h"
 #include "vloc/sim/rover_world.h"
@@ -220,11 +221,7 @@ inline double DepthAt(const cv::Mat& depth, const Eigen::Vector2d& uv) {
   return (1 - fy) * ((1 - fx) * a + fx * b) + fy * ((1 - fx) * c + fx * d);
 }
 
-inline double Median(std::vector<double> v) {
-  if (v.empty()) return NAN;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
+using vloc::Median;
 inline double Rms(const std::vector<double>& v) {
   double s = 0;
   for (double x : v) s += x * x;

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "vloc/common/options.h"
+#include "vloc/common/stats.h"
 #include "vloc/crosssite/internal/frontend_steps.h"
 #include "vloc/sim/navcam_renderer.h"
 #include "vloc/sim/rover_world.h"
@@ -40,16 +41,6 @@ NavcamModel HalfNavcam() {
     c->cx = c->cy = 255.5;
   }
   return model;
-}
-
-double Median(std::vector<double> v) {
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
-
-double Percentile(std::vector<double> v, double q) {
-  std::sort(v.begin(), v.end());
-  return v[static_cast<size_t>(q * (v.size() - 1))];
 }
 
 TEST(SimRender, DepthLandsOnTheTerrain) {
@@ -131,10 +122,10 @@ TEST(SimRender, StereoMatchingTriangulatesOntoTheTerrain) {
   }
   ASSERT_GT(disparity_errors.size(), 200u);
   std::printf("stereo check: %zu points, median |d error| %.3f px, 90%% %.3f px, median height error %.2f sigma\n",
-              disparity_errors.size(), Median(disparity_errors), Percentile(disparity_errors, 0.9),
+              disparity_errors.size(), Median(disparity_errors), Quantile(disparity_errors, 0.9),
               Median(height_errors_in_sigma));
   EXPECT_LT(Median(disparity_errors), 0.3);
-  EXPECT_LT(Percentile(disparity_errors, 0.9), 1.0);
+  EXPECT_LT(Quantile(disparity_errors, 0.9), 1.0);
   EXPECT_LT(Median(height_errors_in_sigma), 1.5);
 }
 
