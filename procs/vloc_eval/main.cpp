@@ -4,7 +4,7 @@
 // Writes DIR/report.md, sites.csv, pairs.csv, uav.csv, with --terrain (a
 // simulated run) DIR/ortho.png + ortho.pgw (the terrain under the traverse),
 // with --terrain and --navcam DIR/tiepoints.csv (every tie point against the
-// terrain: tie_truth.h), then runs scripts/plot_eval.py for the PNG plots;
+// terrain: tie_truth.h) and shared_view.csv (shared_view.h), then runs scripts/plot_eval.py for the PNG plots;
 // prints a short accuracy table.
 #include <cstdlib>
 #include <filesystem>
@@ -13,6 +13,7 @@
 
 #include "eval.h"
 #include "ortho.h"
+#include "shared_view.h"
 #include "tie_truth.h"
 #include "vloc/common/command_line.h"
 #include "vloc/common/options.h"
@@ -32,8 +33,8 @@ static std::string FindScripts(const vloc::CommandLine& args, const char* argv0)
   return "scripts";
 }
 
-// Every TIE_POINTS set against the terrain of a simulated run: tiepoints.csv,
-// and the summary line (also appended to report.md).
+// Every TIE_POINTS set against the terrain of a simulated run (tiepoints.csv) and the view each pair of sites
+// shares (shared_view.csv), and their summary lines (also appended to report.md).
 static std::string CheckTiePointsAgainstTerrain(const vloc::eval::LogData& data, const std::string& terrain_config,
                                                 const std::string& navcam_config, const std::string& out) {
   const YAML::Node root = vloc::LoadYamlFile(terrain_config);
@@ -44,7 +45,10 @@ static std::string CheckTiePointsAgainstTerrain(const vloc::eval::LogData& data,
   std::vector<vloc::eval::TieTruthPoint> points;
   const auto rows = vloc::eval::CheckTiePoints(data.tie_points, data.gt, navcam, terrain, {}, &points);
   vloc::eval::WriteTieTruth(rows, points, out);
-  const std::string summary = vloc::eval::TieTruthSummary(rows);
+  const auto shared = vloc::eval::SharedViews(data.gt, data.tie_points.front().previous_pointing, navcam, terrain);
+  vloc::eval::WriteSharedViews(shared, out);
+  const std::string summary =
+      vloc::eval::TieTruthSummary(rows) + vloc::eval::SharedViewSummary(shared, data.tie_points);
   std::ofstream(out + "/report.md", std::ios::app) << "\n" << summary;
   return summary;
 }

@@ -60,6 +60,7 @@ bool CheckOne(const TiePointSet& set, const TiePoint& tp, const TieObservation* 
   p.previous_px = pl->uv;
   p.error_px = pl->uv - *q;
   p.range_m = to_x.norm();
+  p.current_range_m = hit->range;
   out->points.push_back(p);
   out->range_prev_pct.push_back(RangeErrorPct(body_from_pl, tp.p_previous, world_from_previous.inverse() * x));
   out->range_cur_pct.push_back(RangeErrorPct(body_from_cl, tp.p_current, world_from_current.inverse() * x));
@@ -86,11 +87,11 @@ std::vector<TieTruthRow> CheckTiePoints(const std::vector<TiePointSet>& sets,
       ++row.points;
       if (!CheckOne(set, tp, pl, cl, prev->second.pose, cur->second.pose, navcam, terrain, o, &c)) continue;
       ++row.checked;
-      if (c.points.back().error_px.norm() > o.wrong_px) ++row.wrong;
+      if (c.points.back().CoarseErrorPx() > o.wrong_px) ++row.wrong;
     }
     std::vector<double> cross_px, du_px, dv_px;
     for (const TieTruthPoint& p : c.points) {
-      cross_px.push_back(p.error_px.norm());
+      cross_px.push_back(p.CoarseErrorPx());
       du_px.push_back(p.error_px.x());
       dv_px.push_back(p.error_px.y());
     }
@@ -110,10 +111,11 @@ void WriteTieTruth(const std::vector<TieTruthRow>& rows, const std::vector<TieTr
                    const std::string& dir) {
   {
     std::ofstream f(dir + "/tiepoint_errors.csv");
-    f << "reference,site,previous_pair,current_pair,u,v,err_u,err_v,range_m\n";
+    f << "reference,site,previous_pair,current_pair,u,v,err_u,err_v,range_m,current_range_m,coarse_err_px\n";
     for (const TieTruthPoint& p : points)
       f << p.reference << ',' << p.site << ',' << p.previous_pair << ',' << p.current_pair << ',' << p.previous_px.x()
-        << ',' << p.previous_px.y() << ',' << p.error_px.x() << ',' << p.error_px.y() << ',' << p.range_m << '\n';
+        << ',' << p.previous_px.y() << ',' << p.error_px.x() << ',' << p.error_px.y() << ',' << p.range_m << ','
+        << p.current_range_m << ',' << p.CoarseErrorPx() << '\n';
   }
   std::ofstream f(dir + "/tiepoints.csv");
   f << "reference,site,points,checked,wrong,cross_median_px,cross_p90_px,cross_median_du_px,cross_median_dv_px,"
@@ -140,7 +142,7 @@ std::string TieTruthSummary(const std::vector<TieTruthRow>& rows, const TieTruth
   os.setf(std::ios::fixed);
   os.precision(2);
   os << "tie points against the terrain: " << checked << " of " << points << " checked over " << rows.size()
-     << " sets, " << wrong << " more than " << std::defaultfloat << options.wrong_px << std::fixed << " px off in the previous image ("
+     << " sets, " << wrong << " more than " << std::defaultfloat << options.wrong_px << std::fixed << " px off in the coarser image ("
      << (checked > 0 ? 100.0 * wrong / checked : 0.0) << " %); median per set " << Quantile(medians, 0.5) << " px\n";
   return os.str();
 }

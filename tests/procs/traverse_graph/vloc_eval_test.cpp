@@ -276,6 +276,9 @@ TEST(VlocEval, TiePointsAgainstTheTerrain) {
     Write(log, "SITE_POSE_GT", SitePoseToMessage(0, site_pose_t::SOURCE_GROUND_TRUTH, p), 1);
     Write(log, "SITE_POSE_GT", SitePoseToMessage(1, site_pose_t::SOURCE_GROUND_TRUTH, c), 2);
     Write(log, "TIE_POINTS", TiePointsToMessage(set), 3);
+    PoseWithCovariance turned;  // site 2: where site 1 stands, looking back: nothing of site 1's view
+    turned.pose = MakePose(-3, 0.5, terrain.Height(-3, 0.5), 0, 0, 0.1 + M_PI);
+    Write(log, "SITE_POSE_GT", SitePoseToMessage(2, site_pose_t::SOURCE_GROUND_TRUTH, turned), 4);
   }
   const std::string out = (dir / "eval").string();
   testing::Subprocess proc({testing::BinPath("vloc_eval"), log_path, "--out", out, "--quiet", "--no-plots",
@@ -294,6 +297,17 @@ TEST(VlocEval, TiePointsAgainstTheTerrain) {
   for (auto& row : ReadCsv(out + "/tiepoint_errors.csv"))
     if (std::abs(std::stod(row["err_v"]) - 3.0) < 0.01 && std::abs(std::stod(row["err_u"])) < 0.01) ++moved;
   EXPECT_EQ(moved, 5);
+  // The view the pairs share: site 1, 3 m behind site 0 and looking the same way, sees most of site 0's ground
+  // again; site 2 (turned round) none of site 1's, and the summary names it as a pair without tie points.
+  auto shared = ReadCsv(out + "/shared_view.csv");
+  ASSERT_EQ(shared.size(), 2u);
+  EXPECT_GT(std::stoi(shared[0]["samples"]), 300);
+  EXPECT_GT(std::stod(shared[0]["shared_pct"]), 60.0);
+  const double ratio = std::stod(shared[0]["median_range_ratio"]);  // site 1 is 3 m farther from every point
+  EXPECT_GT(ratio, 1.1);
+  EXPECT_LT(ratio, 2.5);
+  EXPECT_LT(std::stod(shared[1]["shared_pct"]), 1.0);
+  EXPECT_NE(proc.output().find("pairs without: 1 -> 2: 0.0 %"), std::string::npos) << proc.output();
   std::filesystem::remove_all(dir);
 }
 
