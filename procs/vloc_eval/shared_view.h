@@ -6,6 +6,10 @@
 // site sees that ground point unoccluded, in its image and within its
 // matching range. A pair with little shared view cannot be matched, however
 // good the matcher: this says whether a failed pair had anything to match.
+// Seen again is not yet matchable: the two views of a shared ground patch
+// differ by an affine map whose tilt (ratio of its singular values, as in
+// ASIFT) grows when one site sees the patch at a grazing angle; past a tilt
+// of about 4 feature matching and correlation no longer see the same texture.
 
 #include <map>
 #include <string>
@@ -24,14 +28,18 @@ struct SharedViewOptions {
   double min_range_current_m = 5.0;     // m
   double max_range_current_m = 30.0;    // m
   double occlusion_tolerance_m = 0.05;  // m, seen unless the terrain is nearer than the point by this
+  double max_tilt = 4.0;                // the two views' affine tilt up to which a shared sample counts as matchable
 };
 
 struct SharedViewRow {
   int reference = 0, site = 0;
   int samples = 0;                 // previous-left samples on the ground within range
   int shared = 0;                  // ... that the current site sees within its range
+  int matchable = 0;               // ... with the two views' affine tilt <= max_tilt
   double median_range_ratio = NAN; // current / previous range of the shared samples (the scale change)
+  double median_tilt = NAN;        // the shared samples' affine tilt between the views
   double SharedPct() const { return samples > 0 ? 100.0 * shared / samples : 0.0; }
+  double MatchablePct() const { return samples > 0 ? 100.0 * matchable / samples : 0.0; }
 };
 
 // One row per consecutive pair of sites in `truth` (site ids in order); every site takes the same `pointing`.
@@ -41,6 +49,7 @@ std::vector<SharedViewRow> SharedViews(const std::map<int, PoseWithCovariance>& 
 
 // shared_view.csv in `dir`; the report's line on it (`localized`: the pairs with tie points).
 void WriteSharedViews(const std::vector<SharedViewRow>& rows, const std::string& dir);
-std::string SharedViewSummary(const std::vector<SharedViewRow>& rows, const std::vector<TiePointSet>& localized);
+std::string SharedViewSummary(const std::vector<SharedViewRow>& rows, const std::vector<TiePointSet>& localized,
+                              const SharedViewOptions& options = {});
 
 }  // namespace vloc::eval

@@ -306,8 +306,13 @@ TEST(VlocEval, TiePointsAgainstTheTerrain) {
   const double ratio = std::stod(shared[0]["median_range_ratio"]);  // site 1 is 3 m farther from every point
   EXPECT_GT(ratio, 1.1);
   EXPECT_LT(ratio, 2.5);
+  // Both look down the same way from 3 m apart: the ground's two views differ by a small tilt.
+  EXPECT_GE(std::stod(shared[0]["median_tilt"]), 1.0);
+  EXPECT_LT(std::stod(shared[0]["median_tilt"]), 2.0);
+  EXPECT_LE(std::stoi(shared[0]["matchable"]), std::stoi(shared[0]["shared"]));
+  EXPECT_GT(std::stoi(shared[0]["matchable"]), 0.8 * std::stoi(shared[0]["shared"]));
   EXPECT_LT(std::stod(shared[1]["shared_pct"]), 1.0);
-  EXPECT_NE(proc.output().find("pairs without: 1 -> 2: 0.0 %"), std::string::npos) << proc.output();
+  EXPECT_NE(proc.output().find("pairs without: 1 -> 2: 0.0 %, matchable 0.0 %"), std::string::npos) << proc.output();
   std::filesystem::remove_all(dir);
 }
 
