@@ -206,6 +206,22 @@ void ForEachForwardOverlap(const SitePairState& s, int num_threads, Body body) {
     if (!s.prediction.overlaps[k].backward && s.overlap_used[k]) body(k);
 }
 
+// Where the matches of a pair that ends with too few went: the survivors of each step along the match chain.
+std::string MatchChain(const std::vector<StageReport>& stages) {
+  auto count = [&](const std::string& name) {
+    for (const StageReport& s : stages)
+      if (s.name == name) return s.count;
+    return 0;
+  };
+  std::ostringstream os;
+  os << "matches: " << count("overlap_matching") << " in the overlaps";
+  if (const int backward = count("backward_matching")) os << " + " << backward << " backward";
+  os << ", " << count("cross_lsm_merge") << " after cross-site LSM, " << count("stereo_lsm") << " after stereo, "
+     << count("distance_consistency") << " distance-consistent, " << count("motion_consistency")
+     << " consistent with one motion";
+  return os.str();
+}
+
 }  // namespace
 
 FrontendResult CrossSiteFrontend::Run(const SiteImages& previous, const SiteImages& current) const {
@@ -327,7 +343,7 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous, const SiteImag
     if (static_cast<int>(tps.points.size()) < o.min_tie_points) {
       std::ostringstream os;
       os << "only " << tps.points.size() << " verified tie points (need " << o.min_tie_points << ")";
-      if (s.candidates.empty()) os << "; matches were lost before the consistency check";
+      os << "; " << MatchChain(result.summary.stages);
       return stages.Finish(FrontendStatus::kTooFewPoints, os.str());
     }
     return stages.Finish(FrontendStatus::kOk, "");

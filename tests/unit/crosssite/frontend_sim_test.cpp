@@ -199,6 +199,8 @@ TEST(FrontendSim, TexturelessPairGivesAClearStatus) {
   EXPECT_TRUE(r.summary.status == FrontendStatus::kLowTexture || r.summary.status == FrontendStatus::kTooFewPoints)
       << FrontendStatusName(r.summary.status);
   EXPECT_FALSE(r.summary.message.empty());
+  if (r.summary.status == FrontendStatus::kTooFewPoints)  // says where the matches went
+    EXPECT_NE(r.summary.message.find("matches: "), std::string::npos) << r.summary.message;
 }
 
 }  // namespace
