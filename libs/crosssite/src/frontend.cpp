@@ -30,6 +30,9 @@ void FrontendOptions::Visit(OptionsReader& r) {
   r.Optional("ground_min_points", &ground_min_points, "stereo points (and plane inliers) a ground plane needs");
   r.Optional("ground_tolerance_m", &ground_tolerance_m, "m, plane inlier tolerance at short range");
   r.Optional("ground_max_slope_deg", &ground_max_slope_deg, "deg, steepest accepted ground plane");
+  r.Optional("ground_align", &ground_align, "correct the DR's relative height on both sites' stereo ground");
+  r.Optional("ground_align_radius_m", &ground_align_radius_m, "m, neighbourhood of a local ground plane (x, y)");
+  r.Optional("ground_align_min_points", &ground_align_min_points, "current points over the previous ground needed");
   r.Optional("motion_consistency", &motion_consistency, "keep only points that agree under one rigid motion");
   r.Child("grid_lsm", [&](OptionsReader& c) { grid_lsm.Visit(c); });
   r.Child("grid_lsm_retry", [&](OptionsReader& c) { grid_lsm_retry.Visit(c); });
@@ -111,7 +114,7 @@ bool FrontendOptions::Check(std::string* error) const {
       !CheckChild(grid_lsm_retry, "grid_lsm_retry", error) ||
       !CheckChild(motion, "motion", error) || !CheckChild(tiles, "tiles", error))
     return false;
-  // Booleans (motion_consistency, fit_ground_planes, zoom_previous,
+  // Booleans (motion_consistency, fit_ground_planes, ground_align, zoom_previous,
   // keep_unrefined_cross, warp_current, match_previous_resolution,
   // grid_lsm_enabled, keep_grid_unrefined, tile_registration) have no bad value.
   // NaN fails every check below: each is written as !(good).
@@ -126,6 +129,9 @@ bool FrontendOptions::Check(std::string* error) const {
   if (!(ground_grid_px >= frontend_internal::kGroundMinGridPx)) return Bad(error, "ground_grid_px", ground_grid_px, ">= 8 px");
   if (!(ground_min_points >= 3)) return Bad(error, "ground_min_points", ground_min_points, ">= 3");
   if (!(ground_tolerance_m > 0)) return Bad(error, "ground_tolerance_m", ground_tolerance_m, "> 0 m");
+  if (!(ground_align_radius_m > 0 && ground_align_radius_m <= 10))
+    return Bad(error, "ground_align_radius_m", ground_align_radius_m, "in (0, 10] m");
+  if (!(ground_align_min_points >= 10)) return Bad(error, "ground_align_min_points", ground_align_min_points, ">= 10");
   if (!(ground_max_slope_deg > 0 && ground_max_slope_deg <= 90))
     return Bad(error, "ground_max_slope_deg", ground_max_slope_deg, "in (0, 90] deg");
   if (!(min_zoom > 0)) return Bad(error, "min_zoom", min_zoom, "> 0");
@@ -246,6 +252,8 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous, const SiteImag
                                     tps.previous_pointing, tps.current_pointing, o.regions, s.ground_planes);
       return static_cast<int>(s.prediction.overlaps.size());
     });
+    stages.Step("ground_alignment", [&] { return AlignToPreviousGround(navcam, tps, o, &s); });
+    sum.num_overlaps = static_cast<int>(s.prediction.overlaps.size());
     if (s.prediction.overlaps.empty())
       return stages.Finish(FrontendStatus::kNoOverlap,
                     "no current image sees ground that a previous image sees within the range limits "
@@ -336,7 +344,10 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous, const SiteImag
     MakeTiePoints(s.candidates, v, s.prediction, o, &tps);
     std::optional<std::string> dr_problem;
     stages.Step("dr_check", [&] {
-      dr_problem = CheckAgainstDeadReckoning(s.prediction, o, &tps);
+      RegionPrediction dr;  // the DR itself, not the ground-aligned prediction
+      dr.previous_from_current = s.dr_previous_from_current;
+      dr.relative_sigma = s.prediction.relative_sigma;
+      dr_problem = CheckAgainstDeadReckoning(dr, o, &tps);
       return static_cast<int>(tps.points.size());
     });
     if (dr_problem) return stages.Finish(FrontendStatus::kTooFewPoints, *dr_problem);

@@ -12,13 +12,13 @@
 
 namespace vloc::frontend_internal {
 
-namespace {
-
-// Sparse stereo points of one current pair within the region ranges, body frame.
-std::vector<Eigen::Vector3d> GroundStereoPoints(const NavcamModel& navcam, const Pose3& bl, const Pose3& br,
-                                                const cv::Mat& left, const cv::Mat& right, const FrontendOptions& o) {
+GroundPointSet GroundStereoPoints(const NavcamModel& navcam, const MastPointing& pointing, const cv::Mat& left,
+                                  const cv::Mat& right, const FrontendOptions& o) {
+  const Pose3 bl = navcam.mast.BodyFromLeft(pointing.pan, pointing.tilt, navcam.rig);
+  const Pose3 br = bl * navcam.rig.left_from_right;
   const PinholeCamera& cam = navcam.rig.left;
-  std::vector<Eigen::Vector3d> pts;
+  GroundPointSet out;
+  out.camera = bl.translation();
   const int step = std::max(kGroundMinGridPx, o.ground_grid_px);
   for (int v = step / 2; v < cam.height; v += step) {
     for (int u = step / 2; u < cam.width; u += step) {
@@ -34,24 +34,22 @@ std::vector<Eigen::Vector3d> GroundStereoPoints(const NavcamModel& navcam, const
         continue;
       const double range = (p - bl.translation()).norm();
       if (range < 0.5 * o.regions.min_range_current || range > o.regions.max_range_current) continue;
-      pts.push_back(p);
+      out.points.push_back(p);
     }
   }
-  return pts;
+  return out;
 }
 
-}  // namespace
+namespace {
 
-Eigen::Vector4d FitGroundPlane(const NavcamModel& navcam, const MastPointing& pointing, const cv::Mat& left,
-                               const cv::Mat& right, const FrontendOptions& o) {
-  const Pose3 bl = navcam.mast.BodyFromLeft(pointing.pan, pointing.tilt, navcam.rig);
-  const Pose3 br = bl * navcam.rig.left_from_right;
-  const std::vector<Eigen::Vector3d> pts = GroundStereoPoints(navcam, bl, br, left, right, o);
+// RANSAC, then least squares on the inliers; zero when implausible.
+Eigen::Vector4d FitPlaneToPoints(const GroundPointSet& set, const NavcamModel& navcam, const FrontendOptions& o) {
+  const std::vector<Eigen::Vector3d>& pts = set.points;
   const int n = static_cast<int>(pts.size());
   if (n < o.ground_min_points) return Eigen::Vector4d::Zero();
   // Inlier tolerance grows with range (stereo range error, eq. 7).
   auto tolerance = [&](const Eigen::Vector3d& p) {
-    const double r = (p - bl.translation()).norm();
+    const double r = (p - set.camera).norm();
     return o.ground_tolerance_m + 3 * RangeSigma(r, navcam.rig.Baseline(), navcam.rig.left.fx, 0.5) * 0.2;
   };
   const double min_up = std::cos(o.ground_max_slope_deg * M_PI / 180);
@@ -90,15 +88,27 @@ Eigen::Vector4d FitGroundPlane(const NavcamModel& navcam, const MastPointing& po
   return plane;
 }
 
+}  // namespace
+
+Eigen::Vector4d FitGroundPlane(const NavcamModel& navcam, const MastPointing& pointing, const cv::Mat& left,
+                               const cv::Mat& right, const FrontendOptions& o, GroundPointSet* points) {
+  GroundPointSet set = GroundStereoPoints(navcam, pointing, left, right, o);
+  const Eigen::Vector4d plane = FitPlaneToPoints(set, navcam, o);
+  if (points) *points = std::move(set);
+  return plane;
+}
+
 int FitGroundPlanes(const NavcamModel& navcam, const TiePointSet& tps, const FrontendOptions& o, SitePairState* s) {
   const int nc = static_cast<int>(s->current.pairs.size());
   s->ground_planes.assign(nc, Eigen::Vector4d::Zero());
+  s->current_ground.assign(nc, GroundPointSet());
   if (!o.fit_ground_planes) return 0;
   int num_planes = 0;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads) reduction(+ : num_planes)
   for (int i = 0; i < nc; ++i) {
     s->ground_planes[i] =
-        FitGroundPlane(navcam, tps.current_pointing[i], s->current_left[i].lsm.gray, s->current_right[i].lsm.gray, o);
+        FitGroundPlane(navcam, tps.current_pointing[i], s->current_left[i].lsm.gray, s->current_right[i].lsm.gray, o,
+                       &s->current_ground[i]);
     num_planes += s->ground_planes[i].head<3>().norm() > kMinPlaneNormal ? 1 : 0;
   }
   return num_planes;

@@ -155,7 +155,8 @@ TEST(FrontendSim, SitePairMeetsTheTiePointFigures) {
   std::vector<std::string> names;
   for (const StageReport& st : run.result.summary.stages) names.push_back(st.name);
   EXPECT_EQ(names, (std::vector<std::string>{
-                       "prepare_images", "ground_planes", "region_prediction", "region_wallis_zoom", "current_wallis",
+                       "prepare_images", "ground_planes", "region_prediction", "ground_alignment", "region_wallis_zoom",
+                       "current_wallis",
                        "region_asift", "overlap_warp_tiles", "overlap_asift", "overlap_matching", "overlap_grid_lsm",
                        "backward_matching", "vehicle_mask", "cross_lsm_merge", "stereo_zncc", "median_filter", "stereo_lsm",
                        "distance_consistency", "motion_consistency", "dr_check"}));
@@ -199,8 +200,9 @@ TEST(FrontendSim, TexturelessPairGivesAClearStatus) {
   EXPECT_TRUE(r.summary.status == FrontendStatus::kLowTexture || r.summary.status == FrontendStatus::kTooFewPoints)
       << FrontendStatusName(r.summary.status);
   EXPECT_FALSE(r.summary.message.empty());
-  if (r.summary.status == FrontendStatus::kTooFewPoints)  // says where the matches went
+  if (r.summary.status == FrontendStatus::kTooFewPoints) {  // says where the matches went
     EXPECT_NE(r.summary.message.find("matches: "), std::string::npos) << r.summary.message;
+  }
 }
 
 }  // namespace

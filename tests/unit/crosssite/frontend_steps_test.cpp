@@ -871,5 +871,56 @@ TEST(GroundPlanes, OffGivesNoPlanes) {
   for (const auto& p : s.ground_planes) EXPECT_TRUE(p.isZero());
 }
 
+
+// Ground with relief in every direction, sampled as stereo points from a camera 1.5 m above it, looking along +x.
+GroundPointSet GroundSeenFrom(const Pose3& world_from_body, double noise_m, std::mt19937* rng) {
+  auto height = [](double x, double y) { return 0.4 * std::sin(x / 3.0) + 0.3 * std::cos(y / 2.5) + 0.05 * x; };
+  std::normal_distribution<double> n(0.0, noise_m);
+  GroundPointSet set;
+  set.camera = Eigen::Vector3d(0, 0, 1.5);
+  const Pose3 body_from_world = world_from_body.inverse();
+  for (double r = 5; r <= 25; r += 0.5)
+    for (double a = -0.6; a <= 0.6; a += 0.04) {
+      const Eigen::Vector3d in_body(r * std::cos(a), r * std::sin(a), 0);
+      const Eigen::Vector3d w = world_from_body * in_body;
+      set.points.push_back(body_from_world * Eigen::Vector3d(w.x(), w.y(), height(w.x(), w.y()) + n(*rng)));
+    }
+  return set;
+}
+
+// The current site 6 m ahead and turned 10 deg; DR has its height off by 0.25 m (wheel slip on a slope) and its
+// horizontal position by 0.1 m. The alignment finds the height correction within 3 cm, and refuses one the
+// DR's sigma says is impossible, and one without ground in common.
+TEST(GroundAlignment, RecoversTheDrHeightErrorFromBothSitesGround) {
+  std::mt19937 rng(3);
+  const Pose3 previous = Pose3::Identity();
+  Pose3 current = Pose3::Identity();
+  current.linear() = Eigen::AngleAxisd(10 * M_PI / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  current.translation() = Eigen::Vector3d(6, 0.5, 0.0);
+  const std::vector<GroundPointSet> prev{GroundSeenFrom(previous, 0.01, &rng)};
+  const std::vector<GroundPointSet> cur{GroundSeenFrom(current, 0.01, &rng)};
+  const Eigen::Vector3d dr_error(0.1, -0.05, 0.25), up = Eigen::Vector3d::UnitZ();
+  Pose3 dr = current;
+  dr.translation() += dr_error;
+  const NavcamModel navcam;
+  const FrontendOptions o;
+  const GroundAlignment a = AlignGround(prev, cur, dr, up, 0.3, navcam, o);
+  ASSERT_TRUE(a.ok) << a.why;
+  EXPECT_GT(a.points, 500);  // the current points over the previous site's ground
+  EXPECT_NEAR(a.delta.z(), -dr_error.z(), 0.03) << a.delta.transpose();
+  EXPECT_NEAR(a.delta.head<2>().norm(), 0.0, 1e-12);  // along up only
+  EXPECT_LT(a.rms_after, 0.7 * a.rms_before);
+  // A DR that claims 2 cm: the 0.25 m correction is refused, the DR stands.
+  const GroundAlignment tight = AlignGround(prev, cur, dr, up, 0.02, navcam, o);
+  EXPECT_FALSE(tight.ok);
+  EXPECT_NE(tight.why.find("beyond the DR"), std::string::npos) << tight.why;
+  // No ground in common (the current site behind the previous one, looking back): no correction.
+  Pose3 away = current;
+  away.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  away.translation() = Eigen::Vector3d(-3, 0, 0);
+  const std::vector<GroundPointSet> behind{GroundSeenFrom(away, 0.01, &rng)};
+  EXPECT_FALSE(AlignGround(prev, behind, away, up, 0.3, navcam, o).ok);
+}
+
 }  // namespace
 }  // namespace vloc

@@ -9,6 +9,7 @@
 //   prepare_images (images)              undistortion, LSM gradients of every image
 //   ground_planes (planes)               each current image's ground plane from sparse stereo
 //   region_prediction (overlaps)         predicted overlaps (current x previous pair), grown by the DR uncertainty
+//   ground_alignment (points)            DR relative height corrected on both sites' stereo ground, regions again
 //   region_wallis_zoom (regions)         Wallis filter and zoom of the regions (previous targets from the current)
 //   current_wallis (images)              Wallis filter of the whole current images (for the warp), overlap choice
 //   region_asift (features)              ASIFT on the regions (current: tilts/longitudes the prediction allows)
@@ -119,6 +120,9 @@ struct FrontendOptions {
   int ground_min_points = 20;       // stereo points (and plane inliers) a plane needs
   double ground_tolerance_m = 0.1;  // m, inlier tolerance at short range (grows with the stereo range error)
   double ground_max_slope_deg = 30; // deg, steepest plane accepted
+  bool ground_align = true;         // correct the DR's relative height on both sites' stereo ground first
+  double ground_align_radius_m = 1.0;  // m, the previous points a local ground plane is fitted to (x, y)
+  int ground_align_min_points = 50;    // current points over the previous site's ground it needs
   TileRegistrationOptions tiles;  // stage 1: correlation of the warped current image's tiles with the previous region
 
   double max_zoom = 2.0;               // the previous region is zoomed by min(1 / predicted scale, max_zoom)

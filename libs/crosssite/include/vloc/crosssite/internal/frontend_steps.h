@@ -7,6 +7,7 @@
 //   PrepareImages                 prepare_images.cpp          (undistortion)
 //   FitGroundPlanes               ground_planes.cpp           2.1, the ground the regions are projected on
 //   PredictRegions                regions.cpp                 2.1, initial matching regions
+//   AlignToPreviousGround         ground_alignment.cpp        (DR relative height on the stereo ground)
 //   MakeWorkRegions               work_regions.cpp            2.2, Wallis filter and zoom of the regions
 //   DetectRegionFeatures          region_features.cpp         2.2, ASIFT with restricted tilts/longitudes
 //   WarpOverlap                   overlap_warp.cpp            (ground-plane warp + tile registration)
@@ -49,6 +50,15 @@ constexpr int kMinOrthoPx = 32;                    // px, smaller ortho images a
 constexpr double kBackwardImageMarginPx = 10;      // px, backward matches this close to a border are dropped
 constexpr int kMinCurrentFeatures = 20;            // fewer ASIFT features in the current regions: low texture
 constexpr double kMinPlaneNormal = 0.5;            // |n| of a fitted plane; zero vector = no plane
+constexpr int kAlignMinNeighbours = 5;             // previous stereo points a local ground plane needs
+constexpr double kAlignMinNormalZ = 0.7;           // steeper local planes (45 deg) are not ground
+constexpr double kAlignParallaxSigmaPx = 0.5;      // px, the ground points' ZNCC parallax sigma
+constexpr double kAlignRoughnessM = 0.03;          // m, the ground's relief about a local plane
+constexpr int kAlignIterations = 8;                // Gauss-Newton steps (the planes are found again at each)
+constexpr double kAlignHuber = 2.0;                // normalised residual where Huber's loss turns linear
+constexpr double kAlignConvergenceM = 0.002;       // m, stop when the step is below this
+constexpr double kAlignMaxPriorSigmas = 3.0;       // a correction farther from the DR than this is refused
+constexpr double kAlignMinPriorSigmaM = 0.02;      // m, floor of the DR's relative height sigma as the prior
 
 // One image as the steps use it: ideal (undistorted) 8-bit and LSM form.
 struct PreparedImage {
@@ -131,10 +141,18 @@ class StageLog {
   const Stopwatch total_;
 };
 
+// Sparse stereo points of one pair (body frame) and the left camera they were seen from.
+struct GroundPointSet {
+  Eigen::Vector3d camera = Eigen::Vector3d::Zero();
+  std::vector<Eigen::Vector3d> points;
+};
+
 struct SitePairState {
   SiteImages previous, current;  // pairs sorted by pair_index
   std::vector<PreparedImage> previous_left, previous_right, current_left, current_right;
   std::vector<Eigen::Vector4d> ground_planes;  // per current pair, body frame; zero = none
+  std::vector<GroundPointSet> current_ground;  // per current pair: the plane's stereo points
+  Pose3 dr_previous_from_current = Pose3::Identity();  // the DR's relative pose (the prediction may be ground-aligned)
   RegionPrediction prediction;
   std::vector<WorkRegion> previous_regions, current_regions;
   WallisOptions previous_wallis;            // Wallis targets of the previous site (from the current regions)
@@ -184,10 +202,42 @@ void PrepareImages(const NavcamModel& navcam, const FrontendOptions& options, Si
 // in the body frame, from ZNCC stereo on a coarse grid and RANSAC; zero
 // when there are too few points or the plane is implausible.
 Eigen::Vector4d FitGroundPlane(const NavcamModel& navcam, const MastPointing& pointing, const cv::Mat& left,
-                               const cv::Mat& right, const FrontendOptions& options);
+                               const cv::Mat& right, const FrontendOptions& options, GroundPointSet* points = nullptr);
+// The sparse stereo points a ground plane is fitted to.
+GroundPointSet GroundStereoPoints(const NavcamModel& navcam, const MastPointing& pointing, const cv::Mat& left,
+                                  const cv::Mat& right, const FrontendOptions& options);
 // Every current pair's ground plane (fit_ground_planes); returns how many.
 int FitGroundPlanes(const NavcamModel& navcam, const TiePointSet& tie_points, const FrontendOptions& options,
                     SitePairState* state);
+
+// ---- the DR's relative height on the ground both sites measured (ground_alignment.cpp)
+// DR knows the height gained between two sites worst (wheel slip on a
+// slope, a pitch error), and at grazing views a few tenths of a metre of
+// height move the predicted overlap by metres along the range. Both sites'
+// stereo measured the ground between them: the current site's points,
+// moved by the DR's relative pose, must lie on the previous site's ground
+// (local planes of its points). A robust point-to-plane fit of the height
+// offset, with the DR's vertical sigma as its prior, corrects it; the region
+// prediction is then made again from the corrected pose. Only the height:
+// the ground's normals are near vertical, so the horizontal position is
+// weakly observed and a full translation fit wandered by metres (hard
+// traverse, sites 8 -> 9). The DR check on the final motion still compares
+// with the DR itself.
+struct GroundAlignment {
+  bool ok = false;
+  Eigen::Vector3d delta = Eigen::Vector3d::Zero();  // m, previous body frame, added to the DR translation (along up)
+  int points = 0;                                   // current points on the previous site's ground
+  double rms_before = 0, rms_after = 0;             // robust normalised point-to-plane residual
+  std::string why;                                  // when not ok
+};
+// `up`: the world's vertical in the previous body frame (unit); `prior_sigma_m`: the DR's relative height sigma.
+GroundAlignment AlignGround(const std::vector<GroundPointSet>& previous, const std::vector<GroundPointSet>& current,
+                            const Pose3& previous_from_current, const Eigen::Vector3d& up, double prior_sigma_m,
+                            const NavcamModel& navcam, const FrontendOptions& options);
+// Runs AlignGround for the pair (options.ground_align) and, when it holds,
+// predicts the regions again from the corrected pose; returns the points used.
+int AlignToPreviousGround(const NavcamModel& navcam, const TiePointSet& tie_points, const FrontendOptions& options,
+                          SitePairState* state);
 
 // Regions per image, Wallis filter, zoom, previous site's Wallis targets.
 // Returns the number of regions; state->largest_region_std says whether
