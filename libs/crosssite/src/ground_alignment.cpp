@@ -53,6 +53,40 @@ double NormalSigma(const AlignPoint& a, const Eigen::Vector3d& normal, const Nav
   return std::hypot(along, kAlignRoughnessM);
 }
 
+// One Gauss-Newton step's sums for the height offset `dz` along `up` (the DR prior's terms included).
+struct HeightNormalEquations {
+  double h = 0, g = 0;  // d2/d1 of half the robust loss
+  double loss = 0;      // robust loss of the points
+  int points = 0;       // points with a plane under them
+};
+
+HeightNormalEquations HeightStep(const std::vector<AlignPoint>& moved, const std::vector<Eigen::Vector3d>& ground,
+                                 const Eigen::Vector3d& up, double dz, double prior_sigma_m, const NavcamModel& navcam,
+                                 const FrontendOptions& o) {
+  // Planes under the points where the current offset puts them.
+  std::vector<LocalPlane> planes(moved.size());
+  std::vector<char> has(moved.size(), 0);
+#pragma omp parallel for schedule(dynamic, 64) num_threads(o.num_threads)
+  for (int i = 0; i < static_cast<int>(moved.size()); ++i)
+    has[i] = PlaneUnder(ground, moved[i].p + dz * up, o.ground_align_radius_m, &planes[i]) ? 1 : 0;
+  HeightNormalEquations e;
+  e.h = 1.0 / (prior_sigma_m * prior_sigma_m);
+  e.g = e.h * dz;
+  for (size_t i = 0; i < moved.size(); ++i) {
+    if (!has[i]) continue;
+    const Eigen::Vector3d& nrm = planes[i].normal;
+    const double sigma = NormalSigma(moved[i], nrm, navcam);
+    const double r = nrm.dot(moved[i].p + dz * up - planes[i].centre) / sigma, j = nrm.dot(up) / sigma;
+    const bool inner = std::abs(r) <= kAlignHuber;
+    const double w = inner ? 1.0 : kAlignHuber / std::abs(r);  // Huber
+    e.loss += inner ? r * r : 2 * kAlignHuber * std::abs(r) - kAlignHuber * kAlignHuber;
+    e.h += w * j * j;
+    e.g += w * j * r;
+    ++e.points;
+  }
+  return e;
+}
+
 }  // namespace
 
 GroundAlignment AlignGround(const std::vector<GroundPointSet>& previous, const std::vector<GroundPointSet>& current,
@@ -70,36 +104,17 @@ GroundAlignment AlignGround(const std::vector<GroundPointSet>& previous, const s
               " current)";
     return out;
   }
-  const double prior_info = 1.0 / (prior_sigma_m * prior_sigma_m);
   double dz = 0;  // m, along `up`
-  std::vector<LocalPlane> planes(moved.size());
-  std::vector<char> has(moved.size(), 0);
   for (int it = 0; it < kAlignIterations; ++it) {
-    // Planes under the points where the current correction puts them.
-#pragma omp parallel for schedule(dynamic, 64) num_threads(o.num_threads)
-    for (int i = 0; i < static_cast<int>(moved.size()); ++i)
-      has[i] = PlaneUnder(ground, moved[i].p + dz * up, o.ground_align_radius_m, &planes[i]) ? 1 : 0;
-    double h = prior_info, g = prior_info * dz, loss = 0;
-    int n = 0;
-    for (size_t i = 0; i < moved.size(); ++i) {
-      if (!has[i]) continue;
-      const Eigen::Vector3d& nrm = planes[i].normal;
-      const double sigma = NormalSigma(moved[i], nrm, navcam);
-      const double r = nrm.dot(moved[i].p + dz * up - planes[i].centre) / sigma, j = nrm.dot(up) / sigma;
-      const double w = std::abs(r) <= kAlignHuber ? 1.0 : kAlignHuber / std::abs(r);  // Huber
-      loss += std::abs(r) <= kAlignHuber ? r * r : 2 * kAlignHuber * std::abs(r) - kAlignHuber * kAlignHuber;
-      h += w * j * j;
-      g += w * j * r;
-      ++n;
-    }
-    if (n < o.ground_align_min_points) {
-      out.why = "only " + std::to_string(n) + " current points over the previous site's ground";
+    const HeightNormalEquations e = HeightStep(moved, ground, up, dz, prior_sigma_m, navcam, o);
+    if (e.points < o.ground_align_min_points) {
+      out.why = "only " + std::to_string(e.points) + " current points over the previous site's ground";
       return out;
     }
-    if (it == 0) out.rms_before = std::sqrt(loss / n);
-    out.rms_after = std::sqrt(loss / n);
-    out.points = n;
-    const double step = -g / h;
+    if (it == 0) out.rms_before = std::sqrt(e.loss / e.points);
+    out.rms_after = std::sqrt(e.loss / e.points);
+    out.points = e.points;
+    const double step = -e.g / e.h;
     dz += step;
     if (std::abs(step) < kAlignConvergenceM) break;
   }
