@@ -138,18 +138,27 @@ int AlignToPreviousGround(const NavcamModel& navcam, const TiePointSet& tps, con
   for (int j = 0; j < np; ++j)
     previous[j] = GroundStereoPoints(navcam, tps.previous_pointing[j], s->previous_left[j].lsm.gray,
                                      s->previous_right[j].lsm.gray, o);
-  const Eigen::Vector3d up = s->previous.world_from_body.pose.linear().transpose() * Eigen::Vector3d::UnitZ();
+  // In the previous body frame turned level (world axes, origin at the previous body): neighbourhoods are
+  // horizontal and "up" is z, on a rolled or pitched rover too.
+  Pose3 level_from_previous = Pose3::Identity();
+  level_from_previous.linear() = s->previous.world_from_body.pose.linear();
+  for (GroundPointSet& set : previous) {
+    set.camera = level_from_previous * set.camera;
+    for (Eigen::Vector3d& p : set.points) p = level_from_previous * p;
+  }
+  const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
   const double prior_sigma = std::max(s->prediction.relative_sigma(2), kAlignMinPriorSigmaM);
-  const GroundAlignment a =
-      AlignGround(previous, s->current_ground, s->prediction.previous_from_current, up, prior_sigma, navcam, o);
+  const GroundAlignment a = AlignGround(previous, s->current_ground,
+                                        level_from_previous * s->prediction.previous_from_current, up, prior_sigma,
+                                        navcam, o);
   if (!a.ok) {
     VLOG(1) << "ground alignment: none (" << a.why << ")";
     return 0;
   }
-  VLOG(1) << "ground alignment: " << a.points << " points, DR height corrected by " << a.delta.dot(up)
+  VLOG(1) << "ground alignment: " << a.points << " points, DR height corrected by " << a.delta.z()
           << " m (prior sigma " << prior_sigma << " m), residual " << a.rms_before << " -> " << a.rms_after;
   Pose3 corrected = s->prediction.previous_from_current;
-  corrected.translation() += a.delta;
+  corrected.translation() += level_from_previous.linear().transpose() * a.delta;
   PoseWithCovariance current = s->current.world_from_body;
   current.pose = s->previous.world_from_body.pose * corrected;
   s->prediction = PredictRegions(navcam, s->previous.world_from_body, current, tps.previous_pointing,

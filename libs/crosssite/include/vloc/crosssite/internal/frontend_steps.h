@@ -225,12 +225,14 @@ int FitGroundPlanes(const NavcamModel& navcam, const TiePointSet& tie_points, co
 // with the DR itself.
 struct GroundAlignment {
   bool ok = false;
-  Eigen::Vector3d delta = Eigen::Vector3d::Zero();  // m, previous body frame, added to the DR translation (along up)
+  Eigen::Vector3d delta = Eigen::Vector3d::Zero();  // m, along `up` in the frame of the points
   int points = 0;                                   // current points on the previous site's ground
   double rms_before = 0, rms_after = 0;             // robust normalised point-to-plane residual
   std::string why;                                  // when not ok
 };
-// `up`: the world's vertical in the previous body frame (unit); `prior_sigma_m`: the DR's relative height sigma.
+// Points in one frame (the previous site's, turned level by AlignToPreviousGround): `previous` there,
+// `current` in the current body frame with `previous_from_current` taking them there; `up`: the vertical in it
+// (unit); `prior_sigma_m`: the DR's relative height sigma.
 GroundAlignment AlignGround(const std::vector<GroundPointSet>& previous, const std::vector<GroundPointSet>& current,
                             const Pose3& previous_from_current, const Eigen::Vector3d& up, double prior_sigma_m,
                             const NavcamModel& navcam, const FrontendOptions& options);
