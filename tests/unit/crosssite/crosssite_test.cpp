@@ -152,7 +152,7 @@ TEST(Frontend, TexturelessImagesGiveLowTextureStatus) {
   std::vector<std::string> names;
   for (const StageReport& st : r.summary.stages) names.push_back(st.name);
   EXPECT_EQ(names, (std::vector<std::string>{"prepare_images", "ground_planes", "region_prediction",
-                                             "region_wallis_zoom"}));
+                                             "ground_alignment", "region_wallis_zoom"}));
 }
 
 TEST(Frontend, MissingOrBadImagesGiveMissingInput) {
