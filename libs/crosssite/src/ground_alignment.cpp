@@ -53,6 +53,16 @@ double NormalSigma(const AlignPoint& a, const Eigen::Vector3d& normal, const Nav
   return std::hypot(along, kAlignRoughnessM);
 }
 
+// Every k-th element, so that at most `max_size` are left (the plane search is quadratic in the points).
+template <typename T>
+void Thin(std::vector<T>* v, size_t max_size) {
+  if (v->size() <= max_size) return;
+  const size_t k = (v->size() + max_size - 1) / max_size;
+  std::vector<T> kept;
+  for (size_t i = 0; i < v->size(); i += k) kept.push_back((*v)[i]);
+  v->swap(kept);
+}
+
 // One Gauss-Newton step's sums for the height offset `dz` along `up` (the DR prior's terms included).
 struct HeightNormalEquations {
   double h = 0, g = 0;  // d2/d1 of half the robust loss
@@ -98,6 +108,8 @@ GroundAlignment AlignGround(const std::vector<GroundPointSet>& previous, const s
   std::vector<AlignPoint> moved;
   for (const GroundPointSet& set : current)
     for (const Eigen::Vector3d& p : set.points) moved.push_back({previous_from_current * p, previous_from_current * set.camera});
+  Thin(&ground, kAlignMaxPoints);
+  Thin(&moved, kAlignMaxPoints);
   if (static_cast<int>(ground.size()) < o.ground_align_min_points ||
       static_cast<int>(moved.size()) < o.ground_align_min_points) {
     out.why = "too few stereo points (" + std::to_string(ground.size()) + " previous, " + std::to_string(moved.size()) +

@@ -51,6 +51,7 @@ constexpr double kBackwardImageMarginPx = 10;      // px, backward matches this 
 constexpr int kMinCurrentFeatures = 20;            // fewer ASIFT features in the current regions: low texture
 constexpr double kMinPlaneNormal = 0.5;            // |n| of a fitted plane; zero vector = no plane
 constexpr int kAlignMinNeighbours = 5;             // previous stereo points a local ground plane needs
+constexpr size_t kAlignMaxPoints = 4000;           // per site, thinned beyond (a fine ground_grid_px)
 constexpr double kAlignMinNormalZ = 0.7;           // steeper local planes (45 deg) are not ground
 constexpr double kAlignParallaxSigmaPx = 0.5;      // px, the ground points' ZNCC parallax sigma
 constexpr double kAlignRoughnessM = 0.03;          // m, the ground's relief about a local plane
