@@ -1,7 +1,8 @@
 // Step 9: overlaps whose views point in opposite directions ("backward",
 // Wan et al. 2.2): both sites' images are projected onto the ground plane
 // (ortho images of kOrthoResolutionM per px), where the views agree, and
-// matched there with a gate from the DR position sigma.
+// matched there with a gate from the DR position sigma. Each match carries
+// the plane's local affine between the two images for the cross-site LSM.
 #include <algorithm>
 
 #include "vloc/common/homography.h"
@@ -34,6 +35,7 @@ std::vector<Candidate> MatchBackwardOverlap(int k, const NavcamModel& navcam, co
   g.num_threads = 1;
   const Vector6d& sigma = s.prediction.relative_sigma;
   g.gate_radius = o.regions.sigma_scale * std::max(sigma(0), sigma(1)) / res + o.gate_margin_px;
+  const cv::Matx33d current_from_previous = Hc * Hp.inv();
   for (const auto& m : GatedMatch(sp, sp.points, sc, g)) {
     Candidate c;
     c.overlap = k;
@@ -42,6 +44,9 @@ std::vector<Candidate> MatchBackwardOverlap(int k, const NavcamModel& navcam, co
     c.prev_left = ApplyHomography(Hp, sp.points[m.query]);
     c.cur_left = ApplyHomography(Hc, sc.points[m.train]);
     c.descriptor_distance = m.distance;
+    // Initial LSM shape: the ground plane's local affine between the views
+    // (about a half turn; LSM cannot start from the identity).
+    c.initial_affine = HomographyJacobian(current_from_previous, c.prev_left);
     if (cam.InImage(c.prev_left, kBackwardImageMarginPx) && cam.InImage(c.cur_left, kBackwardImageMarginPx))
       out.push_back(c);
   }

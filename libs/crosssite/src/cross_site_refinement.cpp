@@ -30,9 +30,8 @@ int RefineCrossSite(const FrontendOptions& o, SitePairState* s) {
       c.why = "grid LSM failed";
       continue;
     }
-    const Eigen::Matrix2d A = ov.backward ? Eigen::Matrix2d::Identity() : c.initial_affine;
     const LsmResult r = LeastSquaresMatch(s->previous_left[c.prev_pair].lsm, c.prev_left,
-                                          s->current_left[c.cur_pair].lsm, c.cur_left, A, o.cross_lsm);
+                                          s->current_left[c.cur_pair].lsm, c.cur_left, c.initial_affine, o.cross_lsm);
     c.ok = r.ok || o.keep_unrefined_cross;
     c.why = r.why;
     if (r.ok) {

@@ -11,6 +11,7 @@
 #include <random>
 
 #include "vloc/common/homography.h"
+#include "vloc/common/stats.h"
 #include "vloc/crosssite/internal/frontend_steps.h"
 
 namespace vloc {
@@ -602,6 +603,28 @@ TEST(BackwardOverlaps, OppositeViewsMatchOnTheGround) {
   // consistency steps remove the few wrong ones.
   EXPECT_GE(right, 500);
   EXPECT_GE(right, 0.98 * c.size());
+
+  // The cross-site LSM starts from the ground plane's local affine (about a
+  // half turn here) and takes the features, placed on the 2 cm ortho grid,
+  // to the current pixel of the same ground point; matches it cannot refine
+  // are dropped (keep_unrefined_cross false).
+  s.previous_left[0].lsm = MakeLsmImage(prev_img);
+  s.current_left[0].lsm = MakeLsmImage(cur_img);
+  s.candidates = c;
+  const cv::Matx33d current_from_previous = Hc * Hp_inv;
+  auto errors = [&](const std::vector<Candidate>& cands) {
+    std::vector<double> e;
+    for (const Candidate& m : cands) e.push_back((m.cur_left - ApplyHomography(current_from_previous, m.prev_left)).norm());
+    return e;
+  };
+  const double before = Median(errors(s.candidates));
+  ASSERT_GE(RefineCrossSite(FrontendOptions(), &s), static_cast<int>(c.size() / 2));
+  const std::vector<double> after = errors(s.candidates);
+  std::cout << "backward LSM: " << s.candidates.size() << " of " << c.size() << " refined, median error " << before
+            << " -> " << Median(after) << " px\n";
+  EXPECT_LT(Median(after), 0.1);
+  EXPECT_LT(Quantile(after, 0.95), 0.3);
+  EXPECT_GT(before, 2 * Median(after));
 }
 
 // ---- cross-site refinement
