@@ -36,6 +36,14 @@ double Deg(double rad) { return rad * 180.0 / M_PI; }
 
 double HeadingError(const Pose3& est, const Pose3& truth) { return Deg(std::abs(WrapAngle(Heading(est) - Heading(truth)))); }
 
+// Angle between the estimate's and the truth's up (body z) axes, deg.
+double TiltError(const Pose3& est, const Pose3& truth) {
+  const double c = est.linear().col(2).dot(truth.linear().col(2));
+  return Deg(std::acos(std::clamp(c, -1.0, 1.0)));
+}
+
+double VerticalError(const Pose3& est, const Pose3& truth) { return est.translation().z() - truth.translation().z(); }
+
 double Pct(double err, double dist) { return dist > 0 ? 100.0 * err / dist : NAN; }
 
 std::string F(double v, int prec = 3) {
@@ -231,6 +239,10 @@ Summary Evaluate(const LogData& d) {
     s.dr_end_heading = last.dr_heading_err;
     s.vis_end_heading = last.vis_heading_err;
     s.opt_end_heading = last.opt_heading_err;
+    if (last.has_dr) s.dr_end_vertical = VerticalError(last.dr, last.gt), s.dr_end_tilt = TiltError(last.dr, last.gt);
+    if (last.has_visual)
+      s.vis_end_vertical = VerticalError(last.visual, last.gt), s.vis_end_tilt = TiltError(last.visual, last.gt);
+    if (last.has_opt) s.opt_end_vertical = VerticalError(last.opt, last.gt), s.opt_end_tilt = TiltError(last.opt, last.gt);
   }
   EvaluateFixes(d, &s);
   // UAV: each state matched to the ground truth nearest in time.
@@ -291,7 +303,7 @@ void WriteOutputs(const Summary& s, const std::string& dir) {
     auto f = open("sites.csv");
     f << "site,distance_m,gt_x,gt_y,gt_z,gt_heading_deg,dr_x,dr_y,dr_err_m,dr_err_pct,dr_heading_err_deg,"
          "vis_x,vis_y,vis_err_m,vis_err_pct,vis_heading_err_deg,opt_x,opt_y,opt_err_m,opt_err_pct,"
-         "opt_heading_err_deg,opt_cov_xx,opt_cov_xy,opt_cov_yy\n";
+         "opt_heading_err_deg,opt_cov_xx,opt_cov_xy,opt_cov_yy,opt_z,opt_tilt_err_deg\n";
     for (const SiteRow& r : s.sites) {
       auto xy = [&](bool has, const Pose3& p) {
         return has ? std::to_string(p.translation().x()) + "," + std::to_string(p.translation().y()) : ",";
@@ -302,8 +314,8 @@ void WriteOutputs(const Summary& s, const std::string& dir) {
         << ',' << num(Pct(r.dr_err, r.distance)) << ',' << num(r.dr_heading_err) << ',' << xy(r.has_visual, r.visual)
         << ',' << num(r.vis_err) << ',' << num(Pct(r.vis_err, r.distance)) << ',' << num(r.vis_heading_err) << ','
         << xy(r.has_opt, r.opt) << ',' << num(r.opt_err) << ',' << num(Pct(r.opt_err, r.distance)) << ','
-        << num(r.opt_heading_err) << ',' << r.opt_cov(0, 0) << ',' << r.opt_cov(0, 1) << ',' << r.opt_cov(1, 1)
-        << '\n';
+        << num(r.opt_heading_err) << ',' << r.opt_cov(0, 0) << ',' << r.opt_cov(0, 1) << ',' << r.opt_cov(1, 1) << ','
+        << (r.has_opt ? num(r.opt.translation().z()) + ',' + num(TiltError(r.opt, r.gt)) : std::string(",")) << '\n';
     }
   }
   {
@@ -375,13 +387,14 @@ std::string ShortTable(const Summary& s) {
   std::ostringstream os;
   if (!s.sites.empty()) {
     os << "| rover, end of traverse (" << s.sites.size() << " sites, " << F(s.distance, 1)
-       << " m) | position error m | % of distance | heading error deg |\n|---|---|---|---|\n";
+       << " m) | position error m | % of distance | heading error deg | of which vertical m | tilt error deg |\n"
+       << "|---|---|---|---|---|---|\n";
     os << "| dead reckoning | " << F(s.dr_end) << " | " << F(Pct(s.dr_end, s.distance), 2) << " | "
-       << F(s.dr_end_heading, 2) << " |\n";
+       << F(s.dr_end_heading, 2) << " | " << F(s.dr_end_vertical) << " | " << F(s.dr_end_tilt, 3) << " |\n";
     os << "| chained visual | " << F(s.vis_end) << " | " << F(Pct(s.vis_end, s.distance), 2) << " | "
-       << F(s.vis_end_heading, 2) << " |\n";
+       << F(s.vis_end_heading, 2) << " | " << F(s.vis_end_vertical) << " | " << F(s.vis_end_tilt, 3) << " |\n";
     os << "| optimised graph | " << F(s.opt_end) << " | " << F(Pct(s.opt_end, s.distance), 2) << " | "
-       << F(s.opt_end_heading, 2) << " |\n\n";
+       << F(s.opt_end_heading, 2) << " | " << F(s.opt_end_vertical) << " | " << F(s.opt_end_tilt, 3) << " |\n\n";
     os << "visual pairs OK: " << s.pairs_ok << " of " << s.pairs.size() << "; median new-site error "
        << F(s.pair_median_pct, 3) << " % of spacing; mean NEES " << F(s.pair_mean_nees, 2) << " (3 expected)\n";
     if (!s.fixes.empty())

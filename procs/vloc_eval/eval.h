@@ -87,6 +87,10 @@ struct Summary {
   double distance = 0;
   double dr_end = NAN, vis_end = NAN, opt_end = NAN;
   double dr_end_heading = NAN, vis_end_heading = NAN, opt_end_heading = NAN;
+  // Of the end position error, the vertical part (m, signed, estimate - truth) and the error of the
+  // estimated up axis (deg): a tilt carried from the first site turns every step's height.
+  double dr_end_vertical = NAN, vis_end_vertical = NAN, opt_end_vertical = NAN;
+  double dr_end_tilt = NAN, vis_end_tilt = NAN, opt_end_tilt = NAN;
   double pair_median_pct = NAN, pair_mean_nees = NAN;
   int pairs_ok = 0;
   double uav_height_rms = NAN, uav_height_rms_pct = NAN, uav_route_end = NAN, uav_route_end_pct = NAN,

@@ -90,6 +90,7 @@ TEST(VlocEval, KnownErrorsComeOutOfTheReport) {
       }
       traverse.site_ids.push_back(i);
       PoseWithCovariance opt = At(10.0 * i, 0.01);
+      opt.pose = MakePose(10.0 * i, 0.01, 0.0, 0.0, 0.01, 0.0);  // pitched 0.01 rad: tilt error 0.573 deg
       opt.covariance = 1e-4 * Matrix6d::Identity();
       traverse.poses.push_back(PoseToMessage(opt, "world", "body"));
       traverse.num_sites = i + 1;
@@ -129,6 +130,8 @@ TEST(VlocEval, KnownErrorsComeOutOfTheReport) {
     EXPECT_NEAR(std::stod(sites[i]["distance_m"]), 10.0 * i, 1e-9);
     EXPECT_NEAR(std::stod(sites[i]["dr_err_m"]), 0.1 * i, 1e-9);
     EXPECT_NEAR(std::stod(sites[i]["opt_err_m"]), 0.01, 1e-9);
+    EXPECT_NEAR(std::stod(sites[i]["opt_z"]), 0.0, 1e-9);
+    EXPECT_NEAR(std::stod(sites[i]["opt_tilt_err_deg"]), 0.01 * 180 / M_PI, 1e-5);
     if (i > 0) {
       EXPECT_NEAR(std::stod(sites[i]["dr_err_pct"]), 1.0, 1e-6);  // 0.1 m per 10 m
       EXPECT_NEAR(std::stod(sites[i]["vis_err_m"]), 0.02 * i, 1e-9);
@@ -151,7 +154,7 @@ TEST(VlocEval, KnownErrorsComeOutOfTheReport) {
   std::stringstream text;
   text << report.rdbuf();
   EXPECT_NE(text.str().find("| dead reckoning | 0.400 | 1.00 |"), std::string::npos) << text.str();
-  EXPECT_NE(text.str().find("| optimised graph | 0.010 | 0.03 |"), std::string::npos) << text.str();
+  EXPECT_NE(text.str().find("| optimised graph | 0.010 | 0.03 | 0.00 | 0.000 | 0.573 |"), std::string::npos) << text.str();
   EXPECT_NE(text.str().find("| height error RMS % of true height | 1.00 |"), std::string::npos) << text.str();
   EXPECT_NE(text.str().find("| route error % of distance flown | 5.00 |"), std::string::npos) << text.str();
   EXPECT_NE(text.str().find("median new-site error 0.200 %"), std::string::npos) << text.str();
