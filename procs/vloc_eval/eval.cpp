@@ -303,7 +303,7 @@ void WriteOutputs(const Summary& s, const std::string& dir) {
     auto f = open("sites.csv");
     f << "site,distance_m,gt_x,gt_y,gt_z,gt_heading_deg,dr_x,dr_y,dr_err_m,dr_err_pct,dr_heading_err_deg,"
          "vis_x,vis_y,vis_err_m,vis_err_pct,vis_heading_err_deg,opt_x,opt_y,opt_err_m,opt_err_pct,"
-         "opt_heading_err_deg,opt_cov_xx,opt_cov_xy,opt_cov_yy,opt_z,opt_tilt_err_deg\n";
+         "opt_heading_err_deg,opt_cov_xx,opt_cov_xy,opt_cov_yy,opt_z,opt_tilt_err_deg,opt_sigma_z\n";
     for (const SiteRow& r : s.sites) {
       auto xy = [&](bool has, const Pose3& p) {
         return has ? std::to_string(p.translation().x()) + "," + std::to_string(p.translation().y()) : ",";
@@ -315,7 +315,10 @@ void WriteOutputs(const Summary& s, const std::string& dir) {
         << ',' << num(r.vis_err) << ',' << num(Pct(r.vis_err, r.distance)) << ',' << num(r.vis_heading_err) << ','
         << xy(r.has_opt, r.opt) << ',' << num(r.opt_err) << ',' << num(Pct(r.opt_err, r.distance)) << ','
         << num(r.opt_heading_err) << ',' << r.opt_cov(0, 0) << ',' << r.opt_cov(0, 1) << ',' << r.opt_cov(1, 1) << ','
-        << (r.has_opt ? num(r.opt.translation().z()) + ',' + num(TiltError(r.opt, r.gt)) : std::string(",")) << '\n';
+        << (r.has_opt ? num(r.opt.translation().z()) + ',' + num(TiltError(r.opt, r.gt)) + ',' +
+                            num(std::sqrt(r.opt_cov(2, 2)))
+                      : std::string(",,"))
+        << '\n';
     }
   }
   {

@@ -87,6 +87,7 @@ void PoseGraphOptions::Visit(OptionsReader& r) {
   r.Optional("min_position_sigma", &min_position_sigma, "m, floor added to every edge");
   r.Optional("min_rotation_sigma", &min_rotation_sigma, "rad, floor added to every edge");
   r.Optional("compute_marginals", &compute_marginals, "marginal covariances after each update");
+  r.Optional("root_uncertainty", &root_uncertainty, "site marginals include the root's DR covariance, carried to the site");
   r.Optional("loop_gate_chi2", &loop_gate_chi2, "loop/fix edges beyond this chi2 against the predicted covariance are switched off");
   r.Optional("max_site_id_jump", &max_site_id_jump, "site ids further beyond the newest are rejected as corrupt");
 }
@@ -548,9 +549,19 @@ std::optional<SiteEstimate> TraverseGraph::Site(int site_id) const {
   e.world_from_body.pose = FromMrpt(it->second);
   e.is_root = it->first == graph_.root;
   const auto m = marginals_.find(it->first);
-  if (!e.is_root && m != marginals_.end())
+  if (!e.is_root && m != marginals_.end()) {
     e.world_from_body.covariance = VlocFromLocalCovariance(e.world_from_body.pose, m->second);
+    if (options_.root_uncertainty) e.world_from_body.covariance += RootUncertaintyAt(e.world_from_body.pose);
+  }
   return e;
+}
+
+Matrix6d TraverseGraph::RootUncertaintyAt(const Pose3& world_from_site) const {
+  const auto root = sites_.find(static_cast<int>(graph_.root));
+  if (root == sites_.end() || !root->second.has_dr || IsZero(root->second.dr.covariance)) return Matrix6d::Zero();
+  const Pose3 world_from_root = FromMrpt(graph_.nodes.at(graph_.root));
+  return ComposeCovariance(world_from_root, root->second.dr.covariance, world_from_root.inverse() * world_from_site,
+                           Matrix6d::Zero());
 }
 
 std::vector<SiteEstimate> TraverseGraph::Sites() const {

@@ -268,6 +268,48 @@ TEST(TraverseGraph, DeadReckoningOnlyReproducesTheChainAndItsGrowth) {
   EXPECT_EQ(est[0].world_from_body.covariance.norm(), 0.0);
 }
 
+// The root's roll / pitch come from gravity (the DR's tilt sigma): a chain of
+// exact visual edges holds the root's tilt, so every step's height turns by
+// it. Site marginals carry the root's DR covariance (root_uncertainty): the
+// height sigma grows with the distance times the tilt sigma, and the actual
+// height error lies within it; without it the sigma stays at the edges' mm.
+TEST(TraverseGraph, RootTiltIsCarriedIntoTheHeightSigma) {
+  const double tilt_sigma = 0.004, tilt = 0.003;  // rad: the DR's sigma, the root's actual pitch error
+  for (const bool carried : {true, false}) {
+    PoseGraphOptions o = PerMetreOptions();
+    o.root_uncertainty = carried;
+    TraverseGraph g(o);
+    std::vector<Pose3> truth;
+    for (int i = 0; i < 10; ++i) truth.push_back(MakePose(10.0 * i, 0, 0, 0, 0, 0));
+    PoseWithCovariance dr;
+    dr.pose = MakePose(0, 0, 0, 0, tilt, 0);  // levelled with a biased accelerometer
+    dr.covariance = Matrix6d::Zero();
+    dr.covariance.diagonal() << 1e-6, 1e-6, 1e-6, tilt_sigma * tilt_sigma, tilt_sigma * tilt_sigma, 1e-6;
+    ASSERT_TRUE(g.AddDeadReckoning(0, dr).accepted);
+    for (int i = 1; i < 10; ++i) {
+      dr.pose = dr.pose * truth[i - 1].inverse() * truth[i];
+      ASSERT_TRUE(g.AddDeadReckoning(i, dr).accepted);
+      PoseWithCovariance vis;
+      vis.pose = truth[i - 1].inverse() * truth[i];
+      vis.covariance = Diag(0.001, 1e-5);
+      ASSERT_TRUE(g.AddRelative(i - 1, i, vis).changed);
+    }
+    ASSERT_TRUE(g.Optimize().marginals_valid);
+    const SiteEstimate end = g.Sites().back();
+    const double z_error = end.world_from_body.pose.translation().z() - truth.back().translation().z();
+    const double z_sigma = std::sqrt(end.world_from_body.covariance(2, 2));
+    EXPECT_NEAR(z_error, -90.0 * std::sin(tilt), 1e-3);  // 90 m turned down by the pitch
+    if (carried) {
+      EXPECT_NEAR(z_sigma, 90.0 * tilt_sigma, 0.02 * 90.0 * tilt_sigma);
+      EXPECT_LT(z_error * z_error / (z_sigma * z_sigma), 9.0);
+      EXPECT_NEAR(std::sqrt(end.world_from_body.covariance(4, 4)), tilt_sigma, 1e-4);  // the tilt itself
+    } else {
+      EXPECT_LT(z_sigma, 0.01);  // the chain's own sigma: the 0.27 m error is 30 sigma out
+    }
+    EXPECT_EQ(g.Sites().front().world_from_body.covariance.norm(), 0.0);  // the root stays fixed
+  }
+}
+
 TEST(TraverseGraph, DifferenceModeRecoversTheRelativeCovariance) {
   // DR poses whose covariance grows by composing a known relative covariance.
   PoseGraphOptions o;  // dr_covariance = difference

@@ -67,6 +67,9 @@ struct PoseGraphOptions {
   double min_position_sigma = 1e-3;               // m, added in quadrature to every edge (keeps W finite)
   double min_rotation_sigma = 1e-5;               // rad, ditto
   bool compute_marginals = true;                  // marginal covariance of every site after each update
+  bool root_uncertainty = true;                   // the root's own DR covariance (roll / pitch from gravity,
+                                                  // heading) carried into every other site's marginal: the
+                                                  // chain holds the root's tilt, which turns every step's height
   double loop_gate_chi2 = 22.46;                  // a loop/fix edge whose chi2 against its predicted covariance
                                                   // exceeds this (6 dof, 99.9 %) is switched off for the update
   int max_site_id_jump = kMaxSiteIdJump;          // a site id this far beyond the newest is corrupt: rejected
@@ -100,7 +103,10 @@ struct PoseGraphSummary {
 };
 
 // A site's optimised pose and marginal covariance (vloc convention, world
-// frame; all zero for the root site, which is fixed).
+// frame; all zero for the root site, which is fixed). With
+// root_uncertainty the marginal adds the root's DR covariance carried to the
+// site (first order: the root's tilt moves the site's height by the distance
+// times the tilt).
 struct SiteEstimate {
   int site_id = 0;
   int64_t utime = 0;
@@ -185,6 +191,9 @@ class TraverseGraph {
   // Method "sparse": SolvePoseGraph over graph_'s nodes and edges_.
   OptimizerResult SolveSparse(const std::vector<double>& robust);
   void RetryPending();
+  // The root's DR covariance carried to a site at world_from_site (zero
+  // without one).
+  Matrix6d RootUncertaintyAt(const Pose3& world_from_site) const;
   std::string Serialize(GraphFormat format) const;
   bool Deserialize(const std::string& text, std::string* error);
 
