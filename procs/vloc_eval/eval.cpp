@@ -36,13 +36,24 @@ double Deg(double rad) { return rad * 180.0 / M_PI; }
 
 double HeadingError(const Pose3& est, const Pose3& truth) { return Deg(std::abs(WrapAngle(Heading(est) - Heading(truth)))); }
 
-// Angle between the estimate's and the truth's up (body z) axes, deg.
+// Angle between the world's up axis as the estimate and as the truth see it
+// from the body, deg: roll / pitch error, whatever the heading error.
 double TiltError(const Pose3& est, const Pose3& truth) {
-  const double c = est.linear().col(2).dot(truth.linear().col(2));
+  const double c = est.linear().row(2).dot(truth.linear().row(2));
   return Deg(std::acos(std::clamp(c, -1.0, 1.0)));
 }
 
 double VerticalError(const Pose3& est, const Pose3& truth) { return est.translation().z() - truth.translation().z(); }
+
+// The DR's tilt error and its up axis minus the truth's, in the body frame
+// (x, y): what an accelerometer bias fixed to the body would leave.
+std::string DrTiltColumns(const SiteRow& r) {
+  if (!r.has_dr) return ",,";
+  const Eigen::Vector3d up_err = (r.dr.linear().row(2) - r.gt.linear().row(2)).transpose();  // world z in the body
+  std::ostringstream os;
+  os << std::setprecision(10) << TiltError(r.dr, r.gt) << ',' << up_err.x() << ',' << up_err.y();
+  return os.str();
+}
 
 double Pct(double err, double dist) { return dist > 0 ? 100.0 * err / dist : NAN; }
 
@@ -303,7 +314,8 @@ void WriteOutputs(const Summary& s, const std::string& dir) {
     auto f = open("sites.csv");
     f << "site,distance_m,gt_x,gt_y,gt_z,gt_heading_deg,dr_x,dr_y,dr_err_m,dr_err_pct,dr_heading_err_deg,"
          "vis_x,vis_y,vis_err_m,vis_err_pct,vis_heading_err_deg,opt_x,opt_y,opt_err_m,opt_err_pct,"
-         "opt_heading_err_deg,opt_cov_xx,opt_cov_xy,opt_cov_yy,opt_z,opt_tilt_err_deg,opt_sigma_z\n";
+         "opt_heading_err_deg,opt_cov_xx,opt_cov_xy,opt_cov_yy,opt_z,opt_tilt_err_deg,opt_sigma_z,dr_tilt_err_deg,"
+         "dr_up_err_x,dr_up_err_y\n";
     for (const SiteRow& r : s.sites) {
       auto xy = [&](bool has, const Pose3& p) {
         return has ? std::to_string(p.translation().x()) + "," + std::to_string(p.translation().y()) : ",";
@@ -318,7 +330,7 @@ void WriteOutputs(const Summary& s, const std::string& dir) {
         << (r.has_opt ? num(r.opt.translation().z()) + ',' + num(TiltError(r.opt, r.gt)) + ',' +
                             num(std::sqrt(r.opt_cov(2, 2)))
                       : std::string(",,"))
-        << '\n';
+        << ',' << DrTiltColumns(r) << '\n';
     }
   }
   {

@@ -133,6 +133,7 @@ TEST(VlocEval, KnownErrorsComeOutOfTheReport) {
     EXPECT_NEAR(std::stod(sites[i]["opt_z"]), 0.0, 1e-9);
     EXPECT_NEAR(std::stod(sites[i]["opt_tilt_err_deg"]), 0.01 * 180 / M_PI, 1e-5);
     EXPECT_NEAR(std::stod(sites[i]["opt_sigma_z"]), 0.01, 1e-9);
+    EXPECT_NEAR(std::stod(sites[i]["dr_tilt_err_deg"]), 0.0, 1e-6);  // the DR poses are level
     if (i > 0) {
       EXPECT_NEAR(std::stod(sites[i]["dr_err_pct"]), 1.0, 1e-6);  // 0.1 m per 10 m
       EXPECT_NEAR(std::stod(sites[i]["vis_err_m"]), 0.02 * i, 1e-9);
