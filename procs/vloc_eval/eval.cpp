@@ -45,16 +45,6 @@ double TiltError(const Pose3& est, const Pose3& truth) {
 
 double VerticalError(const Pose3& est, const Pose3& truth) { return est.translation().z() - truth.translation().z(); }
 
-// The DR's tilt error and its up axis minus the truth's, in the body frame
-// (x, y): what an accelerometer bias fixed to the body would leave.
-std::string DrTiltColumns(const SiteRow& r) {
-  if (!r.has_dr) return ",,";
-  const Eigen::Vector3d up_err = (r.dr.linear().row(2) - r.gt.linear().row(2)).transpose();  // world z in the body
-  std::ostringstream os;
-  os << std::setprecision(10) << TiltError(r.dr, r.gt) << ',' << up_err.x() << ',' << up_err.y();
-  return os.str();
-}
-
 double Pct(double err, double dist) { return dist > 0 ? 100.0 * err / dist : NAN; }
 
 std::string F(double v, int prec = 3) {
@@ -326,11 +316,16 @@ void WriteOutputs(const Summary& s, const std::string& dir) {
         << ',' << num(Pct(r.dr_err, r.distance)) << ',' << num(r.dr_heading_err) << ',' << xy(r.has_visual, r.visual)
         << ',' << num(r.vis_err) << ',' << num(Pct(r.vis_err, r.distance)) << ',' << num(r.vis_heading_err) << ','
         << xy(r.has_opt, r.opt) << ',' << num(r.opt_err) << ',' << num(Pct(r.opt_err, r.distance)) << ','
-        << num(r.opt_heading_err) << ',' << r.opt_cov(0, 0) << ',' << r.opt_cov(0, 1) << ',' << r.opt_cov(1, 1) << ','
-        << (r.has_opt ? num(r.opt.translation().z()) + ',' + num(TiltError(r.opt, r.gt)) + ',' +
-                            num(std::sqrt(r.opt_cov(2, 2)))
-                      : std::string(",,"))
-        << ',' << DrTiltColumns(r) << '\n';
+        << num(r.opt_heading_err) << ',' << r.opt_cov(0, 0) << ',' << r.opt_cov(0, 1) << ',' << r.opt_cov(1, 1);
+      // The DR's up-axis error in the body frame (x, y): what an accelerometer bias fixed to the body leaves.
+      const Eigen::Vector3d dr_up_err = (r.dr.linear().row(2) - r.gt.linear().row(2)).transpose();
+      for (const double v : {r.has_opt ? r.opt.translation().z() : NAN, r.has_opt ? TiltError(r.opt, r.gt) : NAN,
+                             r.has_opt ? std::sqrt(r.opt_cov(2, 2)) : NAN, r.has_dr ? TiltError(r.dr, r.gt) : NAN,
+                             r.has_dr ? dr_up_err.x() : NAN, r.has_dr ? dr_up_err.y() : NAN}) {
+        f << ',';
+        if (std::isfinite(v)) f << v;
+      }
+      f << '\n';
     }
   }
   {

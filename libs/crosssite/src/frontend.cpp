@@ -247,7 +247,7 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous, const SiteImag
       return static_cast<int>(2 * (s.previous.pairs.size() + s.current.pairs.size()));
     });
     stages.Step("ground_planes", [&] { return FitGroundPlanes(navcam, tps, o, &s); });
-    sum.num_overlaps = stages.Step("region_prediction", [&] {
+    stages.Step("region_prediction", [&] {
       s.prediction = PredictRegions(navcam, s.previous.world_from_body, s.current.world_from_body,
                                     tps.previous_pointing, tps.current_pointing, o.regions, s.ground_planes);
       return static_cast<int>(s.prediction.overlaps.size());
