@@ -227,10 +227,14 @@ ZnccStage ZnccRows(const cv::Mat& left8, const cv::Mat& right8, const DenseStere
         float* out_row = out.disparity.ptr<float>(gy);
         for (int gx = 0; gx < gw; ++gx) {
           const int x = gx * o.step;
-          if (x - h < 0 || x + h >= W || x - dhi - h < 0) continue;
+          // Near the left edge the search stops at the largest disparity
+          // whose window fits the right image; a best score at that limit
+          // may still be rising, so it is no peak.
+          if (x - h < 0 || x + h >= W || x - dlo - h < 0) continue;
           ++points;
-          const int bi = bestd[x];
+          const int bi = bestd[x], last = std::min(nd - 1, x - h - dlo);
           if (bi < 0 || best[x] < o.min_score || best[x] - second[x] < o.min_peak_margin) continue;
+          if (last < nd - 1 && bi == last) continue;
           const int xr = x - (dlo + bi);
           if (o.left_right_check && std::abs(bestRd[xr] - bi) > o.max_left_right_diff) continue;
           double offset = 0;
@@ -439,6 +443,37 @@ bool RowLeastSquaresMatch(const cv::Mat& L, const cv::Mat& R, int x, int y, doub
   return corr >= o.lsm_min_correlation && sigma <= o.lsm_max_sigma_px;
 }
 
+namespace {
+
+// Step 3's images: the left grey levels, the right image's row
+// interpolation coefficients and, for the back check, the reverse pair.
+struct LsmImages {
+  LsmImages(const cv::Mat& left, const cv::Mat& right, const DenseStereoOptions& o) {
+    left.convertTo(L, CV_32F);
+    R = PrepareRowLsmTarget(right, o);
+    if (o.lsm_back_check_px > 0) {
+      right.convertTo(Rraw, CV_32F);
+      Lcoef = PrepareRowLsmTarget(left, o);
+    }
+  }
+  cv::Mat L, R, Rraw, Lcoef;
+};
+
+// Step 3 for one grid point: row LSM of the left pixel (x, y) from the
+// ZNCC disparity `d0`, then the optional back check.
+bool RefinePixel(const LsmImages& im, const DenseStereoOptions& o, int x, int y, double d0, RowLsmResult* out) {
+  if (!RowLeastSquaresMatch(im.L, im.R, x, y, d0, o, out)) return false;
+  if (o.lsm_back_check_px <= 0) return true;
+  // Back from the nearest right pixel into the left image (disparity
+  // negated: the left point is to the right of the right point).
+  RowLsmResult back;
+  const int xr = static_cast<int>(std::lround(x - out->disparity));
+  return RowLeastSquaresMatch(im.Rraw, im.Lcoef, xr, y, -out->disparity, o, &back) &&
+         std::abs(-back.disparity - out->disparity) <= o.lsm_back_check_px;
+}
+
+}  // namespace
+
 cv::Mat DenseStereo(const cv::Mat& left, const cv::Mat& right, const DenseStereoOptions& o,
                     DenseStereoSummary* summary) {
   std::string error;
@@ -461,13 +496,7 @@ cv::Mat DenseStereo(const cv::Mat& left, const cv::Mat& right, const DenseStereo
   s.median_seconds = Since(t1);
   const auto t2 = Clock::now();
   if (o.lsm_enabled) {
-    cv::Mat L, Rraw, Lcoef;
-    left.convertTo(L, CV_32F);
-    const cv::Mat R = PrepareRowLsmTarget(right, o);
-    if (o.lsm_back_check_px > 0) {
-      right.convertTo(Rraw, CV_32F);
-      Lcoef = PrepareRowLsmTarget(left, o);
-    }
+    const LsmImages images(left, right, o);
     cv::Mat sigma(disp.size(), CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
     long matched = 0;
 #pragma omp parallel for schedule(dynamic, 4) num_threads(o.num_threads) reduction(+ : matched)
@@ -476,16 +505,7 @@ cv::Mat DenseStereo(const cv::Mat& left, const cv::Mat& right, const DenseStereo
       for (int gx = 0; gx < disp.cols; ++gx) {
         if (!std::isfinite(row[gx])) continue;
         RowLsmResult r;
-        bool ok = RowLeastSquaresMatch(L, R, gx * o.step, gy * o.step, row[gx], o, &r);
-        if (ok && o.lsm_back_check_px > 0) {
-          // Back from the nearest right pixel into the left image (disparity
-          // negated: the left point is to the right of the right point).
-          RowLsmResult back;
-          const int xr = static_cast<int>(std::lround(gx * o.step - r.disparity));
-          ok = RowLeastSquaresMatch(Rraw, Lcoef, xr, gy * o.step, -r.disparity, o, &back) &&
-               std::abs(-back.disparity - r.disparity) <= o.lsm_back_check_px;
-        }
-        if (ok) {
+        if (RefinePixel(images, o, gx * o.step, gy * o.step, row[gx], &r)) {
           row[gx] = static_cast<float>(r.disparity);
           sigma.at<float>(gy, gx) = static_cast<float>(r.sigma_px);
           ++matched;

@@ -10,8 +10,9 @@
 //   against the truth + 0.25 px (its integer steps sit 0.25 px low).
 // - Middlebury 2014 Motorcycle (741 x 500, python3-skimage, sub-pixel
 //   truth): the same counters, without the offset.
-// Each pair with the default options and the photograph settings
-// (config/stereo_photo.yaml).
+// Each pair with the default options, the photograph settings
+// (config/stereo_photo.yaml: depth edges) and the JPEG settings
+// (config/stereo_jpeg.yaml: compressed images, weak texture).
 //   build/bench/bench_matching --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
 // (2 threads for both sides; skips with a message when opencv-doc or python3-skimage is absent)
 #include <benchmark/benchmark.h>
@@ -114,7 +115,7 @@ void StereoSgbm(benchmark::State& state, StereoCase& c) {
 }
 
 // vloc::DenseStereo with the defaults or, when `options_file` is set, with
-// that YAML (config/stereo_photo.yaml: the photograph settings).
+// that YAML (config/stereo_photo.yaml, config/stereo_jpeg.yaml).
 void StereoVloc(benchmark::State& state, StereoCase& c, const char* options_file) {
   if (!c.pair.ok) return state.SkipWithError(("missing " + c.pair.missing).c_str());
   vloc::DenseStereoOptions o;
@@ -132,16 +133,21 @@ void StereoVloc(benchmark::State& state, StereoCase& c, const char* options_file
 
 // Per pair: SGBM first, vloc (scored on both), SGBM again (scored on both).
 constexpr const char* kPhoto = "config/stereo_photo.yaml";
+constexpr const char* kJpeg = "config/stereo_jpeg.yaml";
 BENCHMARK_CAPTURE(StereoSgbm, Aloe_OpenCV_SGBM, Aloe())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(StereoVloc, Aloe_Vloc, Aloe(), nullptr)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(StereoSgbm, Aloe_OpenCV_SGBM_scored_on_both, Aloe())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(StereoVloc, Aloe_Vloc_photo, Aloe(), kPhoto)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(StereoSgbm, Aloe_OpenCV_SGBM_scored_on_both_photo, Aloe())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(StereoVloc, Aloe_Vloc_jpeg, Aloe(), kJpeg)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(StereoSgbm, Aloe_OpenCV_SGBM_scored_on_both_jpeg, Aloe())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(StereoSgbm, Motorcycle_OpenCV_SGBM, Motorcycle())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(StereoVloc, Motorcycle_Vloc, Motorcycle(), nullptr)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(StereoSgbm, Motorcycle_OpenCV_SGBM_scored_on_both, Motorcycle())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(StereoVloc, Motorcycle_Vloc_photo, Motorcycle(), kPhoto)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(StereoSgbm, Motorcycle_OpenCV_SGBM_scored_on_both_photo, Motorcycle())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(StereoVloc, Motorcycle_Vloc_jpeg, Motorcycle(), kJpeg)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(StereoSgbm, Motorcycle_OpenCV_SGBM_scored_on_both_jpeg, Motorcycle())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 
 }  // namespace
 

@@ -7,6 +7,8 @@
 //      sums (cost independent of the window size), OpenMP over row blocks;
 //      the best peak must be unique (margin over the next local maximum) and
 //      agree with the right-to-left best of the same scores (left-right check).
+//      Near the left edge the search stops at the largest disparity whose
+//      window fits the right image (a best score at that cut is no peak).
 //   2. Median test on the disparity grid: a disparity far from the median of
 //      its neighbours is dropped.
 //   3. Row LSM: the left window matched into the right image along the row
@@ -18,7 +20,8 @@
 // lsm_back_check_px add filters after LSM (off: on Middlebury Aloe they cut
 // coverage below half the pixels for a few tenths of a percent fewer > 1 px
 // errors). config/stereo_photo.yaml holds the settings for photographs with
-// depth edges (7 x 7 LSM window, the LSM median test); windows shifted
+// depth edges (7 x 7 LSM window, the LSM median test), config/stereo_jpeg.yaml
+// those for compressed, weakly textured ones (15 x 15); windows shifted
 // along the row (shiftable windows) were tried: more pixels matched, the
 // same share of > 1 px errors.
 
