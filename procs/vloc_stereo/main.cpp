@@ -114,6 +114,7 @@ int main(int argc, char** argv) {
   std::cout << "lsm_matches: " << (o.lsm_enabled ? summary.lsm_matches : 0) << "\n";
   std::cout << "disparity_median_px: " << median(d) << "\n";
   std::cout << "lsm_sigma_median_px: " << summary.median_sigma_px << "\n";
+  std::cout << "lsm_mean_iterations: " << summary.lsm_mean_iterations << "\n";
   std::cout << "scale: " << (pfm ? 1.0 : 1.0 / 256.0) << "  # disparity = value * scale\n";
   std::cout << "seconds: " << summary.total_seconds << "  # zncc " << summary.zncc_seconds << ", median "
             << summary.median_seconds << ", lsm " << summary.lsm_seconds << "\n";

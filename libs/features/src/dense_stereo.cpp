@@ -498,8 +498,8 @@ cv::Mat DenseStereo(const cv::Mat& left, const cv::Mat& right, const DenseStereo
   if (o.lsm_enabled) {
     const LsmImages images(left, right, o);
     cv::Mat sigma(disp.size(), CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
-    long matched = 0;
-#pragma omp parallel for schedule(dynamic, 4) num_threads(o.num_threads) reduction(+ : matched)
+    long matched = 0, iterations = 0;
+#pragma omp parallel for schedule(dynamic, 4) num_threads(o.num_threads) reduction(+ : matched, iterations)
     for (int gy = 0; gy < disp.rows; ++gy) {
       float* row = disp.ptr<float>(gy);
       for (int gx = 0; gx < disp.cols; ++gx) {
@@ -509,12 +509,14 @@ cv::Mat DenseStereo(const cv::Mat& left, const cv::Mat& right, const DenseStereo
           row[gx] = static_cast<float>(r.disparity);
           sigma.at<float>(gy, gx) = static_cast<float>(r.sigma_px);
           ++matched;
+          iterations += r.iterations;
         } else {
           row[gx] = std::numeric_limits<float>::quiet_NaN();
         }
       }
     }
     s.lsm_matches = matched;
+    s.lsm_mean_iterations = matched ? static_cast<double>(iterations) / matched : 0.0;
     if (o.lsm_median_tolerance > 0) s.lsm_matches = MedianTest(o, o.lsm_median_tolerance, 0.0, &disp);
     std::vector<float> sig;
     for (int y = 0; y < sigma.rows; ++y)

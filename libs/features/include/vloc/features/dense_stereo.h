@@ -74,6 +74,7 @@ struct DenseStereoSummary {
   long after_median = 0;          // ... and the median test
   long lsm_matches = 0;           // ... and LSM (the output when lsm_enabled)
   double median_sigma_px = 0;     // median LSM 1-sigma disparity precision
+  double lsm_mean_iterations = 0; // Gauss-Newton iterations per accepted LSM match
   double zncc_seconds = 0, median_seconds = 0, lsm_seconds = 0, total_seconds = 0;
 
   std::string BriefReport() const;
