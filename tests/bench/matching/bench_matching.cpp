@@ -10,6 +10,8 @@
 //   against the truth + 0.25 px (its integer steps sit 0.25 px low).
 // - Middlebury 2014 Motorcycle (741 x 500, python3-skimage, sub-pixel
 //   truth): the same counters, without the offset.
+// - A real Curiosity Navcam pair (../shared/data, no dense truth): terrain
+//   and sky coverage, errors at SIFT check points.
 // Each pair with the default options, the photograph settings
 // (config/stereo_photo.yaml: depth edges) and the JPEG settings
 // (config/stereo_jpeg.yaml: compressed images, weak texture).
@@ -114,16 +116,24 @@ void StereoSgbm(benchmark::State& state, StereoCase& c) {
   SetStereoCounters(state, c, c.sgbm, c.vloc);
 }
 
+// The defaults or, when `options_file` is set, that YAML (relative to the
+// source tree), over [min_disparity, min_disparity + num_disparities),
+// every pixel, kThreads threads.
+vloc::DenseStereoOptions StereoOptions(const char* options_file, int min_disparity, int num_disparities) {
+  vloc::DenseStereoOptions o;
+  if (options_file) o = vloc::LoadOptionsFile<vloc::DenseStereoOptions>(std::string(VLOC_SOURCE_DIR "/") + options_file);
+  o.min_disparity = min_disparity;
+  o.max_disparity = min_disparity + num_disparities - 1;
+  o.step = 1;
+  o.num_threads = kThreads;
+  return o;
+}
+
 // vloc::DenseStereo with the defaults or, when `options_file` is set, with
 // that YAML (config/stereo_photo.yaml, config/stereo_jpeg.yaml).
 void StereoVloc(benchmark::State& state, StereoCase& c, const char* options_file) {
   if (!c.pair.ok) return state.SkipWithError(("missing " + c.pair.missing).c_str());
-  vloc::DenseStereoOptions o;
-  if (options_file) o = vloc::LoadOptionsFile<vloc::DenseStereoOptions>(std::string(VLOC_SOURCE_DIR "/") + options_file);
-  o.min_disparity = c.pair.min_disparity;
-  o.max_disparity = c.pair.min_disparity + c.pair.num_disparities - 1;
-  o.step = 1;
-  o.num_threads = kThreads;
+  const vloc::DenseStereoOptions o = StereoOptions(options_file, c.pair.min_disparity, c.pair.num_disparities);
   vloc::DenseStereoSummary s;
   for (auto _ : state) c.vloc = vloc::DenseStereo(c.pair.left, c.pair.right, o, &s);
   SetStereoCounters(state, c, c.vloc, c.sgbm);
@@ -148,6 +158,50 @@ BENCHMARK_CAPTURE(StereoVloc, Motorcycle_Vloc_photo, Motorcycle(), kPhoto)->Unit
 BENCHMARK_CAPTURE(StereoSgbm, Motorcycle_OpenCV_SGBM_scored_on_both_photo, Motorcycle())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(StereoVloc, Motorcycle_Vloc_jpeg, Motorcycle(), kJpeg)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(StereoSgbm, Motorcycle_OpenCV_SGBM_scored_on_both_jpeg, Motorcycle())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+
+// A real Curiosity Navcam pair (../shared/data/real/mars_navcam, sol 1431,
+// rectified from its SIFT matches; no dense truth): coverage of the terrain,
+// share of the sky matched (all wrong) and, on the SIFT check points both
+// matched, > 1 px share and median |error| (real_pairs.h).
+struct NavcamCase {
+  vloc::testing::SparseStereoPair pair = vloc::testing::LoadNavcamPair();
+  cv::Mat sgbm, vloc;
+};
+
+NavcamCase& Navcam() {
+  static NavcamCase c;
+  return c;
+}
+
+void SetSparseCounters(benchmark::State& state, const NavcamCase& c, const cv::Mat& mine, const cv::Mat& other) {
+  const vloc::testing::SparseScore s = vloc::testing::ScoreSparse(mine, c.pair, other);
+  state.counters["terrain_coverage"] = s.terrain_coverage;
+  state.counters["sky_matched"] = s.sky_matched;
+  state.counters["checked"] = static_cast<double>(s.checked);
+  state.counters["check_bad1"] = s.bad1;
+  state.counters["check_median_px"] = s.median_abs;
+}
+
+void NavcamSgbm(benchmark::State& state, NavcamCase& c) {
+  if (!c.pair.ok) return state.SkipWithError(("missing " + c.pair.missing).c_str());
+  cv::setNumThreads(kThreads);
+  for (auto _ : state)
+    c.sgbm = vloc::testing::SgbmDisparity(c.pair.left, c.pair.right, c.pair.min_disparity, c.pair.num_disparities);
+  SetSparseCounters(state, c, c.sgbm, c.vloc);
+}
+
+void NavcamVloc(benchmark::State& state, NavcamCase& c, const char* options_file) {
+  if (!c.pair.ok) return state.SkipWithError(("missing " + c.pair.missing).c_str());
+  const vloc::DenseStereoOptions o = StereoOptions(options_file, c.pair.min_disparity, c.pair.num_disparities);
+  for (auto _ : state) c.vloc = vloc::DenseStereo(c.pair.left, c.pair.right, o);
+  SetSparseCounters(state, c, c.vloc, c.sgbm);
+}
+
+BENCHMARK_CAPTURE(NavcamSgbm, Navcam_OpenCV_SGBM, Navcam())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(NavcamVloc, Navcam_Vloc, Navcam(), nullptr)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(NavcamSgbm, Navcam_OpenCV_SGBM_checked_on_both, Navcam())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(NavcamVloc, Navcam_Vloc_jpeg, Navcam(), kJpeg)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(NavcamSgbm, Navcam_OpenCV_SGBM_checked_on_both_jpeg, Navcam())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 
 }  // namespace
 

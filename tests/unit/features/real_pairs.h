@@ -31,6 +31,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <string>
 #include <vector>
 
@@ -93,6 +94,129 @@ inline StereoPair LoadMotorcycle() {
   p.num_disparities = 64;  // truth spans 7.2-59.9 px
   p.ok = !p.left.empty() && !p.right.empty() && p.gt.size() == p.left.size();
   return p;
+}
+
+// A real Curiosity Navcam stereo pair (../shared/data/real/mars_navcam,
+// sol 1431, JPEG, no labels: see its README), rectified from its own SIFT
+// matches (fundamental matrix by RANSAC, cv::stereoRectifyUncalibrated),
+// the right image shifted so every disparity is positive. No dense truth:
+// the check points are the SIFT matches on the epipolar lines after
+// rectification (|dy| < 0.3 px), whose own localisation noise is ~0.1 px;
+// `terrain` is below the skyline (per column, the first row whose 9 x 9
+// grey std exceeds 12, inside the warped image: the sky's noise stays
+// under that).
+struct SparseStereoPair {
+  cv::Mat left, right;                // CV_8UC1, rectified
+  cv::Mat valid, terrain;             // CV_8U masks: inside both warps; below the skyline
+  std::vector<cv::Point2f> points;    // left px of the check points
+  std::vector<float> disparity;       // their disparity (left x - right x), px
+  int min_disparity = 0, num_disparities = 32;
+  bool ok = false;
+  std::string missing;
+};
+
+inline SparseStereoPair LoadNavcamPair() {
+  SparseStereoPair p;
+  const std::string d = std::string(VLOC_SOURCE_DIR) + "/../shared/data/real/mars_navcam/";
+  const char* kLeft = "NLB_524534514EDR_F0562034NCAM00280M_.jpeg";
+  const char* kRight = "NRB_524534514EDR_F0562034NCAM00280M_.jpeg";
+  p.missing = FirstMissing(d, {kLeft, kRight}, "none: real data beside the repo, see ../shared/data/README.md");
+  if (!p.missing.empty()) return p;
+  const cv::Mat l = cv::imread(d + kLeft, cv::IMREAD_GRAYSCALE), r = cv::imread(d + kRight, cv::IMREAD_GRAYSCALE);
+  if (l.empty() || r.empty() || l.size() != r.size()) return p;
+  auto sift = cv::SIFT::create(8000);
+  std::vector<cv::KeyPoint> kl, kr;
+  cv::Mat dl, dr;
+  sift->detectAndCompute(l, cv::noArray(), kl, dl);
+  sift->detectAndCompute(r, cv::noArray(), kr, dr);
+  std::vector<std::vector<cv::DMatch>> knn;
+  cv::BFMatcher().knnMatch(dl, dr, knn, 2);
+  std::vector<cv::Point2f> pl, pr;
+  for (const auto& m : knn)
+    if (m.size() == 2 && m[0].distance < 0.75f * m[1].distance) {
+      pl.push_back(kl[m[0].queryIdx].pt);
+      pr.push_back(kr[m[0].trainIdx].pt);
+    }
+  if (pl.size() < 100) return p;
+  std::vector<uchar> inl;
+  const cv::Mat f = cv::findFundamentalMat(pl, pr, cv::FM_RANSAC, 0.5, 0.999, inl);
+  std::vector<cv::Point2f> il, ir;
+  for (size_t k = 0; k < inl.size(); ++k)
+    if (inl[k]) il.push_back(pl[k]), ir.push_back(pr[k]);
+  cv::Mat h1, h2;
+  if (f.rows != 3 || !cv::stereoRectifyUncalibrated(il, ir, f, l.size(), h1, h2)) return p;
+  const double kShift = 12;  // px added to every disparity (the rectified ones span about -6..8)
+  h2 = (cv::Mat_<double>(3, 3) << 1, 0, -kShift, 0, 1, 0, 0, 0, 1) * h2;
+  cv::warpPerspective(l, p.left, h1, l.size(), cv::INTER_CUBIC);
+  cv::warpPerspective(r, p.right, h2, r.size(), cv::INTER_CUBIC);
+  cv::Mat ones(l.size(), CV_8U, cv::Scalar(255)), vl, vr;
+  cv::warpPerspective(ones, vl, h1, l.size(), cv::INTER_NEAREST);
+  cv::warpPerspective(ones, vr, h2, r.size(), cv::INTER_NEAREST);
+  p.valid = vl & vr;
+  std::vector<cv::Point2f> ql, qr;
+  cv::perspectiveTransform(il, ql, h1);
+  cv::perspectiveTransform(ir, qr, h2);
+  for (size_t k = 0; k < ql.size(); ++k)
+    if (std::abs(ql[k].y - qr[k].y) < 0.3f) p.points.push_back(ql[k]), p.disparity.push_back(ql[k].x - qr[k].x);
+  // Terrain below the skyline.
+  cv::Mat g, mean, sq, std_dev, inner;
+  p.left.convertTo(g, CV_32F);
+  cv::blur(g, mean, cv::Size(9, 9));
+  cv::blur(g.mul(g), sq, cv::Size(9, 9));
+  cv::sqrt(cv::max(sq - mean.mul(mean), 0), std_dev);
+  cv::erode(p.valid, inner, cv::Mat::ones(21, 21, CV_8U));
+  p.terrain = cv::Mat(l.size(), CV_8U, cv::Scalar(0));
+  for (int x = 0; x < l.cols; ++x)
+    for (int y = 0; y < l.rows; ++y)
+      if (inner.at<uchar>(y, x) && std_dev.at<float>(y, x) > 12) {
+        for (int yy = y; yy < l.rows; ++yy) p.terrain.at<uchar>(yy, x) = p.valid.at<uchar>(yy, x);
+        break;
+      }
+  p.ok = p.points.size() >= 100;
+  return p;
+}
+
+struct SparseScore {
+  double terrain_coverage = 0;  // fraction of the terrain pixels with a disparity
+  double sky_matched = 0;       // fraction of the valid pixels above the skyline with one (all wrong: no texture)
+  long checked = 0;             // check points with a disparity (and, with `mask_other`, the other map's too)
+  double bad1 = 0;              // fraction of checked more than 1 px from the check point's disparity
+  double median_abs = 0;        // px
+};
+
+// Scores a full-resolution disparity map against the pair's check points
+// (nearest pixel), counting only those where `other` (optional) has a
+// disparity too.
+inline SparseScore ScoreSparse(const cv::Mat& disp, const SparseStereoPair& p, const cv::Mat& other = cv::Mat()) {
+  SparseScore s;
+  long terrain = 0, terrain_hit = 0, sky = 0, sky_hit = 0;
+  for (int y = 0; y < disp.rows; ++y)
+    for (int x = 0; x < disp.cols; ++x) {
+      if (!p.valid.at<uchar>(y, x)) continue;
+      const bool hit = std::isfinite(disp.at<float>(y, x));
+      if (p.terrain.at<uchar>(y, x)) {
+        ++terrain, terrain_hit += hit;
+      } else {
+        ++sky, sky_hit += hit;
+      }
+    }
+  s.terrain_coverage = terrain ? static_cast<double>(terrain_hit) / terrain : 0;
+  s.sky_matched = sky ? static_cast<double>(sky_hit) / sky : 0;
+  std::vector<float> err;
+  for (size_t k = 0; k < p.points.size(); ++k) {
+    const int x = std::clamp(static_cast<int>(std::lround(p.points[k].x)), 0, disp.cols - 1);
+    const int y = std::clamp(static_cast<int>(std::lround(p.points[k].y)), 0, disp.rows - 1);
+    const float v = disp.at<float>(y, x);
+    if (!std::isfinite(v) || (!other.empty() && !std::isfinite(other.at<float>(y, x)))) continue;
+    err.push_back(std::abs(v - p.disparity[k]));
+  }
+  s.checked = static_cast<long>(err.size());
+  if (!err.empty()) {
+    s.bad1 = static_cast<double>(std::count_if(err.begin(), err.end(), [](float e) { return e > 1.f; })) / err.size();
+    std::nth_element(err.begin(), err.begin() + err.size() / 2, err.end());
+    s.median_abs = err[err.size() / 2];
+  }
+  return s;
 }
 
 struct GrafPair {
