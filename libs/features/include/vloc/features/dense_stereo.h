@@ -18,11 +18,12 @@
 //      biases the disparity by up to +-0.02 px with its sub-pixel phase.
 // Options default to the paper's pipeline; lsm_median_tolerance and
 // lsm_back_check_px add filters after LSM (off by default: each trades
-// matched pixels for fewer > 1 px errors). config/stereo_photo.yaml holds the settings for photographs with
-// depth edges (7 x 7 LSM window, the LSM median test), config/stereo_jpeg.yaml
-// those for compressed, weakly textured ones (15 x 15); windows shifted
-// along the row (shiftable windows) were tried: more pixels matched, the
-// same share of > 1 px errors.
+// matched pixels for fewer > 1 px errors). config/stereo_photo.yaml holds
+// the settings for photographs with depth edges (7 x 7 LSM window, the LSM
+// median test), config/stereo_jpeg.yaml those for compressed, weakly
+// textured ones (15 x 15); windows shifted along the row (shiftable
+// windows) were tried: more pixels matched, the same share of > 1 px
+// errors.
 
 #include <opencv2/core.hpp>
 #include <string>
