@@ -1,7 +1,7 @@
 // vloc_stereo: ZNCC + least-squares matching of a rectified stereo pair
 // (operators' tool).
-//   vloc_stereo LEFT RIGHT [--config stereo.yaml] [--min-disp 0] [--max-disp 128] [--step 4] [--threads 2]
-//               --out disp.png|disp.pfm
+//   vloc_stereo LEFT RIGHT [--config stereo.yaml] [--min-disp 0] [--max-disp 128 | --auto-range] [--step 4]
+//               [--threads 2] [--no-pair-check] --out disp.png|disp.pfm
 // --config: a YAML of vloc::DenseStereoOptions keys (see dense_stereo.h);
 // the flags override it.
 // Matches the left pixels of a grid (every --step px) along their row of the
@@ -10,6 +10,10 @@
 // (vloc::DenseStereo; --no-lsm keeps the ZNCC parabola disparities). The map has one pixel per grid point
 // (size ceil(W/step) x ceil(H/step)); PNG: 16 bit, disparity = value / 256,
 // 0 = no match; PFM: float disparity, NaN = no match. Prints statistics as YAML.
+// First it checks the pair from sparse feature matches
+// (vloc::CheckStereoPair): a pair whose matches are not on their rows is
+// refused with one line saying so (--no-pair-check skips the check);
+// --auto-range searches the disparities the matches span (with a margin).
 
 #include <cmath>
 #include <fstream>
@@ -20,6 +24,7 @@
 #include "vloc/common/logging.h"
 #include "vloc/common/options.h"
 #include "vloc/features/dense_stereo.h"
+#include "vloc/features/stereo_pair_check.h"
 
 namespace {
 
@@ -31,6 +36,24 @@ bool WritePfm(const std::string& path, const cv::Mat& disp) {
   return static_cast<bool>(f);
 }
 
+// The pair check: false (and one line on stderr) when the pair is not
+// rectified, or when --auto-range needs a range the check could not give.
+bool CheckPair(const cv::Mat& left, const cv::Mat& right, bool auto_range, double* dmin, double* dmax) {
+  const vloc::StereoPairCheck c = vloc::CheckStereoPair(left, right, vloc::StereoPairCheckOptions());
+  if (c.usable && !c.rectified) {
+    std::cerr << "vloc_stereo: the pair is " << c.message << " (--no-pair-check to match it anyway)\n";
+    return false;
+  }
+  if (!c.usable) {
+    std::cerr << "vloc_stereo: pair check: " << c.message << "\n";
+    if (auto_range) std::cerr << "vloc_stereo: --auto-range needs the feature matches: give --min-disp and --max-disp\n";
+    return !auto_range;
+  }
+  std::cout << "pair_check: \"" << c.message << "\"\n";
+  if (auto_range) *dmin = c.min_disparity, *dmax = c.max_disparity;
+  return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -38,8 +61,11 @@ int main(int argc, char** argv) {
   vloc::CommandLine args;
   std::string error;
   const char* usage =
-      "usage: vloc_stereo LEFT RIGHT [--config stereo.yaml] [--min-disp 0] [--max-disp 128] [--step 4] [--threads 2] [--no-lsm] --out disp.png|disp.pfm";
-  if (!args.Parse(argc, argv, {"config", "min-disp", "max-disp", "step", "threads", "no-lsm", "out", "help"}, &error) ||
+      "usage: vloc_stereo LEFT RIGHT [--config stereo.yaml] [--min-disp 0] [--max-disp 128 | --auto-range] [--step 4] "
+      "[--threads 2] [--no-lsm] [--no-pair-check] --out disp.png|disp.pfm";
+  if (!args.Parse(argc, argv,
+                  {"config", "min-disp", "max-disp", "auto-range", "step", "threads", "no-lsm", "no-pair-check", "out", "help"},
+                  &error) ||
       args.Has("help") || args.positional().size() != 2 || !args.Has("out")) {
     std::cerr << (error.empty() ? usage : "vloc_stereo: " + error + "\n" + usage) << "\n";
     return args.Has("help") ? 0 : 1;
@@ -60,7 +86,17 @@ int main(int argc, char** argv) {
       return 1;
     }
   }
-  const double dmin = args.GetDouble("min-disp", o.min_disparity), dmax = args.GetDouble("max-disp", o.max_disparity);
+  double dmin = args.GetDouble("min-disp", o.min_disparity), dmax = args.GetDouble("max-disp", o.max_disparity);
+  const bool auto_range = args.Has("auto-range");
+  if (auto_range && (args.Has("min-disp") || args.Has("max-disp"))) {
+    std::cerr << "vloc_stereo: --auto-range chooses the disparities: drop --min-disp / --max-disp\n";
+    return 1;
+  }
+  if (auto_range && args.Has("no-pair-check")) {
+    std::cerr << "vloc_stereo: --auto-range needs the pair check: drop --no-pair-check\n";
+    return 1;
+  }
+  if (!args.Has("no-pair-check") && !CheckPair(left8, right8, auto_range, &dmin, &dmax)) return 1;
   const int step = std::max(1, args.GetInt("step", args.Has("config") ? o.step : 4));
   const int threads = std::max(1, args.GetInt("threads", o.num_threads));
   if (!(dmax > dmin && dmin >= 0)) {

@@ -92,29 +92,71 @@ cv::Mat ReadPfm(const std::string& path) {
   return f ? m : cv::Mat();
 }
 
-TEST(VlocStereo, SlantedPlaneDisparitiesToAFewHundredthsOfAPixel) {
-  const std::string dir = TempDir();
-  const int w = 240, h = 160;
-  const double d0 = 9.4, gx = 0.02, gy = 0.015;
-  const vloc::testing::BlobTexture tex(w + 60, h, (w + 60) * h / 18, 23);
-  cv::imwrite(dir + "/l.png", ToU8(tex.Render(w, h, [](int x, int y) { return std::make_pair<double, double>(x, y); })));
-  cv::imwrite(dir + "/r.png", ToU8(tex.Render(w, h, [&](int x, int y) {
-                return std::make_pair<double, double>((x + d0 + gy * y) / (1.0 - gx), y);
+// A slanted plane seen by a rectified pair, disparity d0 + gx x + gy y at
+// left pixel (x, y); the right image `dy` px lower (0: rectified).
+constexpr int kPlaneW = 240, kPlaneH = 160;
+constexpr double kD0 = 9.4, kGx = 0.02, kGy = 0.015;
+void WritePlanePair(const std::string& dir, double dy) {
+  const vloc::testing::BlobTexture tex(kPlaneW + 60, kPlaneH, (kPlaneW + 60) * kPlaneH / 18, 23);
+  cv::imwrite(dir + "/l.png",
+              ToU8(tex.Render(kPlaneW, kPlaneH, [](int x, int y) { return std::make_pair<double, double>(x, y); })));
+  cv::imwrite(dir + "/r.png", ToU8(tex.Render(kPlaneW, kPlaneH, [&](int x, int y) {
+                return std::make_pair<double, double>((x + kD0 + kGy * y) / (1.0 - kGx), y - dy);
               })));
-  const ToolRun r = RunTool({vloc::testing::BinPath("vloc_stereo"), dir + "/l.png", dir + "/r.png", "--min-disp", "0",
-                         "--max-disp", "30", "--step", "2", "--out", dir + "/d.pfm"});
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  const cv::Mat d = ReadPfm(dir + "/d.pfm");
-  ASSERT_EQ(d.cols, w / 2);
-  ASSERT_EQ(d.rows, h / 2);
+}
+
+// Median |error| of a step-2 disparity map of the plane, after checking its
+// size and that most of it is matched.
+double PlaneMedianError(const cv::Mat& d, const std::string& output) {
+  EXPECT_EQ(d.cols, kPlaneW / 2);
+  EXPECT_EQ(d.rows, kPlaneH / 2);
   std::vector<double> err;
   for (int i = 0; i < d.rows; ++i)
     for (int j = 0; j < d.cols; ++j)
-      if (std::isfinite(d.at<float>(i, j))) err.push_back(std::abs(d.at<float>(i, j) - (d0 + gx * 2 * j + gy * 2 * i)));
-  ASSERT_GT(err.size(), 0.7 * (w / 2 - 20) * (h / 2 - 6)) << r.output;
+      if (std::isfinite(d.at<float>(i, j))) err.push_back(std::abs(d.at<float>(i, j) - (kD0 + kGx * 2 * j + kGy * 2 * i)));
+  EXPECT_GT(err.size(), 0.7 * (kPlaneW / 2 - 20) * (kPlaneH / 2 - 6)) << output;
+  EXPECT_EQ(Number(output, "lsm_matches"), static_cast<double>(err.size())) << output;
+  if (err.empty()) return NAN;
   std::nth_element(err.begin(), err.begin() + err.size() / 2, err.end());
-  EXPECT_LT(err[err.size() / 2], 0.05);
-  EXPECT_EQ(Number(r.output, "lsm_matches"), static_cast<double>(err.size())) << r.output;
+  return err[err.size() / 2];
+}
+
+TEST(VlocStereo, SlantedPlaneDisparitiesToAFewHundredthsOfAPixel) {
+  const std::string dir = TempDir();
+  WritePlanePair(dir, 0);
+  const ToolRun r = RunTool({vloc::testing::BinPath("vloc_stereo"), dir + "/l.png", dir + "/r.png", "--min-disp", "0",
+                         "--max-disp", "30", "--step", "2", "--out", dir + "/d.pfm"});
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_LT(PlaneMedianError(ReadPfm(dir + "/d.pfm"), r.output), 0.05);
+  std::filesystem::remove_all(dir);
+}
+
+// --auto-range takes the search range from the pair's feature matches:
+// the plane's disparities (9.4-14.6 px) inside it, the same precision.
+TEST(VlocStereo, AutoRangeCoversThePairsDisparities) {
+  const std::string dir = TempDir();
+  WritePlanePair(dir, 0);
+  const ToolRun r = RunTool({vloc::testing::BinPath("vloc_stereo"), dir + "/l.png", dir + "/r.png", "--auto-range",
+                         "--step", "2", "--out", dir + "/d.pfm"});
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("pair_check: \"rectified"), std::string::npos) << r.output;
+  EXPECT_LT(PlaneMedianError(ReadPfm(dir + "/d.pfm"), r.output), 0.05);
+  std::filesystem::remove_all(dir);
+}
+
+// The same pair with the right image 2 px lower: row matching would give a
+// wrong map everywhere; the tool refuses it in one line and writes nothing.
+TEST(VlocStereo, UnrectifiedPairIsRefusedInOneLine) {
+  const std::string dir = TempDir();
+  WritePlanePair(dir, 2.0);
+  const ToolRun r = RunTool({vloc::testing::BinPath("vloc_stereo"), dir + "/l.png", dir + "/r.png", "--min-disp", "0",
+                         "--max-disp", "30", "--out", dir + "/d.pfm"});
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("not rectified"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/d.pfm"));
+  const ToolRun forced = RunTool({vloc::testing::BinPath("vloc_stereo"), dir + "/l.png", dir + "/r.png", "--min-disp",
+                              "0", "--max-disp", "30", "--no-pair-check", "--out", dir + "/d.pfm"});
+  EXPECT_EQ(forced.exit_code, 0) << forced.output;
   std::filesystem::remove_all(dir);
 }
 

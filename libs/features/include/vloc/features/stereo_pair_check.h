@@ -1,0 +1,49 @@
+#pragma once
+// Is a stereo pair rectified, and which disparities does it span? From
+// sparse SIFT matches (Lowe's ratio test, then a fundamental matrix by
+// RANSAC to drop wrong matches): on a rectified pair the inliers lie on the
+// same row to the features' own localisation noise (a tenth of a pixel);
+// their horizontal offsets give the disparity range. Dense stereo matches
+// along rows only, so an unrectified pair (a raw Navcam EDR pair, say: rows
+// 1-4 px apart) gives a disparity map that is wrong everywhere without a
+// sign; this check names the problem instead.
+//
+//   const StereoPairCheck c = CheckStereoPair(left, right, StereoPairCheckOptions());
+//   if (!c.rectified) std::cerr << c.message << "\n";
+
+#include <opencv2/core.hpp>
+#include <string>
+
+namespace vloc {
+
+class OptionsReader;
+
+struct StereoPairCheckOptions {
+  int max_features = 4000;          // SIFT keypoints per image
+  double ratio = 0.75;              // Lowe's ratio test
+  double ransac_px = 1.0;           // px, fundamental-matrix RANSAC threshold
+  int min_matches = 30;             // fewer inliers: no verdict (texture?)
+  double max_median_dy_px = 0.5;    // px, median |row difference| of a rectified pair's matches
+  double range_percentile = 0.5;    // %, the disparity range spans this percentile to 100 minus it ...
+  double range_margin_px = 8.0;     // px, ... widened by this on both sides (and never below 0)
+
+  void Visit(OptionsReader& reader);
+  bool Check(std::string* error) const;
+};
+
+struct StereoPairCheck {
+  bool usable = false;              // enough matches for a verdict
+  bool rectified = false;           // usable and the matches lie on their rows
+  std::string message;              // the verdict in one line
+  int matches = 0;                  // fundamental-matrix inliers
+  double median_abs_dy_px = 0;      // px, median |left y - right y| of the inliers
+  double p90_abs_dy_px = 0;         // px, 90th percentile
+  double min_disparity = 0;         // px, suggested search range (left x - right x) ...
+  double max_disparity = 0;         // ... with the margin
+};
+
+// `left`, `right`: CV_8UC1 of the same size. Throws std::invalid_argument
+// on bad images or options.
+StereoPairCheck CheckStereoPair(const cv::Mat& left, const cv::Mat& right, const StereoPairCheckOptions& options);
+
+}  // namespace vloc

@@ -1,0 +1,111 @@
+#include "vloc/features/stereo_pair_check.h"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/features2d.hpp>
+#include <sstream>
+#include <stdexcept>
+#include <vector>
+
+#include "vloc/common/options.h"
+
+namespace vloc {
+
+void StereoPairCheckOptions::Visit(OptionsReader& r) {
+  r.Optional("max_features", &max_features, "SIFT keypoints per image");
+  r.Optional("ratio", &ratio, "Lowe's ratio test");
+  r.Optional("ransac_px", &ransac_px, "px, fundamental-matrix RANSAC threshold");
+  r.Optional("min_matches", &min_matches, "fewer inliers: no verdict");
+  r.Optional("max_median_dy_px", &max_median_dy_px, "px, largest median row difference of a rectified pair");
+  r.Optional("range_percentile", &range_percentile, "%, disparity range from this percentile to 100 minus it");
+  r.Optional("range_margin_px", &range_margin_px, "px, margin added to both ends of the range");
+}
+
+bool StereoPairCheckOptions::Check(std::string* error) const {
+  if (max_features < 10) return Fail(error, "stereo_pair_check.max_features must be >= 10");
+  if (!(ratio > 0 && ratio <= 1)) return Fail(error, "stereo_pair_check.ratio must be in (0, 1]");
+  if (!(ransac_px > 0) || !(max_median_dy_px > 0)) return Fail(error, "stereo_pair_check pixel thresholds must be > 0");
+  if (min_matches < 8) return Fail(error, "stereo_pair_check.min_matches must be >= 8 (the fundamental matrix)");
+  if (!(range_percentile >= 0 && range_percentile < 50)) return Fail(error, "stereo_pair_check.range_percentile must be in [0, 50)");
+  if (!(range_margin_px >= 0)) return Fail(error, "stereo_pair_check.range_margin_px must be >= 0");
+  return true;
+}
+
+namespace {
+
+// Ratio-test SIFT matches of the two images.
+void MatchFeatures(const cv::Mat& left, const cv::Mat& right, const StereoPairCheckOptions& o,
+                   std::vector<cv::Point2f>* pl, std::vector<cv::Point2f>* pr) {
+  auto sift = cv::SIFT::create(o.max_features);
+  std::vector<cv::KeyPoint> kl, kr;
+  cv::Mat dl, dr;
+  sift->detectAndCompute(left, cv::noArray(), kl, dl);
+  sift->detectAndCompute(right, cv::noArray(), kr, dr);
+  if (kl.size() < 2 || kr.size() < 2) return;
+  std::vector<std::vector<cv::DMatch>> knn;
+  cv::BFMatcher().knnMatch(dl, dr, knn, 2);
+  for (const auto& m : knn)
+    if (m.size() == 2 && m[0].distance < o.ratio * m[1].distance) {
+      pl->push_back(kl[m[0].queryIdx].pt);
+      pr->push_back(kr[m[0].trainIdx].pt);
+    }
+}
+
+double Percentile(std::vector<double> v, double pct) {
+  const size_t k = std::min(v.size() - 1, static_cast<size_t>(pct / 100.0 * (v.size() - 1) + 0.5));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[k];
+}
+
+}  // namespace
+
+StereoPairCheck CheckStereoPair(const cv::Mat& left, const cv::Mat& right, const StereoPairCheckOptions& o) {
+  std::string error;
+  if (!o.Check(&error)) throw std::invalid_argument(error);
+  if (left.type() != CV_8UC1 || right.type() != CV_8UC1 || left.size() != right.size() || left.empty())
+    throw std::invalid_argument("CheckStereoPair needs two 8-bit grey images of the same size");
+  StereoPairCheck c;
+  std::vector<cv::Point2f> pl, pr;
+  MatchFeatures(left, right, o, &pl, &pr);
+  std::vector<double> dy, dx;
+  if (static_cast<int>(pl.size()) >= o.min_matches) {
+    cv::setRNGSeed(1);  // RANSAC draws from OpenCV's global generator
+    std::vector<uchar> inlier;
+    const cv::Mat f = cv::findFundamentalMat(pl, pr, cv::FM_RANSAC, o.ransac_px, 0.999, inlier);
+    for (size_t k = 0; !f.empty() && k < inlier.size(); ++k)
+      if (inlier[k]) dy.push_back(std::abs(pl[k].y - pr[k].y)), dx.push_back(pl[k].x - pr[k].x);
+  }
+  c.matches = static_cast<int>(dy.size());
+  std::ostringstream msg;
+  if (c.matches < o.min_matches) {
+    msg << "only " << c.matches << " consistent feature matches (need " << o.min_matches
+        << "): cannot tell whether the pair is rectified (texture? the same scene?)";
+    c.message = msg.str();
+    return c;
+  }
+  c.usable = true;
+  c.median_abs_dy_px = Percentile(dy, 50);
+  c.p90_abs_dy_px = Percentile(dy, 90);
+  c.rectified = c.median_abs_dy_px <= o.max_median_dy_px;
+  const double low = Percentile(dx, o.range_percentile);
+  c.min_disparity = std::max(0.0, std::floor(low - o.range_margin_px));
+  c.max_disparity = std::max(c.min_disparity + 1, std::ceil(Percentile(dx, 100 - o.range_percentile) + o.range_margin_px));
+  msg.precision(3);
+  if (c.rectified) {
+    msg << "rectified: " << c.matches << " feature matches on their rows (median |dy| " << c.median_abs_dy_px
+        << " px), disparities " << c.min_disparity << ".." << c.max_disparity << " px with the margin";
+    if (low < 0)
+      msg << "; but " << o.range_percentile << " % of them are below " << low
+          << " px, and the search starts at 0: shift the right image left by " << std::ceil(-low + o.range_margin_px)
+          << " px";
+  } else {
+    msg << "not rectified: " << c.matches << " matched features are a median " << c.median_abs_dy_px
+        << " px apart vertically (90 % within " << c.p90_abs_dy_px << " px; rectified pairs are within "
+        << o.max_median_dy_px << " px): rectify the pair with its camera models first";
+  }
+  c.message = msg.str();
+  return c;
+}
+
+}  // namespace vloc
