@@ -34,24 +34,11 @@ bool StereoPairCheckOptions::Check(std::string* error) const {
 
 namespace {
 
-// Ratio-test SIFT matches of the two images.
-void MatchFeatures(const cv::Mat& left, const cv::Mat& right, const StereoPairCheckOptions& o,
-                   std::vector<cv::Point2f>* pl, std::vector<cv::Point2f>* pr) {
-  auto sift = cv::SIFT::create(o.max_features);
-  std::vector<cv::KeyPoint> kl, kr;
-  cv::Mat dl, dr;
-  sift->detectAndCompute(left, cv::noArray(), kl, dl);
-  sift->detectAndCompute(right, cv::noArray(), kr, dr);
-  if (kl.size() < 2 || kr.size() < 2) return;
-  std::vector<std::vector<cv::DMatch>> knn;
-  cv::BFMatcher().knnMatch(dl, dr, knn, 2);
-  for (const auto& m : knn)
-    if (m.size() == 2 && m[0].distance < o.ratio * m[1].distance) {
-      pl->push_back(kl[m[0].queryIdx].pt);
-      pr->push_back(kr[m[0].trainIdx].pt);
-    }
-}
-
+// The order statistic at rank round(pct / 100 (n - 1)), n > 0. Not
+// vloc::Quantile (rank floor(q n)): at the tails of the disparities the two
+// ranks are one apart, and on Aloe that one is a false match 61 px below
+// zero (four such lie along the epipolar lines), which would widen the
+// range and ask for a shift the pair does not need.
 double Percentile(std::vector<double> v, double pct) {
   const size_t k = std::min(v.size() - 1, static_cast<size_t>(pct / 100.0 * (v.size() - 1) + 0.5));
   std::nth_element(v.begin(), v.begin() + k, v.end());
@@ -60,22 +47,40 @@ double Percentile(std::vector<double> v, double pct) {
 
 }  // namespace
 
+StereoMatches MatchStereoPair(const cv::Mat& left, const cv::Mat& right, const StereoPairCheckOptions& o) {
+  StereoMatches out;
+  auto sift = cv::SIFT::create(o.max_features);
+  std::vector<cv::KeyPoint> kl, kr;
+  cv::Mat dl, dr;
+  sift->detectAndCompute(left, cv::noArray(), kl, dl);
+  sift->detectAndCompute(right, cv::noArray(), kr, dr);
+  if (kl.size() < 2 || kr.size() < 2) return out;
+  std::vector<std::vector<cv::DMatch>> knn;
+  cv::BFMatcher().knnMatch(dl, dr, knn, 2);
+  std::vector<cv::Point2f> pl, pr;
+  for (const auto& m : knn)
+    if (m.size() == 2 && m[0].distance < o.ratio * m[1].distance) {
+      pl.push_back(kl[m[0].queryIdx].pt);
+      pr.push_back(kr[m[0].trainIdx].pt);
+    }
+  if (static_cast<int>(pl.size()) < o.min_matches) return out;
+  std::vector<uchar> inlier;
+  out.fundamental = cv::findFundamentalMat(pl, pr, cv::FM_RANSAC, o.ransac_px, 0.999, inlier);
+  for (size_t k = 0; !out.fundamental.empty() && k < inlier.size(); ++k)
+    if (inlier[k]) out.left.push_back(pl[k]), out.right.push_back(pr[k]);
+  return out;
+}
+
 StereoPairCheck CheckStereoPair(const cv::Mat& left, const cv::Mat& right, const StereoPairCheckOptions& o) {
   std::string error;
   if (!o.Check(&error)) throw std::invalid_argument(error);
   if (left.type() != CV_8UC1 || right.type() != CV_8UC1 || left.size() != right.size() || left.empty())
     throw std::invalid_argument("CheckStereoPair needs two 8-bit grey images of the same size");
   StereoPairCheck c;
-  std::vector<cv::Point2f> pl, pr;
-  MatchFeatures(left, right, o, &pl, &pr);
+  const StereoMatches m = MatchStereoPair(left, right, o);
   std::vector<double> dy, dx;
-  if (static_cast<int>(pl.size()) >= o.min_matches) {
-    cv::setRNGSeed(1);  // RANSAC draws from OpenCV's global generator
-    std::vector<uchar> inlier;
-    const cv::Mat f = cv::findFundamentalMat(pl, pr, cv::FM_RANSAC, o.ransac_px, 0.999, inlier);
-    for (size_t k = 0; !f.empty() && k < inlier.size(); ++k)
-      if (inlier[k]) dy.push_back(std::abs(pl[k].y - pr[k].y)), dx.push_back(pl[k].x - pr[k].x);
-  }
+  for (size_t k = 0; k < m.left.size(); ++k)
+    dy.push_back(std::abs(m.left[k].y - m.right[k].y)), dx.push_back(m.left[k].x - m.right[k].x);
   c.matches = static_cast<int>(dy.size());
   std::ostringstream msg;
   if (c.matches < o.min_matches) {

@@ -23,7 +23,6 @@
 #include <opencv2/core.hpp>
 
 #include "../../unit/features/real_pairs.h"
-#include "vloc/common/options.h"
 #include "vloc/features/dense_stereo.h"
 #include "vloc/features/homography_match.h"
 
@@ -116,15 +115,10 @@ void StereoSgbm(benchmark::State& state, StereoCase& c) {
   SetStereoCounters(state, c, c.sgbm, c.vloc);
 }
 
-// The defaults or, when `options_file` is set, that YAML (relative to the
-// source tree), over [min_disparity, min_disparity + num_disparities),
-// every pixel, kThreads threads.
-vloc::DenseStereoOptions StereoOptions(const char* options_file, int min_disparity, int num_disparities) {
-  vloc::DenseStereoOptions o;
-  if (options_file) o = vloc::LoadOptionsFile<vloc::DenseStereoOptions>(std::string(VLOC_SOURCE_DIR "/") + options_file);
-  o.min_disparity = min_disparity;
-  o.max_disparity = min_disparity + num_disparities - 1;
-  o.step = 1;
+// testing::StereoOptionsFor every pixel, kThreads threads.
+template <typename Pair>
+vloc::DenseStereoOptions StereoOptions(const Pair& pair, const char* options_file) {
+  vloc::DenseStereoOptions o = vloc::testing::StereoOptionsFor(pair, options_file, 1);
   o.num_threads = kThreads;
   return o;
 }
@@ -133,7 +127,7 @@ vloc::DenseStereoOptions StereoOptions(const char* options_file, int min_dispari
 // that YAML (config/stereo_photo.yaml, config/stereo_jpeg.yaml).
 void StereoVloc(benchmark::State& state, StereoCase& c, const char* options_file) {
   if (!c.pair.ok) return state.SkipWithError(("missing " + c.pair.missing).c_str());
-  const vloc::DenseStereoOptions o = StereoOptions(options_file, c.pair.min_disparity, c.pair.num_disparities);
+  const vloc::DenseStereoOptions o = StereoOptions(c.pair, options_file);
   vloc::DenseStereoSummary s;
   for (auto _ : state) c.vloc = vloc::DenseStereo(c.pair.left, c.pair.right, o, &s);
   SetStereoCounters(state, c, c.vloc, c.sgbm);
@@ -192,7 +186,7 @@ void NavcamSgbm(benchmark::State& state, NavcamCase& c) {
 
 void NavcamVloc(benchmark::State& state, NavcamCase& c, const char* options_file) {
   if (!c.pair.ok) return state.SkipWithError(("missing " + c.pair.missing).c_str());
-  const vloc::DenseStereoOptions o = StereoOptions(options_file, c.pair.min_disparity, c.pair.num_disparities);
+  const vloc::DenseStereoOptions o = StereoOptions(c.pair, options_file);
   for (auto _ : state) c.vloc = vloc::DenseStereo(c.pair.left, c.pair.right, o);
   SetSparseCounters(state, c, c.vloc, c.sgbm);
 }

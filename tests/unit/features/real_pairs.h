@@ -35,6 +35,10 @@
 #include <string>
 #include <vector>
 
+#include "vloc/common/options.h"
+#include "vloc/common/stats.h"
+#include "vloc/features/dense_stereo.h"
+#include "vloc/features/stereo_pair_check.h"
 #include "vloc/testing/npz.h"
 
 namespace vloc::testing {
@@ -124,27 +128,14 @@ inline SparseStereoPair LoadNavcamPair() {
   if (!p.missing.empty()) return p;
   const cv::Mat l = cv::imread(d + kLeft, cv::IMREAD_GRAYSCALE), r = cv::imread(d + kRight, cv::IMREAD_GRAYSCALE);
   if (l.empty() || r.empty() || l.size() != r.size()) return p;
-  auto sift = cv::SIFT::create(8000);
-  std::vector<cv::KeyPoint> kl, kr;
-  cv::Mat dl, dr;
-  sift->detectAndCompute(l, cv::noArray(), kl, dl);
-  sift->detectAndCompute(r, cv::noArray(), kr, dr);
-  std::vector<std::vector<cv::DMatch>> knn;
-  cv::BFMatcher().knnMatch(dl, dr, knn, 2);
-  std::vector<cv::Point2f> pl, pr;
-  for (const auto& m : knn)
-    if (m.size() == 2 && m[0].distance < 0.75f * m[1].distance) {
-      pl.push_back(kl[m[0].queryIdx].pt);
-      pr.push_back(kr[m[0].trainIdx].pt);
-    }
-  if (pl.size() < 100) return p;
-  std::vector<uchar> inl;
-  const cv::Mat f = cv::findFundamentalMat(pl, pr, cv::FM_RANSAC, 0.5, 0.999, inl);
-  std::vector<cv::Point2f> il, ir;
-  for (size_t k = 0; k < inl.size(); ++k)
-    if (inl[k]) il.push_back(pl[k]), ir.push_back(pr[k]);
+  StereoPairCheckOptions match;
+  match.max_features = 8000;
+  match.ransac_px = 0.5;
+  match.min_matches = 100;
+  const StereoMatches m = MatchStereoPair(l, r, match);
+  const std::vector<cv::Point2f>&il = m.left, &ir = m.right;
   cv::Mat h1, h2;
-  if (f.rows != 3 || !cv::stereoRectifyUncalibrated(il, ir, f, l.size(), h1, h2)) return p;
+  if (m.fundamental.rows != 3 || !cv::stereoRectifyUncalibrated(il, ir, m.fundamental, l.size(), h1, h2)) return p;
   const double kShift = 12;  // px added to every disparity (the rectified ones span about -6..8)
   h2 = (cv::Mat_<double>(3, 3) << 1, 0, -kShift, 0, 1, 0, 0, 0, 1) * h2;
   cv::warpPerspective(l, p.left, h1, l.size(), cv::INTER_CUBIC);
@@ -179,7 +170,7 @@ inline SparseStereoPair LoadNavcamPair() {
 struct SparseScore {
   double terrain_coverage = 0;  // fraction of the terrain pixels with a disparity
   double sky_matched = 0;       // fraction of the valid pixels above the skyline with one (all wrong: no texture)
-  long checked = 0;             // check points with a disparity (and, with `mask_other`, the other map's too)
+  long checked = 0;             // check points with a disparity (and, with `other`, the other map's too)
   double bad1 = 0;              // fraction of checked more than 1 px from the check point's disparity
   double median_abs = 0;        // px
 };
@@ -213,10 +204,22 @@ inline SparseScore ScoreSparse(const cv::Mat& disp, const SparseStereoPair& p, c
   s.checked = static_cast<long>(err.size());
   if (!err.empty()) {
     s.bad1 = static_cast<double>(std::count_if(err.begin(), err.end(), [](float e) { return e > 1.f; })) / err.size();
-    std::nth_element(err.begin(), err.begin() + err.size() / 2, err.end());
-    s.median_abs = err[err.size() / 2];
+    s.median_abs = Median(err);
   }
   return s;
+}
+
+// vloc::DenseStereo's options for a pair (StereoPair, SparseStereoPair):
+// `config_file` (relative to the source tree; nullptr = the defaults) over
+// the pair's search range, on a grid of `step` px.
+template <typename Pair>
+DenseStereoOptions StereoOptionsFor(const Pair& pair, const char* config_file, int step) {
+  DenseStereoOptions o;
+  if (config_file) o = LoadOptionsFile<DenseStereoOptions>(std::string(VLOC_SOURCE_DIR "/") + config_file);
+  o.min_disparity = pair.min_disparity;
+  o.max_disparity = pair.min_disparity + pair.num_disparities - 1;
+  o.step = step;
+  return o;
 }
 
 struct GrafPair {
@@ -298,8 +301,7 @@ inline DisparityScore ScoreDisparity(const cv::Mat& disp, const cv::Mat& gt, int
   if (!err.empty()) {
     s.bad1 = static_cast<double>(bad) / err.size();
     s.mean_signed = signed_sum / err.size();
-    std::nth_element(err.begin(), err.begin() + err.size() / 2, err.end());
-    s.median_abs = err[err.size() / 2];
+    s.median_abs = Median(err);
   }
   return s;
 }

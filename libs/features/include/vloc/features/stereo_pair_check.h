@@ -13,6 +13,7 @@
 
 #include <opencv2/core.hpp>
 #include <string>
+#include <vector>
 
 namespace vloc {
 
@@ -41,6 +42,15 @@ struct StereoPairCheck {
   double min_disparity = 0;         // px, suggested search range (left x - right x) ...
   double max_disparity = 0;         // ... with the margin
 };
+
+// The check's matches: SIFT (max_features) with Lowe's ratio test, kept
+// when consistent with a fundamental matrix fitted by RANSAC (ransac_px);
+// none when fewer than min_matches pass the ratio test.
+struct StereoMatches {
+  std::vector<cv::Point2f> left, right;  // px, inlier pairs
+  cv::Mat fundamental;                   // 3 x 3, right^T F left = 0; empty without a fit
+};
+StereoMatches MatchStereoPair(const cv::Mat& left, const cv::Mat& right, const StereoPairCheckOptions& options);
 
 // `left`, `right`: CV_8UC1 of the same size. Throws std::invalid_argument
 // on bad images or options.
