@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "vloc/common/site_window.h"
 #include "vloc/lcm_io/convert.h"
 #include "vloc/lcm_io/convert_rover.h"
 
@@ -26,6 +27,9 @@ void MapLocalizerProcOptions::Visit(OptionsReader& r) {
   r.Optional("fix_channel", &fix_channel, "site_pose_t out");
   r.Optional("fix_every", &fix_every, "attempt a fix at every n-th site");
   r.Optional("queue_capacity", &queue_capacity, "messages per subscription queue");
+  r.Optional("max_pairs_per_site", &max_pairs_per_site, "a site's num_pairs above this is refused");
+  r.Optional("max_sites_waiting", &max_sites_waiting, "sites collecting pairs or waiting for a prior at once");
+  r.Optional("site_window", &site_window, "newest sites whose graph / DR poses are remembered");
   r.Child("ortho", [this](OptionsReader& c) { ortho.Visit(c); });
   r.Child("registration", [this](OptionsReader& c) { registration.Visit(c); });
 }
@@ -43,6 +47,10 @@ bool MapLocalizerProcOptions::Check(std::string* error) const {
   if (fix_every < 1) return Fail(error, "fix_every must be >= 1");
   if (!(wait_for_map_s >= 0)) return Fail(error, "wait_for_map_s must be >= 0");
   if (queue_capacity < 1) return Fail(error, "queue_capacity must be >= 1");
+  if (max_pairs_per_site < 1 || max_pairs_per_site > kMaxPairsPerSite)
+    return Fail(error, "max_pairs_per_site must lie in [1, " + std::to_string(kMaxPairsPerSite) + "]");
+  if (max_sites_waiting < 1) return Fail(error, "max_sites_waiting must be >= 1");
+  if (site_window < max_sites_waiting) return Fail(error, "site_window must be >= max_sites_waiting");
   std::string sub;
   if (!ortho.Check(&sub)) return Fail(error, "ortho." + sub);
   if (!registration.Check(&sub)) return Fail(error, "registration." + sub);
@@ -89,37 +97,77 @@ MapLocalizerAdapter::MapLocalizerAdapter(Transport& transport, const MapLocalize
 }
 
 void MapLocalizerAdapter::OnStereo(const stereo_image_t& msg) {
-  const bool plausible = msg.site_id >= 0 && msg.num_pairs >= 1 && msg.num_pairs <= kMaxPairsPerSite &&
+  const bool plausible = msg.site_id >= 0 && msg.num_pairs >= 1 && msg.num_pairs <= options_.max_pairs_per_site &&
                          msg.pair_index >= 0 && msg.pair_index < msg.num_pairs &&
                          (newest_site_ < 0 || msg.site_id <= newest_site_ + kMaxSiteIdJump);
   if (!plausible) {
     ++skipped_pairs_;
     LOG(WARNING) << "stereo pair with implausible site " << msg.site_id << " / pair " << msg.pair_index << " of "
-                 << msg.num_pairs << ": skipped";
+                 << msg.num_pairs << " (pair_index below num_pairs, num_pairs at most max_pairs_per_site "
+                 << options_.max_pairs_per_site << "): skipped";
     return;
   }
   if (msg.site_id % options_.fix_every != 0) return;  // no fix attempted at this site
-  newest_site_ = std::max(newest_site_, static_cast<int>(msg.site_id));
-  StereoPair pair = StereoPairFromMessage(msg);  // throws on undecodable images: counted by Subscribe
-  expected_pairs_[msg.site_id] = msg.num_pairs;
-  pairs_[msg.site_id].push_back(std::move(pair));
-  // Sites left incomplete (a lost message) are dropped once two newer sites arrive.
-  while (!pairs_.empty() && pairs_.begin()->first < newest_site_ - 2 * options_.fix_every) {
-    LOG(WARNING) << "site " << pairs_.begin()->first << ": panorama incomplete (" << pairs_.begin()->second.size()
-                 << " of " << expected_pairs_[pairs_.begin()->first] << " pairs); no fix attempted";
-    expected_pairs_.erase(pairs_.begin()->first);
-    pairs_.erase(pairs_.begin());
+  if (localised_.count(msg.site_id)) {
+    ++pairs_after_done_;
+    if (after_done_log_.ShouldLog())
+      LOG(WARNING) << "site " << msg.site_id << " pair " << msg.pair_index
+                   << " arrived after the site was localised (a repeat?): ignored" << after_done_log_.Suppressed();
+    return;
   }
+  const auto known = waiting_.find(msg.site_id);
+  if (known != waiting_.end() && known->second.num_pairs != msg.num_pairs) {
+    ++skipped_pairs_;
+    LOG(WARNING) << "site " << msg.site_id << " pair " << msg.pair_index << " says " << msg.num_pairs
+                 << " pairs, the site's earlier pairs " << known->second.num_pairs << ": skipped";
+    return;
+  }
+  StereoPair pair = StereoPairFromMessage(msg);  // throws on undecodable images: counted by Subscribe
+  newest_site_ = std::max(newest_site_, static_cast<int>(msg.site_id));
+  WaitingSite& site = waiting_[msg.site_id];
+  site.num_pairs = msg.num_pairs;
+  const bool repeat = site.pairs.count(msg.pair_index) > 0;
+  site.pairs[msg.pair_index] = std::move(pair);
+  if (repeat) {
+    ++pairs_replaced_;
+    if (repeat_log_.ShouldLog())
+      LOG(WARNING) << "site " << msg.site_id << " pair " << msg.pair_index
+                   << " received again: replaces the earlier copy" << repeat_log_.Suppressed();
+  }
+  // Sites left waiting (a lost message or prior) are dropped once max_sites_waiting newer ones arrive.
+  const int64_t oldest_kept =
+      static_cast<int64_t>(newest_site_) - static_cast<int64_t>(options_.max_sites_waiting - 1) * options_.fix_every;
+  while (!waiting_.empty() &&
+         (waiting_.begin()->first < oldest_kept || static_cast<int>(waiting_.size()) > options_.max_sites_waiting))
+    DropSite(waiting_.begin(), "newer sites arrived (max_sites_waiting " +
+                                   std::to_string(options_.max_sites_waiting) + ")");
   ProcessReadySites();
+}
+
+void MapLocalizerAdapter::DropSite(std::map<int, WaitingSite>::iterator it, const std::string& why) {
+  const bool complete = static_cast<int>(it->second.pairs.size()) >= it->second.num_pairs;
+  LOG(WARNING) << "site " << it->first << ": "
+               << (complete ? "no prior pose" : "panorama incomplete (" + std::to_string(it->second.pairs.size()) +
+                                                    " of " + std::to_string(it->second.num_pairs) + " pairs)")
+               << " when " << why << "; no fix attempted";
+  ++sites_dropped_;
+  waiting_.erase(it);
+}
+
+bool MapLocalizerAdapter::KeepPose(int site_id, const PoseWithCovariance& pose,
+                                   std::map<int, PoseWithCovariance>* poses) {
+  ++pose_sites_seen_;
+  std::string why;
+  if (site_id < 0 || !IsPlausiblePose(pose, &why)) return false;
+  if (site_id % options_.fix_every != 0) return true;  // never localised here
+  (*poses)[site_id] = pose;
+  KeepNewestSites(poses, static_cast<size_t>(options_.site_window));
+  return true;
 }
 
 void MapLocalizerAdapter::OnTraverse(const traverse_t& msg) {
   const size_t n = std::min(msg.site_ids.size(), msg.poses.size());
-  for (size_t k = 0; k < n; ++k) {
-    PoseWithCovariance pose = PoseFromMessage(msg.poses[k]);
-    std::string why;
-    if (IsPlausiblePose(pose, &why)) graph_poses_[msg.site_ids[k]] = pose;
-  }
+  for (size_t k = 0; k < n; ++k) KeepPose(msg.site_ids[k], PoseFromMessage(msg.poses[k]), &graph_poses_);
   ProcessReadySites();
 }
 
@@ -127,18 +175,19 @@ void MapLocalizerAdapter::OnDeadReckoning(const site_pose_t& msg) {
   PoseWithCovariance pose = PoseFromMessage(msg.pose);
   pose.utime = msg.utime;
   std::string why;
-  if (!IsPlausiblePose(pose, &why)) {
-    LOG(WARNING) << "dead reckoning of site " << msg.site_id << " not plausible (" << why << "): ignored";
+  if (!IsPlausiblePose(pose, &why) || msg.site_id < 0) {
+    LOG(WARNING) << "dead reckoning of site " << msg.site_id << " not plausible ("
+                 << (why.empty() ? "negative site id" : why) << "): ignored";
     return;
   }
-  dr_poses_[msg.site_id] = pose;
+  KeepPose(msg.site_id, pose, &dr_poses_);
   ProcessReadySites();
 }
 
 void MapLocalizerAdapter::ProcessReadySites() {
-  for (auto it = pairs_.begin(); it != pairs_.end();) {
+  for (auto it = waiting_.begin(); it != waiting_.end();) {
     const int site = it->first;
-    const bool complete = static_cast<int>(it->second.size()) >= expected_pairs_[site];
+    const bool complete = static_cast<int>(it->second.pairs.size()) >= it->second.num_pairs;
     const auto graph = graph_poses_.find(site);
     const auto dr = dr_poses_.find(site);
     if (!complete || (graph == graph_poses_.end() && dr == dr_poses_.end())) {
@@ -147,9 +196,11 @@ void MapLocalizerAdapter::ProcessReadySites() {
     }
     PoseWithCovariance prior = graph != graph_poses_.end() ? graph->second : dr->second;
     if (dr != dr_poses_.end()) prior.utime = dr->second.utime;
-    std::vector<StereoPair> pairs = std::move(it->second);
-    expected_pairs_.erase(site);
-    it = pairs_.erase(it);
+    std::vector<StereoPair> pairs;
+    for (auto& [index, pair] : it->second.pairs) pairs.push_back(std::move(pair));
+    it = waiting_.erase(it);
+    localised_.insert(site);
+    KeepNewestSites(&localised_, static_cast<size_t>(options_.site_window));
     LocaliseSite(site, std::move(pairs), prior);
   }
 }
@@ -192,7 +243,11 @@ void MapLocalizerAdapter::OnIdle() {
 
 std::string MapLocalizerAdapter::StatusLine() const {
   return std::to_string(fixes_) + " fixes, " + std::to_string(no_fixes_) + " sites without a fix, " +
-         std::to_string(skipped_pairs_) + " implausible pairs skipped; last: " + last_result_ + "; " +
+         std::to_string(skipped_pairs_) + " implausible pairs skipped, " + std::to_string(pairs_replaced_) +
+         " repeated pairs replaced, " + std::to_string(pairs_after_done_) + " pairs of localised sites ignored, " +
+         std::to_string(sites_dropped_) + " waiting sites dropped; poses kept for " +
+         std::to_string(graph_poses_.size()) + " graph / " + std::to_string(dr_poses_.size()) + " DR sites of " +
+         std::to_string(pose_sites_seen_) + " received; last: " + last_result_ + "; " +
          SubscriptionSummary({stereo_stats_, traverse_stats_, dr_stats_});
 }
 

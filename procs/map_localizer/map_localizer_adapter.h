@@ -8,14 +8,22 @@
 // usable fix is published as SITE_POSE_FIX (site_pose_t, source
 // SOURCE_MAP_FIX = 4, world_from_body with covariance), which
 // traverse_graph adds as an absolute fix. "No fix" is logged with its reason.
+//
+// State a message can add is bounded: a repeated pair (same site and
+// pair_index) replaces the earlier copy, pair_index lies below num_pairs and
+// num_pairs below max_pairs_per_site; at most max_sites_waiting sites wait
+// for their panorama or prior, and graph / dead-reckoning poses are kept for
+// the newest site_window sites (KeepNewestSites).
 
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
 #include "vloc/common/camera.h"
 #include "vloc/common/options.h"
+#include "vloc/lcm_io/rate_limited_log.h"
 #include "vloc/lcm_io/transport.h"
 #include "vloc/lcm_io/typed.h"
 #include "vloc/maploc/ground_ortho.h"
@@ -42,6 +50,12 @@ struct MapLocalizerProcOptions {
   std::string fix_channel = "SITE_POSE_FIX";         // site_pose_t out
   int fix_every = 1;                                 // attempt a fix at sites whose id is a multiple of this
   int queue_capacity = 100;                          // messages per subscription queue
+  int max_pairs_per_site = 32;                       // a site's num_pairs above this is refused (a full 360 x
+                                                     // 3-tier panorama is about 30 pairs)
+  int max_sites_waiting = 3;                         // sites (of the fix_every ones) collecting pairs or waiting for
+                                                     // a prior; an older one is dropped when a newer one exceeds this
+  int site_window = 64;                              // sites whose graph / DR poses (and "localised") are remembered:
+                                                     // the newest ids
   maploc::GroundOrthoOptions ortho;                  // m_per_px is replaced by the map's
   maploc::RegistrationOptions registration;
 
@@ -75,12 +89,22 @@ class MapLocalizerAdapter {
   NavcamModel navcam_;
   maploc::MapRaster map_;
   int64_t map_mtime_ = 0;
-  std::map<int, std::vector<StereoPair>> pairs_;      // per site, until its panorama is complete
-  std::map<int, int> expected_pairs_;                 // per site
-  std::map<int, PoseWithCovariance> graph_poses_, dr_poses_;
+  struct WaitingSite {
+    std::map<int, StereoPair> pairs;  // by pair_index: a repeated pair replaces the earlier copy
+    int num_pairs = 0;                // from the site's first pair; later pairs must agree
+  };
+  // Stores a graph or DR pose of a site within the window; false if implausible.
+  bool KeepPose(int site_id, const PoseWithCovariance& pose, std::map<int, PoseWithCovariance>* poses);
+  void DropSite(std::map<int, WaitingSite>::iterator it, const std::string& why);
+
+  std::map<int, WaitingSite> waiting_;                // per site, until its panorama and prior are in
+  std::map<int, PoseWithCovariance> graph_poses_, dr_poses_;  // the newest site_window sites
+  std::set<int> localised_;                           // sites done (newest site_window): later pairs ignored
   int newest_site_ = -1;
   std::shared_ptr<SubscriptionStats> stereo_stats_, traverse_stats_, dr_stats_;
   int64_t fixes_ = 0, no_fixes_ = 0, skipped_pairs_ = 0;
+  int64_t pairs_replaced_ = 0, pairs_after_done_ = 0, sites_dropped_ = 0, pose_sites_seen_ = 0;
+  RateLimitedLog repeat_log_, after_done_log_;
   std::string last_result_ = "none yet";
 };
 

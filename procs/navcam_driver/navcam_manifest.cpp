@@ -29,6 +29,55 @@ bool Field(const YAML::Node& row, const char* key, T* value, std::string* error)
   return true;
 }
 
+// "manifest PATH line L, row R".
+std::string RowName(const std::string& path, int row, int line) {
+  return "manifest " + path + " line " + std::to_string(line) + ", row " + std::to_string(row);
+}
+
+// Refuses, per site (a run of equal site ids in time order), rows whose pair
+// index repeats an earlier row's or is not below the site's row count
+// (num_pairs as published): until every index of every site lies in
+// [0, rows). Each refusal is one line in *problems.
+void RefuseBadPairIndices(const std::string& path, std::vector<NavcamManifestEntry>* entries,
+                          std::vector<std::string>* problems) {
+  std::vector<NavcamManifestEntry> kept;
+  for (size_t begin = 0; begin < entries->size();) {
+    size_t end = begin;
+    while (end < entries->size() && (*entries)[end].site_id == (*entries)[begin].site_id) ++end;
+    std::vector<NavcamManifestEntry> site((*entries).begin() + static_cast<long>(begin),
+                                          (*entries).begin() + static_cast<long>(end));
+    for (bool refused = true; refused;) {
+      refused = false;
+      std::vector<bool> used(site.size(), false);
+      for (size_t i = 0; i < site.size(); ++i) {
+        const NavcamManifestEntry& e = site[i];
+        const int rows = static_cast<int>(site.size());
+        std::string why;
+        if (e.pair_index >= rows)
+          why = "pair index " + std::to_string(e.pair_index) + " is not below num_pairs " + std::to_string(rows) +
+                " (the site's rows: number them 0.." + std::to_string(rows - 1) + ")";
+        else if (e.pair_index >= kMaxPairsPerSite)
+          why = "pair index " + std::to_string(e.pair_index) + " is not below " + std::to_string(kMaxPairsPerSite) +
+                " (most pairs a site may hold)";
+        else if (used[static_cast<size_t>(e.pair_index)])
+          why = "pair index " + std::to_string(e.pair_index) + " repeats an earlier row of the site";
+        if (why.empty()) {
+          used[static_cast<size_t>(e.pair_index)] = true;
+          continue;
+        }
+        problems->push_back(RowName(path, e.row, e.line) + " (site " + std::to_string(e.site_id) + " pair " +
+                            std::to_string(e.pair_index) + "): " + why + "; row skipped");
+        site.erase(site.begin() + static_cast<long>(i));
+        refused = true;  // the site has fewer rows now: check again
+        break;
+      }
+    }
+    kept.insert(kept.end(), site.begin(), site.end());
+    begin = end;
+  }
+  entries->swap(kept);
+}
+
 }  // namespace
 
 NavcamManifest ReadNavcamManifest(const std::string& path) {
@@ -58,9 +107,10 @@ NavcamManifest ReadNavcamManifest(const std::string& path) {
   int row_number = 0;
   for (const YAML::Node& row : pairs) {
     ++row_number;
-    const std::string where = "manifest " + path + " row " + std::to_string(row_number);
     NavcamManifestEntry e;
     e.row = row_number;
+    e.line = row.Mark().line + 1;
+    const std::string where = RowName(path, e.row, e.line);
     double time = 0, pan = 0, tilt = 0;
     std::string left, right, error;
     if (!row.IsMap()) {
@@ -100,6 +150,7 @@ NavcamManifest ReadNavcamManifest(const std::string& path) {
   }
   std::stable_sort(out.entries.begin(), out.entries.end(),
                    [](const NavcamManifestEntry& a, const NavcamManifestEntry& b) { return a.utime < b.utime; });
+  RefuseBadPairIndices(path, &out.entries, &out.problems);
   return out;
 }
 

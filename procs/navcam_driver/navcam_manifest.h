@@ -9,8 +9,13 @@
 //
 // Image paths are relative to the manifest's folder. Every problem with a
 // row (missing key, value out of range, missing image file) is one line in
-// `problems` naming the row and the fix; the row is skipped and the good
-// rows are kept. No LCM here (the driver's adapter publishes).
+// `problems` naming the row, its line in the file and the fix; the row is
+// skipped and the good rows are kept. A site is a run of equal site ids in
+// time order and its num_pairs is the number of its rows, so its pair
+// indices must be distinct and below that count (and kMaxPairsPerSite):
+// a repeated index, or one at or beyond the count (pair 99 of a site of 6
+// rows), is refused the same way. No LCM here (the driver's adapter
+// publishes).
 
 #include <cstdint>
 #include <string>
@@ -22,6 +27,7 @@ namespace vloc {
 
 struct NavcamManifestEntry {
   int row = 0;            // 1-based row in `pairs`
+  int line = 0;           // 1-based line of the row in the manifest file
   int64_t utime = 0;      // microseconds
   int site_id = 0;
   int pair_index = 0;

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 #include <lcm/lcm-cpp.hpp>
 #include <map>
 
@@ -109,6 +110,37 @@ TEST(NavcamDriver, ItsLogReplayedIntoTheFrontEndEndsCleanly) {
   EXPECT_NE(frontend.output().find("end of the log being read"), std::string::npos) << frontend.output();
   EXPECT_EQ(frontend.output().find("transport error"), std::string::npos) << frontend.output();
   EXPECT_NE(frontend.output().find("rejected 0"), std::string::npos) << frontend.output();
+}
+
+// Issue 30: a manifest's pair 99 of a site of 6 rows was published as "pair 99 of
+// num_pairs 6", which every consumer rejects. Now the row is refused in one
+// line naming its line in the manifest, and the site goes out as 5 pairs.
+TEST(NavcamDriver, APairIndexBeyondTheSiteIsRefusedNamingItsManifestLine) {
+  const std::string dir = testing::MakeFixtureDir("navcam_pair99");
+  cv::imwrite(dir + "/L.png", testing::FixtureImage(10));
+  cv::imwrite(dir + "/R.png", testing::FixtureImage(11));
+  {
+    std::ofstream f(dir + "/manifest.yaml");
+    f << "pairs:\n";
+    for (int pair : {0, 1, 2, 3, 4, 99})
+      f << "  - {site: 0, pair: " << pair << ", pan: 0, tilt: 0.3, time: " << 10 + pair << ", left: L.png, right: R.png}\n";
+  }
+  const std::string log = dir + "/out.lcmlog";
+  Subprocess driver({BinPath("navcam_driver"), "--manifest", dir + "/manifest.yaml", "--speed", "0", "--lcm-url",
+                     FileUrl(log)});
+  ASSERT_EQ(driver.WaitExit(60), 0) << driver.output();
+  EXPECT_EQ(CountLines(driver.output(), "manifest.yaml line 7, row 6 (site 0 pair 99): pair index 99 is not below "
+                                        "num_pairs 6"),
+            1)
+      << driver.output();
+  auto messages = ReadLog(log);
+  ASSERT_EQ(messages["NAVCAM_STEREO"].size(), 5u) << driver.output();
+  for (size_t i = 0; i < 5; ++i) {
+    const StereoPair pair = StereoPairFromMessage(DecodeOrFail<stereo_image_t>(messages["NAVCAM_STEREO"][i]));
+    EXPECT_EQ(pair.pair_index, static_cast<int>(i));
+    EXPECT_EQ(pair.num_pairs, 5);  // every consumer accepts it: below num_pairs
+  }
+  std::filesystem::remove_all(dir);
 }
 
 TEST(NavcamDriver, MissingManifestStopsWithOneLine) {

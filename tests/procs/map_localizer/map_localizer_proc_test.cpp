@@ -10,6 +10,7 @@
 #include <fstream>
 #include <random>
 
+#include "map_localizer_test_config.h"
 #include "vloc/lcm_io/convert.h"
 #include "vloc/lcm_io/convert_rover.h"
 #include "vloc/lcm_io/process.h"
@@ -33,19 +34,8 @@ std::filesystem::path TempDir(const std::string& name) {
   return dir;
 }
 
-// The scenario's 512 x 512 Navcam as a calibration file, and the process config.
 void WriteConfigs(const std::filesystem::path& dir, const std::string& map_path) {
-  std::ofstream(dir / "navcam.yaml") << R"(rig:
-  left:  {width: 512, height: 512, fx: 594.5, fy: 594.5, cx: 255.5, cy: 255.5}
-  right: {width: 512, height: 512, fx: 594.5, fy: 594.5, cx: 255.5, cy: 255.5}
-  right_in_left_translation: [0.27, 0.0, 0.0]
-  right_in_left_rpy: [0.0, 0.0, 0.0]
-mast:
-  mast_head: [0.0, 0.0, 1.5]
-  camera_offset: 0.0
-)";
-  std::ofstream(dir / "map_localizer.yaml") << "navcam_config: " << (dir / "navcam.yaml").string() << "\n"
-                                            << "map_path: " << map_path << "\n";
+  testing::WriteMapLocalizerConfigs(dir, map_path);
 }
 
 TEST(MapLocalizerProcess, PublishesAFixOfASimulatedSiteAndSurvivesGarbage) {
