@@ -70,6 +70,9 @@ void ConsoleProcOptions::Visit(OptionsReader& r) {
   r.Optional("image_sites_kept", &image_sites_kept, "newest sites whose left images are kept");
   r.Optional("max_uav_states", &max_uav_states, "UAV states kept for the plots");
   r.Optional("max_manual_points", &max_manual_points, "picks in one manual tie-point command");
+  r.Optional("tie_point_sites_kept", &tie_point_sites_kept, "newest sites whose tie points are kept");
+  r.Optional("max_launchers", &max_launchers, "launchers whose process tables are kept");
+  r.Optional("welcome_max_bytes", &welcome_max_bytes, "bytes a newly opened page is sent, newest sites first");
   r.Child("orthoimage", [&](OptionsReader& c) { orthoimage.Visit(c); });
 }
 
@@ -78,8 +81,13 @@ bool ConsoleProcOptions::Check(std::string* error) const {
        {&traverse_channel, &dr_channel, &visual_channel, &frontend_status_channel, &tie_points_channel,
         &procman_status_channel, &uav_state_channel, &uav_mosaic_channel, &orders_channel, &manual_ties_channel})
     if (c->empty()) return Fail(error, "channel names must not be empty (only stereo_channel may be)");
-  if (max_sites < 1 || image_sites_kept < 2 || max_uav_states < 1 || max_manual_points < 1)
-    return Fail(error, "max_sites, max_uav_states, max_manual_points must be >= 1 and image_sites_kept >= 2");
+  if (max_sites < 1 || image_sites_kept < 2 || max_uav_states < 1 || max_manual_points < 1 ||
+      tie_point_sites_kept < 1 || max_launchers < 1)
+    return Fail(error,
+                "max_sites, max_uav_states, max_manual_points, tie_point_sites_kept and max_launchers must be >= 1 "
+                "and image_sites_kept >= 2");
+  if (welcome_max_bytes < 65536 || welcome_max_bytes > server.max_client_buffer_bytes / 2)
+    return Fail(error, "welcome_max_bytes must be in [65536, server.max_client_buffer_bytes / 2]");
   return server.Check(error) && orthoimage.Check(error);
 }
 
@@ -101,9 +109,20 @@ void ConsoleAdapter::Watch(const std::string& channel, std::function<void(const 
 void ConsoleAdapter::Subscribe() {
   SubscribeRover();
   SubscribeUav();
-  Watch<procman_status_t>(options_.procman_status_channel, [this](const procman_status_t& m) {
-    Post("procman/" + m.host + ":" + std::to_string(m.launcher_pid), ProcmanJson(m));
-  });
+  Watch<procman_status_t>(options_.procman_status_channel, [this](const procman_status_t& m) { OnProcmanStatus(m); });
+}
+
+void ConsoleAdapter::OnProcmanStatus(const procman_status_t& m) {
+  const std::string id = m.host + ":" + std::to_string(m.launcher_pid);
+  launchers_[id] = ++procman_messages_;
+  Post("procman/" + id, ProcmanJson(m));
+  while (static_cast<int>(launchers_.size()) > options_.max_launchers) {
+    const auto oldest = std::min_element(launchers_.begin(), launchers_.end(),
+                                         [](const auto& a, const auto& b) { return a.second < b.second; });
+    picture_.erase("procman/" + oldest->first);
+    server_.Broadcast(json{{"type", "procman_gone"}, {"key", oldest->first}}.dump(-1, ' ', false, json::error_handler_t::replace));
+    launchers_.erase(oldest);
+  }
 }
 
 void ConsoleAdapter::SubscribeRover() {
@@ -113,16 +132,23 @@ void ConsoleAdapter::SubscribeRover() {
     j["console_us"] = WallMicros();  // the page measures receipt -> drawn from it
     Post("traverse", j);
   });
-  Watch<site_pose_t>(o.dr_channel, [this](const site_pose_t& m) { Post(SiteKey("dr", m.site_id), SitePoseJson(m)); });
+  Watch<site_pose_t>(o.dr_channel, [this](const site_pose_t& m) { PostSite("dr", m.site_id, SitePoseJson(m)); });
   Watch<localization_t>(o.visual_channel, [this](const localization_t& m) { OnLocalization(m); });
   Watch<frontend_status_t>(o.frontend_status_channel, [this](const frontend_status_t& m) {
-    Post(SiteKey("frontend", m.current_site_id), FrontendStatusJson(m));
+    PostSite("frontend", m.current_site_id, FrontendStatusJson(m));
   });
   Watch<tie_points_t>(o.tie_points_channel, [this](const tie_points_t& m) { OnTiePoints(m); });
   if (o.stereo_channel.empty()) return;
   Watch<stereo_image_t>(
       o.stereo_channel,
-      [this](const stereo_image_t& m) { OnLeftImage(m.site_id, m.pair_index, m.left); },
+      [this](const stereo_image_t& m) {
+        if (m.site_id < 0 || m.num_pairs < 1 || m.num_pairs > kMaxPairsPerSite || m.pair_index < 0 ||
+            m.pair_index >= m.num_pairs)
+          throw std::invalid_argument("stereo pair " + std::to_string(m.pair_index) + " of site " +
+                                      std::to_string(m.site_id) + ": pair_index must be in [0, num_pairs) and " +
+                                      "num_pairs in [1, " + std::to_string(kMaxPairsPerSite) + "]");
+        OnLeftImage(m.site_id, m.pair_index, m.left);
+      },
       kStereoQueue);
 }
 
@@ -145,7 +171,7 @@ void ConsoleAdapter::SubscribeUav() {
 }
 
 void ConsoleAdapter::OnLocalization(const localization_t& m) {
-  Post(SiteKey("localization", m.site_id), LocalizationJson(m));
+  PostSite("localization", m.site_id, LocalizationJson(m));
   if (m.status == localization_t::STATUS_OK)
     relative_poses_[m.site_id] = PoseFromMessage(m.relative_pose).pose;
   else
@@ -172,18 +198,18 @@ void ConsoleAdapter::Post(const std::string& key, const json& j) {
   std::string text = j.dump(-1, ' ', false, json::error_handler_t::replace);
   server_.Broadcast(text);
   picture_[key] = std::move(text);
+}
+
+void ConsoleAdapter::PostSite(const char* prefix, int site, const json& j) {
+  Post(SiteKey(prefix, site), j);
+  sites_.insert(site);
   TrimSites();
 }
 
 void ConsoleAdapter::TrimSites() {
-  std::set<int> sites;
-  for (const char* prefix : kSiteKeys)
-    for (auto it = picture_.lower_bound(std::string(prefix) + "/");
-         it != picture_.end() && it->first.rfind(std::string(prefix) + "/", 0) == 0; ++it)
-      sites.insert(std::stoi(it->first.substr(std::string(prefix).size() + 1)));
-  while (static_cast<int>(sites.size()) > options_.max_sites) {
-    for (const char* prefix : kSiteKeys) picture_.erase(SiteKey(prefix, *sites.begin()));
-    sites.erase(sites.begin());
+  while (static_cast<int>(sites_.size()) > options_.max_sites) {
+    for (const char* prefix : kSiteKeys) picture_.erase(SiteKey(prefix, *sites_.begin()));
+    sites_.erase(sites_.begin());
   }
 }
 
@@ -203,12 +229,15 @@ void ConsoleAdapter::OnLeftImage(int site, int pair, const image_t& left) {
   json pairs = json::array();
   for (const auto& [index, image] : left_images_[site])
     pairs.push_back({{"pair", index}, {"width", image.message.width}, {"height", image.message.height}});
-  Post(SiteKey("images", site), {{"type", "images"}, {"site", site}, {"pairs", std::move(pairs)}});
+  PostSite("images", site, {{"type", "images"}, {"site", site}, {"pairs", std::move(pairs)}});
 }
 
 void ConsoleAdapter::OnTiePoints(const tie_points_t& msg) {
   tie_points_[msg.current_site_id] = msg;
-  while (static_cast<int>(tie_points_.size()) > options_.image_sites_kept) tie_points_.erase(tie_points_.begin());
+  while (static_cast<int>(tie_points_.size()) > options_.tie_point_sites_kept) {
+    picture_.erase(SiteKey("tie_points", tie_points_.begin()->first));
+    tie_points_.erase(tie_points_.begin());
+  }
   RefreshTiePoints(msg.current_site_id);
 }
 
@@ -217,18 +246,55 @@ void ConsoleAdapter::RefreshTiePoints(int current_site) {
   if (it == tie_points_.end()) return;
   const auto rel = relative_poses_.find(current_site);
   const std::optional<Pose3> relative = rel == relative_poses_.end() ? std::nullopt : std::optional<Pose3>(rel->second);
-  Post(SiteKey("tie_points", current_site), TiePointsJson(it->second, relative));
+  PostSite("tie_points", current_site, TiePointsJson(it->second, relative));
+}
+
+std::set<int> ConsoleAdapter::WelcomeSites(size_t budget) const {
+  std::set<int> chosen;
+  size_t used = 0;
+  for (auto site = sites_.rbegin(); site != sites_.rend(); ++site) {
+    size_t bytes = 0;
+    for (const char* prefix : kSiteKeys)
+      if (const auto it = picture_.find(SiteKey(prefix, *site)); it != picture_.end()) bytes += it->second.size();
+    if (used + bytes > budget) break;
+    used += bytes;
+    chosen.insert(*site);
+  }
+  return chosen;
 }
 
 std::vector<std::string> ConsoleAdapter::Welcome() const {
+  // The page's whole picture within welcome_max_bytes: what is not per site
+  // first, the UAV history (newest states), then the newest sites.
+  size_t budget = static_cast<size_t>(options_.welcome_max_bytes);
+  std::vector<std::string> general;
+  for (const auto& [key, text] : picture_)
+    if (key.find('/') == std::string::npos || key.rfind("procman/", 0) == 0) general.push_back(text);
+  for (const std::string& text : general) budget -= std::min(budget, text.size());
+  size_t first = uav_states_.size(), history_bytes = 0;  // the newest states within half the budget
+  while (first > 0 && history_bytes + uav_states_[first - 1].size() + 1 < budget / 2)
+    history_bytes += uav_states_[--first].size() + 1;
+  const size_t states = uav_states_.size() - first;
+  std::string history;
+  history.reserve(history_bytes);
+  for (size_t i = first; i < uav_states_.size(); ++i) history += (i > first ? "," : "") + uav_states_[i];
+  budget -= std::min(budget, history.size());
+  const std::set<int> sites = WelcomeSites(budget);
   std::vector<std::string> out;
-  out.push_back(json{{"type", "hello"}, {"uav_states", uav_states_.size()}}.dump());
-  for (const auto& [key, text] : picture_) out.push_back(text);
-  if (!uav_states_.empty()) {
-    std::string history = "{\"type\":\"uav_history\",\"states\":[";
-    for (size_t i = 0; i < uav_states_.size(); ++i) history += (i ? "," : "") + uav_states_[i];
-    out.push_back(history + "]}");
+  out.push_back(json{{"type", "hello"},
+                     {"uav_states", states},
+                     {"sites", sites.size()},
+                     {"sites_not_sent", sites_.size() - sites.size()}}
+                    .dump());
+  for (const auto& [key, text] : picture_) {
+    const size_t slash = key.find('/');
+    if (slash == std::string::npos || key.rfind("procman/", 0) == 0) {
+      out.push_back(text);
+    } else if (sites.count(std::stoi(key.substr(slash + 1)))) {
+      out.push_back(text);
+    }
   }
+  if (states) out.push_back("{\"type\":\"uav_history\",\"states\":[" + history + "]}");
   return out;
 }
 
@@ -282,6 +348,10 @@ bool ConsoleAdapter::OnApi(const std::string& rest, const std::map<std::string, 
                    {"dropped_slow", s.clients_dropped_slow},
                    {"connections_refused", s.connections_refused},
                    {"messages_bad", s.messages_bad},
+                   {"hosts_refused", s.hosts_refused},
+                   {"origins_refused", s.origins_refused},
+                   {"auth_failures", s.auth_failures},
+                   {"auth_locked_out", s.auth_locked_out},
                    {"orders_sent", orders_sent_},
                    {"manual_sent", manual_sent_},
                    {"refused", refused_}}

@@ -11,6 +11,7 @@
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -21,6 +22,7 @@
 #include "vloc/image_t.hpp"
 #include "vloc/lcm_io/typed.h"
 #include "vloc/localization_t.hpp"
+#include "vloc/procman_status_t.hpp"
 #include "vloc/tie_points_t.hpp"
 
 namespace vloc {
@@ -56,6 +58,9 @@ struct ConsoleProcOptions {
   int image_sites_kept = 3;                                 // newest sites whose left images are kept
   int max_uav_states = 5000;                                // UAV states kept for the route and height plots
   int max_manual_points = 200;                              // picks in one manual tie-point command
+  int tie_point_sites_kept = 10;                            // newest sites whose tie points are kept and sent
+  int max_launchers = 32;                                   // launchers (host, pid) whose process tables are kept
+  int64_t welcome_max_bytes = 4 << 20;                      // bytes a newly opened page is sent (newest sites first)
   OrthoimageOptions orthoimage;                             // drawn under the map (map `orthoimage`)
 
   void Visit(OptionsReader& reader);
@@ -87,7 +92,12 @@ class ConsoleAdapter {
   void OnLocalization(const localization_t& msg);
   // Sends `j` to the browsers and keeps it under `key` for later ones.
   void Post(const std::string& key, const nlohmann::json& j);
+  // The same for a per-site key ("<prefix>/<site>"); the oldest sites beyond max_sites are dropped.
+  void PostSite(const char* prefix, int site, const nlohmann::json& j);
   void TrimSites();
+  void OnProcmanStatus(const procman_status_t& msg);
+  // The per-site keys a new page gets: the newest sites' first, within welcome_max_bytes.
+  std::set<int> WelcomeSites(size_t budget) const;
   // Keeps a left image as it came: PNG / JPEG bytes are served as they are,
   // raw pixels are encoded to PNG when first asked for.
   void OnLeftImage(int site, int pair, const image_t& left);
@@ -100,6 +110,9 @@ class ConsoleAdapter {
   ConsoleServer& server_;
   ConsoleProcOptions options_;
   std::map<std::string, std::string> picture_;         // key -> JSON text, the current picture
+  std::set<int> sites_;                                // sites with per-site keys in the picture
+  std::map<std::string, int64_t> launchers_;           // procman key -> when last heard (message count)
+  int64_t procman_messages_ = 0;
   struct KeptImage {
     image_t message;     // as received
     std::string served;  // the bytes served (PNG / JPEG); "" until first asked for raw pixels

@@ -2,6 +2,10 @@
 
 #include <glog/logging.h>
 
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cmath>
 #include <fstream>
 #include <iterator>
 #include <set>
@@ -25,6 +29,11 @@ void ConsoleServerOptions::Visit(OptionsReader& r) {
   r.Optional("max_message_bytes", &max_message_bytes, "bytes, largest WebSocket message accepted");
   r.Optional("max_file_bytes", &max_file_bytes, "bytes, largest file served");
   r.Optional("max_connections", &max_connections, "open TCP connections before requests are refused (503)");
+  r.Optional("max_json_depth", &max_json_depth, "nesting of a client's JSON message");
+  r.Optional("allowed_hosts", &allowed_hosts, "Host names served besides IP addresses and localhost");
+  r.Optional("allowed_origins", &allowed_origins, "page origins allowed to open the WebSocket besides our own");
+  r.Optional("auth_free_failures", &auth_free_failures, "wrong tokens from one address before it is locked out");
+  r.Optional("auth_max_lockout_s", &auth_max_lockout_s, "s, longest lockout after wrong tokens");
 }
 
 bool ConsoleServerOptions::Check(std::string* error) const {
@@ -36,6 +45,15 @@ bool ConsoleServerOptions::Check(std::string* error) const {
   if (max_client_buffer_bytes < 1024 || max_message_bytes < 1024 || max_file_bytes < 1024)
     return Fail(error, "max_client_buffer_bytes, max_message_bytes and max_file_bytes must be >= 1024");
   if (max_connections < 2) return Fail(error, "max_connections must be >= 2");
+  if (max_json_depth < 3 || max_json_depth > 256) return Fail(error, "max_json_depth must be in [3, 256]");
+  if (auth_free_failures < 0 || !(auth_max_lockout_s >= 1 && auth_max_lockout_s <= 86400))
+    return Fail(error, "auth_free_failures must be >= 0 and auth_max_lockout_s in [1, 86400]");
+  for (const std::string& h : allowed_hosts)
+    if (h.empty() || h.find_first_of(":/ ") != std::string::npos)
+      return Fail(error, "allowed_hosts: '" + h + "' is not a host name (no port, no scheme)");
+  for (const std::string& o : allowed_origins)
+    if (o.rfind("http://", 0) != 0 && o.rfind("https://", 0) != 0)
+      return Fail(error, "allowed_origins: '" + o + "' is not an origin (http[s]://host[:port])");
   return true;
 }
 
@@ -52,6 +70,111 @@ std::map<std::string, std::string> ParseQuery(const std::string& query) {
   return out;
 }
 
+bool JsonDepthWithin(const std::string& text, int max_depth) {
+  int depth = 0;
+  bool in_string = false, escaped = false;
+  for (const char c : text) {
+    if (in_string) {
+      if (escaped)
+        escaped = false;
+      else if (c == '\\')
+        escaped = true;
+      else if (c == '"')
+        in_string = false;
+    } else if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{') {
+      if (++depth > max_depth) return false;
+    } else if (c == ']' || c == '}') {
+      --depth;
+    }
+  }
+  return true;
+}
+
+std::string HostOfAuthority(const std::string& authority) {
+  std::string host = authority;
+  if (!host.empty() && host[0] == '[') {
+    const size_t end = host.find(']');
+    host = end == std::string::npos ? "" : host.substr(1, end - 1);
+  } else if (std::count(host.begin(), host.end(), ':') == 1) {
+    host = host.substr(0, host.find(':'));
+  }
+  std::transform(host.begin(), host.end(), host.begin(), [](unsigned char c) { return std::tolower(c); });
+  return host;
+}
+
+namespace {
+
+bool IsIpAddress(const std::string& host) {
+  boost::system::error_code ec;
+  boost::asio::ip::make_address(host, ec);
+  return !ec;
+}
+
+bool SameText(std::string a, std::string b) {
+  std::transform(a.begin(), a.end(), a.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::transform(b.begin(), b.end(), b.begin(), [](unsigned char c) { return std::tolower(c); });
+  return a == b;
+}
+
+}  // namespace
+
+bool HostAllowed(const std::string& host_header, const std::vector<std::string>& allowed) {
+  const std::string host = HostOfAuthority(host_header);
+  if (host.empty()) return false;
+  if (host == "localhost" || IsIpAddress(host)) return true;
+  return std::any_of(allowed.begin(), allowed.end(), [&](const std::string& a) { return SameText(a, host); });
+}
+
+bool OriginAllowed(const std::string& origin, const std::string& host_header,
+                   const std::vector<std::string>& allowed) {
+  if (std::any_of(allowed.begin(), allowed.end(), [&](const std::string& a) { return SameText(a, origin); }))
+    return true;
+  const size_t scheme_end = origin.find("://");
+  if (scheme_end == std::string::npos) return false;  // "null" (a file or sandboxed page) included
+  const std::string scheme = origin.substr(0, scheme_end);
+  if (scheme != "http" && scheme != "https") return false;
+  return !host_header.empty() && SameText(origin.substr(scheme_end + 3), host_header);
+}
+
+// Wrong tokens per remote address: a few are free, then each locks the
+// address out for a time doubling up to a cap. Bounded: addresses whose
+// lockout has passed are forgotten first when the table is full.
+class AuthThrottle {
+ public:
+  using Clock = std::chrono::steady_clock;
+  static constexpr size_t kMaxAddresses = 4096;
+
+  // Seconds the address is still locked out (0: it may try).
+  double LockedFor(const std::string& address, Clock::time_point now) const {
+    const auto it = entries_.find(address);
+    if (it == entries_.end() || it->second.locked_until <= now) return 0;
+    return std::chrono::duration<double>(it->second.locked_until - now).count();
+  }
+  void Failed(const std::string& address, Clock::time_point now, int free_failures, double max_lockout_s) {
+    if (entries_.size() >= kMaxAddresses && !entries_.count(address)) Forget(now);
+    Entry& e = entries_[address];
+    ++e.failures;
+    if (e.failures > free_failures) {
+      const double lockout = std::min(max_lockout_s, std::ldexp(1.0, std::min(e.failures - free_failures - 1, 30)));
+      e.locked_until = now + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(lockout));
+    }
+  }
+  void Succeeded(const std::string& address) { entries_.erase(address); }
+
+ private:
+  struct Entry {
+    int failures = 0;
+    Clock::time_point locked_until{};
+  };
+  void Forget(Clock::time_point now) {
+    for (auto it = entries_.begin(); it != entries_.end();) it = it->second.locked_until <= now ? entries_.erase(it) : ++it;
+    if (entries_.size() >= kMaxAddresses) entries_.erase(entries_.begin());
+  }
+  std::map<std::string, Entry> entries_;
+};
+
 struct ConsoleServer::Impl {
   ConsoleServerOptions options;
   std::filesystem::path root;  // canonical web_root
@@ -62,6 +185,7 @@ struct ConsoleServer::Impl {
   ApiHandler on_api;
   WelcomeHandler on_welcome;
   ConsoleServerStats stats;
+  AuthThrottle throttle;
   bool loopback = true;
   int port = 0;
 
@@ -111,12 +235,41 @@ struct ConsoleServer::Impl {
     ++stats.http_requests;
     const WsServer::connection_ptr con = server.get_con_from_hdl(hdl);
     if (Crowded()) return Reply(con, Error(503, "busy: too many connections, try again"));
+    const std::string host = con->get_request_header("Host");
+    if (!HostAllowed(host, options.allowed_hosts)) {
+      ++stats.hosts_refused;
+      return Reply(con, Error(403, "host '" + host.substr(0, 100) + "' is not served here (server.allowed_hosts)"));
+    }
     try {
       Reply(con, Route(con->get_request().get_method(), con->get_resource()));
     } catch (const std::exception& e) {
       LOG(ERROR) << "console: HTTP request " << con->get_resource() << " failed: " << e.what();
       Reply(con, Error(500, "internal error"));
     }
+  }
+
+  // The WebSocket handshake: not crowded, our Host, our page's Origin.
+  bool Validate(Hdl hdl) {
+    const WsServer::connection_ptr con = server.get_con_from_hdl(hdl);
+    if (Crowded()) {
+      con->set_status(websocketpp::http::status_code::service_unavailable);
+      return false;
+    }
+    const std::string host = con->get_request_header("Host");
+    const std::string origin = con->get_request_header("Origin");
+    std::string why;
+    if (!HostAllowed(host, options.allowed_hosts)) {
+      ++stats.hosts_refused;
+      why = "host '" + host.substr(0, 100) + "' is not served here (server.allowed_hosts)";
+    } else if (!origin.empty() && !OriginAllowed(origin, host, options.allowed_origins)) {
+      ++stats.origins_refused;
+      why = "a page from '" + origin.substr(0, 100) + "' may not open this console (server.allowed_origins)";
+    }
+    if (why.empty()) return true;
+    LOG(WARNING) << "console: WebSocket from " << con->get_remote_endpoint() << " refused: " << why;
+    con->set_status(websocketpp::http::status_code::forbidden);
+    con->set_body(why + "\n");
+    return false;
   }
 
   void Send(Hdl hdl, const std::string& text) {
@@ -146,14 +299,51 @@ struct ConsoleServer::Impl {
     if (clients.erase(hdl)) ++stats.clients_closed;
   }
 
-  nlohmann::json Answer(const std::string& text) {
+  static nlohmann::json Refusal(const std::string& why) {
+    return {{"type", "reply"}, {"ok", false}, {"error", why}};
+  }
+
+  // Whether the message's token allows acting; false and *why when the
+  // sender's address is locked out (its token then is not compared).
+  bool Authorize(const nlohmann::json& command, const std::string& address, std::string* why) {
+    const auto token_it = command.find("token");
+    const std::string token =
+        token_it != command.end() && token_it->is_string() ? token_it->get<std::string>() : std::string();
+    if (options.token.empty() || token.empty()) return MayActWith(token);
+    const auto now = AuthThrottle::Clock::now();
+    if (const double locked = throttle.LockedFor(address, now); locked > 0) {
+      ++stats.auth_locked_out;
+      *why = "too many wrong tokens from " + address + ": try again in " + std::to_string(int(std::ceil(locked))) +
+             " s";
+      return false;
+    }
+    if (MayActWith(token)) {
+      throttle.Succeeded(address);
+      return true;
+    }
+    ++stats.auth_failures;
+    throttle.Failed(address, now, options.auth_free_failures, options.auth_max_lockout_s);
+    return false;
+  }
+
+  nlohmann::json Answer(const std::string& text, const std::string& address) {
+    if (!JsonDepthWithin(text, options.max_json_depth)) {
+      ++stats.messages_bad;
+      return Refusal("JSON nested deeper than " + std::to_string(options.max_json_depth) + " levels");
+    }
     nlohmann::json command = nlohmann::json::parse(text, nullptr, false);
     if (command.is_discarded() || !command.is_object()) {
       ++stats.messages_bad;
-      return {{"type", "reply"}, {"ok", false}, {"error", "not a JSON object"}};
+      return Refusal("not a JSON object");
     }
-    const nlohmann::json token = command.value("token", nlohmann::json());
-    const bool may_act = MayActWith(token.is_string() ? token.get<std::string>() : std::string());
+    std::string locked_out;
+    const bool may_act = Authorize(command, address, &locked_out);
+    if (!locked_out.empty()) {
+      nlohmann::json reply = Refusal(locked_out);
+      reply["may_act"] = false;
+      if (command.contains("id")) reply["id"] = command["id"];
+      return reply;
+    }
     nlohmann::json reply =
         on_command ? on_command(command, may_act) : nlohmann::json{{"ok", false}, {"error", "no commands here"}};
     reply["type"] = "reply";
@@ -161,11 +351,19 @@ struct ConsoleServer::Impl {
     return reply;
   }
 
+  static std::string AddressOf(const WsServer::connection_ptr& con) {
+    boost::system::error_code ec;
+    const auto endpoint = con->get_raw_socket().remote_endpoint(ec);
+    return ec ? "unknown" : endpoint.address().to_string();
+  }
+
   void OnMessage(Hdl hdl, WsServer::message_ptr msg) {
     ++stats.messages_in;
     nlohmann::json reply;
     try {
-      reply = Answer(msg->get_payload());
+      websocketpp::lib::error_code ec;
+      const WsServer::connection_ptr con = server.get_con_from_hdl(hdl, ec);
+      reply = Answer(msg->get_payload(), ec ? "unknown" : AddressOf(con));
     } catch (const std::exception& e) {
       ++stats.messages_bad;
       reply = {{"type", "reply"}, {"ok", false}, {"error", std::string("bad command: ") + e.what()}};
@@ -213,7 +411,7 @@ bool ConsoleServer::Start(std::string* error) {
   s.set_max_message_size(static_cast<size_t>(m.options.max_message_bytes));
   s.set_max_http_body_size(static_cast<size_t>(m.options.max_message_bytes));
   s.set_tcp_pre_init_handler([&m](Hdl h) { m.connections.insert(h); });
-  s.set_validate_handler([&m](Hdl) { return !m.Crowded(); });
+  s.set_validate_handler([&m](Hdl h) { return m.Validate(h); });
   s.set_http_handler([&m](Hdl h) { m.OnHttp(h); });
   s.set_open_handler([&m](Hdl h) { m.OnOpen(h); });
   s.set_close_handler([&m](Hdl h) { m.OnClose(h); });

@@ -60,6 +60,7 @@ const handlers = {
   tie_points: (m) => { vloc.tiePoints[m.current] = m; autoPair(m.previous, m.current); if (isShown(m.current)) drawImages(); },
   images: (m) => { vloc.images[m.site] = m.pairs; fillImageSelects(); },
   procman: (m) => { vloc.procman[m.host + ':' + m.pid] = m; drawProcs(); },
+  procman_gone: (m) => { delete vloc.procman[m.key]; drawProcs(); },
   uav_state: (m) => { vloc.uav.push(m); if (vloc.uav.length > 5000) vloc.uav.shift(); dirtyUav(); },
   uav_history: (m) => { vloc.uav = m.states; dirtyUav(); },
   uav_mosaic: (m) => { vloc.mosaicSeq = m.seq; dirtyUav(); },

@@ -8,13 +8,16 @@ vloc_console with a token, sim_rover on two sites) runs on its own LCM port.
 The page must: show both sites on the map with the pair 0 -> 1 failed; take
 manual tie points clicked on the two left images (the simulator's truth,
 tests/procs/vloc_console/true_clicks.h) and turn the pair into a localized
-one; restart a process from the process table. Screenshots go to
+one; restart a process from the process table. A page from another origin
+must fail to open a second console that has no token (so could otherwise
+act from loopback), while the console's own page acts. Screenshots go to
 $VLOC_SCREENSHOT_DIR (default: the build folder).
 
 Exits 77 (ctest: skipped) with one line when chromium or chromedriver is
 missing: scripts/install_deps.sh installs both.
 """
 import base64
+import http.server
 import json
 import os
 import shutil
@@ -22,6 +25,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import urllib.request
 
@@ -80,9 +84,11 @@ class WebDriver:
                         {"type": "pointerDown", "button": 0}, {"type": "pointerUp", "button": 0}]}]})
         self.call("DELETE", self.s("/actions"))
 
-    def click(self, css):
-        element = self.call("POST", self.s("/element"), {"using": "css selector", "value": css})
-        self.call("POST", self.s("/element/%s/click" % list(element.values())[0]), {})
+    def click(self, css, timeout=10):
+        """Clicks the element `css` names, found and clicked in one script: the page redraws its
+        tables every second, so an element WebDriver found can be gone by the time it is clicked."""
+        wait_for(self, "const e = document.querySelector(%s); if (!e || e.disabled) return false; "
+                       "e.click(); return true;" % json.dumps(css), timeout, "%s to click" % css)
 
     def screenshot(self, path):
         with open(path, "wb") as f:
@@ -268,6 +274,85 @@ def check_restart_from_page(driver, shots):
     driver.screenshot(os.path.join(shots, "console_processes.png"))
 
 
+ATTACKER_PAGE = """<html><body><script>
+window.result = {opened: false, closed: false, error: false, reply: null};
+const ws = new WebSocket('ws://127.0.0.1:%d/ws');
+ws.onopen = () => { window.result.opened = true;
+  ws.send(JSON.stringify({type: 'order', id: 1, host: '', target: 'crosssite_ba', target_kind: 'process',
+                          action: 'stop'})); };
+ws.onmessage = (e) => { window.result.reply = e.data; };
+ws.onerror = () => { window.result.error = true; };
+ws.onclose = () => { window.result.closed = true; };
+</script>attacker</body></html>"""
+
+
+def serve_attacker_page(console_port):
+    """A page on another origin (http://127.0.0.1:<other port>/) that tries to drive the console."""
+    body = (ATTACKER_PAGE % console_port).encode()
+
+    class Handler(http.server.BaseHTTPRequestHandler):
+        def do_GET(self):
+            self.send_response(200)
+            self.send_header("Content-Type", "text/html")
+            self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            self.wfile.write(body)
+
+        def log_message(self, *args):
+            pass
+
+    server = http.server.HTTPServer(("127.0.0.1", 0), Handler)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    return server
+
+
+def console_status(port):
+    with urllib.request.urlopen("http://127.0.0.1:%d/api/status" % port, timeout=10) as r:
+        return json.load(r)
+
+
+def check_foreign_page_cannot_act(driver, shots):
+    """A second console on loopback without a token (its own LCM port: its orders go nowhere)."""
+    port = free_port()
+    console = subprocess.Popen([os.path.join(BIN, "vloc_console"), "--config", "config/procs/vloc_console.yaml",
+                                "--port", str(port), "--lcm-url", "udpm://239.255.76.67:7958?ttl=0"], cwd=ROOT,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                               env={k: v for k, v in os.environ.items() if k != "VLOC_CONSOLE_TOKEN"})
+    attacker = serve_attacker_page(port)
+    try:
+        deadline = time.time() + 20
+        while True:
+            try:
+                console_status(port)
+                break
+            except Exception:
+                if time.time() > deadline:
+                    raise AssertionError("the second console did not start")
+                time.sleep(0.2)
+        driver.open("http://127.0.0.1:%d/" % attacker.server_address[1])
+        result = wait_for(driver, "const r = window.result; return r && (r.closed || r.error || r.reply) && r", 20,
+                          "the foreign page's WebSocket to end")
+        assert not result["opened"] and result["reply"] is None, "a foreign page opened the console: %s" % result
+        status = console_status(port)
+        assert status["orders_sent"] == 0 and status["origins_refused"] >= 1, status
+        # The console's own page, same machine, no token: it may act.
+        driver.open("http://127.0.0.1:%d/" % port)
+        wait_for(driver, "return window.vloc && window.vloc.connected && window.vloc.mayAct", 20,
+                 "the console's own page allowed to act")
+        reply = wait_for(driver, "if (!window.sent) { window.sent = true; send({type: 'order', host: 'nohost', "
+                                 "target: 'nothing', target_kind: 'process', action: 'stop'})"
+                                 ".then((r) => { window.orderReply = r; }); } return window.orderReply", 10,
+                         "the own page's order")
+        assert reply.get("ok"), "the console's own page was refused: %s" % reply
+        assert console_status(port)["orders_sent"] == 1
+        print("foreign origin: WebSocket refused (%d refused, 0 orders); own page: order sent"
+              % status["origins_refused"])
+    finally:
+        attacker.shutdown()
+        console.terminate()
+        console.wait(10)
+
+
 def main():
     chromium = shutil.which("chromium") or shutil.which("chromium-browser")
     chromedriver = shutil.which("chromedriver")
@@ -298,7 +383,8 @@ def main():
                     raise
                 time.sleep(0.3)
         driver.open("http://127.0.0.1:%d/#token=%s" % (http_port, TOKEN))
-        for check in (check_map_shows_sites, check_manual_tie_points, check_restart_from_page):
+        for check in (check_map_shows_sites, check_manual_tie_points, check_restart_from_page,
+                      check_foreign_page_cannot_act):
             try:
                 check(driver, shots)
                 print("PASS", check.__name__)
@@ -322,7 +408,8 @@ def main():
             if os.path.exists(log):
                 print("---- %s (tail)" % log)
                 print("".join(open(log, errors="replace").readlines()[-15:]))
-    passed = 3 - failed if not failed else 0
+    shutil.rmtree(folder, ignore_errors=True)
+    passed = 4 - failed if not failed else 0
     print("%d passed, %d failed" % (passed, failed))
     return 1 if failed else 0
 

@@ -58,9 +58,10 @@ class RawClient {
   }
 
   // One HTTP/1.0 GET of exactly `target`; the whole response (headers + body).
-  static std::string Get(int port, const std::string& target, double timeout_s = 5) {
+  static std::string Get(int port, const std::string& target, double timeout_s = 5,
+                         const std::string& host = "127.0.0.1") {
     RawClient c(port);
-    if (!c.Send("GET " + target + " HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n")) return "";
+    if (!c.Send("GET " + target + " HTTP/1.0\r\nHost: " + host + "\r\n\r\n")) return "";
     return c.ReadAll(timeout_s);
   }
   static int StatusOf(const std::string& response) {
@@ -68,18 +69,24 @@ class RawClient {
     return std::atoi(response.c_str() + 9);
   }
 
-  // The WebSocket opening handshake on `path`; true when the server agreed.
-  bool Upgrade(const std::string& path = "/ws") {
-    if (!Send("GET " + path +
-              " HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-              "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n"))
+  // The WebSocket opening handshake on `path` with this Host and extra
+  // header lines (each ending in \r\n, e.g. an Origin); true when the
+  // server agreed. The server's answer stays in handshake().
+  bool Upgrade(const std::string& path = "/ws", const std::string& host = "127.0.0.1",
+               const std::string& extra_headers = "") {
+    if (!Send("GET " + path + " HTTP/1.1\r\nHost: " + host +
+              "\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+              "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n" +
+              extra_headers + "\r\n"))
       return false;
     while (buffer_.find("\r\n\r\n") == std::string::npos)
       if (!ReadSome(&buffer_, 5)) return false;
+    handshake_ = buffer_.substr(0, buffer_.find("\r\n\r\n"));
     const bool ok = buffer_.compare(0, 12, "HTTP/1.1 101") == 0;
     buffer_.erase(0, buffer_.find("\r\n\r\n") + 4);
     return ok;
   }
+  const std::string& handshake() const { return handshake_; }
 
   // A masked client frame (opcode 1 = text) with `payload`.
   static std::string Frame(const std::string& payload, int opcode = 1) {
@@ -156,7 +163,7 @@ class RawClient {
   }
 
   int fd_ = -1;
-  std::string buffer_;
+  std::string buffer_, handshake_;
 };
 
 }  // namespace vloc::testing

@@ -4,9 +4,11 @@
 // a client that does not read, it bridges LCM messages to the browsers, and
 // only a client with the token may act (PROCMAN_ORDERS, MANUAL_TIE_POINTS).
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <regex>
@@ -40,9 +42,9 @@ struct Console {
   int port = -1;
 };
 
-Console StartConsole(const std::string& lcm_url, std::vector<std::string> extra = {}) {
-  std::vector<std::string> argv = {
-      BinPath("vloc_console"), "--config", "config/procs/vloc_console.yaml", "--port", "0", "--lcm-url", lcm_url};
+Console StartConsole(const std::string& lcm_url, std::vector<std::string> extra = {},
+                     const std::string& config = "config/procs/vloc_console.yaml") {
+  std::vector<std::string> argv = {BinPath("vloc_console"), "--config", config, "--port", "0", "--lcm-url", lcm_url};
   argv.insert(argv.end(), extra.begin(), extra.end());
   Console c;
   c.process = std::make_unique<Subprocess>(argv);
@@ -95,7 +97,7 @@ TEST(VlocConsole, ServesItsOwnFilesAndNothingElse) {
   }
   EXPECT_EQ(RawClient::StatusOf(RawClient::Get(c.port, "/api/nothing")), 404);
   RawClient post(c.port);
-  post.Send("POST /index.html HTTP/1.1\r\nHost: x\r\nContent-Length: 3\r\nConnection: close\r\n\r\nabc");
+  post.Send("POST /index.html HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 3\r\nConnection: close\r\n\r\nabc");
   const int post_status = RawClient::StatusOf(post.ReadAll(5));
   EXPECT_TRUE(post_status == 405 || post_status == 400) << post_status;
 }
@@ -113,7 +115,7 @@ TEST(VlocConsole, SurvivesMalformedRequestsAndDisconnects) {
   }
   {  // a browser that asks for the page and leaves before reading it
     RawClient e(c.port);
-    e.Send("GET /console.js HTTP/1.1\r\nHost: x\r\n\r\n");
+    e.Send("GET /console.js HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
   }
   RawClient ws(c.port);
   ASSERT_TRUE(ws.Upgrade());
@@ -302,7 +304,14 @@ json Command(RawClient& ws, json command) {
 
 TEST(VlocConsole, OnlyAClientWithTheTokenActs) {
   const std::string url = TestLcmUrl(7955);
-  Console c = StartConsole(url, {"--token", "s3cret"});
+  // Ten wrong tokens below are compared, not locked out (console_hostile_proc_test tests the lockout).
+  const auto config = std::filesystem::temp_directory_path() / ("vloc_console_tokens_" + std::to_string(getpid()) + ".yaml");
+  std::ifstream in("config/procs/vloc_console.yaml");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  text.replace(text.find("auth_free_failures: 3"), 21, "auth_free_failures: 20");
+  std::ofstream(config) << text;
+  Console c = StartConsole(url, {"--token", "s3cret"}, config.string());
+  std::filesystem::remove(config);
   ASSERT_GT(c.port, 0) << c.process->output();
   std::string error;
   auto lcm = MakeLcmTransport(url, &error);

@@ -109,5 +109,55 @@ TEST(ConsoleServer, MayActOnlyWithTheTokenOrOnLoopbackWithoutOne) {
   EXPECT_GT(guarded.port(), 0);
 }
 
+TEST(JsonDepthWithin, CountsBracketsOutsideStringsOnly) {
+  EXPECT_TRUE(JsonDepthWithin(R"({"a":[1,{"b":[2]}]})", 4));
+  EXPECT_FALSE(JsonDepthWithin(R"({"a":[1,{"b":[2]}]})", 3));
+  EXPECT_TRUE(JsonDepthWithin(R"({"s":"[[[[[[\"{{{{"})", 1));
+  EXPECT_FALSE(JsonDepthWithin(std::string(70000, '[') + std::string(70000, ']'), 16));
+  EXPECT_TRUE(JsonDepthWithin(std::string(16, '[') + std::string(16, ']'), 16));
+  EXPECT_TRUE(JsonDepthWithin("", 3));
+}
+
+TEST(HostAllowed, AddressesLocalhostAndListedNamesOnly) {
+  const std::vector<std::string> none, station = {"ground.example"};
+  for (const std::string h : std::vector<std::string>{"127.0.0.1", "127.0.0.1:8765", "localhost:8765", "LOCALHOST", "[::1]:8765", "10.1.2.3"})
+    EXPECT_TRUE(HostAllowed(h, none)) << h;
+  for (const std::string h : std::vector<std::string>{"", "attacker.example", "attacker.example:8765", "127.0.0.1.attacker.example",
+                              "localhost.attacker.example", "[::1"})
+    EXPECT_FALSE(HostAllowed(h, none)) << h;
+  EXPECT_TRUE(HostAllowed("Ground.Example:8765", station));
+  EXPECT_FALSE(HostAllowed("ground.example.attacker.example", station));
+  EXPECT_EQ(HostOfAuthority("[::1]:8765"), "::1");
+  EXPECT_EQ(HostOfAuthority("Example.ORG:80"), "example.org");
+}
+
+TEST(OriginAllowed, SameOriginOrListed) {
+  const std::vector<std::string> none, dashboard = {"https://dash.example"};
+  EXPECT_TRUE(OriginAllowed("http://127.0.0.1:8765", "127.0.0.1:8765", none));
+  EXPECT_TRUE(OriginAllowed("http://LOCALHOST:8765", "localhost:8765", none));
+  EXPECT_FALSE(OriginAllowed("http://127.0.0.1:9999", "127.0.0.1:8765", none));
+  EXPECT_FALSE(OriginAllowed("http://attacker.example", "127.0.0.1:8765", none));
+  EXPECT_FALSE(OriginAllowed("null", "127.0.0.1:8765", none));
+  EXPECT_FALSE(OriginAllowed("file://127.0.0.1:8765", "127.0.0.1:8765", none));
+  EXPECT_FALSE(OriginAllowed("http://127.0.0.1:8765", "", none));
+  EXPECT_TRUE(OriginAllowed("https://dash.example", "10.0.0.2:8765", dashboard));
+}
+
+TEST(ConsoleServerOptions, RefusesHostsAndOriginsThatAreNot) {
+  ConsoleServerOptions o;
+  std::string error;
+  EXPECT_TRUE(o.Check(&error)) << error;
+  o.allowed_hosts = {"station:8765"};
+  EXPECT_FALSE(o.Check(&error));
+  EXPECT_NE(error.find("allowed_hosts"), std::string::npos);
+  o.allowed_hosts = {"station"};
+  o.allowed_origins = {"station"};
+  EXPECT_FALSE(o.Check(&error));
+  EXPECT_NE(error.find("allowed_origins"), std::string::npos);
+  o.allowed_origins = {"https://station"};
+  o.max_json_depth = 1;
+  EXPECT_FALSE(o.Check(&error));
+}
+
 }  // namespace
 }  // namespace vloc
