@@ -33,7 +33,7 @@ say "checking packages"
 bash "$root/scripts/install_deps.sh"
 if [ ! -f "$build/CMakeCache.txt" ]; then
   say "configuring $build"
-  cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release -DVLOC_ONLY_DIRS= >/dev/null
+  cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release -DVLOC_ONLY_DIRS= -DVLOC_CCACHE=ON >/dev/null
 fi
 say "building (incremental)"
 cmake --build "$build" -j "$(nproc)" 2>&1 | grep -vE '^\[ *[0-9]+%\] (Built target|Building|Linking)' || true

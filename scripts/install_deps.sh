@@ -4,7 +4,7 @@
 set -euo pipefail
 
 PACKAGES=(
-  build-essential cmake pkg-config git
+  build-essential cmake pkg-config git ccache   # ccache: rebuilds of a new clone hit the cache (CMakeLists.txt)
   liblcm-dev liblcm-bin liblcm-java libglib2.0-dev
   libeigen3-dev libopencv-dev opencv-doc
   libceres-dev libsuitesparse-dev libgoogle-glog-dev libgflags-dev
