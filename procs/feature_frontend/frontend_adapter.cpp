@@ -7,6 +7,7 @@
 
 #include "vloc/common/options.h"
 #include "vloc/lcm_io/convert.h"
+#include "vloc/lcm_io/convert_image.h"
 #include "vloc/lcm_io/convert_rover.h"
 #include "vloc/manual_tie_points_t.hpp"
 #include "vloc/site_event_t.hpp"
@@ -37,6 +38,7 @@ void FeatureFrontendProcOptions::Visit(OptionsReader& r) {
   r.Optional("max_sites_in_memory", &max_sites_in_memory, "earlier sites whose images stay in memory");
   r.Optional("site_cache_dir", &site_cache_dir, "older sites' images are written here (PNG); empty = dropped");
   r.Optional("manual_ties_channel", &manual_ties_channel, "subscribed manual_tie_points_t channel (\"\" = off)");
+  r.Child("stereo_image_limits", [&](OptionsReader& c) { stereo_image_limits.Visit(c); });
 }
 
 bool FeatureFrontendProcOptions::Check(std::string* error) const {
@@ -49,7 +51,7 @@ bool FeatureFrontendProcOptions::Check(std::string* error) const {
   if (loop_max_matches < 1) return Fail(error, "loop_max_matches must be >= 1");
   if (!(loop_max_position_sigma_fraction > 0)) return Fail(error, "loop_max_position_sigma_fraction must be > 0");
   if (max_sites_in_memory < 0) return Fail(error, "max_sites_in_memory must be >= 0");
-  return navcam.Check(error) && frontend.Check(error);
+  return stereo_image_limits.Check(error) && navcam.Check(error) && frontend.Check(error);
 }
 
 frontend_status_t FrontendStatusToMessage(const FrontendSummary& s, int64_t utime, int previous_site_id,
@@ -116,7 +118,9 @@ FeatureFrontendAdapter::FeatureFrontendAdapter(const FeatureFrontendProcOptions&
 void FeatureFrontendAdapter::Subscribe() {
   stats_.push_back(vloc::Subscribe<stereo_image_t>(
       transport_, options_.stereo_channel,
-      [this](const std::string&, const stereo_image_t& m) { OnStereo(StereoPairFromMessage(m)); },
+      [this](const std::string&, const stereo_image_t& m) {
+        OnStereo(StereoPairFromMessage(m, options_.stereo_image_limits));
+      },
       options_.queue_capacity));
   stats_.push_back(vloc::Subscribe<site_event_t>(
       transport_, options_.site_channel,

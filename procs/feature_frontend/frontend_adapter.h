@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "vloc/common/camera.h"
+#include "vloc/common/image_header.h"
 #include "vloc/crosssite/frontend.h"
 #include "vloc/crosssite/site_archive.h"
 #include "vloc/frontend_status_t.hpp"
@@ -45,6 +46,10 @@ struct FeatureFrontendProcOptions {
   int max_sites_in_memory = 3;                        // earlier sites whose images stay in memory for revisits
   std::string site_cache_dir;                         // older sites' images go here (PNG); empty = dropped
   std::string manual_ties_channel = "MANUAL_TIE_POINTS";  // subscribed: manual_tie_points_t (operator's clicks; "" = off)
+  ImageLimits stereo_image_limits = NavcamImageLimits();  // stereo_channel's PNG/JPEG images: larger refused before decoding
+
+  // 4096 x 4096 px (a Navcam image is 1024 x 1024), 100 JPEG scans.
+  static ImageLimits NavcamImageLimits() { return ImageLimits{4096, 4096, int64_t(4096) * 4096, 100}; }
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;

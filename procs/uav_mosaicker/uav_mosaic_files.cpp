@@ -26,6 +26,15 @@
 // aero1/aero3), the sequence is registered pairwise with the affine-invariant
 // RegisterOblique (image i -> image i-1, homographies chained to image 1) and
 // mosaicked in image 1's frame instead (--no-oblique turns this off).
+// Photos are untrusted: every header is read before any photo is decoded,
+// and a photo over the limits (photo_limits in the config; default 20,000 px
+// a side, 100 MP) or of another size than the survey's (the most common
+// size) is refused in one line naming it; so is an EXIF/XMP tag outside its
+// physical range (vloc::mosaic::GeotagRanges: the tag is then not used, and
+// the tool says what it uses instead). The rest of the survey registers.
+// Exit codes: 0 every photo registered; 2 outputs written, but a photo or a
+// tag was refused or a frame not registered; 1 nothing usable, a bad
+// argument or config, an output not writable, or an error (one line).
 #include <glog/logging.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -40,12 +49,14 @@
 
 #include "vloc/common/command_line.h"
 #include "vloc/common/logging.h"
+#include "vloc/common/tool_main.h"
 #include "vloc/common/options.h"
 #include "vloc/mosaic/calibration.h"
 #include "vloc/mosaic/geotag.h"
 #include "vloc/mosaic/gis_export.h"
 #include "vloc/mosaic/oblique_registration.h"
 #include "vloc/mosaic/survey_eval.h"
+#include "vloc/mosaic/survey_photos.h"
 #include "vloc/mosaic/uav_mosaicker.h"
 
 namespace {
@@ -107,19 +118,22 @@ void MarkRepeatedFixes(std::vector<FrameRecord>* frames) {
 // another tool: each registered photo located in it, then both fitted to it
 // by a 2-D similarity (the reference's scale and orientation are unknown).
 void CompareWithReference(const std::string& reference_path, const std::vector<FrameRecord>& frames,
-                          const std::vector<std::string>& paths, const vm::RouteComparison& route_vs_gps) {
-  const cv::Mat reference = cv::imread(reference_path, cv::IMREAD_GRAYSCALE);
+                          const std::vector<std::string>& paths, const vm::RouteComparison& route_vs_gps,
+                          const vloc::ImageLimits& limits) {
+  std::string why;
+  cv::Mat reference = vm::LoadCheckedPhoto(reference_path, limits, cv::Size(), &why);
   if (reference.empty()) {
-    std::cerr << "uav_mosaic_files: cannot read the reference orthomosaic " << reference_path << "\n";
+    std::cerr << "uav_mosaic_files: the reference orthomosaic " << why << "\n";
     return;
   }
+  cv::cvtColor(reference, reference, cv::COLOR_BGR2GRAY);
   const vm::ReferenceLocator locator(reference);
   std::vector<vm::ReferenceFix> fixes(frames.size());
   std::vector<cv::Point2d> route_m(frames.size()), gps_m(frames.size());
   std::vector<bool> with_gps(frames.size(), false);
   for (size_t i = 0; i < frames.size(); ++i) {
     if (!frames[i].registered) continue;
-    fixes[i] = locator.Locate(cv::imread(paths[i], cv::IMREAD_COLOR));
+    fixes[i] = locator.Locate(vm::LoadCheckedPhoto(paths[i], limits, cv::Size(), nullptr));
     route_m[i] = route_vs_gps.enu_from_flipped.Apply({frames[i].state.route_px.x, -frames[i].state.route_px.y});
     gps_m[i] = frames[i].enu;
     with_gps[i] = frames[i].tag.has_gps && !frames[i].repeated_fix;
@@ -143,10 +157,9 @@ bool ParseRange(const std::string& text, int* a, int* b) {
   return std::sscanf(text.c_str(), "%d-%d", a, b) == 2 && *a >= 0 && *b >= *a;
 }
 
-}  // namespace
 
-int main(int argc, char** argv) {
-  vloc::InitLogging(argv[0]);
+// The tool; main() turns any exception into one line and exit code 1.
+int Run(int argc, char** argv) {
   vloc::CommandLine args;
   std::string error;
   if (!args.Parse(argc, argv,
@@ -164,7 +177,7 @@ int main(int argc, char** argv) {
                  "       uav_mosaic_files --split [--angle DEG] [--zoom Z] --out OUT.png IMAGE\n";
     return 1;
   }
-  const std::vector<std::string> paths = args.Has("split") ? args.positional() : ExpandInputs(args.positional());
+  std::vector<std::string> paths = args.Has("split") ? args.positional() : ExpandInputs(args.positional());
   for (const auto& p : args.positional()) {
     if (!std::filesystem::exists(p)) {
       std::cerr << "uav_mosaic_files: " << p << ": no such image or folder\n";
@@ -181,10 +194,35 @@ int main(int argc, char** argv) {
               << "'\n";
     return 1;
   }
+  // Every header before any photo is decoded: limits, and one size for the survey.
+  vloc::ImageLimits limits;
+  try {
+    const std::string config = args.Has("config") ? args.Get("config") : "";
+    if (!config.empty() && vloc::LoadYamlFile(config)["photo_limits"])
+      limits = vloc::LoadOptionsFile<vloc::ImageLimits>(config, "photo_limits");
+  } catch (const vloc::ConfigError& e) {
+    std::cerr << "uav_mosaic_files: " << e.what() << "\n";
+    return 1;
+  }
+  int refusals = 0;  // photos and tags refused: the outputs hold the rest, the exit code is 2
+  cv::Size survey_size;
+  if (!args.Has("split")) {
+    const vm::SurveyPhotos checked = vm::CheckSurveyPhotos(paths, limits);
+    for (const auto& line : checked.refused) std::cerr << "uav_mosaic_files: " << line << "\n";
+    refusals += static_cast<int>(checked.refused.size());
+    if (checked.accepted.size() < 2) {
+      std::cerr << "uav_mosaic_files: " << checked.accepted.size() << " of " << paths.size()
+                << " photos usable: at least two are needed\n";
+      return 1;
+    }
+    paths = checked.accepted;
+    survey_size = checked.size;
+  }
   // Images are read one at a time (a survey can hold thousands); --split needs its one image.
-  cv::Mat first = cv::imread(paths[0], cv::IMREAD_COLOR);
+  std::string load_error;
+  cv::Mat first = vm::LoadCheckedPhoto(paths[0], limits, survey_size, &load_error);
   if (first.empty()) {
-    std::cerr << "uav_mosaic_files: cannot read image " << paths[0] << " (missing or not an image)\n";
+    std::cerr << "uav_mosaic_files: " << load_error << "\n";
     return 1;
   }
   std::vector<cv::Mat> split_views;
@@ -210,7 +248,7 @@ int main(int argc, char** argv) {
   }
   auto load = [&](size_t i) -> cv::Mat {
     if (!split_views.empty()) return split_views[i];
-    return i == 0 ? first : cv::imread(paths[i], cv::IMREAD_COLOR);
+    return i == 0 ? first : vm::LoadCheckedPhoto(paths[i], limits, survey_size, &load_error);
   };
   const size_t count = split_views.empty() ? paths.size() : split_views.size();
 
@@ -232,6 +270,9 @@ int main(int argc, char** argv) {
       std::cerr << "uav_mosaic_files: " << tag_error << " (geotags of this photo ignored)\n";
       frames[i].tag = vm::ImageGeotag();
     }
+    for (const auto& line : frames[i].tag.refused)
+      std::cerr << "uav_mosaic_files: " << paths[i] << ": " << line << " (this tag is not used)\n";
+    refusals += static_cast<int>(frames[i].tag.refused.size());
     if (frames[i].tag.has_gps) ++tagged;
   }
   const bool use_gps = tagged >= 2 && !args.Has("no-gps");
@@ -268,6 +309,10 @@ int main(int argc, char** argv) {
     double f = size.width;
     if (args.Has("focal")) {
       f = args.GetDouble("focal", size.width);
+      if (!(f > 0 && f < 1e6)) {
+        std::cerr << "uav_mosaic_files: --focal " << args.Get("focal") << " is not a focal length in px (0, 1e6)\n";
+        return 1;
+      }
       focal_source = "--focal";
     } else if (std::isfinite(exif_focal)) {
       f = exif_focal;
@@ -294,6 +339,11 @@ int main(int argc, char** argv) {
     height_source = "the DJI relative altitude (XMP) of the first photo";
   } else if (args.Has("height")) {
     height = args.GetDouble("height", 100.0);
+    if (!(height > 0 && height <= vm::GeotagRanges::kMaxAltitude)) {
+      std::cerr << "uav_mosaic_files: --height " << args.Get("height") << " is not a height in (0, "
+                << vm::GeotagRanges::kMaxAltitude << "] m\n";
+      return 1;
+    }
     height_source = "--height";
   } else {
     height_source = "the default (no marker, no relative altitude, no --height: heights are only relative)";
@@ -340,7 +390,7 @@ int main(int argc, char** argv) {
     const cv::Mat image = load(i);
     decode_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_decode).count();
     if (image.empty()) {
-      std::cerr << "uav_mosaic_files: cannot read image " << paths[i] << " (missing or not an image); skipped\n";
+      std::cerr << "uav_mosaic_files: " << load_error << "; skipped\n";
       ++failures;
       continue;
     }
@@ -489,7 +539,7 @@ int main(int argc, char** argv) {
       std::cout << "heights on the GPS track's scale: first height " << options.calibration.height * k << " m (x " << k
                 << ")\n";
     }
-    if (rc.ok && args.Has("reference")) CompareWithReference(args.Get("reference"), frames, paths, ls);
+    if (rc.ok && args.Has("reference")) CompareWithReference(args.Get("reference"), frames, paths, ls, limits);
     const vm::HeightComparison hc = vm::CompareHeights(heights, gps_heights, !relative);
     if (hc.ok) {
       std::cout << "height vs GPS " << (relative ? "relative altitude" : "altitude minus a fitted ground level (" + std::to_string(hc.offset_m) + " m)")
@@ -547,5 +597,12 @@ int main(int argc, char** argv) {
     }
     std::cout << "GeoJSON: " << args.Get("geojson") << "\n";
   }
-  return failures == 0 ? 0 : 2;
+  return failures == 0 && refusals == 0 ? 0 : 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  vloc::InitLogging(argv[0]);
+  return vloc::RunTool("uav_mosaic_files", [&] { return Run(argc, argv); });
 }

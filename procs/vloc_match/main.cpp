@@ -22,7 +22,9 @@
 #include <yaml-cpp/yaml.h>
 
 #include "vloc/common/command_line.h"
+#include "vloc/common/image_header.h"
 #include "vloc/common/logging.h"
+#include "vloc/common/tool_main.h"
 #include "vloc/features/asift.h"
 #include "vloc/features/homography_match.h"
 
@@ -56,10 +58,29 @@ cv::Matx33d ReadHomography(const std::string& path) {
   return cv::Matx33d(m.ptr<double>());
 }
 
-}  // namespace
+// Smaller images cannot be matched (ASIFT reduces them by --coarse-scale
+// and by each tilt).
+constexpr int kMinImageSide = 32;
 
-int main(int argc, char** argv) {
-  vloc::InitLogging(argv[0]);
+// A grayscale image from `path`, its header checked before decoding (size
+// limits: vloc::ImageLimits' defaults, about 100 MP); empty with one line in
+// *error when refused.
+cv::Mat ReadImage(const std::string& path, std::string* error) {
+  std::vector<uint8_t> bytes;
+  vloc::ImageHeader header;
+  if (!vloc::ReadCheckedImageFile(path, vloc::ImageLimits(), &bytes, &header, error)) return cv::Mat();
+  if (header.width < kMinImageSide || header.height < kMinImageSide) {
+    *error = path + ": " + header.Describe() + " is too small to match (at least " + std::to_string(kMinImageSide) +
+             " x " + std::to_string(kMinImageSide) + " px)";
+    return cv::Mat();
+  }
+  const cv::Mat image = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+  if (image.empty()) *error = path + ": " + header.Describe() + " cannot be decoded (corrupt data?)";
+  return image;
+}
+
+// The tool; main() turns any exception into one line and exit code 1.
+int Run(int argc, char** argv) {
   vloc::CommandLine args;
   std::string error;
   const char* usage =
@@ -72,13 +93,12 @@ int main(int argc, char** argv) {
     std::cerr << (error.empty() ? usage : "vloc_match: " + error + "\n" + usage) << "\n";
     return args.Has("help") ? 0 : 1;
   }
-  const cv::Mat a = cv::imread(args.positional()[0], cv::IMREAD_GRAYSCALE);
-  const cv::Mat b = cv::imread(args.positional()[1], cv::IMREAD_GRAYSCALE);
-  for (int k = 0; k < 2; ++k) {
-    if ((k == 0 ? a : b).empty()) {
-      std::cerr << "vloc_match: cannot read image " << args.positional()[k] << " (check the path and format)\n";
-      return 1;
-    }
+  std::string read_error;
+  const cv::Mat a = ReadImage(args.positional()[0], &read_error);
+  const cv::Mat b = a.empty() ? cv::Mat() : ReadImage(args.positional()[1], &read_error);
+  if (a.empty() || b.empty()) {
+    std::cerr << "vloc_match: " << read_error << "\n";
+    return 1;
   }
   const int threads = std::max(1, args.GetInt("threads", 2));
   vloc::HomographyMatchOptions hm;
@@ -214,4 +234,11 @@ int main(int argc, char** argv) {
     }
   }
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  vloc::InitLogging(argv[0]);
+  return vloc::RunTool("vloc_match", [&] { return Run(argc, argv); });
 }

@@ -21,7 +21,9 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "vloc/common/command_line.h"
+#include "vloc/common/image_header.h"
 #include "vloc/common/logging.h"
+#include "vloc/common/tool_main.h"
 #include "vloc/common/options.h"
 #include "vloc/features/dense_stereo.h"
 #include "vloc/features/stereo_pair_check.h"
@@ -54,10 +56,8 @@ bool CheckPair(const cv::Mat& left, const cv::Mat& right, bool auto_range, doubl
   return true;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  vloc::InitLogging(argv[0]);
+// The tool; main() turns any exception into one line and exit code 1.
+int Run(int argc, char** argv) {
   vloc::CommandLine args;
   std::string error;
   const char* usage =
@@ -70,8 +70,18 @@ int main(int argc, char** argv) {
     std::cerr << (error.empty() ? usage : "vloc_stereo: " + error + "\n" + usage) << "\n";
     return args.Has("help") ? 0 : 1;
   }
-  const cv::Mat left8 = cv::imread(args.positional()[0], cv::IMREAD_GRAYSCALE);
-  const cv::Mat right8 = cv::imread(args.positional()[1], cv::IMREAD_GRAYSCALE);
+  // Headers before decoding: sizes over vloc::ImageLimits' defaults (about 100 MP) are refused.
+  cv::Mat images[2];
+  for (int k = 0; k < 2; ++k) {
+    std::vector<uint8_t> bytes;
+    vloc::ImageHeader header;
+    if (!vloc::ReadCheckedImageFile(args.positional()[k], vloc::ImageLimits(), &bytes, &header, &error)) {
+      std::cerr << "vloc_stereo: " << error << "\n";
+      return 1;
+    }
+    images[k] = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+  }
+  const cv::Mat left8 = images[0], right8 = images[1];
   if (left8.empty() || right8.empty() || left8.size() != right8.size()) {
     std::cerr << "vloc_stereo: cannot read two images of the same size from " << args.positional()[0] << " and "
               << args.positional()[1] << "\n";
@@ -155,4 +165,11 @@ int main(int argc, char** argv) {
   std::cout << "seconds: " << summary.total_seconds << "  # zncc " << summary.zncc_seconds << ", median "
             << summary.median_seconds << ", lsm " << summary.lsm_seconds << "\n";
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  vloc::InitLogging(argv[0]);
+  return vloc::RunTool("vloc_stereo", [&] { return Run(argc, argv); });
 }

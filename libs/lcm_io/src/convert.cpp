@@ -1,5 +1,7 @@
 #include "vloc/lcm_io/convert.h"
 
+#include "vloc/lcm_io/convert_image.h"
+
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -58,7 +60,9 @@ image_t ImageToMessage(const cv::Mat& image, ImageEncoding encoding, int64_t uti
   return msg;
 }
 
-cv::Mat ImageFromMessage(const image_t& msg) {
+cv::Mat ImageFromMessage(const image_t& msg) { return ImageFromMessage(msg, ImageLimits()); }
+
+cv::Mat ImageFromMessage(const image_t& msg, const ImageLimits& limits) {
   const std::string who = "image '" + msg.frame_id + "'";
   if (msg.size != static_cast<int32_t>(msg.data.size()))
     throw std::invalid_argument(who + ": size field does not match the data");
@@ -68,6 +72,10 @@ cv::Mat ImageFromMessage(const image_t& msg) {
       const int channels = msg.encoding == image_t::ENCODING_GRAY8 ? 1 : 3;
       if (msg.width <= 0 || msg.height <= 0)
         throw std::invalid_argument(who + ": width and height must be positive");
+      if (msg.width > limits.max_width || msg.height > limits.max_height ||
+          int64_t(msg.width) * msg.height > limits.max_pixels)
+        throw std::invalid_argument(who + ": raw " + std::to_string(msg.width) + " x " + std::to_string(msg.height) +
+                                    " over the limit of " + limits.Describe());
       const int64_t expected = int64_t(msg.width) * msg.height * channels;
       if (expected != msg.size)
         throw std::invalid_argument(who + ": " + std::to_string(msg.size) + " bytes for a " +
@@ -82,6 +90,15 @@ cv::Mat ImageFromMessage(const image_t& msg) {
     }
     case image_t::ENCODING_PNG:
     case image_t::ENCODING_JPEG: {
+      // The header first: a 2 MB PNG can claim 12,000 x 12,000 16-bit pixels.
+      ImageHeader header;
+      std::string why;
+      if (!InspectImage(msg.data.data(), msg.data.size(), limits, &header, &why))
+        throw std::invalid_argument(who + ": " + why);
+      const ImageFormat declared = msg.encoding == image_t::ENCODING_PNG ? ImageFormat::kPng : ImageFormat::kJpeg;
+      if (header.format != declared)
+        throw std::invalid_argument(who + ": declared " + ToString(declared) + " but the bytes are " +
+                                    ToString(header.format));
       cv::Mat out = cv::imdecode(msg.data, cv::IMREAD_UNCHANGED);
       if (out.empty()) throw std::invalid_argument(who + ": compressed data cannot be decoded");
       if (out.depth() != CV_8U) out.convertTo(out, CV_8U);

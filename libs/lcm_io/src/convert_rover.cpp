@@ -1,5 +1,7 @@
 #include "vloc/lcm_io/convert_rover.h"
 
+#include "vloc/lcm_io/convert_image.h"
+
 #include <opencv2/imgproc.hpp>
 
 #include <cmath>
@@ -36,7 +38,9 @@ stereo_image_t StereoPairToMessage(const StereoPair& pair, ImageEncoding encodin
   return msg;
 }
 
-StereoPair StereoPairFromMessage(const stereo_image_t& msg) {
+StereoPair StereoPairFromMessage(const stereo_image_t& msg) { return StereoPairFromMessage(msg, ImageLimits()); }
+
+StereoPair StereoPairFromMessage(const stereo_image_t& msg, const ImageLimits& limits) {
   const std::string who = "stereo pair " + std::to_string(msg.pair_index) + " of site " + std::to_string(msg.site_id);
   if (msg.site_id < 0) throw std::invalid_argument(who + ": negative site id");
   if (msg.num_pairs <= 0 || msg.num_pairs > kMaxPairsPerSite || msg.pair_index < 0 || msg.pair_index >= msg.num_pairs)
@@ -52,8 +56,12 @@ StereoPair StereoPairFromMessage(const stereo_image_t& msg) {
   pair.num_pairs = msg.num_pairs;
   pair.mast_pan = msg.mast_pan;
   pair.mast_tilt = msg.mast_tilt;
-  pair.left = ToGray(ImageFromMessage(msg.left));
-  pair.right = ToGray(ImageFromMessage(msg.right));
+  try {
+    pair.left = ToGray(ImageFromMessage(msg.left, limits));
+    pair.right = ToGray(ImageFromMessage(msg.right, limits));
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(who + ": " + e.what());
+  }
   if (pair.left.size() != pair.right.size())
     throw std::invalid_argument(who + ": left and right images differ in size");
   return pair;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <ctime>
 #include <mutex>
@@ -55,17 +56,36 @@ double ExifDegrees(const Exiv2::ExifData& exif, const char* key) {
   return deg;
 }
 
-double XmpNumber(const Exiv2::XmpData& xmp, const char* key) {
+// NaN when absent; a value present but not a number ("abc", "nan", "12 m")
+// is named in tag->refused.
+double XmpNumber(const Exiv2::XmpData& xmp, const char* key, ImageGeotag* tag) {
+  std::string s;
   try {
     const auto it = xmp.findKey(Exiv2::XmpKey(key));
     if (it == xmp.end()) return std::numeric_limits<double>::quiet_NaN();
-    const std::string s = it->toString();
-    char* end = nullptr;
-    const double v = std::strtod(s.c_str(), &end);
-    return end != s.c_str() ? v : std::numeric_limits<double>::quiet_NaN();
+    s = it->toString();
   } catch (const std::exception&) {
     return std::numeric_limits<double>::quiet_NaN();
   }
+  char* end = nullptr;
+  const double v = std::strtod(s.c_str(), &end);
+  while (end && std::isspace(static_cast<unsigned char>(*end))) ++end;
+  if (end == s.c_str() || *end != '\0' || std::isnan(v)) {
+    tag->refused.push_back(std::string(key) + " = '" + s.substr(0, 40) + "' is not a number: refused");
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+  return v;
+}
+
+// `*value` (read from `key`) when finite and in [lo, hi]; else NaN with a
+// line in tag->refused. An absent tag (NaN) stays absent silently.
+void RequireRange(const char* key, double lo, double hi, const char* unit, double* value, ImageGeotag* tag) {
+  if (std::isnan(*value)) return;  // absent, or a rational with a zero denominator
+  if (*value >= lo && *value <= hi) return;
+  char line[256];
+  std::snprintf(line, sizeof(line), "%s = %g %s is outside [%g, %g] %s: refused", key, *value, unit, lo, hi, unit);
+  tag->refused.push_back(line);
+  *value = std::numeric_limits<double>::quiet_NaN();
 }
 
 std::string Lower(std::string s) {
@@ -126,10 +146,15 @@ bool ReadGeotag(const std::string& path, ImageGeotag* tag, std::string* error) {
       const std::string lon_ref = ExifString(exif, "Exif.GPSInfo.GPSLongitudeRef");
       tag->latitude = (!lat_ref.empty() && (lat_ref[0] == 'S' || lat_ref[0] == 's')) ? -lat : lat;
       tag->longitude = (!lon_ref.empty() && (lon_ref[0] == 'W' || lon_ref[0] == 'w')) ? -lon : lon;
-      tag->has_gps = std::abs(tag->latitude) <= 90 && std::abs(tag->longitude) <= 180;
+      RequireRange("Exif.GPSInfo.GPSLatitude", -90, 90, "deg", &tag->latitude, tag);
+      RequireRange("Exif.GPSInfo.GPSLongitude", -180, 180, "deg", &tag->longitude, tag);
+      tag->has_gps = std::isfinite(tag->latitude) && std::isfinite(tag->longitude);
+      if (!tag->has_gps) tag->latitude = tag->longitude = ImageGeotag::kNaN;
     }
     tag->altitude = ExifNumber(exif, "Exif.GPSInfo.GPSAltitude");
     if (std::isfinite(tag->altitude) && ExifNumber(exif, "Exif.GPSInfo.GPSAltitudeRef") == 1) tag->altitude = -tag->altitude;
+    RequireRange("Exif.GPSInfo.GPSAltitude", GeotagRanges::kMinAltitude, GeotagRanges::kMaxAltitude, "m",
+                 &tag->altitude, tag);
     const double gps_hours = ExifDegrees(exif, "Exif.GPSInfo.GPSTimeStamp");  // h, m, s rationals read as h + m/60 + s/3600
     int64_t gps_day = 0;
     if (std::isfinite(gps_hours) && gps_hours >= 0 && gps_hours < 24.0 &&
@@ -148,9 +173,13 @@ bool ReadGeotag(const std::string& path, ImageGeotag* tag, std::string* error) {
       }
     }
     tag->focal_mm = ExifNumber(exif, "Exif.Photo.FocalLength");
+    RequireRange("Exif.Photo.FocalLength", GeotagRanges::kMinFocal, GeotagRanges::kMaxFocal, "mm", &tag->focal_mm, tag);
     tag->focal_35mm = ExifNumber(exif, "Exif.Photo.FocalLengthIn35mmFilm");
-    if (!(tag->focal_35mm > 0)) tag->focal_35mm = ImageGeotag::kNaN;
-    const double px_w = ExifNumber(exif, "Exif.Photo.PixelXDimension");
+    if (tag->focal_35mm == 0) tag->focal_35mm = ImageGeotag::kNaN;  // 0: "unknown" in EXIF
+    RequireRange("Exif.Photo.FocalLengthIn35mmFilm", GeotagRanges::kMinFocal35, GeotagRanges::kMaxFocal35, "mm",
+                 &tag->focal_35mm, tag);
+    double px_w = ExifNumber(exif, "Exif.Photo.PixelXDimension");
+    RequireRange("Exif.Photo.PixelXDimension", 1, GeotagRanges::kMaxExifWidth, "px", &px_w, tag);
     tag->exif_width = std::isfinite(px_w) ? static_cast<int>(px_w) : 0;
     // Focal plane resolution: pixels per unit (2 = inch, 3 = cm, 4 = mm).
     const double fpx = ExifNumber(exif, "Exif.Photo.FocalPlaneXResolution");
@@ -159,20 +188,34 @@ bool ReadGeotag(const std::string& path, ImageGeotag* tag, std::string* error) {
     if (fpx > 0 && tag->exif_width > 0) {
       tag->sensor_width_mm = tag->exif_width / fpx * unit_mm;
       tag->sensor_width_source = "exif focal plane resolution";
-    } else {
+      RequireRange("Exif.Photo.FocalPlaneXResolution (sensor width)", GeotagRanges::kMinSensorWidth,
+                   GeotagRanges::kMaxSensorWidth, "mm", &tag->sensor_width_mm, tag);
+    }
+    if (!std::isfinite(tag->sensor_width_mm)) {
       tag->sensor_width_mm = KnownSensorWidth(tag->make, tag->model);
       if (std::isfinite(tag->sensor_width_mm)) tag->sensor_width_source = "camera table";
     }
     const Exiv2::XmpData& xmp = image->xmpData();
-    tag->relative_altitude = XmpNumber(xmp, "Xmp.drone-dji.RelativeAltitude");
-    tag->gimbal_pitch = XmpNumber(xmp, "Xmp.drone-dji.GimbalPitchDegree");
-    tag->gimbal_roll = XmpNumber(xmp, "Xmp.drone-dji.GimbalRollDegree");
-    tag->gimbal_yaw = XmpNumber(xmp, "Xmp.drone-dji.GimbalYawDegree");
-    tag->flight_pitch = XmpNumber(xmp, "Xmp.drone-dji.FlightPitchDegree");
-    tag->flight_roll = XmpNumber(xmp, "Xmp.drone-dji.FlightRollDegree");
-    tag->flight_yaw = XmpNumber(xmp, "Xmp.drone-dji.FlightYawDegree");
+    tag->relative_altitude = XmpNumber(xmp, "Xmp.drone-dji.RelativeAltitude", tag);
+    tag->gimbal_pitch = XmpNumber(xmp, "Xmp.drone-dji.GimbalPitchDegree", tag);
+    tag->gimbal_roll = XmpNumber(xmp, "Xmp.drone-dji.GimbalRollDegree", tag);
+    tag->gimbal_yaw = XmpNumber(xmp, "Xmp.drone-dji.GimbalYawDegree", tag);
+    tag->flight_pitch = XmpNumber(xmp, "Xmp.drone-dji.FlightPitchDegree", tag);
+    tag->flight_roll = XmpNumber(xmp, "Xmp.drone-dji.FlightRollDegree", tag);
+    tag->flight_yaw = XmpNumber(xmp, "Xmp.drone-dji.FlightYawDegree", tag);
+    RequireRange("Xmp.drone-dji.RelativeAltitude", GeotagRanges::kMinAltitude, GeotagRanges::kMaxAltitude, "m",
+                 &tag->relative_altitude, tag);
+    const double a = GeotagRanges::kMaxAngle;
+    RequireRange("Xmp.drone-dji.GimbalPitchDegree", -a, a, "deg", &tag->gimbal_pitch, tag);
+    RequireRange("Xmp.drone-dji.GimbalRollDegree", -a, a, "deg", &tag->gimbal_roll, tag);
+    RequireRange("Xmp.drone-dji.GimbalYawDegree", -a, a, "deg", &tag->gimbal_yaw, tag);
+    RequireRange("Xmp.drone-dji.FlightPitchDegree", -a, a, "deg", &tag->flight_pitch, tag);
+    RequireRange("Xmp.drone-dji.FlightRollDegree", -a, a, "deg", &tag->flight_roll, tag);
+    RequireRange("Xmp.drone-dji.FlightYawDegree", -a, a, "deg", &tag->flight_yaw, tag);
     if (!std::isfinite(tag->altitude)) {
-      const double abs_alt = XmpNumber(xmp, "Xmp.drone-dji.AbsoluteAltitude");
+      double abs_alt = XmpNumber(xmp, "Xmp.drone-dji.AbsoluteAltitude", tag);
+      RequireRange("Xmp.drone-dji.AbsoluteAltitude", GeotagRanges::kMinAltitude, GeotagRanges::kMaxAltitude, "m",
+                   &abs_alt, tag);
       if (std::isfinite(abs_alt)) tag->altitude = abs_alt;
     }
   } catch (const std::exception& e) {

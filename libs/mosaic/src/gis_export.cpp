@@ -162,18 +162,27 @@ bool WriteRouteGeoJson(const std::vector<GeoFrame>& frames, const std::string& p
   out << "{\"type\": \"FeatureCollection\",\n \"features\": [\n";
   out << "  {\"type\": \"Feature\", \"properties\": {\"name\": \"route\"}, \"geometry\": {\"type\": \"LineString\", "
          "\"coordinates\": [";
+  // JSON has no inf or nan: a height that is not finite is null, a position
+  // that is not a position (not finite, outside WGS84) has no geometry.
+  auto located = [](const GeoFrame& f) {
+    return std::isfinite(f.latitude) && std::isfinite(f.longitude) && std::abs(f.latitude) <= 90 &&
+           std::abs(f.longitude) <= 180;
+  };
   bool first = true;
   for (const auto& f : frames) {
-    if (!f.registered) continue;
+    if (!f.registered || !located(f)) continue;
     out << (first ? "" : ", ") << "[" << f.longitude << ", " << f.latitude << "]";
     first = false;
   }
   out << "]}}";
   for (const auto& f : frames) {
     out << ",\n  {\"type\": \"Feature\", \"properties\": {\"name\": \"" << JsonEscape(f.name) << "\", \"index\": " << f.index
-        << ", \"status\": \"" << JsonEscape(f.status) << "\", \"height_m\": " << f.height
-        << ", \"registered\": " << (f.registered ? "true" : "false")
-        << "}, \"geometry\": {\"type\": \"Point\", \"coordinates\": [" << f.longitude << ", " << f.latitude << "]}}";
+        << ", \"status\": \"" << JsonEscape(f.status) << "\", \"height_m\": ";
+    if (std::isfinite(f.height)) out << f.height;
+    else out << "null";
+    out << ", \"registered\": " << (f.registered ? "true" : "false") << "}, \"geometry\": ";
+    if (located(f)) out << "{\"type\": \"Point\", \"coordinates\": [" << f.longitude << ", " << f.latitude << "]}}";
+    else out << "null}";
   }
   out << "\n ]}\n";
   if (!out && error) *error = "cannot write GeoJSON " + path;

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <vector>
 
 namespace vloc::mosaic {
 
@@ -36,10 +37,26 @@ struct ImageGeotag {
   double relative_altitude = kNaN;      // m, above the take-off point
   double gimbal_pitch = kNaN, gimbal_roll = kNaN, gimbal_yaw = kNaN;  // deg; nadir = pitch -90
   double flight_pitch = kNaN, flight_roll = kNaN, flight_yaw = kNaN;  // deg
+  // Tags present but outside their physical range (GeotagRanges), one line
+  // each naming the tag, e.g. "Xmp.drone-dji.RelativeAltitude = 1e+308 m is
+  // outside [-500, 10000] m: refused". Their fields above stay NaN (absent).
+  std::vector<std::string> refused;
+};
+
+// The physical ranges a tag must lie in to be used (outside: refused, the
+// field left absent, ImageGeotag::refused says which).
+struct GeotagRanges {
+  static constexpr double kMinAltitude = -500, kMaxAltitude = 10000;            // m: GPS, absolute and relative altitude
+  static constexpr double kMinFocal = 0.5, kMaxFocal = 2000;                    // mm: Photo.FocalLength
+  static constexpr double kMinFocal35 = 2, kMaxFocal35 = 5000;                  // mm: Photo.FocalLengthIn35mmFilm
+  static constexpr double kMinSensorWidth = 1, kMaxSensorWidth = 100;           // mm: from FocalPlaneXResolution
+  static constexpr double kMaxAngle = 360;                                      // deg: gimbal and flight attitude, +-
+  static constexpr int kMaxExifWidth = 200000;                                  // px: Photo.PixelXDimension
 };
 
 // False with one line in *error when the file cannot be read as an image
-// with metadata. A file without any tag returns true with nothing set.
+// with metadata. A file without any tag returns true with nothing set. A
+// tag outside GeotagRanges is left absent and named in tag->refused.
 bool ReadGeotag(const std::string& path, ImageGeotag* tag, std::string* error);
 
 // Focal length in px for an image `image_width` px wide, from the EXIF focal
