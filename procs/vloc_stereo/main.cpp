@@ -76,7 +76,8 @@ int Run(int argc, char** argv) {
     std::vector<uint8_t> bytes;
     vloc::ImageHeader header;
     if (!vloc::ReadCheckedImageFile(args.positional()[k], vloc::ImageLimits(), &bytes, &header, &error)) {
-      std::cerr << "vloc_stereo: " << error << "\n";
+      std::cerr << "vloc_stereo: cannot read two images of the same size from " << args.positional()[0] << " and "
+                << args.positional()[1] << ": " << error << "\n";
       return 1;
     }
     images[k] = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);

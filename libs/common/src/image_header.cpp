@@ -312,7 +312,7 @@ bool InspectImage(const uint8_t* data, size_t size, const ImageLimits& limits, I
 
 bool ReadImageFileHeader(const std::string& path, ImageHeader* header, std::string* error) {
   struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) return Fail(error, path + ": cannot read (no such file?)");
+  if (::stat(path.c_str(), &st) != 0) return Fail(error, "cannot read image " + path + " (no such file)");
   if (!S_ISREG(st.st_mode)) return Fail(error, path + ": not a regular file");
   std::ifstream in(path, std::ios::binary);
   if (!in) return Fail(error, path + ": cannot open");

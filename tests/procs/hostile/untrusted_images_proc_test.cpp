@@ -285,7 +285,7 @@ TEST(UntrustedImages, MatchingToolsRefuseTinyAndBombImagesInOneLine) {
       {{BinPath("vloc_match"), ok, bomb}, "vloc_match: " + bomb + ": PNG 32000 x 32000"},
       // vloc_stereo says its pair check cannot tell, and writes an empty map: no crash.
       {{BinPath("vloc_stereo"), tiny, tiny, "--out", s.dir + "/d.png"}, "", false},
-      {{BinPath("vloc_stereo"), bomb, bomb, "--out", s.dir + "/d.png"}, "vloc_stereo: " + bomb + ": PNG 32000 x 32000"},
+      {{BinPath("vloc_stereo"), bomb, bomb, "--out", s.dir + "/d.png"}, bomb + ": PNG 32000 x 32000"},
       {{BinPath("vloc_stereo"), tiny, tiny, "--no-pair-check", "--out", s.dir + "/d.png"}, "", false},
   };
   for (const Case& c : cases) {
