@@ -3,8 +3,10 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <deque>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <mrpt/poses/CPose3DQuat.h>
@@ -94,38 +96,49 @@ void ChainOdometry(Graph* graph, const std::set<TNodeID>& referenced) {
   }
 }
 
-template <class Graph>
-void FinishGraph(Graph* graph, bool had_root) {
-  std::set<TNodeID> referenced;
-  for (const auto& [ids, edge] : graph->edges) {
-    referenced.insert(ids.first);
-    referenced.insert(ids.second);
-  }
-  bool missing = false;
-  for (const TNodeID id : referenced) missing |= graph->nodes.count(id) == 0;
-  if (missing) {
-    graph->nodes.clear();
-    ChainOdometry(graph, referenced);
-  }
-  if (!had_root && !graph->nodes.empty()) graph->root = graph->nodes.begin()->first;
+// What a file's records are checked against.
+constexpr TNodeID kMaxVertexId = 2147483647;       // g2o's vertex ids are C ints
+constexpr double kQuaternionNormTolerance = 1e-3;  // | |q| - 1 | beyond it: not a rotation (writers print >= 6 digits)
+
+std::string Str(double v) {
+  std::ostringstream os;
+  os.precision(6);
+  os << v;
+  return os.str();
 }
 
-std::string RepairReport(int repaired, int rejected, int skipped, const std::string& first_skipped) {
-  if (!repaired && !rejected && !skipped) return "";
+// A line as it can be quoted in one line of a message: at most 80
+// characters, control characters escaped.
+std::string Excerpt(const std::string& line) {
+  std::string out;
+  for (size_t i = 0; i < line.size() && out.size() < 80; ++i) {
+    const unsigned char c = static_cast<unsigned char>(line[i]);
+    if (c >= 0x20 && c != 0x7f) {
+      out += static_cast<char>(c);
+    } else {
+      char hex[8];
+      std::snprintf(hex, sizeof(hex), "\\x%02x", c);
+      out += hex;
+    }
+  }
+  if (out.size() >= 80) out += "...";
+  return out;
+}
+
+std::string RepairReport(int repaired, int skipped, const std::string& first_skipped) {
+  if (!repaired && !skipped) return "";
   std::ostringstream os;
   os << "pose graph: ";
   if (skipped) os << skipped << " records of other types skipped (the first: " << first_skipped << ")";
-  if (skipped && (rejected || repaired)) os << "; ";
-  if (rejected) os << rejected << " edges rejected (information matrix or pose not finite)";
-  if (rejected && repaired) os << "; ";
+  if (skipped && repaired) os << "; ";
   if (repaired)
-    os << repaired << " information matrices not positive definite, repaired by raising their eigenvalues "
+    os << repaired << " information matrices only positive semi-definite, repaired by raising their eigenvalues "
        << "to 1e-9 of the largest (check the file's information convention)";
   return os.str();
 }
 
 // Numbers by strtod, which also takes "nan" and "inf" (streams refuse them):
-// a non-finite value is then the edge's problem, not a parse error.
+// a non-finite value is then refused by name, not as a parse error.
 struct Numbers {
   std::istringstream& s;
   template <class... T>
@@ -141,16 +154,98 @@ struct Numbers {
   }
 };
 
-// Repairs an edge's information in place; false (the edge counted as rejected) when its pose is not finite or the
-// information is beyond repair; a repair is counted.
-template <int N>
-bool AcceptInformation(GraphFile* file, bool finite_pose, Eigen::Matrix<double, N, N>* information) {
-  bool repaired = false;
-  if (!finite_pose || !RepairInformation<N>(information, &repaired)) {
-    ++file->num_rejected;
-    return false;
+// One line of a graph file with a record on it: the key, the values after
+// it, and how to fail naming the line.
+struct Record {
+  std::string key;
+  std::istringstream rest;
+  int line_number = 0;
+  std::string line;
+  std::string* error = nullptr;
+
+  bool Refuse(const std::string& what) const { return Fail(error, "line " + std::to_string(line_number) + ": " + what); }
+  bool Bad() const { return Refuse("cannot parse '" + Excerpt(line) + "'"); }
+  bool Unknown(const std::string& graph_kind) const {
+    return Refuse("unknown record '" + Excerpt(key) + "' in a " + graph_kind);
   }
+  // A vertex id: a decimal integer in 0..kMaxVertexId ("-1" would wrap to 2^64 - 1 through a stream).
+  bool ReadId(TNodeID* id) {
+    std::string token;
+    if (!(rest >> token)) return Bad();
+    const bool digits = !token.empty() && token.size() <= 10 &&
+                        token.find_first_not_of("0123456789") == std::string::npos;
+    const unsigned long long value = digits ? std::strtoull(token.c_str(), nullptr, 10) : 0;
+    if (!digits || value > kMaxVertexId)
+      return Refuse("vertex id '" + Excerpt(token) + "' is not an integer in 0.." + std::to_string(kMaxVertexId));
+    *id = value;
+    return true;
+  }
+  // "EDGE_SE2 3 -> 7", the edge as messages name it.
+  std::string Edge(TNodeID i, TNodeID j) const { return key + " " + std::to_string(i) + " -> " + std::to_string(j); }
+};
+
+// Calls on_record for every line of `in` (from its start) that holds a
+// record: blank lines and '#' comments skipped. False as soon as on_record
+// returns false (with *error set).
+template <class OnRecord>
+bool ForEachRecord(std::istream& in, std::string* error, OnRecord&& on_record) {
+  in.clear();
+  in.seekg(0);
+  Record r;
+  r.error = error;
+  while (std::getline(in, r.line)) {
+    ++r.line_number;
+    r.rest.clear();
+    r.rest.str(r.line);
+    if (!(r.rest >> r.key) || r.key[0] == '#') continue;
+    if (!on_record(r)) return false;
+  }
+  return true;
+}
+
+bool CheckQuaternion(const Record& rec, const std::string& what, double qx, double qy, double qz, double qw) {
+  const double norm = std::sqrt(qx * qx + qy * qy + qz * qz + qw * qw);
+  if (std::abs(norm - 1.0) <= kQuaternionNormTolerance) return true;
+  return rec.Refuse(what + ": quaternion norm " + Str(norm) + " is not 1 (tolerance " + Str(kQuaternionNormTolerance) +
+                    "): not a rotation");
+}
+
+// An edge's information: refused when not finite, or when not positive
+// (semi-)definite (an eigenvalue below -1e-9 of the largest, or none
+// positive); a semi-definite one is repaired (RepairInformation) and counted.
+template <int N>
+bool CheckInformation(const Record& rec, const std::string& what, Eigen::Matrix<double, N, N>* information,
+                      GraphFile* file) {
+  if (!information->allFinite()) return rec.Refuse(what + ": information matrix not finite (nan or inf in it)");
+  const Eigen::Matrix<double, N, N> sym = 0.5 * (*information + information->transpose());
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> eig(sym, Eigen::EigenvaluesOnly);
+  const double smallest = eig.eigenvalues().minCoeff(), largest = eig.eigenvalues().maxCoeff();
+  bool repaired = false;
+  if (eig.info() != Eigen::Success || !(largest > 0) || smallest < -1e-9 * largest ||
+      !RepairInformation<N>(information, &repaired))
+    return rec.Refuse(what + ": information matrix not positive definite (eigenvalues " + Str(smallest) + " to " +
+                      Str(largest) + ")");
   file->num_repaired += repaired ? 1 : 0;
+  return true;
+}
+
+// The checks on an edge's ends: no self-loop, and both vertices defined
+// when the file defines any.
+template <class Graph>
+bool CheckEnds(const Record& rec, const Graph& graph, TNodeID i, TNodeID j) {
+  if (i == j) return rec.Refuse(rec.Edge(i, j) + ": an edge from a vertex to itself (a self-loop)");
+  if (graph.nodes.empty()) return true;  // a file of edges only: poses from chained odometry
+  for (const TNodeID id : {i, j})
+    if (!graph.nodes.count(id))
+      return rec.Refuse(rec.Edge(i, j) + ": vertex " + std::to_string(id) + " has no VERTEX line (the file defines " +
+                        std::to_string(graph.nodes.size()) + "; an edge may only join those)");
+  return true;
+}
+
+template <class Graph, class Pose>
+bool AddVertex(const Record& rec, Graph* graph, TNodeID id, const Pose& pose) {
+  if (!graph->nodes.emplace(id, pose).second)
+    return rec.Refuse("vertex " + std::to_string(id) + " defined a second time");
   return true;
 }
 
@@ -168,211 +263,234 @@ void InsertEdge(GraphFile* file, TNodeID i, TNodeID j, const mrpt::poses::CPose3
   file->graph3.insertEdge(i, j, edge);
 }
 
-// One line of a graph file with a record on it: the key, the values after
-// it, and how to fail naming the line.
-struct Record {
-  std::string key;
-  std::istringstream rest;
-  int line_number = 0;
-  std::string line;
-  std::string* error = nullptr;
-  bool Bad() const { return Fail(error, "line " + std::to_string(line_number) + ": cannot parse '" + line + "'"); }
-  bool Unknown(const std::string& graph_kind) const {
-    return Fail(error, "line " + std::to_string(line_number) + ": unknown record '" + key + "' in a " + graph_kind);
-  }
-};
-
-// Calls on_record for every line that holds a record (blank lines and '#'
-// comments skipped) and reads FIX records itself (*root, *had_root). False
-// as soon as a record fails (on_record returns false with *error set).
-template <class OnRecord>
-bool ForEachRecord(const std::string& text, std::string* error, TNodeID* root, bool* had_root, OnRecord&& on_record) {
-  std::istringstream lines(text);
-  Record r;
-  r.error = error;
-  while (std::getline(lines, r.line)) {
-    ++r.line_number;
-    r.rest.clear();
-    r.rest.str(r.line);
-    if (!(r.rest >> r.key) || r.key[0] == '#') continue;
-    if (r.key == "FIX") {
-      TNodeID id;
-      if (!(r.rest >> id)) return r.Bad();
-      *root = id;
-      *had_root = true;
-    } else if (!on_record(r)) {
-      return false;
+// Reads `in` in two passes: FIX and the vertices (is_vertex, on_vertex)
+// first, so that every edge is checked against them at its own line; then
+// every other record (on_other). A file with no vertex starts from chained
+// odometry, and must then be connected.
+template <class Graph, class IsVertex, class OnVertex, class OnOther>
+bool ParseRecords(std::istream& in, GraphFile* file, Graph* graph, std::string* error, IsVertex&& is_vertex,
+                  OnVertex&& on_vertex, OnOther&& on_other) {
+  bool had_root = false;
+  int root_line = 0;
+  const bool vertices_ok = ForEachRecord(in, error, [&](Record& r) {
+    if (r.key != "FIX") return is_vertex(r.key) ? on_vertex(r) : true;
+    if (!r.ReadId(&graph->root)) return false;
+    had_root = true;
+    root_line = r.line_number;
+    return true;
+  });
+  if (!vertices_ok) return false;
+  file->had_vertices = !graph->nodes.empty();
+  if (!ForEachRecord(in, error, [&](Record& r) { return r.key == "FIX" || is_vertex(r.key) || on_other(r); }))
+    return false;
+  if (!file->had_vertices) {
+    std::set<TNodeID> referenced;
+    for (const auto& [ids, edge] : graph->edges) {
+      referenced.insert(ids.first);
+      referenced.insert(ids.second);
     }
+    ChainOdometry(graph, referenced);
+    for (const TNodeID id : referenced)
+      if (!graph->nodes.count(id))
+        return Fail(error, "no VERTEX lines, and no chain of edges joins vertex " + std::to_string(id) + " to vertex " +
+                               std::to_string(*referenced.begin()) + " (the graph is not connected): give the vertices");
+  }
+  if (!had_root) {
+    if (!graph->nodes.empty()) graph->root = graph->nodes.begin()->first;
+  } else if (!graph->nodes.count(graph->root)) {
+    return Fail(error, "line " + std::to_string(root_line) + ": FIX " + std::to_string(graph->root) +
+                           " names no vertex of the graph");
   }
   return true;
 }
 
-bool ParseG2o(const std::string& text, GraphFile* file, std::string* error) {
-  bool had_root = false;
-  const bool ok = ForEachRecord(text, error, file->dimension == 2 ? &file->graph2.root : &file->graph3.root, &had_root, [&](Record& rec) {
+// g2o: VERTEX_SE3:QUAT / EDGE_SE3:QUAT or VERTEX_SE2 / EDGE_SE2; records of
+// other types (landmarks, priors, ...) skipped and counted.
+bool ParseG2o(std::istream& in, GraphFile* file, std::string* error) {
+  const bool three_d = file->dimension == 3;
+  const std::string vertex_key = three_d ? "VERTEX_SE3:QUAT" : "VERTEX_SE2";
+  const std::string edge_key = three_d ? "EDGE_SE3:QUAT" : "EDGE_SE2";
+  const std::string other_vertex = three_d ? "VERTEX_SE2" : "VERTEX_SE3:QUAT";
+  const std::string other_edge = three_d ? "EDGE_SE2" : "EDGE_SE3:QUAT";
+  auto is_vertex = [&](const std::string& key) { return key == vertex_key; };
+  auto on_other = [&](Record& rec) {
     std::istringstream& s = rec.rest;
-    const std::string& key = rec.key;
-    if (key == "VERTEX_SE3:QUAT") {
-      TNodeID id;
-      double x, y, z, qx, qy, qz, qw;
-      if (file->dimension != 3 || !(s >> id) || !Numbers{s}.Read(&x, &y, &z, &qx, &qy, &qz, &qw)) return rec.Bad();
-      file->graph3.nodes[id] = PoseFromQuat(x, y, z, qx, qy, qz, qw);
-    } else if (key == "EDGE_SE3:QUAT") {
-      TNodeID i, j;
+    if (rec.key == other_vertex || rec.key == other_edge)
+      return rec.Refuse(rec.key + " in a " + std::to_string(file->dimension) + "D graph (its first record decides)");
+    if (rec.key != edge_key) {
+      if (file->num_skipped++ == 0) file->first_skipped = rec.key;
+      return true;
+    }
+    TNodeID i, j;
+    if (!rec.ReadId(&i) || !rec.ReadId(&j)) return false;
+    if (!(three_d ? CheckEnds(rec, file->graph3, i, j) : CheckEnds(rec, file->graph2, i, j))) return false;
+    const std::string what = rec.Edge(i, j);
+    if (three_d) {
       double x, y, z, qx, qy, qz, qw;
       Matrix6 info;
-      if (file->dimension != 3 || !(s >> i >> j) || !Numbers{s}.Read(&x, &y, &z, &qx, &qy, &qz, &qw)) return rec.Bad();
+      if (!Numbers{s}.Read(&x, &y, &z, &qx, &qy, &qz, &qw)) return rec.Bad();
       for (int r = 0; r < 6; ++r)
         for (int c = r; c < 6; ++c) {
           if (!Numbers{s}.One(&info(r, c))) return rec.Bad();
           info(c, r) = info(r, c);
         }
+      if (!std::isfinite(x + y + z + qx + qy + qz + qw)) return rec.Refuse(what + ": pose not finite");
+      if (!CheckQuaternion(rec, what, qx, qy, qz, qw)) return false;
       Matrix6 information = QuatScale() * info * QuatScale();
-      if (!AcceptInformation<6>(file, std::isfinite(x + y + z + qx + qy + qz + qw), &information)) return true;
+      if (!CheckInformation<6>(rec, what, &information, file)) return false;
       InsertEdge(file, i, j, PoseFromQuat(x, y, z, qx, qy, qz, qw), information);
-    } else if (key == "VERTEX_SE2") {
-      TNodeID id;
-      double x, y, th;
-      if (file->dimension != 2 || !(s >> id) || !Numbers{s}.Read(&x, &y, &th)) return rec.Bad();
-      file->graph2.nodes[id] = mrpt::poses::CPose2D(x, y, th);
-    } else if (key == "EDGE_SE2") {
-      TNodeID i, j;
+    } else {
       double x, y, th;
       Eigen::Matrix3d info;
-      if (file->dimension != 2 || !(s >> i >> j) || !Numbers{s}.Read(&x, &y, &th)) return rec.Bad();
+      if (!Numbers{s}.Read(&x, &y, &th)) return rec.Bad();
       for (int r = 0; r < 3; ++r)
         for (int c = r; c < 3; ++c) {
           if (!Numbers{s}.One(&info(r, c))) return rec.Bad();
           info(c, r) = info(r, c);
         }
-      if (!AcceptInformation<3>(file, std::isfinite(x + y + th), &info)) return true;
+      if (!std::isfinite(x + y + th)) return rec.Refuse(what + ": pose not finite");
+      if (!CheckInformation<3>(rec, what, &info, file)) return false;
       InsertEdge(file, i, j, mrpt::poses::CPose2D(x, y, th), info);
-    } else {
-      if (file->num_skipped++ == 0) file->first_skipped = key;
     }
     return true;
-  });
-  if (!ok) return false;
-  if (file->dimension == 2) FinishGraph(&file->graph2, had_root);
-  else FinishGraph(&file->graph3, had_root);
-  return true;
+  };
+  auto on_vertex = [&](Record& rec) {
+    std::istringstream& s = rec.rest;
+    TNodeID id;
+    if (!rec.ReadId(&id)) return false;
+    const std::string what = "vertex " + std::to_string(id);
+    if (three_d) {
+      double x, y, z, qx, qy, qz, qw;
+      if (!Numbers{s}.Read(&x, &y, &z, &qx, &qy, &qz, &qw)) return rec.Bad();
+      if (!std::isfinite(x + y + z + qx + qy + qz + qw)) return rec.Refuse(what + ": pose not finite");
+      if (!CheckQuaternion(rec, what, qx, qy, qz, qw)) return false;
+      return AddVertex(rec, &file->graph3, id, PoseFromQuat(x, y, z, qx, qy, qz, qw));
+    }
+    double x, y, th;
+    if (!Numbers{s}.Read(&x, &y, &th)) return rec.Bad();
+    if (!std::isfinite(x + y + th)) return rec.Refuse(what + ": pose not finite");
+    return AddVertex(rec, &file->graph2, id, mrpt::poses::CPose2D(x, y, th));
+  };
+  if (three_d) return ParseRecords(in, file, &file->graph3, error, is_vertex, on_vertex, on_other);
+  return ParseRecords(in, file, &file->graph2, error, is_vertex, on_vertex, on_other);
 }
 
 // MRPT's 3D text records, read in MRPT's layout (VERTEX3 id x y z roll
 // pitch yaw; EDGE3 i j x y z roll pitch yaw + the 21 values MRPT's writer
 // puts out, rows 0 1 2 5 4 3 of its matrix). MRPT 2.5's own reader mirrors
 // three entries it never read over the rotation cross terms; this one keeps
-// them. Information matrices repaired / rejected like the g2o path.
-bool ParseMrpt3D(const std::string& text, GraphFile* file, std::string* error) {
+// them. Checked like the g2o records.
+bool ParseMrpt3D(std::istream& in, GraphFile* file, std::string* error) {
   static const int kOrder[21][2] = {{0, 0}, {0, 1}, {0, 2}, {0, 5}, {0, 4}, {0, 3}, {1, 1}, {1, 2}, {1, 5}, {1, 4}, {1, 3},
                                     {2, 2}, {2, 5}, {2, 4}, {2, 3}, {5, 5}, {5, 4}, {5, 3}, {4, 4}, {4, 3}, {3, 3}};
-  bool had_root = false;
-  const bool ok = ForEachRecord(text, error, &file->graph3.root, &had_root, [&](Record& rec) {
-    std::istringstream& s = rec.rest;
-    const std::string& key = rec.key;
-    if (key == "VERTEX3") {
-      TNodeID id;
-      mrpt::math::TPose3D p;
-      if (!(s >> id) || !Numbers{s}.Read(&p.x, &p.y, &p.z, &p.roll, &p.pitch, &p.yaw)) return rec.Bad();
-      file->graph3.nodes[id] = mrpt::poses::CPose3D(p);
-    } else if (key == "EDGE3") {
-      TNodeID i, j;
-      mrpt::math::TPose3D p;
-      if (!(s >> i >> j) || !Numbers{s}.Read(&p.x, &p.y, &p.z, &p.roll, &p.pitch, &p.yaw)) return rec.Bad();
-      Matrix6 info = Matrix6::Identity();
-      double v;
-      for (const auto& rc : kOrder) {
-        if (!Numbers{s}.One(&v)) return rec.Bad();
-        info(rc[0], rc[1]) = info(rc[1], rc[0]) = v;
-      }
-      if (!AcceptInformation<6>(file, std::isfinite(p.x + p.y + p.z + p.roll + p.pitch + p.yaw), &info)) return true;
-      InsertEdge(file, i, j, mrpt::poses::CPose3D(p), info);
-    } else if (key != "EQUIV") {
-      return rec.Unknown("3D MRPT graph");
+  auto is_vertex = [](const std::string& key) { return key == "VERTEX3"; };
+  auto on_vertex = [&](Record& rec) {
+    TNodeID id;
+    mrpt::math::TPose3D p;
+    if (!rec.ReadId(&id)) return false;
+    if (!Numbers{rec.rest}.Read(&p.x, &p.y, &p.z, &p.roll, &p.pitch, &p.yaw)) return rec.Bad();
+    if (!std::isfinite(p.x + p.y + p.z + p.roll + p.pitch + p.yaw))
+      return rec.Refuse("vertex " + std::to_string(id) + ": pose not finite");
+    return AddVertex(rec, &file->graph3, id, mrpt::poses::CPose3D(p));
+  };
+  auto on_other = [&](Record& rec) {
+    if (rec.key == "EQUIV") return true;
+    if (rec.key != "EDGE3") return rec.Unknown("3D MRPT graph");
+    TNodeID i, j;
+    mrpt::math::TPose3D p;
+    if (!rec.ReadId(&i) || !rec.ReadId(&j) || !CheckEnds(rec, file->graph3, i, j)) return false;
+    if (!Numbers{rec.rest}.Read(&p.x, &p.y, &p.z, &p.roll, &p.pitch, &p.yaw)) return rec.Bad();
+    Matrix6 info = Matrix6::Identity();
+    double v;
+    for (const auto& rc : kOrder) {
+      if (!Numbers{rec.rest}.One(&v)) return rec.Bad();
+      info(rc[0], rc[1]) = info(rc[1], rc[0]) = v;
     }
+    if (!std::isfinite(p.x + p.y + p.z + p.roll + p.pitch + p.yaw)) return rec.Refuse(rec.Edge(i, j) + ": pose not finite");
+    if (!CheckInformation<6>(rec, rec.Edge(i, j), &info, file)) return false;
+    InsertEdge(file, i, j, mrpt::poses::CPose3D(p), info);
     return true;
-  });
-  if (!ok) return false;
-  FinishGraph(&file->graph3, had_root);
-  return true;
+  };
+  return ParseRecords(in, file, &file->graph3, error, is_vertex, on_vertex, on_other);
 }
 
 // TORO's 2D records: VERTEX2 (or VERTEX) id x y theta; EDGE2 (or EDGE) i j
 // dx dy dtheta I_xx I_xy I_yy I_tt I_xt I_yt (TORO's information order; MRPT
 // 2.5's reader takes them in g2o's order, which swaps the cross terms).
-bool ParseToro2D(const std::string& text, GraphFile* file, std::string* error) {
-  bool had_root = false;
-  const bool ok = ForEachRecord(text, error, &file->graph2.root, &had_root, [&](Record& rec) {
-    std::istringstream& s = rec.rest;
-    const std::string& key = rec.key;
-    if (key == "VERTEX2" || key == "VERTEX") {
-      TNodeID id;
-      double x, y, th;
-      if (!(s >> id) || !Numbers{s}.Read(&x, &y, &th)) return rec.Bad();
-      file->graph2.nodes[id] = mrpt::poses::CPose2D(x, y, th);
-    } else if (key == "EDGE2" || key == "EDGE") {
-      TNodeID i, j;
-      double x, y, th, xx, xy, yy, tt, xt, yt;
-      if (!(s >> i >> j) || !Numbers{s}.Read(&x, &y, &th, &xx, &xy, &yy, &tt, &xt, &yt)) return rec.Bad();
-      Eigen::Matrix3d info;
-      info << xx, xy, xt, xy, yy, yt, xt, yt, tt;
-      if (!AcceptInformation<3>(file, std::isfinite(x + y + th), &info)) return true;
-      InsertEdge(file, i, j, mrpt::poses::CPose2D(x, y, th), info);
-    } else if (key != "EQUIV") {
-      return rec.Unknown("2D TORO graph");
-    }
+bool ParseToro2D(std::istream& in, GraphFile* file, std::string* error) {
+  auto is_vertex = [](const std::string& key) { return key == "VERTEX2" || key == "VERTEX"; };
+  auto on_vertex = [&](Record& rec) {
+    TNodeID id;
+    double x, y, th;
+    if (!rec.ReadId(&id)) return false;
+    if (!Numbers{rec.rest}.Read(&x, &y, &th)) return rec.Bad();
+    if (!std::isfinite(x + y + th)) return rec.Refuse("vertex " + std::to_string(id) + ": pose not finite");
+    return AddVertex(rec, &file->graph2, id, mrpt::poses::CPose2D(x, y, th));
+  };
+  auto on_other = [&](Record& rec) {
+    if (rec.key == "EQUIV") return true;
+    if (rec.key != "EDGE2" && rec.key != "EDGE") return rec.Unknown("2D TORO graph");
+    TNodeID i, j;
+    double x, y, th, xx, xy, yy, tt, xt, yt;
+    if (!rec.ReadId(&i) || !rec.ReadId(&j) || !CheckEnds(rec, file->graph2, i, j)) return false;
+    if (!Numbers{rec.rest}.Read(&x, &y, &th, &xx, &xy, &yy, &tt, &xt, &yt)) return rec.Bad();
+    if (!std::isfinite(x + y + th)) return rec.Refuse(rec.Edge(i, j) + ": pose not finite");
+    Eigen::Matrix3d info;
+    info << xx, xy, xt, xy, yy, yt, xt, yt, tt;
+    if (!CheckInformation<3>(rec, rec.Edge(i, j), &info, file)) return false;
+    InsertEdge(file, i, j, mrpt::poses::CPose2D(x, y, th), info);
     return true;
-  });
+  };
+  return ParseRecords(in, file, &file->graph2, error, is_vertex, on_vertex, on_other);
+}
+
+bool ParseGraphStream(std::istream& in, GraphFile* file, std::string* error) {
+  *file = GraphFile{};
+  // The first vertex or edge keyword decides the dimension and format.
+  std::string line, key;
+  while (key.empty() && std::getline(in, line)) {
+    std::istringstream s(line);
+    std::string k;
+    if (!(s >> k) || k[0] == '#') continue;
+    if (k.rfind("VERTEX", 0) == 0 || k.rfind("EDGE", 0) == 0) key = k;
+  }
+  if (key.empty()) return Fail(error, "no VERTEX or EDGE line");
+  const bool three_d = key == "VERTEX_SE3:QUAT" || key == "EDGE_SE3:QUAT" || key == "VERTEX3" || key == "EDGE3";
+  const bool two_d = key == "VERTEX_SE2" || key == "EDGE_SE2" || key == "VERTEX2" || key == "EDGE2" ||
+                     key == "VERTEX" || key == "EDGE";
+  if (!three_d && !two_d)
+    return Fail(error, "unknown record '" + Excerpt(key) + "' (expected VERTEX_SE3:QUAT/EDGE_SE3:QUAT, VERTEX_SE2/EDGE_SE2, "
+                       "VERTEX2/EDGE2 or VERTEX3/EDGE3)");
+  file->dimension = three_d ? 3 : 2;
+  file->format = key.find("_SE") != std::string::npos ? GraphFormat::kG2o : GraphFormat::kMrptText;
+  bool ok;
+  if (file->format == GraphFormat::kG2o) ok = ParseG2o(in, file, error);
+  else if (three_d) ok = ParseMrpt3D(in, file, error);
+  else ok = ParseToro2D(in, file, error);
   if (!ok) return false;
-  FinishGraph(&file->graph2, had_root);
+  if (file->num_edges() == 0) return Fail(error, "no edge");
+  file->repair_report = RepairReport(file->num_repaired, file->num_skipped, file->first_skipped);
   return true;
 }
 
 }  // namespace
 
 bool ParseGraphText(const std::string& text, GraphFile* file, std::string* error) {
-  *file = GraphFile{};
-  // The first vertex or edge keyword decides the dimension and format.
-  std::istringstream lines(text);
-  std::string line, key;
-  bool found = false, had_vertices = false;
-  while (std::getline(lines, line)) {
-    std::istringstream s(line);
-    std::string k;
-    if (!(s >> k) || k[0] == '#') continue;
-    if (k.rfind("VERTEX", 0) == 0) had_vertices = true;
-    if (!found && (k.rfind("VERTEX", 0) == 0 || k.rfind("EDGE", 0) == 0)) {
-      key = k;
-      found = true;
-    }
-  }
-  if (!found) return Fail(error, "no VERTEX or EDGE line");
-  const bool three_d = key == "VERTEX_SE3:QUAT" || key == "EDGE_SE3:QUAT" || key == "VERTEX3" || key == "EDGE3";
-  const bool two_d = key == "VERTEX_SE2" || key == "EDGE_SE2" || key == "VERTEX2" || key == "EDGE2" ||
-                     key == "VERTEX" || key == "EDGE";
-  if (!three_d && !two_d)
-    return Fail(error, "unknown record '" + key + "' (expected VERTEX_SE3:QUAT/EDGE_SE3:QUAT, VERTEX_SE2/EDGE_SE2, "
-                       "VERTEX2/EDGE2 or VERTEX3/EDGE3)");
-  file->dimension = three_d ? 3 : 2;
-  file->format = key.find("_SE") != std::string::npos ? GraphFormat::kG2o : GraphFormat::kMrptText;
-  file->had_vertices = had_vertices;
-  bool ok;
-  if (file->format == GraphFormat::kG2o) ok = ParseG2o(text, file, error);
-  else if (three_d) ok = ParseMrpt3D(text, file, error);
-  else ok = ParseToro2D(text, file, error);
-  if (!ok) return false;
-  if (file->num_edges() == 0) return Fail(error, "no usable edge");
-  file->repair_report = RepairReport(file->num_repaired, file->num_rejected, file->num_skipped, file->first_skipped);
-  return true;
+  std::istringstream in(text);
+  return ParseGraphStream(in, file, error);
 }
 
 bool ReadGraphFile(const std::string& path, GraphFile* file, std::string* error) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    *file = GraphFile{};
+    return Fail(error, "cannot read pose graph file " + path + ": " +
+                           (std::filesystem::exists(path, ec) ? "not a regular file" : "no such file"));
+  }
   std::ifstream f(path);
   if (!f) return Fail(error, "cannot read pose graph file " + path);
-  std::stringstream buffer;
-  buffer << f.rdbuf();
   std::string sub;
-  if (!ParseGraphText(buffer.str(), file, &sub)) return Fail(error, "pose graph file " + path + ": " + sub);
+  if (!ParseGraphStream(f, file, &sub)) return Fail(error, "pose graph file " + path + ": " + sub);
   return true;
 }
 

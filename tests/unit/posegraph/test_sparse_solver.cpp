@@ -406,7 +406,7 @@ TEST(GraphFiles, G2oAndMrptTextRoundTrip3D) {
       EXPECT_LT((a - b).norm(), 1e-9 * a.norm()) << GraphFormatName(format);
       ++it;
     }
-    EXPECT_EQ(back.num_repaired + back.num_rejected, 0);
+    EXPECT_EQ(back.num_repaired, 0);
   }
 }
 
@@ -479,27 +479,27 @@ TEST(GraphFiles, G2oRoundTrip2DAndEdgeOnlyFilesChainTheOdometry) {
   }
 }
 
-TEST(GraphFiles, BadInformationIsRejectedOrRepairedWithOneLine) {
+TEST(GraphFiles, SemiDefiniteInformationIsRepairedWithOneLine) {
+  // A zero eigenvalue (theta unconstrained) is a convention some files use: repaired and said so.
   const std::string text =
       "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nVERTEX_SE2 2 2 0 0\n"
       "EDGE_SE2 0 1 1 0 0 100 0 0 100 0 400\n"
-      "EDGE_SE2 1 2 1 0 0 100 0 0 -50 0 400\n"     // indefinite: repaired
-      "EDGE_SE2 0 2 2 0 0 100 0 0 nan 0 400\n";    // not finite: rejected
+      "EDGE_SE2 1 2 1 0 0 100 0 0 100 0 0\n"
+      "EDGE_SE2 0 2 2 0 0 100 0 0 100 0 400\n";
   GraphFile file;
   std::string error;
   ASSERT_TRUE(ParseGraphText(text, &file, &error)) << error;
   EXPECT_EQ(file.num_repaired, 1);
-  EXPECT_EQ(file.num_rejected, 1);
-  EXPECT_EQ(file.graph2.edges.size(), 2u);
+  EXPECT_EQ(file.graph2.edges.size(), 3u);
   EXPECT_EQ(file.repair_report.find('\n'), std::string::npos);
-  EXPECT_NE(file.repair_report.find("1 edges rejected"), std::string::npos) << file.repair_report;
-  EXPECT_NE(file.repair_report.find("1 information matrices not positive definite"), std::string::npos);
+  EXPECT_NE(file.repair_report.find("1 information matrices only positive semi-definite"), std::string::npos)
+      << file.repair_report;
   for (const auto& [ids, edge] : file.graph2.edges)
     EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(edge.cov_inv.asEigen()).eigenvalues().minCoeff(), 0.0);
   const GraphFileReport report = OptimizeGraphFile(&file, SolverOptions(), false);
   EXPECT_TRUE(report.solver.usable) << report.solver.message;
   EXPECT_GE(report.final_chi2, 0.0);
-  // Handed to the solver directly, such a matrix is refused with the reason.
+  // Handed to the solver directly, an indefinite matrix is refused with the reason.
   Synthetic<2> s = MakeGrid<2>(3, 0.1, 0.05, 23);
   s.problem.edges[2].information(1, 1) = -1.0;
   const SolverSummary refused = SolvePoseGraph(&s.problem, SolverOptions());
@@ -513,12 +513,68 @@ TEST(GraphFiles, BadInformationIsRejectedOrRepairedWithOneLine) {
   EXPECT_EQ(file.num_skipped, 2);
   EXPECT_NE(file.repair_report.find("2 records of other types skipped (the first: VERTEX_XY)"), std::string::npos)
       << file.repair_report;
+  // Vertices may come after the edges that use them.
+  ASSERT_TRUE(ParseGraphText("EDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\nVERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\n", &file, &error))
+      << error;
+  EXPECT_TRUE(file.had_vertices);
   // Files the reader cannot take.
   EXPECT_FALSE(ParseGraphText("# nothing\n", &file, &error));
   EXPECT_FALSE(ParseGraphText("VERTEX_XYZ 0 1 2 3\n", &file, &error));
   EXPECT_NE(error.find("unknown record"), std::string::npos) << error;
   EXPECT_FALSE(ParseGraphText("EDGE_SE2 0 1 1 0\n", &file, &error));
   EXPECT_NE(error.find("line 1"), std::string::npos) << error;
+}
+
+// Files that lie: each refused at its first bad line, in one line saying
+// what is wrong (issue 30: before, most were accepted, one stray edge
+// silently replaced every vertex pose by chained odometry).
+TEST(GraphFiles, FilesThatLieAreRefusedAtTheirLine) {
+  const std::string v2 = "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nVERTEX_SE2 2 2 0 0\n";
+  const std::string e2 = "EDGE_SE2 0 1 1 0 0 100 0 0 100 0 400\n";
+  const std::string v3 = "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 1 1 0 0 0 0 0 1\n";
+  const std::string info6 = " 100 0 0 0 0 0 100 0 0 0 0 100 0 0 0 400 0 0 400 0 400\n";
+  const struct {
+    std::string name, text, expected;
+  } cases[] = {
+      {"edge to an unknown vertex", v2 + e2 + "EDGE_SE2 1 7 1 0 0 100 0 0 100 0 400\n",
+       "line 5: EDGE_SE2 1 -> 7: vertex 7 has no VERTEX line (the file defines 3"},
+      {"negative vertex id", v2 + "VERTEX_SE2 -1 0 0 0\n" + e2, "line 4: vertex id '-1' is not an integer in 0..2147483647"},
+      {"negative edge id", v2 + "EDGE_SE2 0 -1 1 0 0 100 0 0 100 0 400\n", "line 4: vertex id '-1' is not an integer"},
+      {"id beyond an int", v2 + "EDGE_SE2 0 4294967296 1 0 0 100 0 0 100 0 400\n",
+       "line 4: vertex id '4294967296' is not an integer in 0..2147483647"},
+      {"self-loop", v2 + e2 + "EDGE_SE2 2 2 0 0 0 100 0 0 100 0 400\n",
+       "line 5: EDGE_SE2 2 -> 2: an edge from a vertex to itself (a self-loop)"},
+      {"vertex defined twice", v2 + "VERTEX_SE2 1 5 0 0\n" + e2, "line 4: vertex 1 defined a second time"},
+      {"zero quaternion (vertex)", "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 0\nVERTEX_SE3:QUAT 1 1 0 0 0 0 0 1\n"
+                                   "EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1" + info6,
+       "line 1: vertex 0: quaternion norm 0 is not 1 (tolerance 0.001): not a rotation"},
+      {"non-unit quaternion (edge)", v3 + "EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1.01" + info6,
+       "line 3: EDGE_SE3:QUAT 0 -> 1: quaternion norm 1.01 is not 1 (tolerance 0.001)"},
+      {"information not finite", v2 + "EDGE_SE2 0 2 2 0 0 100 0 0 nan 0 400\n",
+       "line 4: EDGE_SE2 0 -> 2: information matrix not finite"},
+      {"information negative definite", v2 + "EDGE_SE2 0 2 2 0 0 -100 0 0 -100 0 -400\n",
+       "line 4: EDGE_SE2 0 -> 2: information matrix not positive definite (eigenvalues -400 to -100)"},
+      {"information indefinite", v2 + "EDGE_SE2 1 2 1 0 0 100 0 0 -50 0 400\n",
+       "line 4: EDGE_SE2 1 -> 2: information matrix not positive definite (eigenvalues -50 to 400)"},
+      {"3D information negative definite", v3 + "EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 -1 0 0 0 0 0 -1 0 0 0 0 -1 0 0 0 -1 0 0 -1 0 -1\n",
+       "line 3: EDGE_SE3:QUAT 0 -> 1: information matrix not positive definite"},
+      {"pose not finite", v2 + "EDGE_SE2 0 1 inf 0 0 100 0 0 100 0 400\n", "line 4: EDGE_SE2 0 -> 1: pose not finite"},
+      {"FIX naming no vertex", v2 + e2 + "FIX 9\n", "line 5: FIX 9 names no vertex of the graph"},
+      {"2D record in a 3D graph", v3 + "VERTEX_SE2 2 0 0 0\n", "line 3: VERTEX_SE2 in a 3D graph"},
+      {"TORO edge to an unknown vertex", "VERTEX2 0 0 0 0\nVERTEX2 1 1 0 0\nEDGE2 0 3 1 0 0 10 1 20 30 2 3\n",
+       "line 3: EDGE2 0 -> 3: vertex 3 has no VERTEX line"},
+      {"MRPT 3D self-loop", "VERTEX3 0 0 0 0 0 0 0\nEDGE3 0 0 1 0 0 0 0 0 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n",
+       "line 2: EDGE3 0 -> 0: an edge from a vertex to itself"},
+      {"edges only, not connected", "EDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\nEDGE_SE2 2 3 1 0 0 1 0 0 1 0 1\n",
+       "no VERTEX lines, and no chain of edges joins vertex 2 to vertex 0"},
+  };
+  for (const auto& c : cases) {
+    GraphFile file;
+    std::string error;
+    EXPECT_FALSE(ParseGraphText(c.text, &file, &error)) << c.name;
+    EXPECT_NE(error.find(c.expected), std::string::npos) << c.name << ": " << error;
+    EXPECT_EQ(error.find('\n'), std::string::npos) << c.name << ": " << error;
+  }
 }
 
 }  // namespace

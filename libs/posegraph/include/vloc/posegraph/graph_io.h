@@ -21,10 +21,16 @@
 // I_theta = S I S with S = diag(1,1,1,1/2,1/2,1/2), and back on writing.
 // A file with edges but no vertices starts from chained odometry: the poses
 // are composed along the edges i -> i+1 from the lowest id (at the origin),
-// then along any edge to a pose not placed yet.
-// An information matrix that is not finite rejects its edge; one that is
-// not positive definite is repaired (eigenvalues raised to 1e-9 of the
-// largest). Either way repair_report holds one line saying how many and why.
+// then along any edge to a pose not placed yet (the edges must connect them).
+// A file that lies is refused at its first bad line (one line naming it):
+// a vertex id that is not an integer in 0..2^31-1 (g2o's ids are ints), a
+// vertex defined twice, an edge to a vertex the file does not define (when
+// it defines any), a self-loop, a quaternion whose norm is more than 1e-3
+// from 1, a pose or information matrix that is not finite, an information
+// matrix that is not positive definite (an eigenvalue below -1e-9 of the
+// largest, or none positive), a FIX naming no vertex. A positive
+// semi-definite information (a zero eigenvalue) is repaired (eigenvalues
+// raised to 1e-9 of the largest), and repair_report says how many.
 
 #include <Eigen/Core>
 #include <mrpt/graphs/CNetworkOfPoses.h>
@@ -44,8 +50,7 @@ struct GraphFile {
   mrpt::graphs::CNetworkOfPoses2DInf graph2;
   mrpt::graphs::CNetworkOfPoses3DInf graph3;
   bool had_vertices = true;                // false: poses from chained odometry
-  int num_repaired = 0;                    // information matrices made positive definite
-  int num_rejected = 0;                    // edges dropped for a non-finite information / pose
+  int num_repaired = 0;                    // semi-definite information matrices made positive definite
   int num_skipped = 0;                     // g2o records of other types (landmarks, priors, ...) skipped
   std::string first_skipped;               // the first such record's type
   std::string repair_report;               // one line when any count is non-zero, else ""
@@ -55,7 +60,7 @@ struct GraphFile {
 };
 
 // False with *error naming the file and line when the file cannot be read or
-// parsed, or holds no edge.
+// parsed, lies (above), or holds no edge.
 bool ReadGraphFile(const std::string& path, GraphFile* file, std::string* error);
 bool ParseGraphText(const std::string& text, GraphFile* file, std::string* error);
 
