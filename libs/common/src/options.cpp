@@ -5,6 +5,8 @@
 #include <cstdint>
 #include <filesystem>
 #include <sstream>
+#include <unordered_map>
+#include <unordered_set>
 
 namespace vloc {
 
@@ -15,47 +17,129 @@ bool Fail(std::string* error, const std::string& message) {
 
 namespace {
 
-// `overrides` laid over `base`: maps merge key by key, anything else replaces.
-YAML::Node Merge(const YAML::Node& base, const YAML::Node& overrides) {
-  if (!base.IsMap() || !overrides.IsMap()) return YAML::Clone(overrides);
-  YAML::Node out = YAML::Clone(base);
+// What loading one config file (its includes and aliases expanded) may
+// build: a 320-byte file of nested aliases (a "billion laughs") expands to
+// billions of nodes, so nodes are counted as they are copied and the file
+// refused past the budget; nesting deeper than the depth is refused too.
+constexpr size_t kMaxConfigNodes = 100000;
+constexpr int kMaxConfigNesting = 64;
+constexpr int kMaxIncludeDepth = 16;
+constexpr uintmax_t kMaxConfigBytes = 16u << 20;  // a config file is kilobytes
+
+// Throws unless `path` is absent (the YAML loader then says so) or a regular
+// file of at most kMaxConfigBytes: a FIFO or /dev/zero would never end.
+void CheckConfigFile(const std::string& path) {
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(status)) return;
+  if (!std::filesystem::is_regular_file(status))
+    throw ConfigError("config file " + path + " is not a regular file; refused");
+  const uintmax_t size = std::filesystem::file_size(path, ec);
+  if (!ec && size > kMaxConfigBytes)
+    throw ConfigError("config file " + path + " is " + std::to_string(size) + " bytes, over the " +
+                      std::to_string(kMaxConfigBytes) + " a config may have; refused");
+}
+
+struct LoadBudget {
+  std::string top_file;  // the file the load started from
+  size_t nodes = 0;      // nodes built so far
+};
+
+// Counts one node built from `file` at `nesting` levels, throwing when the
+// budget is spent.
+void CountNode(LoadBudget* budget, const std::string& file, int nesting) {
+  if (nesting > kMaxConfigNesting)
+    throw ConfigError("config file " + file + ": nested deeper than " + std::to_string(kMaxConfigNesting) +
+                      " levels; refused");
+  if (++budget->nodes > kMaxConfigNodes)
+    throw ConfigError("config file " + file + ": more than " + std::to_string(kMaxConfigNodes) +
+                      " YAML nodes once its aliases and includes are expanded (an alias bomb?); refused" +
+                      (file == budget->top_file ? std::string() : " (loading " + budget->top_file + ")"));
+}
+
+std::string KeyString(const YAML::Node& key, const std::string& file) {
+  if (!key.IsScalar()) throw ConfigError("config file " + file + ": a map key that is not a plain name");
+  return key.Scalar();
+}
+
+// A scalar or null as a node of its own. Handing yaml-cpp a node of the
+// parsed document instead merges that document's whole node set into every
+// node it joins, and they into each other: quadratic in the nodes.
+YAML::Node CopyLeaf(const YAML::Node& node) {
+  if (!node.IsScalar()) return YAML::Node(node.IsDefined() ? node.Type() : YAML::NodeType::Null);
+  YAML::Node copy(node.Scalar());
+  copy.SetTag(node.Tag());
+  copy.SetStyle(node.Style());
+  return copy;
+}
+
+// `overrides` laid over `base`: maps merge key by key, anything else
+// replaces. Both come from ResolveIncludes (counted there); the merged map
+// is built in one pass over each (yaml-cpp's own key lookup is linear).
+YAML::Node Merge(const YAML::Node& base, const YAML::Node& overrides, const std::string& file) {
+  if (!base.IsMap() || !overrides.IsMap()) return overrides;
+  std::unordered_map<std::string, YAML::Node> over;
+  for (const auto& kv : overrides) over.emplace(KeyString(kv.first, file), kv.second);
+  YAML::Node out(YAML::NodeType::Map);
+  std::unordered_set<std::string> placed;
+  for (const auto& kv : base) {
+    const std::string key = KeyString(kv.first, file);
+    const auto it = over.find(key);
+    out.force_insert(key, it == over.end() ? kv.second : Merge(kv.second, it->second, file));
+    placed.insert(key);
+  }
   for (const auto& kv : overrides) {
-    const std::string key = kv.first.as<std::string>();
-    out[key] = out[key] ? Merge(out[key], kv.second) : YAML::Clone(kv.second);
+    const std::string key = KeyString(kv.first, file);
+    if (placed.insert(key).second) out.force_insert(key, kv.second);
   }
   return out;
 }
 
-YAML::Node ResolveIncludes(const YAML::Node& node, const std::filesystem::path& dir, int depth) {
-  if (depth > 16) throw ConfigError("config include nesting deeper than 16 (include loop?)");
+// A copy of `node` (read from `file`) with every {include: FILE, ...} map
+// replaced by that file's content, the other keys laid over it. Every node
+// copied counts against *budget: aliases are expanded here, once per use.
+YAML::Node ResolveIncludes(const YAML::Node& node, const std::filesystem::path& file, int include_depth, int nesting,
+                           LoadBudget* budget) {
+  if (include_depth > kMaxIncludeDepth)
+    throw ConfigError("config include nesting deeper than " + std::to_string(kMaxIncludeDepth) + " (include loop?)");
+  CountNode(budget, file.string(), nesting);
+  const std::filesystem::path dir = file.parent_path();
   if (node.IsMap()) {
     if (node["include"] && node["include"].IsScalar()) {
       // {include: FILE, key: value, ...}: the file, with the other keys laid over it (a profile over a base config).
       const auto path = dir / node["include"].as<std::string>();
       YAML::Node included;
+      CheckConfigFile(path.string());
       try {
         included = YAML::LoadFile(path.string());
       } catch (const YAML::Exception& e) {
         throw ConfigError("cannot read included config " + path.string() + ": " + e.what());
       }
-      const YAML::Node base = ResolveIncludes(included, path.parent_path(), depth + 1);
+      const YAML::Node base = ResolveIncludes(included, path, include_depth + 1, nesting, budget);
       if (node.size() == 1) return base;
       if (!base.IsMap()) throw ConfigError("included config " + path.string() + " is not a map: keys cannot be laid over it");
       YAML::Node overrides(YAML::NodeType::Map);
-      for (const auto& kv : node)
-        if (kv.first.as<std::string>() != "include") overrides[kv.first] = ResolveIncludes(kv.second, dir, depth);
-      return Merge(base, overrides);
+      for (const auto& kv : node) {
+        const std::string key = KeyString(kv.first, file.string());
+        if (key != "include")
+          overrides.force_insert(key, ResolveIncludes(kv.second, file, include_depth, nesting + 1, budget));
+      }
+      return Merge(base, overrides, file.string());
     }
     YAML::Node out(YAML::NodeType::Map);
-    for (const auto& kv : node) out[kv.first] = ResolveIncludes(kv.second, dir, depth);
+    for (const auto& kv : node) {
+      CountNode(budget, file.string(), nesting + 1);  // the key
+      out.force_insert(KeyString(kv.first, file.string()),
+                       ResolveIncludes(kv.second, file, include_depth, nesting + 1, budget));
+    }
     return out;
   }
   if (node.IsSequence()) {
     YAML::Node out(YAML::NodeType::Sequence);
-    for (const auto& v : node) out.push_back(ResolveIncludes(v, dir, depth));
+    for (const auto& v : node) out.push_back(ResolveIncludes(v, file, include_depth, nesting + 1, budget));
     return out;
   }
-  return node;
+  return CopyLeaf(node);
 }
 
 size_t EditDistance(const std::string& a, const std::string& b) {
@@ -114,6 +198,7 @@ YAML::Node Encode(const T& v) {
 
 YAML::Node LoadYamlFile(const std::string& path) {
   YAML::Node root;
+  CheckConfigFile(path);
   try {
     root = YAML::LoadFile(path);
   } catch (const YAML::BadFile&) {
@@ -124,7 +209,8 @@ YAML::Node LoadYamlFile(const std::string& path) {
   if (root.IsNull())
     throw ConfigError("config file " + path +
                       " is empty: nothing would be set on purpose (write {} to take every default)");
-  return ResolveIncludes(root, std::filesystem::path(path).parent_path(), 0);
+  LoadBudget budget{path};
+  return ResolveIncludes(root, std::filesystem::path(path), 0, 0, &budget);
 }
 
 OptionsReader::OptionsReader(YAML::Node node, std::string context)
