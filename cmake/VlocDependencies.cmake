@@ -15,6 +15,10 @@ find_file(LCM_JAR lcm.jar PATHS /usr/share/java REQUIRED)
 find_file(JCHART2D_JAR jchart2d.jar PATHS /usr/share/java)
 find_package(Java 11 COMPONENTS Development)
 
+# ZeroMQ (vloc_lcm_tunnel): libzmq via pkg-config, cppzmq's header-only zmq.hpp.
+pkg_check_modules(ZMQ REQUIRED IMPORTED_TARGET libzmq)
+find_path(CPPZMQ_INCLUDE_DIR zmq.hpp REQUIRED)
+
 # UAV stills: EXIF/XMP geotags (exiv2) and GIS products (GDAL).
 pkg_check_modules(EXIV2 REQUIRED IMPORTED_TARGET exiv2)
 find_package(GDAL REQUIRED)

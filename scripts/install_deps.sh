@@ -17,6 +17,7 @@ PACKAGES=(
   libexiv2-dev exiv2 libgdal-dev gdal-bin
   iproute2 procps nftables
   libwebsocketpp-dev libasio-dev nlohmann-json3-dev chromium chromium-driver   # vloc_console and its browser test
+  libzmq3-dev cppzmq-dev   # vloc_lcm_tunnel: LCM buses joined over a reliable link (ZeroMQ)
 )
 
 missing=()

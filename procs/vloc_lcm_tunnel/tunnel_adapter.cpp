@@ -1,0 +1,195 @@
+#include "tunnel_adapter.h"
+
+#include <glog/logging.h>
+
+#include <chrono>
+#include <random>
+#include <sstream>
+
+#include "vloc/lcm_io/typed.h"
+
+namespace vloc {
+namespace {
+
+double NowS() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
+
+int64_t WallUs() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+uint64_t NewSession() {
+  std::random_device device;
+  std::mt19937_64 rng((static_cast<uint64_t>(device()) << 32) ^ device() ^ static_cast<uint64_t>(WallUs()));
+  uint64_t s = 0;
+  while (s == 0) s = rng();
+  return s;
+}
+
+tunnel::LinkOptions LinkOptionsFor(const tunnel::TunnelOptions& o) {
+  tunnel::LinkOptions link;
+  link.bind = o.bind;
+  link.connect = o.connect;
+  link.heartbeat_s = o.heartbeat_s;
+  link.heartbeat_timeout_s = o.heartbeat_timeout_s;
+  link.max_frame_bytes = tunnel::kDataOverheadBytes + static_cast<size_t>(o.chunk_bytes);
+  return link;
+}
+
+// One LCM subscription for every channel sent: (a)|(b)|...
+std::string SubscriptionPattern(const std::vector<std::string>& patterns) {
+  std::string out;
+  for (const auto& p : patterns) out += (out.empty() ? "(" : "|(") + p + ")";
+  return out;
+}
+
+}  // namespace
+
+tunnel_status_t ToMessage(const tunnel::TunnelReport& r, const tunnel::TunnelOptions& options,
+                          const std::string& endpoint, int64_t utime) {
+  tunnel_status_t m;
+  m.utime = utime;
+  m.name = options.name;
+  m.peer_name = r.peer_name;
+  m.endpoint = endpoint;
+  m.connected = r.connected;
+  m.connects = r.connects;
+  m.seconds_since_peer = r.seconds_since_peer;
+  m.tx_bytes_per_s = r.tx_bytes_per_s;
+  m.rx_bytes_per_s = r.rx_bytes_per_s;
+  m.bandwidth_cap_bytes_per_s = options.bandwidth_cap_mbps * 1e6 / 8.0;
+  m.sent_messages = r.sent_messages;
+  m.received_messages = r.received_messages;
+  m.in_flight_bytes = r.in_flight_bytes;
+  m.queued_messages = r.queued_messages;
+  m.queued_bytes = r.queued_bytes;
+  m.queued_bytes_high_water = r.queued_bytes_high_water;
+  m.resent_frames = r.resent_frames;
+  m.dropped_queue_full = r.dropped_queue_full;
+  m.dropped_too_large = r.dropped_too_large;
+  m.dropped_too_many_channels = r.dropped_too_many_channels;
+  m.refused_from_peer = r.refused_from_peer;
+  m.rejected_frames = r.rejected_frames;
+  m.echoes_skipped = r.echoes_skipped;
+  m.latency_samples = r.latency_samples;
+  m.latency_median_ms = r.latency_median_ms;
+  m.latency_max_ms = r.latency_max_ms;
+  for (const auto& c : r.channels) {
+    tunnel_channel_status_t cm;
+    cm.channel = c.channel;
+    cm.priority = static_cast<int8_t>(c.priority);
+    cm.queued_messages = c.queued_messages;
+    cm.queued_bytes = c.queued_bytes;
+    cm.queued_bytes_high_water = c.queued_bytes_high_water;
+    cm.sent = c.sent;
+    cm.received = c.received;
+    cm.dropped = c.dropped;
+    cm.latency_max_ms = c.latency_max_ms;
+    m.channels.push_back(cm);
+  }
+  m.num_channels = static_cast<int32_t>(m.channels.size());
+  return m;
+}
+
+TunnelAdapter::TunnelAdapter(Transport& transport, const tunnel::TunnelOptions& options)
+    : transport_(transport), options_(options), link_(LinkOptionsFor(options)), core_(options, NewSession()) {}
+
+bool TunnelAdapter::Start(std::string* error) {
+  if (!link_.Start(error)) return false;
+  transport_.Subscribe(
+      SubscriptionPattern(options_.send_channels),
+      [this](const std::string& channel, const uint8_t* data, size_t size) { OnBusMessage(channel, data, size); },
+      /*queue_capacity=*/10000, [this](const std::string& channel) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        core_.OnLocalDrop(channel);
+      });
+  LOG(INFO) << options_.name << ": " << (options_.bind.empty() ? "connecting to " : "listening on ") << link_.endpoint()
+            << ", sending " << SubscriptionPattern(options_.send_channels) << ", receiving "
+            << SubscriptionPattern(options_.receive_channels);
+  return true;
+}
+
+void TunnelAdapter::OnBusMessage(const std::string& channel, const uint8_t* data, size_t size) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    core_.OnLocalMessage(channel, data, size, WallUs(), NowS());
+  }
+  link_.Wake();
+}
+
+void TunnelAdapter::RunLink(const std::atomic<bool>& stop) {
+  const auto deliver = [this](const std::string& channel, const uint8_t* data, size_t size) {
+    if (!transport_.Publish(channel, data, size)) LOG(WARNING) << "republishing on " << channel << " failed";
+  };
+  const auto send = [this](const std::vector<uint8_t>& frame) { return link_.Send(frame); };
+  next_status_s_ = NowS();
+  while (!stop.load()) {
+    bool busy;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      busy = core_.HasWork();
+    }
+    link_.Poll(
+        busy ? 2 : 50,
+        [&](const uint8_t* bytes, size_t size) {
+          std::lock_guard<std::mutex> lock(mutex_);
+          core_.OnFrame(bytes, size, WallUs(), NowS(), deliver);
+        },
+        [&] {
+          std::lock_guard<std::mutex> lock(mutex_);
+          core_.OnConnected(NowS());
+          LOG(INFO) << options_.name << ": link up (" << link_.endpoint() << ")";
+        },
+        [&] {
+          std::lock_guard<std::mutex> lock(mutex_);
+          core_.OnDisconnected();
+          LOG(WARNING) << options_.name << ": link down (" << link_.endpoint()
+                       << "); queueing, everything not acknowledged goes again when it returns";
+        });
+    const double now = NowS();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      core_.Pump(now, send);
+    }
+    if (now >= next_status_s_) {
+      PublishStatus(now);
+      next_status_s_ = now + options_.status_period_s;
+    }
+  }
+}
+
+void TunnelAdapter::PublishStatus(double now_s) {
+  tunnel::TunnelReport report;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    report = core_.Report(now_s);
+  }
+  // Every drop named: once per report period, per channel, with the new count.
+  for (const auto& c : report.channels) {
+    int64_t& logged = dropped_logged_[c.channel];
+    if (c.dropped > logged) {
+      LOG(WARNING) << options_.name << ": dropped " << (c.dropped - logged) << " message(s) on " << c.channel
+                   << " (total " << c.dropped << "; queue full, too large or refused; see " << options_.status_channel
+                   << ")";
+      logged = c.dropped;
+    }
+  }
+  if (report.rejected_frames > last_report_.rejected_frames)
+    LOG(WARNING) << options_.name << ": " << report.rejected_frames - last_report_.rejected_frames
+                 << " malformed frame(s) from the peer rejected";
+  Publish(transport_, options_.status_channel, ToMessage(report, options_, link_.endpoint(), WallUs()));
+  last_report_ = report;
+}
+
+std::string TunnelAdapter::Summary() {
+  const tunnel::TunnelReport& r = last_report_;
+  std::ostringstream s;
+  s << options_.name << ": sent " << r.sent_messages << ", received " << r.received_messages << ", resent frames "
+    << r.resent_frames << ", dropped " << r.dropped_queue_full << " (queue full) " << r.dropped_too_large
+    << " (too large) " << r.dropped_too_many_channels << " (channels), refused " << r.refused_from_peer
+    << ", rejected frames " << r.rejected_frames << ", echoes skipped " << r.echoes_skipped << ", connects "
+    << r.connects << ", queue high water " << r.queued_bytes_high_water << " bytes";
+  return s.str();
+}
+
+}  // namespace vloc

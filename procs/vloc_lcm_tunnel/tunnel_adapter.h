@@ -1,0 +1,48 @@
+#pragma once
+// vloc_lcm_tunnel's wiring: the LCM bus on one side (a subscription to the
+// channels it sends, a publisher of what the peer sends and of
+// TUNNEL_STATUS), the ZeroMQ link on the other, TunnelCore in between.
+// The bus is handled on the caller's thread (RunUntilSignal), the link on
+// its own thread (RunLink); the core is shared under one mutex.
+
+#include <atomic>
+#include <map>
+#include <mutex>
+#include <string>
+
+#include "vloc/lcm_io/transport.h"
+#include "vloc/tunnel/tunnel_core.h"
+#include "vloc/tunnel/zmq_link.h"
+#include "vloc/tunnel_status_t.hpp"
+
+namespace vloc {
+
+// The LCM message of a report.
+tunnel_status_t ToMessage(const tunnel::TunnelReport& report, const tunnel::TunnelOptions& options,
+                          const std::string& endpoint, int64_t utime);
+
+class TunnelAdapter {
+ public:
+  TunnelAdapter(Transport& transport, const tunnel::TunnelOptions& options);
+  // Starts the link and subscribes to the channels sent. False with one line in *error.
+  bool Start(std::string* error);
+  // The link's loop, until `stop` is set: frames in and out, status reports.
+  void RunLink(const std::atomic<bool>& stop);
+  // One line of totals, for the end of the run.
+  std::string Summary();
+
+ private:
+  void OnBusMessage(const std::string& channel, const uint8_t* data, size_t size);
+  void PublishStatus(double now_s);
+
+  Transport& transport_;
+  tunnel::TunnelOptions options_;
+  tunnel::ZmqLink link_;
+  std::mutex mutex_;  // guards core_
+  tunnel::TunnelCore core_;
+  std::map<std::string, int64_t> dropped_logged_;  // per channel, drops already logged
+  double next_status_s_ = 0;
+  tunnel::TunnelReport last_report_;
+};
+
+}  // namespace vloc
