@@ -71,8 +71,16 @@ void LaunchLcmAdapter::HandleOrder(const procman_order_t& order) {
                << int(order.target_kind) << " is not understood; use the ACTION_* and TARGET_* constants";
     return;
   }
+  // A name in a log line is escaped; one holding control characters (a
+  // newline would forge a line of this log) names nothing and is refused.
+  const std::string target = PrintableName(order.target);
+  if (HasControlCharacters(order.target)) {
+    LOG(ERROR) << kProcmanOrdersChannel << ": order to " << action << " '" << target
+               << "' refused: the name holds control characters";
+    return;
+  }
   if (shutting_down_) {
-    LOG(WARNING) << "order to " << action << " '" << order.target << "' ignored: shutting down";
+    LOG(WARNING) << "order to " << action << " '" << target << "' ignored: shutting down";
     return;
   }
   std::string error;
@@ -83,11 +91,11 @@ void LaunchLcmAdapter::HandleOrder(const procman_order_t& order) {
     for (const auto& p : supervisor_.file().processes)
       mine = mine || (is_group ? p.group == order.target : p.name == order.target);
     if (!mine) {
-      LOG(INFO) << "order to " << action << " '" << order.target << "' is for another host's launcher; not mine";
+      LOG(INFO) << "order to " << action << " '" << target << "' is for another host's launcher; not mine";
       return;
     }
   }
-  LOG(INFO) << "order: " << action << (is_group ? " group '" : " process '") << order.target << "'";
+  LOG(INFO) << "order: " << action << (is_group ? " group '" : " process '") << target << "'";
   bool ok = false;
   if (order.action == procman_order_t::ACTION_START) ok = supervisor_.Start(order.target, is_group, &error);
   else if (order.action == procman_order_t::ACTION_STOP) ok = supervisor_.Stop(order.target, is_group, &error);

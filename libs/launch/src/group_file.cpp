@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <csignal>
+#include <cstdio>
 #include <cstdlib>
 #include <functional>
 #include <set>
@@ -9,6 +10,32 @@
 #include "vloc/common/options.h"
 
 namespace vloc {
+
+bool HasControlCharacters(const std::string& text) {
+  return std::any_of(text.begin(), text.end(), [](char c) {
+    const auto u = static_cast<unsigned char>(c);
+    return u < 0x20 || u == 0x7f;
+  });
+}
+
+std::string PrintableName(const std::string& text) {
+  std::string out;
+  for (const char c : text) {
+    const auto u = static_cast<unsigned char>(c);
+    if (c == '\\') {
+      out += "\\\\";
+    } else if (c == '\n') {
+      out += "\\n";
+    } else if (u < 0x20 || u == 0x7f) {
+      char hex[8];
+      std::snprintf(hex, sizeof(hex), "\\x%02x", u);
+      out += hex;
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
 
 const char* RestartPolicyName(RestartPolicy policy) {
   switch (policy) {
@@ -179,7 +206,7 @@ void Expand(std::string* text, const VariableLookup& lookup, const std::string& 
 std::string ProcessContext(const std::string& context, size_t index, const YAML::Node& node) {
   std::string name;
   if (node.IsMap() && node["name"] && node["name"].IsScalar()) name = node["name"].as<std::string>();
-  return context + ": process " + (name.empty() ? "#" + std::to_string(index + 1) : "'" + name + "'");
+  return context + ": process " + (name.empty() ? "#" + std::to_string(index + 1) : "'" + PrintableName(name) + "'");
 }
 
 }  // namespace
@@ -260,12 +287,15 @@ GroupFile ParseGroupYaml(const YAML::Node& root, const std::string& context, con
     for (const auto& [k, v] : ReadEnv(entry["env"], where)) spec.env[k] = v;
 
     if (spec.name.empty()) throw ConfigError(where + ": no 'name'; give every process a unique name");
-    if (spec.name.find('/') != std::string::npos || spec.name.find(' ') != std::string::npos)
-      throw ConfigError(where + ": name must not contain '/' or spaces (it names the log file)");
+    if (spec.name.find('/') != std::string::npos || spec.name.find(' ') != std::string::npos ||
+        HasControlCharacters(spec.name))
+      throw ConfigError(where + ": name must not contain '/', spaces or control characters (it names the log file)");
     if (file.Find(spec.name)) throw ConfigError(where + ": duplicate name; process names must be unique");
     if (spec.command.empty())
       throw ConfigError(where + ": no 'command'; add command: <program path or name on PATH>");
     if (spec.group.empty()) spec.group = default_group;
+    if (HasControlCharacters(spec.group))
+      throw ConfigError(where + ".group: '" + PrintableName(spec.group) + "' must not contain control characters");
     if (spec.host.find_first_of(" /,") != std::string::npos)
       throw ConfigError(where + ".host: '" + spec.host + "' must not contain spaces, '/' or ','");
 

@@ -39,6 +39,8 @@ const char* ProcStateName(ProcState state) {
 
 struct Supervisor::Proc {
   ProcessSpec spec;
+  int index = 0;                  // in procs_: what VLOC_LAUNCH_OWNER names
+  int instance = 0;               // starts so far: with index, which run a descendant came from
   ProcState state = ProcState::kStopped;
   pid_t pid = 0;                  // also the process-group id
   int out_fd = -1;                // read end of the child's stdout+stderr pipe
@@ -63,6 +65,10 @@ struct Supervisor::Proc {
 };
 
 namespace {
+
+// The environment variable that marks every child (and what it forks) as
+// this launcher's: "<launcher pid>:<process index>:<instance>".
+constexpr const char* kOwnerVariable = "VLOC_LAUNCH_OWNER";
 
 double Seconds(Supervisor::Clock::duration d) { return std::chrono::duration<double>(d).count(); }
 
@@ -121,6 +127,7 @@ Supervisor::Supervisor(GroupFile file, SupervisorOptions options)
   for (const auto& spec : file_.processes) {
     auto p = std::make_unique<Proc>();
     p->spec = spec;
+    p->index = static_cast<int>(procs_.size());
     procs_.push_back(std::move(p));
   }
   if (!options_.log_dir.empty()) {
@@ -130,7 +137,14 @@ Supervisor::Supervisor(GroupFile file, SupervisorOptions options)
   }
   // A child whose reader is gone must not kill the launcher on write.
   signal(SIGPIPE, SIG_IGN);
-  last_status_time_ = Clock::now();
+  // What a child leaves behind (a daemon, setsid'd out of its group) is
+  // re-parented to the launcher, not init: it stays in the tree Sweep() walks.
+  self_ = getpid();
+  if (prctl(PR_SET_CHILD_SUBREAPER, 1) != 0)
+    LOG(ERROR) << "cannot become the child subreaper (" << std::strerror(errno)
+               << "): what children leave behind re-parents to init and is only found by its "
+               << kOwnerVariable << " marker";
+  last_status_time_ = next_sweep_ = Clock::now();
 }
 
 Supervisor::~Supervisor() {
@@ -140,10 +154,19 @@ Supervisor::~Supervisor() {
       int status = 0;
       waitpid(p->pid, &status, 0);
       kill(-p->pid, SIGKILL);
+      p->pid = 0;
     }
     if (p->out_fd >= 0) close(p->out_fd);
     if (p->log_fd >= 0) close(p->log_fd);
+    p->out_fd = p->log_fd = -1;
   }
+  // Every other descendant too, and the orphans among them reaped (2 s at most).
+  const auto until = Clock::now() + std::chrono::seconds(2);
+  do {
+    Sweep(Clock::now(), true);
+    if (num_other_descendants_ == 0) break;
+    usleep(10000);
+  } while (Clock::now() < until);
 }
 
 Supervisor::Proc* Supervisor::FindProc(const std::string& name) {
@@ -168,7 +191,7 @@ bool Supervisor::ForTargets(const std::string& target, bool is_group, std::strin
     } else {
       for (const auto& p : procs_) known += " " + p->spec.name;
     }
-    *error = std::string(is_group ? "unknown group '" : "unknown process '") + target + "'; known:" + known;
+    *error = std::string(is_group ? "unknown group '" : "unknown process '") + PrintableName(target) + "'; known:" + known;
   }
   return any;
 }
@@ -203,11 +226,16 @@ bool Supervisor::Restart(const std::string& target, bool is_group, std::string* 
 }
 
 void Supervisor::StopAll() {
+  stopping_all_ = true;
+  sweep_due_ = true;
   for (auto& p : procs_) RequestStop(*p, false);
 }
 
 void Supervisor::KillAll() {
+  stopping_all_ = true;
+  sweep_due_ = true;
   for (auto& p : procs_) {
+    if (p->pid > 0) SignalDescendants(*p, SIGKILL);
     if (p->pid <= 0) {
       if (p->state == ProcState::kStarting || p->state == ProcState::kBackoff) p->state = ProcState::kStopped;
       continue;
@@ -221,7 +249,7 @@ void Supervisor::KillAll() {
 }
 
 bool Supervisor::AllStopped() const {
-  if (!lingering_.empty()) return false;
+  if (!lingering_.empty() || num_other_descendants_ > 0) return false;
   for (const auto& p : procs_) {
     if (p->pid > 0 || p->state == ProcState::kStarting || p->state == ProcState::kBackoff) return false;
   }
@@ -230,6 +258,7 @@ bool Supervisor::AllStopped() const {
 
 void Supervisor::RequestStart(Proc& p) {
   p.selected = true;
+  stopping_all_ = false;
   if (p.pid > 0) {
     if (p.state == ProcState::kStopping) p.restart_after_stop = true;
     return;
@@ -266,6 +295,7 @@ void Supervisor::SendStop(Proc& p, Clock::time_point now) {
   Note(p, "stopping pid " + std::to_string(p.pid) + " with " + SignalName(p.spec.stop_signal) + ", " +
               Fmt(p.spec.stop_timeout) + " s allowed");
   kill(-p.pid, p.spec.stop_signal);
+  SignalDescendants(p, p.spec.stop_signal);  // those that left its process group too
   p.signal_sent = true;
   p.stop_deadline = now + std::chrono::duration_cast<Clock::duration>(
                               std::chrono::duration<double>(p.spec.stop_timeout));
@@ -302,6 +332,11 @@ void Supervisor::Step(int timeout_ms) {
     if (r == p->pid) OnExit(*p, status, now);
     else if (r < 0 && errno == ECHILD) OnExit(*p, 0, now);  // reaped elsewhere: treat as ended
   }
+  if (sweep_due_ || now >= next_sweep_) {
+    bool all_down = stopping_all_;
+    for (const auto& p : procs_) all_down = all_down && p->pid <= 0;
+    Sweep(now, all_down);
+  }
   if (!lingering_.empty()) {
     const auto usage = ReadProcessGroupUsage();
     for (auto it = lingering_.begin(); it != lingering_.end();) {
@@ -326,6 +361,7 @@ void Supervisor::Step(int timeout_ms) {
           Note(*p, "did not stop within " + Fmt(p->spec.stop_timeout) + " s; sending SIGKILL");
           kill(-p->pid, SIGKILL);
           kill(p->pid, SIGKILL);
+          SignalDescendants(*p, SIGKILL);
           p->kill_sent = true;
         }
         break;
@@ -390,6 +426,9 @@ void Supervisor::Spawn(Proc& p, Clock::time_point now) {
     if (!spec.env.count(key)) env_strings.push_back(entry);
   }
   for (const auto& [k, v] : spec.env) env_strings.push_back(k + "=" + v);
+  ++p.instance;
+  env_strings.push_back(std::string(kOwnerVariable) + "=" + std::to_string(self_) + ":" + std::to_string(p.index) + ":" +
+                        std::to_string(p.instance));
   std::vector<char*> envp;
   for (auto& e : env_strings) envp.push_back(e.data());
   envp.push_back(nullptr);
@@ -463,6 +502,7 @@ void Supervisor::OnExit(Proc& p, int wait_status, Clock::time_point now) {
   // that it is gone before AllStopped() says so.
   if (kill(-pid, SIGKILL) == 0) lingering_.push_back({pid, now});
   p.pid = 0;
+  sweep_due_ = true;  // and what it left elsewhere (Sweep)
   p.has_exited = true;
   int code = 0;
   std::string how;
@@ -648,6 +688,108 @@ std::optional<int> Supervisor::DoneOutcome(const std::vector<std::string>& names
     if (p->state == ProcState::kExited && p->last_exit_code != 0) ok = false;
   }
   return ok ? 0 : 1;
+}
+
+void Supervisor::SignalDescendants(Proc& p, int sig) {
+  if (p.pid <= 0) return;
+  const auto table = ReadProcessTable();
+  std::multimap<pid_t, const ProcEntry*> children;
+  for (const auto& e : table) children.emplace(e.ppid, &e);
+  const std::string marker = std::to_string(self_) + ":" + std::to_string(p.index) + ":" + std::to_string(p.instance);
+  std::vector<pid_t> todo{p.pid};
+  // Below its pid, and the launcher's adopted orphans marked (or seen before) as this instance's.
+  const auto adopted = children.equal_range(self_);
+  for (auto it = adopted.first; it != adopted.second; ++it) {
+    const ProcEntry& e = *it->second;
+    if (e.pid == p.pid || e.state == 'Z') continue;
+    const auto known = known_owners_.find(e.pid);
+    const bool seen = known != known_owners_.end() && known->second.first == e.start_ticks &&
+                      known->second.second.index == p.index && known->second.second.instance == p.instance;
+    if (seen || ReadStartEnvironment(e.pid, kOwnerVariable) == marker) todo.push_back(e.pid);
+  }
+  for (size_t i = 0; i < todo.size(); ++i) {
+    if (todo[i] != p.pid) kill(todo[i], sig);
+    const auto range = children.equal_range(todo[i]);
+    for (auto it = range.first; it != range.second; ++it)
+      if (it->second->state != 'Z') todo.push_back(it->second->pid);
+  }
+  sweep_due_ = true;
+}
+
+void Supervisor::Sweep(Clock::time_point now, bool everything) {
+  sweep_due_ = false;
+  next_sweep_ = now + std::chrono::seconds(1);
+  const auto table = ReadProcessTable();
+  std::multimap<pid_t, const ProcEntry*> children;
+  for (const auto& e : table) children.emplace(e.ppid, &e);
+  std::map<pid_t, const Proc*> leaders;
+  for (const auto& p : procs_)
+    if (p->pid > 0) leaders[p->pid] = p.get();
+  // The tree below the launcher, each subtree with the owner of its top.
+  std::vector<std::pair<const ProcEntry*, Owner>> todo;
+  const auto top = children.equal_range(self_);
+  for (auto it = top.first; it != top.second; ++it) {
+    const ProcEntry& e = *it->second;
+    Owner owner;
+    if (const auto l = leaders.find(e.pid); l != leaders.end()) {
+      owner = {l->second->index, l->second->instance};
+    } else if (const auto k = known_owners_.find(e.pid); k != known_owners_.end() && k->second.first == e.start_ticks) {
+      owner = k->second.second;
+    } else if (const auto mark = ReadStartEnvironment(e.pid, kOwnerVariable)) {
+      int launcher = 0, index = -1, instance = 0;
+      if (std::sscanf(mark->c_str(), "%d:%d:%d", &launcher, &index, &instance) == 3 && launcher == self_ &&
+          index >= 0 && index < static_cast<int>(procs_.size()))
+        owner = {index, instance};
+    }
+    todo.push_back({&e, owner});
+  }
+  std::map<pid_t, std::pair<uint64_t, Owner>> owners;
+  int live = 0;
+  for (size_t i = 0; i < todo.size(); ++i) {
+    const ProcEntry& e = *todo[i].first;
+    const Owner owner = todo[i].second;
+    const auto range = children.equal_range(e.pid);
+    for (auto it = range.first; it != range.second; ++it) todo.push_back({it->second, owner});
+    if (owner.index >= 0) owners[e.pid] = {e.start_ticks, owner};
+    if (leaders.count(e.pid)) continue;  // the processes themselves: Step() reaps and stops them
+    if (e.state == 'Z' || e.state == 'X') {
+      if (e.ppid == self_) waitpid(e.pid, nullptr, WNOHANG);  // an adopted orphan that ended
+      continue;
+    }
+    const Proc* p = owner.index >= 0 ? procs_[owner.index].get() : nullptr;
+    const bool leftover = everything || (p && (p->pid <= 0 || p->instance != owner.instance));
+    if (leftover) {
+      const auto k = killed_.find(e.pid);
+      if (k == killed_.end()) {
+        const std::string what = "pid " + std::to_string(e.pid) + " (" + PrintableName(e.comm) + ")";
+        if (p) Note(*procs_[owner.index], "killing " + what + ", left behind by its instance " +
+                                              std::to_string(owner.instance));
+        else LOG(WARNING) << "killing " << what << ", a descendant of unknown origin";
+        killed_[e.pid] = {now, false};
+      } else if (k->second.second) {
+        continue;  // given up on: no longer waited for
+      }
+      kill(e.pid, SIGKILL);
+    }
+    ++live;
+  }
+  known_owners_ = std::move(owners);
+  for (auto it = killed_.begin(); it != killed_.end();) {
+    const bool alive = std::any_of(todo.begin(), todo.end(), [&](const auto& t) {
+      return t.first->pid == it->first && t.first->state != 'Z' && t.first->state != 'X';
+    });
+    if (!alive) {
+      it = killed_.erase(it);
+      continue;
+    }
+    if (!it->second.second && Seconds(now - it->second.first) > 5.0) {
+      LOG(ERROR) << "pid " << it->first << " still alive 5 s after SIGKILL; giving up on it";
+      it->second.second = true;
+    }
+    ++it;
+  }
+  num_other_descendants_ = live;
+  if (live > 0 && everything) sweep_due_ = true;
 }
 
 std::vector<pid_t> Supervisor::LivePids() const {

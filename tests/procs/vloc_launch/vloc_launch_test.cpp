@@ -1,4 +1,4 @@
-// vloc_launch as a real process over real LCM (ports 7822-7832), with
+// vloc_launch as a real process over real LCM (ports 7822-7833), with
 // /bin/sh and sleep as its children: starting a group, restarting after
 // SIGKILL, giving up, SIGTERM leaving no process, orders over LCM, log
 // files, bad group files, --exit-when-done. Every wait has a timeout.
@@ -51,6 +51,12 @@ struct Scratch {
     std::ofstream(path) << text;
     return path;
   }
+  ~Scratch() {
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+  }
+  Scratch(const Scratch&) = delete;
+  Scratch& operator=(const Scratch&) = delete;
   std::string Log(const std::string& name) const { return ReadFile(dir + "/logs/" + name + ".log"); }
   std::string dir;
 };
@@ -294,6 +300,51 @@ processes:
   EXPECT_EQ(watcher.Find("b")->restarts, 0);  // ordered restarts are not counted as crashes
   launcher.Signal(SIGINT);
   EXPECT_EQ(launcher.WaitExit(15), std::optional<int>(0)) << launcher.output();
+}
+
+// Issue 30: a process that daemonises (setsid, out of its process group)
+// left one orphan per start, 4 after 3 restarts and the launcher's
+// SIGTERM; an order target holding a newline forged a line in the
+// launcher's log. Now the launcher is the subreaper, kills what an ended
+// instance left behind, and ends every descendant on SIGTERM; names with
+// control characters are refused in one escaped line.
+TEST(VlocLaunch, OwnsWhatItsProcessesDaemoniseAndEscapesNames) {
+  Scratch scratch("daemons");
+  const int port = 7833;
+  StatusWatcher watcher(TestLcmUrl(port));
+  const std::string restarted = "7777." + std::to_string(getpid()) + "1", kept = "7777." + std::to_string(getpid()) + "2";
+  auto sleepers = [](const std::string& duration) { return FindProcesses("sleep", {duration}).size(); };
+  const std::string flag = scratch.dir + "/daemon_started";
+  Subprocess launcher = Launch(scratch, scratch.WriteGroup(R"(
+defaults: {stop_timeout: 2, backoff_initial: 0.05, backoff_max: 5}
+processes:
+  - {name: restarter, command: /bin/sh, restart: always, max_restarts: 3, args: [-c,
+     "rm -f )" + flag + R"(; setsid sh -c 'echo x > )" + flag + R"(; exec sleep )" + restarted + R"(' &
+      while [ ! -s )" + flag + R"( ]; do sleep 0.01; done; exit 1"]}
+  - {name: keeper, command: /bin/sh, args: [-c, "setsid sleep )" + kept + R"( & echo ready; while :; do sleep 0.05; done"]}
+)"),
+                               port);
+  ASSERT_TRUE(watcher.WaitFor([&](const procman_status_t&) {
+    return watcher.Is("restarter", proc_status_t::STATE_GAVE_UP) && watcher.Is("keeper", kRunning) &&
+           sleepers(kept) == 1;
+  }, 30.0)) << launcher.output();
+  EXPECT_EQ(watcher.Find("restarter")->restarts, 3);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (sleepers(restarted) > 0 && std::chrono::steady_clock::now() < deadline) watcher.WaitFor([](auto&) { return false; }, 0.1);
+  EXPECT_EQ(sleepers(restarted), 0u) << "daemons of 4 starts of 'restarter' left";
+  EXPECT_NE(scratch.Log("restarter").find("left behind by its instance 4"), std::string::npos) << scratch.Log("restarter");
+
+  const std::string forged = "I1127 00:00:00.000000     1 forged.cpp:1] forged line";
+  watcher.Order("keeper\n" + forged, procman_order_t::TARGET_PROCESS, procman_order_t::ACTION_STOP);
+  EXPECT_TRUE(launcher.WaitForOutput("refused: the name holds control characters", 15)) << launcher.output();
+  EXPECT_NE(launcher.output().find("order to stop 'keeper\\n" + forged + "' refused"), std::string::npos)
+      << launcher.output();
+  EXPECT_EQ(launcher.output().find("\n" + forged), std::string::npos) << launcher.output();
+  EXPECT_TRUE(watcher.Is("keeper", kRunning));
+
+  launcher.Signal(SIGTERM);
+  EXPECT_EQ(launcher.WaitExit(20), std::optional<int>(0)) << launcher.output();
+  EXPECT_EQ(sleepers(kept) + sleepers(restarted), 0u) << "daemons left after the launcher's SIGTERM";
 }
 
 TEST(VlocLaunch, WritesOneLogFilePerProcessWithTheNameOnEveryLine) {

@@ -28,6 +28,18 @@ std::string TempDir(const std::string& name) {
   return dir;
 }
 
+// Removes every TempDir() of this test binary when the tests end.
+class RemoveTempDirs : public ::testing::Environment {
+ public:
+  void TearDown() override {
+    const std::string prefix = "launch_unit_" + std::to_string(getpid()) + "_";
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator(::testing::TempDir(), ec))
+      if (entry.path().filename().string().rfind(prefix, 0) == 0) fs::remove_all(entry.path(), ec);
+  }
+};
+const auto* const kRemoveTempDirs = ::testing::AddGlobalTestEnvironment(new RemoveTempDirs);
+
 std::string ReadFile(const std::string& path) {
   std::ifstream in(path);
   std::stringstream s;
@@ -65,6 +77,68 @@ bool StepUntil(Supervisor& s, const std::function<bool()>& done, double timeout_
 }
 
 bool GroupGone(pid_t pgid) { return ReadProcessGroupUsage().count(pgid) == 0; }
+
+// A sleep duration unique to the test (7777.<test pid><n>): finds its
+// daemons among everything else on the machine.
+std::string UniqueSleep(int n) { return "7777." + std::to_string(getpid()) + std::to_string(n); }
+int CountSleepers(const std::string& duration) { return static_cast<int>(FindProcesses("sleep", {duration}).size()); }
+
+// A process that daemonises (setsid: out of its process group, re-parented
+// when its shell ends) leaves nothing behind (issue 30: one orphan per
+// start, 4 after 3 restarts and the launcher's stop): its leftovers are
+// killed when the instance that started them ends, when it is stopped, and
+// by StopAll.
+TEST(Supervisor, DaemonsOfItsProcessesDieWithThem) {
+  const std::string dir = TempDir("daemons");
+  const std::string restarted = UniqueSleep(1), kept = UniqueSleep(2);
+  GroupFile file;
+  // The restarter ends once its daemon is in a session of its own (out of the process group).
+  const std::string flag = dir + "/daemon_started";
+  file.processes = {Shell("restarter", "rm -f " + flag + "; setsid sh -c 'echo x > " + flag + "; exec sleep " +
+                                           restarted + "' & while [ ! -s " + flag + " ]; do sleep 0.01; done; exit 1"),
+                    Shell("keeper", "setsid sleep " + kept + " & echo ready; while :; do sleep 0.05; done")};
+  file.processes[0].restart = RestartPolicy::kAlways;
+  file.processes[0].max_restarts = 3;
+  file.processes[0].backoff_max = 5.0;  // runs shorter than this count towards max_restarts
+  Supervisor s(file, {dir});
+  ASSERT_TRUE(s.Start("restarter", false, nullptr));
+  // Four starts, each leaving a daemon, each daemon killed once its instance ends.
+  ASSERT_TRUE(StepUntil(s, [&] { return StatusOf(s, "restarter").state == ProcState::kGaveUp; }, 30.0));
+  ASSERT_TRUE(StepUntil(s, [&] { return CountSleepers(restarted) == 0 && s.AllStopped(); }, 10.0))
+      << CountSleepers(restarted) << " daemons of 'restarter' left";
+  const std::string log = ReadFile(dir + "/restarter.log");
+  EXPECT_NE(log.find("left behind by its instance 4"), std::string::npos) << log;
+
+  // Stopping a process ends its daemon too (it left the process group).
+  ASSERT_TRUE(s.Start("keeper", false, nullptr));
+  ASSERT_TRUE(StepUntil(s, [&] { return CountSleepers(kept) == 1; })) << ReadFile(dir + "/keeper.log");
+  ASSERT_TRUE(s.Stop("keeper", false, nullptr));
+  ASSERT_TRUE(StepUntil(s, [&] { return StatusOf(s, "keeper").state == ProcState::kStopped && CountSleepers(kept) == 0; }))
+      << CountSleepers(kept) << " daemons of 'keeper' left";
+
+  // And StopAll everything, AllStopped waiting for it.
+  ASSERT_TRUE(s.Start("keeper", false, nullptr));
+  ASSERT_TRUE(StepUntil(s, [&] { return CountSleepers(kept) == 1; }));
+  EXPECT_TRUE(StepUntil(s, [&] { return s.NumOtherDescendants() >= 1; }));  // swept at least once a second
+  s.StopAll();
+  ASSERT_TRUE(StepUntil(s, [&] { return s.AllStopped(); }));
+  EXPECT_EQ(CountSleepers(kept), 0);
+  EXPECT_EQ(s.NumOtherDescendants(), 0);
+  fs::remove_all(dir);
+}
+
+TEST(Supervisor, NamesWithControlCharactersAreEscapedOrRefused) {
+  EXPECT_TRUE(HasControlCharacters("a\nb"));
+  EXPECT_FALSE(HasControlCharacters("sim_rover"));
+  EXPECT_EQ(PrintableName("x\nI1127 forged\t\\"), "x\\nI1127 forged\\x09\\\\");
+  GroupFile file;
+  file.processes = {Shell("a", "exit 0")};
+  Supervisor s(file, {});
+  std::string error;
+  EXPECT_FALSE(s.Stop("evil\nI0101 forged line", false, &error));
+  EXPECT_EQ(error.find('\n'), std::string::npos) << error;
+  EXPECT_NE(error.find("unknown process 'evil\\nI0101 forged line'"), std::string::npos) << error;
+}
 
 TEST(Supervisor, StartsAGroupAfterItsDependencies) {
   GroupFile file;

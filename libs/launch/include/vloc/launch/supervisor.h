@@ -7,6 +7,19 @@
 // configured signal and SIGKILLs what outlives its stop_timeout, and
 // reports pid, state, restarts, exit code, CPU and memory per process.
 //
+// It owns every descendant it started: it is the child subreaper
+// (PR_SET_CHILD_SUBREAPER), so what a child leaves behind (a daemon that
+// escaped its process group with setsid) comes back to it rather than to
+// init. Each child carries VLOC_LAUNCH_OWNER=<launcher pid>:<index>:<instance>
+// in its environment, and the launcher's process tree is swept (/proc, at
+// once after any exit or stop, else once a second): a descendant is
+// signalled with its process's stop signal and SIGKILL, is SIGKILLed as a
+// leftover once the instance that started it has ended (restarts do not
+// pile up daemons), orphans that end are reaped, and StopAll/KillAll end
+// every descendant, attributed or not. AllStopped() waits for all of them.
+// (A SIGKILLed launcher cannot do this: its children get SIGTERM through
+// PR_SET_PDEATHSIG, a daemon that left their group does not.)
+//
 // Single-threaded: the owner calls Step() in its loop (it waits up to the
 // given time for child output). Orders (Start/Stop/Restart) only change
 // what Step() will do next.
@@ -21,6 +34,7 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -93,8 +107,9 @@ class Supervisor {
   void StopAll();
   // SIGKILLs every process group still alive, now.
   void KillAll();
-  // True when no child (nor anything left in a child's process group) is
-  // alive and no start is pending (after StopAll: everything has ended).
+  // True when no child (nor anything left in a child's process group, nor
+  // any other descendant as of the last sweep) is alive and no start is
+  // pending (after StopAll: everything has ended).
   bool AllStopped() const;
 
   // Waits up to timeout_ms for child output, then copies output to the
@@ -117,6 +132,11 @@ class Supervisor {
   // The pids of all live children (process-group ids), for tests and checks.
   std::vector<pid_t> LivePids() const;
 
+  // Live descendants (not zombies) other than the children LivePids()
+  // gives: what the processes forked, daemons among them, as of the last
+  // sweep of the process tree.
+  int NumOtherDescendants() const { return num_other_descendants_; }
+
   const GroupFile& file() const { return file_; }
 
  private:
@@ -135,6 +155,17 @@ class Supervisor {
   void Note(Proc& p, const std::string& text);
   bool DependenciesRunning(const Proc& p) const;
   bool HasStoppingDependents(const Proc& p) const;
+  // Which process instance started a descendant (index into procs_, -1 unknown).
+  struct Owner {
+    int index = -1;
+    int instance = 0;
+  };
+  // Walks the launcher's process tree: reaps adopted orphans that ended,
+  // SIGKILLs leftovers (their instance ended; every one when `everything`),
+  // and counts what lives in num_other_descendants_.
+  void Sweep(Clock::time_point now, bool everything);
+  // Sends `sig` to every live descendant of p's current instance.
+  void SignalDescendants(Proc& p, int sig);
 
   GroupFile file_;
   SupervisorOptions options_;
@@ -144,6 +175,16 @@ class Supervisor {
   std::vector<std::pair<pid_t, Clock::time_point>> lingering_;
   Clock::time_point last_status_time_;
   RemoteCheck remote_check_;
+  pid_t self_ = 0;                       // the launcher's pid, root of its process tree
+  bool stopping_all_ = false;            // StopAll / KillAll: every descendant goes
+  bool sweep_due_ = true;                // a child ended or was signalled: sweep at the next Step
+  Clock::time_point next_sweep_;         // else once a second
+  int num_other_descendants_ = 0;        // from the last sweep
+  // Owners seen while a descendant's ancestry still led to its process,
+  // kept for when it is re-parented to the launcher: pid -> (start time, owner).
+  std::map<pid_t, std::pair<uint64_t, Owner>> known_owners_;
+  // Leftovers SIGKILLed and still alive: pid -> (when first killed, given up on: 5 s later, no longer waited for).
+  std::map<pid_t, std::pair<Clock::time_point, bool>> killed_;
 };
 
 }  // namespace vloc
