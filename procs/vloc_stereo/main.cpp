@@ -14,6 +14,9 @@
 // (vloc::CheckStereoPair): a pair whose matches are not on their rows is
 // refused with one line saying so (--no-pair-check skips the check);
 // --auto-range searches the disparities the matches span (with a margin).
+// A common row offset the matches agree on (real rectified pairs keep a few
+// tenths of a pixel) is absorbed: the right image is shifted by it before
+// matching (printed as row_offset_px).
 
 #include <cmath>
 #include <fstream>
@@ -40,7 +43,8 @@ bool WritePfm(const std::string& path, const cv::Mat& disp) {
 
 // The pair check: false (and one line on stderr) when the pair is not
 // rectified, or when --auto-range needs a range the check could not give.
-bool CheckPair(const cv::Mat& left, const cv::Mat& right, bool auto_range, double* dmin, double* dmax) {
+bool CheckPair(const cv::Mat& left, const cv::Mat& right, bool auto_range, double* dmin, double* dmax,
+               double* row_offset) {
   const vloc::StereoPairCheck c = vloc::CheckStereoPair(left, right, vloc::StereoPairCheckOptions());
   if (c.usable && !c.rectified) {
     std::cerr << "vloc_stereo: the pair is " << c.message << " (--no-pair-check to match it anyway)\n";
@@ -52,6 +56,7 @@ bool CheckPair(const cv::Mat& left, const cv::Mat& right, bool auto_range, doubl
     return !auto_range;
   }
   std::cout << "pair_check: \"" << c.message << "\"\n";
+  *row_offset = c.row_offset_px;
   if (auto_range) *dmin = c.min_disparity, *dmax = c.max_disparity;
   return true;
 }
@@ -82,7 +87,8 @@ int Run(int argc, char** argv) {
     }
     images[k] = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
   }
-  const cv::Mat left8 = images[0], right8 = images[1];
+  const cv::Mat left8 = images[0];
+  cv::Mat right8 = images[1];
   if (left8.empty() || right8.empty() || left8.size() != right8.size()) {
     std::cerr << "vloc_stereo: cannot read two images of the same size from " << args.positional()[0] << " and "
               << args.positional()[1] << "\n";
@@ -107,7 +113,10 @@ int Run(int argc, char** argv) {
     std::cerr << "vloc_stereo: --auto-range needs the pair check: drop --no-pair-check\n";
     return 1;
   }
-  if (!args.Has("no-pair-check") && !CheckPair(left8, right8, auto_range, &dmin, &dmax)) return 1;
+  double row_offset = 0;
+  if (!args.Has("no-pair-check") && !CheckPair(left8, right8, auto_range, &dmin, &dmax, &row_offset)) return 1;
+  right8 = vloc::AlignRows(right8, row_offset);
+  std::cout << "row_offset_px: " << row_offset << "\n";
   const int step = std::max(1, args.GetInt("step", args.Has("config") ? o.step : 4));
   const int threads = std::max(1, args.GetInt("threads", o.num_threads));
   if (!(dmax > dmin && dmin >= 0)) {

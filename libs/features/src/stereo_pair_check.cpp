@@ -4,6 +4,7 @@
 #include <cmath>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <stdexcept>
 #include <vector>
@@ -17,7 +18,8 @@ void StereoPairCheckOptions::Visit(OptionsReader& r) {
   r.Optional("ratio", &ratio, "Lowe's ratio test");
   r.Optional("ransac_px", &ransac_px, "px, fundamental-matrix RANSAC threshold");
   r.Optional("min_matches", &min_matches, "fewer inliers: no verdict");
-  r.Optional("max_median_dy_px", &max_median_dy_px, "px, largest median row difference of a rectified pair");
+  r.Optional("max_median_dy_px", &max_median_dy_px, "px, largest median row difference of a rectified pair, offset removed");
+  r.Optional("max_row_offset_px", &max_row_offset_px, "px, largest common row offset absorbed");
   r.Optional("range_percentile", &range_percentile, "%, disparity range from this percentile to 100 minus it");
   r.Optional("range_margin_px", &range_margin_px, "px, margin added to both ends of the range");
 }
@@ -25,7 +27,8 @@ void StereoPairCheckOptions::Visit(OptionsReader& r) {
 bool StereoPairCheckOptions::Check(std::string* error) const {
   if (max_features < 10) return Fail(error, "stereo_pair_check.max_features must be >= 10");
   if (!(ratio > 0 && ratio <= 1)) return Fail(error, "stereo_pair_check.ratio must be in (0, 1]");
-  if (!(ransac_px > 0) || !(max_median_dy_px > 0)) return Fail(error, "stereo_pair_check pixel thresholds must be > 0");
+  if (!(ransac_px > 0) || !(max_median_dy_px > 0) || !(max_row_offset_px >= 0))
+    return Fail(error, "stereo_pair_check pixel thresholds must be > 0");
   if (min_matches < 8) return Fail(error, "stereo_pair_check.min_matches must be >= 8 (the fundamental matrix)");
   if (!(range_percentile >= 0 && range_percentile < 50)) return Fail(error, "stereo_pair_check.range_percentile must be in [0, 50)");
   if (!(range_margin_px >= 0)) return Fail(error, "stereo_pair_check.range_margin_px must be >= 0");
@@ -78,9 +81,11 @@ StereoPairCheck CheckStereoPair(const cv::Mat& left, const cv::Mat& right, const
     throw std::invalid_argument("CheckStereoPair needs two 8-bit grey images of the same size");
   StereoPairCheck c;
   const StereoMatches m = MatchStereoPair(left, right, o);
-  std::vector<double> dy, dx;
-  for (size_t k = 0; k < m.left.size(); ++k)
+  std::vector<double> dy, dx, signed_dy;
+  for (size_t k = 0; k < m.left.size(); ++k) {
     dy.push_back(std::abs(m.left[k].y - m.right[k].y)), dx.push_back(m.left[k].x - m.right[k].x);
+    signed_dy.push_back(m.right[k].y - m.left[k].y);
+  }
   c.matches = static_cast<int>(dy.size());
   std::ostringstream msg;
   if (c.matches < o.min_matches) {
@@ -92,25 +97,50 @@ StereoPairCheck CheckStereoPair(const cv::Mat& left, const cv::Mat& right, const
   c.usable = true;
   c.median_abs_dy_px = Percentile(dy, 50);
   c.p90_abs_dy_px = Percentile(dy, 90);
-  c.rectified = c.median_abs_dy_px <= o.max_median_dy_px;
+  c.row_offset_px = Percentile(signed_dy, 50);
+  std::vector<double> residual;
+  for (double d : signed_dy) residual.push_back(std::abs(d - c.row_offset_px));
+  c.median_residual_dy_px = Percentile(residual, 50);
+  c.p90_residual_dy_px = Percentile(residual, 90);
+  const bool on_rows = c.median_residual_dy_px <= o.max_median_dy_px;
+  const bool small_offset = std::abs(c.row_offset_px) <= o.max_row_offset_px;
+  c.rectified = on_rows && small_offset;
   const double low = Percentile(dx, o.range_percentile);
   c.min_disparity = std::max(0.0, std::floor(low - o.range_margin_px));
   c.max_disparity = std::max(c.min_disparity + 1, std::ceil(Percentile(dx, 100 - o.range_percentile) + o.range_margin_px));
   msg.precision(3);
   if (c.rectified) {
     msg << "rectified: " << c.matches << " feature matches on their rows (median |dy| " << c.median_abs_dy_px
-        << " px), disparities " << c.min_disparity << ".." << c.max_disparity << " px with the margin";
+        << " px";
+    if (std::abs(c.row_offset_px) >= 0.01)
+      msg << "; a common row offset of " << c.row_offset_px << " px, absorbed: median |dy| " << c.median_residual_dy_px
+          << " px without it";
+    msg << "), disparities " << c.min_disparity << ".." << c.max_disparity << " px with the margin";
     if (low < 0)
       msg << "; but " << o.range_percentile << " % of them are below " << low
           << " px, and the search starts at 0: shift the right image left by " << std::ceil(-low + o.range_margin_px)
           << " px";
+  } else if (!on_rows) {
+    msg << "not rectified: " << c.matches << " matched features are a median " << c.median_residual_dy_px
+        << " px off their common row offset of " << c.row_offset_px << " px (90 % within " << c.p90_residual_dy_px
+        << " px; rectified pairs are within " << o.max_median_dy_px
+        << " px): rectify the pair with its camera models first";
   } else {
-    msg << "not rectified: " << c.matches << " matched features are a median " << c.median_abs_dy_px
-        << " px apart vertically (90 % within " << c.p90_abs_dy_px << " px; rectified pairs are within "
-        << o.max_median_dy_px << " px): rectify the pair with its camera models first";
+    msg << "not rectified: " << c.matches << " matched features agree on a row offset of " << c.row_offset_px
+        << " px (median |dy| " << c.median_residual_dy_px << " px without it), more than the "
+        << o.max_row_offset_px << " px a rectified pair keeps: rectify the pair with its camera models first";
   }
   c.message = msg.str();
   return c;
+}
+
+cv::Mat AlignRows(const cv::Mat& right, double row_offset_px) {
+  if (std::abs(row_offset_px) < 0.01) return right;
+  // dst(x, y) = src(x, y + offset).
+  const cv::Matx23d shift(1, 0, 0, 0, 1, row_offset_px);
+  cv::Mat out;
+  cv::warpAffine(right, out, shift, right.size(), cv::INTER_CUBIC | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
+  return out;
 }
 
 }  // namespace vloc

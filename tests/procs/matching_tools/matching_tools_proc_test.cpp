@@ -144,20 +144,32 @@ TEST(VlocStereo, AutoRangeCoversThePairsDisparities) {
   std::filesystem::remove_all(dir);
 }
 
-// The same pair with the right image 2 px lower: row matching would give a
-// wrong map everywhere; the tool refuses it in one line and writes nothing.
-TEST(VlocStereo, UnrectifiedPairIsRefusedInOneLine) {
+// The same pair with the right image 2 px lower: a common row offset the
+// matches agree on (real rectified pairs keep a few tenths of a pixel) is
+// absorbed, the right image shifted by it; 6 px (over max_row_offset_px) is
+// refused in one line and nothing is written.
+TEST(VlocStereo, RowOffsetIsAbsorbedAndALargeOneRefusedInOneLine) {
   const std::string dir = TempDir();
   WritePlanePair(dir, 2.0);
   const ToolRun r = RunTool({vloc::testing::BinPath("vloc_stereo"), dir + "/l.png", dir + "/r.png", "--min-disp", "0",
-                         "--max-disp", "30", "--out", dir + "/d.pfm"});
-  EXPECT_EQ(r.exit_code, 1) << r.output;
-  EXPECT_NE(r.output.find("not rectified"), std::string::npos) << r.output;
-  EXPECT_FALSE(std::filesystem::exists(dir + "/d.pfm"));
-  const ToolRun forced = RunTool({vloc::testing::BinPath("vloc_stereo"), dir + "/l.png", dir + "/r.png", "--min-disp",
-                              "0", "--max-disp", "30", "--no-pair-check", "--out", dir + "/d.pfm"});
-  EXPECT_EQ(forced.exit_code, 0) << forced.output;
+                         "--max-disp", "30", "--step", "2", "--out", dir + "/d.pfm"});
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("absorbed"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("row_offset_px: 2"), std::string::npos) << r.output;
+  EXPECT_LT(PlaneMedianError(ReadPfm(dir + "/d.pfm"), r.output), 0.1);
   std::filesystem::remove_all(dir);
+
+  const std::string dir6 = TempDir();
+  WritePlanePair(dir6, 6.0);
+  const ToolRun big = RunTool({vloc::testing::BinPath("vloc_stereo"), dir6 + "/l.png", dir6 + "/r.png", "--min-disp", "0",
+                           "--max-disp", "30", "--out", dir6 + "/d.pfm"});
+  EXPECT_EQ(big.exit_code, 1) << big.output;
+  EXPECT_NE(big.output.find("not rectified"), std::string::npos) << big.output;
+  EXPECT_FALSE(std::filesystem::exists(dir6 + "/d.pfm"));
+  const ToolRun forced = RunTool({vloc::testing::BinPath("vloc_stereo"), dir6 + "/l.png", dir6 + "/r.png", "--min-disp",
+                              "0", "--max-disp", "30", "--no-pair-check", "--out", dir6 + "/d.pfm"});
+  EXPECT_EQ(forced.exit_code, 0) << forced.output;
+  std::filesystem::remove_all(dir6);
 }
 
 TEST(VlocStereo, MissingImagesAreOneClearLine) {

@@ -316,3 +316,44 @@ TEST(DenseStereo, RealNavcamTerrainMatchedSkyNot) {
 
 }  // namespace
 }  // namespace vloc
+
+namespace vloc {
+namespace {
+
+// A real rover's stereo: UTIAS Devon Island pair 2 (../shared/data; the
+// dataset's rectified XB3 images, 1280 x 960, the right one shifted by the
+// row offset the pair check measures, -0.55 px), beside SGBM, with the
+// JPEG settings, over the check's disparity range. Check points: the SIFT
+// matches within 0.3 px of their row after the shift.
+TEST(DenseStereo, DevonIslandPairBesideSgbm) {
+  StereoPairCheck check;
+  const testing::SparseStereoPair pair = testing::LoadDevonPair(2, &check);
+  if (!pair.missing.empty()) GTEST_SKIP() << "missing " << pair.missing;
+  ASSERT_TRUE(pair.ok) << check.message;
+  const DenseStereoOptions o = testing::StereoOptionsFor(pair, "config/stereo_jpeg.yaml", 1);
+  DenseStereoSummary summary;
+  const cv::Mat d = DenseStereo(pair.left, pair.right, o, &summary);
+  ASSERT_TRUE(summary.usable) << summary.BriefReport();
+  const cv::Mat sgbm = testing::SgbmDisparity(pair.left, pair.right, pair.min_disparity, pair.num_disparities);
+  const testing::SparseScore ours = testing::ScoreSparse(d, pair, sgbm);
+  const testing::SparseScore peer = testing::ScoreSparse(sgbm, pair, d);
+  // Agreement where both match, on the terrain.
+  long both = 0, agree = 0;
+  for (int y = 0; y < d.rows; ++y)
+    for (int x = 0; x < d.cols; ++x)
+      if (pair.terrain.at<uchar>(y, x) && std::isfinite(d.at<float>(y, x)) && std::isfinite(sgbm.at<float>(y, x)))
+        ++both, agree += std::abs(d.at<float>(y, x) - sgbm.at<float>(y, x)) <= 1.0f;
+  std::cout << "Devon pair 2 (row offset " << check.row_offset_px << " px absorbed): terrain matched vloc "
+            << ours.terrain_coverage << " SGBM " << peer.terrain_coverage << ", sky matched vloc " << ours.sky_matched
+            << " SGBM " << peer.sky_matched << "; where both match, within 1 px of each other "
+            << (both ? static_cast<double>(agree) / both : 0.0) << " of " << both << " px; at " << ours.checked
+            << " check points: > 1 px vloc " << ours.bad1 << " SGBM " << peer.bad1 << ", median vloc "
+            << ours.median_abs << " SGBM " << peer.median_abs << "; " << summary.total_seconds << " s\n";
+  EXPECT_GT(ours.terrain_coverage, 0.5);
+  EXPECT_GT(ours.checked, 300);
+  EXPECT_LT(ours.bad1, 0.03);
+  EXPECT_LT(ours.median_abs, 0.25);
+}
+
+}  // namespace
+}  // namespace vloc

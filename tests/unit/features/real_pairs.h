@@ -119,6 +119,25 @@ struct SparseStereoPair {
   std::string missing;
 };
 
+// Terrain below the skyline: per column, from the first row whose 9 x 9
+// grey std exceeds 12 (inside `valid`, eroded by 10 px) down.
+inline cv::Mat TerrainBelowSkyline(const cv::Mat& left, const cv::Mat& valid) {
+  cv::Mat g, mean, sq, std_dev, inner;
+  left.convertTo(g, CV_32F);
+  cv::blur(g, mean, cv::Size(9, 9));
+  cv::blur(g.mul(g), sq, cv::Size(9, 9));
+  cv::sqrt(cv::max(sq - mean.mul(mean), 0), std_dev);
+  cv::erode(valid, inner, cv::Mat::ones(21, 21, CV_8U));
+  cv::Mat terrain(left.size(), CV_8U, cv::Scalar(0));
+  for (int x = 0; x < left.cols; ++x)
+    for (int y = 0; y < left.rows; ++y)
+      if (inner.at<uchar>(y, x) && std_dev.at<float>(y, x) > 12) {
+        for (int yy = y; yy < left.rows; ++yy) terrain.at<uchar>(yy, x) = valid.at<uchar>(yy, x);
+        break;
+      }
+  return terrain;
+}
+
 inline SparseStereoPair LoadNavcamPair() {
   SparseStereoPair p;
   const std::string d = std::string(VLOC_SOURCE_DIR) + "/../shared/data/real/mars_navcam/";
@@ -149,21 +168,37 @@ inline SparseStereoPair LoadNavcamPair() {
   cv::perspectiveTransform(ir, qr, h2);
   for (size_t k = 0; k < ql.size(); ++k)
     if (std::abs(ql[k].y - qr[k].y) < 0.3f) p.points.push_back(ql[k]), p.disparity.push_back(ql[k].x - qr[k].x);
-  // Terrain below the skyline.
-  cv::Mat g, mean, sq, std_dev, inner;
-  p.left.convertTo(g, CV_32F);
-  cv::blur(g, mean, cv::Size(9, 9));
-  cv::blur(g.mul(g), sq, cv::Size(9, 9));
-  cv::sqrt(cv::max(sq - mean.mul(mean), 0), std_dev);
-  cv::erode(p.valid, inner, cv::Mat::ones(21, 21, CV_8U));
-  p.terrain = cv::Mat(l.size(), CV_8U, cv::Scalar(0));
-  for (int x = 0; x < l.cols; ++x)
-    for (int y = 0; y < l.rows; ++y)
-      if (inner.at<uchar>(y, x) && std_dev.at<float>(y, x) > 12) {
-        for (int yy = y; yy < l.rows; ++yy) p.terrain.at<uchar>(yy, x) = p.valid.at<uchar>(yy, x);
-        break;
-      }
+  p.terrain = TerrainBelowSkyline(p.left, p.valid);
   p.ok = p.points.size() >= 100;
+  return p;
+}
+
+// A UTIAS Devon Island pair (../shared/data/real/rover_devon; Furgale et
+// al., IJRR 2012): the dataset's rectified XB3 images, the right one
+// shifted by the row offset vloc::CheckStereoPair measures (AlignRows);
+// check points: the check's SIFT matches within 0.3 px of their row after
+// the shift. *check gets the check.
+inline SparseStereoPair LoadDevonPair(int n, StereoPairCheck* check) {
+  SparseStereoPair p;
+  const std::string d = std::string(VLOC_SOURCE_DIR) + "/../shared/data/real/rover_devon/";
+  const std::string kLeft = "devon" + std::to_string(n) + "-left.png", kRight = "devon" + std::to_string(n) + "-right.png";
+  p.missing = FirstMissing(d, {kLeft.c_str(), kRight.c_str()}, "none: real data beside the repo, see ../shared/data/README.md");
+  if (!p.missing.empty()) return p;
+  p.left = cv::imread(d + kLeft, cv::IMREAD_GRAYSCALE);
+  const cv::Mat r = cv::imread(d + kRight, cv::IMREAD_GRAYSCALE);
+  if (p.left.empty() || r.empty() || p.left.size() != r.size()) return p;
+  const StereoPairCheckOptions o;
+  *check = CheckStereoPair(p.left, r, o);
+  p.right = AlignRows(r, check->row_offset_px);
+  const StereoMatches m = MatchStereoPair(p.left, r, o);
+  for (size_t k = 0; k < m.left.size(); ++k)
+    if (std::abs(m.right[k].y - check->row_offset_px - m.left[k].y) < 0.3f)
+      p.points.push_back(m.left[k]), p.disparity.push_back(m.left[k].x - m.right[k].x);
+  p.valid = cv::Mat(p.left.size(), CV_8U, cv::Scalar(255));
+  p.terrain = TerrainBelowSkyline(p.left, p.valid);
+  p.min_disparity = static_cast<int>(check->min_disparity);
+  p.num_disparities = (static_cast<int>(check->max_disparity - check->min_disparity) + 16) / 16 * 16;
+  p.ok = check->usable && p.points.size() >= 100;
   return p;
 }
 
