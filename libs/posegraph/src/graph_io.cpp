@@ -336,9 +336,8 @@ bool ParseG2o(std::istream& in, GraphFile* file, std::string* error) {
         }
       if (!std::isfinite(x + y + z + qx + qy + qz + qw)) return rec.Refuse(what + ": pose not finite");
       if (!CheckQuaternion(rec, what, qx, qy, qz, qw)) return false;
-      Matrix6 information = QuatScale() * info * QuatScale();
-      if (!CheckInformation<6>(rec, what, &information, file)) return false;
-      InsertEdge(file, i, j, PoseFromQuat(x, y, z, qx, qy, qz, qw), information);
+      if (!CheckInformation<6>(rec, what, &info, file)) return false;  // in the file's numbers
+      InsertEdge(file, i, j, PoseFromQuat(x, y, z, qx, qy, qz, qw), QuatScale() * info * QuatScale());
     } else {
       double x, y, th;
       Eigen::Matrix3d info;
