@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "vloc/common/options.h"
+#include "vloc/common/site_window.h"
 #include "vloc/lcm_io/convert.h"
 #include "vloc/lcm_io/convert_rover.h"
 
@@ -18,6 +19,7 @@ void CrossSiteBaProcOptions::Visit(OptionsReader& r) {
   r.Optional("chain_previous", &chain_previous, "hold the previous site at our own estimate");
   r.Optional("queue_capacity", &queue_capacity, "messages per subscription queue");
   r.Optional("state_path", &state_path, "site estimates kept across restarts (relative: in --state-dir)");
+  r.Optional("site_window", &site_window, "sites whose DR pose and estimate are kept (newest ids)");
   r.Child("ba", [&](OptionsReader& c) { ba.Visit(c); });
 }
 
@@ -26,6 +28,7 @@ bool CrossSiteBaProcOptions::Check(std::string* error) const {
   if (tie_points_channel.empty() || dr_channel.empty() || visual_channel.empty())
     return Fail(error, "channel names must not be empty");
   if (queue_capacity < 1) return Fail(error, "queue_capacity must be >= 1");
+  if (site_window < 2) return Fail(error, "site_window must be >= 2 (the previous and the current site)");
   return ba.Check(error);
 }
 
@@ -58,14 +61,17 @@ CrossSiteBaAdapter::CrossSiteBaAdapter(Transport& transport, const CrossSiteBaPr
       [this](const std::string&, const site_pose_t& msg) {
         if (msg.site_id < 0) throw std::invalid_argument("negative site id " + std::to_string(msg.site_id));
         const PoseWithCovariance pose = PoseFromMessage(msg.pose);
-        if (msg.site_id == 0 && (estimates_.size() > 1 || dr_poses_.size() > 1)) {
+        const bool new_traverse = msg.site_id == 0 && (estimates_.size() > 1 || dr_poses_.size() > 1);
+        if (new_traverse) {
           LOG(WARNING) << "dead reckoning of site 0 while holding " << dr_poses_.size()
                        << " sites: a new traverse; earlier estimates dropped";
           estimates_.clear();
           dr_poses_.clear();
         }
         dr_poses_[msg.site_id] = pose;
-        SaveState();
+        KeepWindow();
+        if (new_traverse) RewriteState();
+        else SaveSite(dr_poses_, msg.site_id);
       },
       options_.queue_capacity);
   tie_stats_ = Subscribe<tie_points_t>(
@@ -111,8 +117,11 @@ CrossSiteBaSummary CrossSiteBaAdapter::Process(TiePointSet set) {
   CrossSiteBaSummary s = SolveCrossSiteBa(set, navcam_, options_.ba);
   // The chain continues from the adjacent pair's result; a revisit only sets
   // the estimate when the site has none yet.
-  if (!revisit || !estimates_.count(cur)) estimates_[cur] = s.world_from_current;
-  SaveState();
+  if (!revisit || !estimates_.count(cur)) {
+    estimates_[cur] = s.world_from_current;
+    KeepWindow();
+    SaveSite(estimates_, cur);
+  }
   (s.usable ? solved_ : failed_)++;
   if (s.usable) {
     LOG(INFO) << s.BriefReport() << " [previous site from " << previous_source << ", motion from " << motion_source
@@ -149,11 +158,13 @@ CrossSiteBaSummary CrossSiteBaAdapter::BadMessage(const tie_points_t& msg, const
 
 std::string CrossSiteBaAdapter::StatusLine() const {
   std::ostringstream o;
-  o << "site pairs solved " << solved_ << ", failed " << failed_ << "; " << SubscriptionSummary({tie_stats_, dr_stats_});
+  o << "site pairs solved " << solved_ << ", failed " << failed_ << "; poses kept for " << dr_poses_.size()
+    << " DR / " << estimates_.size() << " estimated sites; " << SubscriptionSummary({tie_stats_, dr_stats_});
   return o.str();
 }
 
-// State file: one line per pose, "estimate|dr <site id> " + WritePoseText.
+// State file: one line per pose, "estimate|dr <site id> " + WritePoseText;
+// a later line for a site replaces an earlier one.
 bool CrossSiteBaAdapter::Restore(const std::string& path, std::string* error) {
   state_path_ = path;
   if (path.empty() || !std::filesystem::exists(path)) return true;
@@ -163,6 +174,10 @@ bool CrossSiteBaAdapter::Restore(const std::string& path, std::string* error) {
   int number = 0;
   while (std::getline(f, line)) {
     ++number;
+    if (f.eof() && !line.empty()) {  // no newline: the append a crash cut short
+      LOG(WARNING) << "state file " << path << " line " << number << " is cut short (a crash while saving?); dropped";
+      break;
+    }
     std::istringstream ls(line);
     std::string kind;
     int site = -1;
@@ -172,16 +187,40 @@ bool CrossSiteBaAdapter::Restore(const std::string& path, std::string* error) {
                " is not '<estimate|dr> <site> <pose>' (move or delete the file to start afresh)";
       return false;
     }
-    (kind == "estimate" ? estimates : dr)[site] = pose;
+    auto& by_site = kind == "estimate" ? estimates : dr;
+    by_site[site] = pose;
+    KeepNewestSites(&by_site, static_cast<size_t>(options_.site_window));
   }
   estimates_ = std::move(estimates);
   dr_poses_ = std::move(dr);
   LOG(INFO) << "reloaded " << path << ": estimates of " << estimates_.size() << " sites, dead reckoning of "
-            << dr_poses_.size();
+            << dr_poses_.size() << " (from " << number << " lines)";
+  RewriteState();
   return true;
 }
 
-void CrossSiteBaAdapter::SaveState() const {
+void CrossSiteBaAdapter::KeepWindow() {
+  const size_t dropped = KeepNewestSites(&dr_poses_, static_cast<size_t>(options_.site_window)) +
+                         KeepNewestSites(&estimates_, static_cast<size_t>(options_.site_window));
+  if (dropped > 0 && window_log_.ShouldLog())
+    LOG(INFO) << "kept the newest " << options_.site_window << " sites (site_window): " << dropped
+              << " older poses dropped" << window_log_.Suppressed();
+}
+
+void CrossSiteBaAdapter::SaveSite(const std::map<int, PoseWithCovariance>& map, int site) {
+  const auto it = map.find(site);
+  if (state_path_.empty() || it == map.end()) return;  // not kept, or older than the window
+  if (state_lines_ + 1 > 2 * (estimates_.size() + dr_poses_.size()) + 16) return RewriteState();
+  std::ofstream f(state_path_, std::ios::app);
+  f << (&map == &estimates_ ? "estimate " : "dr ") << site << ' ';
+  WritePoseText(f, it->second);
+  f << '\n';
+  f.flush();
+  if (!f) LOG(ERROR) << "crosssite_ba state not saved: cannot append to " << state_path_;
+  ++state_lines_;
+}
+
+void CrossSiteBaAdapter::RewriteState() {
   if (state_path_.empty()) return;
   std::ostringstream o;
   for (const auto* map : {&estimates_, &dr_poses_})
@@ -192,6 +231,7 @@ void CrossSiteBaAdapter::SaveState() const {
     }
   std::string error;
   if (!WriteFileAtomically(state_path_, o.str(), &error)) LOG(ERROR) << "crosssite_ba state not saved: " << error;
+  state_lines_ = estimates_.size() + dr_poses_.size();
 }
 
 }  // namespace vloc

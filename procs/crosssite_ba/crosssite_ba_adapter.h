@@ -10,7 +10,8 @@
 // sites (from SITE_POSE_DR of both sites when received, else from the
 // message's two poses; for a revisit, a non-adjacent pair, always the
 // message's poses: feature_frontend sets them from the pose graph). On failure the published pose is that chained
-// dead-reckoning pose with the current site's DR covariance.
+// dead-reckoning pose with the current site's DR covariance. Both maps keep
+// the newest site_window sites only (a flood of site ids stays bounded).
 
 #include <map>
 #include <memory>
@@ -18,6 +19,7 @@
 
 #include "vloc/ba/crosssite_ba.h"
 #include "vloc/common/camera.h"
+#include "vloc/lcm_io/rate_limited_log.h"
 #include "vloc/lcm_io/transport.h"
 #include "vloc/lcm_io/typed.h"
 #include "vloc/localization_t.hpp"
@@ -34,6 +36,8 @@ struct CrossSiteBaProcOptions {
   int queue_capacity = 1000;                             // messages per subscription queue (tie points queue while a BA solves)
   std::string state_path = "crosssite_ba.state";         // site estimates kept across restarts; relative = in --state-dir
                                                          // or $VLOC_LOG_DIR; "" = none
+  int site_window = 1000;                                // sites whose DR pose and estimate are kept (newest ids;
+                                                         // older revisits take the message's poses)
   CrossSiteBaOptions ba;                                 // the adjustment (map `ba`)
 
   void Visit(OptionsReader& reader);
@@ -52,7 +56,8 @@ class CrossSiteBaAdapter {
 
   // Reloads the site estimates and DR poses saved at `path` (resolved
   // state_path; "" = none), and saves there after every site from then on.
-  // A missing file is a fresh start; an unreadable one is an error.
+  // A missing file is a fresh start; an unreadable one is an error (a last
+  // line cut short by a crash is dropped with a warning).
   bool Restore(const std::string& path, std::string* error);
 
   // Prepares the set as the chain says, solves it and remembers the result.
@@ -65,13 +70,21 @@ class CrossSiteBaAdapter {
   Transport& transport_;
   CrossSiteBaProcOptions options_;
   NavcamModel navcam_;
-  std::map<int, PoseWithCovariance> dr_poses_;    // SITE_POSE_DR per site
-  std::map<int, PoseWithCovariance> estimates_;   // our latest estimate per site
-  void SaveState() const;
+  std::map<int, PoseWithCovariance> dr_poses_;    // SITE_POSE_DR per site (newest site_window)
+  std::map<int, PoseWithCovariance> estimates_;   // our latest estimate per site (newest site_window)
+  void KeepWindow();
+  // The state file is a journal: each new pose is appended as one line (a
+  // later line for a site replaces an earlier one), and the file is rewritten
+  // whole once it holds twice the lines of the state (or a new traverse
+  // starts): a message costs one line, and the file at most 4 site_window + 16 lines.
+  void SaveSite(const std::map<int, PoseWithCovariance>& map, int site);
+  void RewriteState();
 
   std::string state_path_;                        // resolved; "" = state not kept
+  size_t state_lines_ = 0;                        // lines in the state file
   std::shared_ptr<SubscriptionStats> tie_stats_, dr_stats_;
   int64_t solved_ = 0, failed_ = 0;
+  RateLimitedLog window_log_;
 };
 
 }  // namespace vloc

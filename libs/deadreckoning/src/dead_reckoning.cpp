@@ -7,12 +7,17 @@
 #include <cmath>
 
 #include "vloc/common/options.h"
+#include "vloc/common/site_window.h"
 
 namespace vloc {
 
 namespace {
 constexpr int kP = 0, kR = 3, kS = 6, kC = 7, kB = 8;
 constexpr double kMicro = 1e-6;
+// Samples the attitude history and the wheel queue hold at most, whatever
+// their rate: their time spans (~6.5 s, wheel_wait_s) hold 650 and 10 at
+// 100 Hz and 20 Hz; samples microseconds apart (a flood) stay within ~2 MB.
+constexpr size_t kMaxBufferedSamples = 20'000;
 }  // namespace
 
 void DeadReckoningOptions::Visit(OptionsReader& r) {
@@ -43,6 +48,7 @@ void DeadReckoningOptions::Visit(OptionsReader& r) {
   r.Optional("max_forward_jump_s", &max_forward_jump_s, "s, larger forward jumps wait for the next sample to confirm");
   r.Optional("max_gyro_rate_rps", &max_gyro_rate_rps, "rad/s, faster rates are rejected as not physical");
   r.Optional("max_accel_mps2", &max_accel_mps2, "m/s^2, larger specific forces are rejected");
+  r.Optional("site_window", &site_window, "site arrivals remembered (newest ids) to drop repeats");
 }
 
 bool DeadReckoningOptions::Check(std::string* error) const {
@@ -66,6 +72,7 @@ bool DeadReckoningOptions::Check(std::string* error) const {
                            std::to_string(max_forward_jump_s));
   if (!(max_gyro_rate_rps > still_gyro_threshold) || !(max_accel_mps2 > gravity_mps2))
     return Fail(error, "max_gyro_rate_rps must exceed still_gyro_threshold and max_accel_mps2 gravity_mps2");
+  if (site_window < 1) return Fail(error, "site_window must be >= 1");
   return true;
 }
 
@@ -256,8 +263,9 @@ void DeadReckoning::ApplyImu(const ImuSample& s) {
   state_utime_ = std::max(state_utime_, s.utime);
   attitude_history_.emplace_back(s.utime, R_);
   while (attitude_history_.size() > 2 &&
-         (attitude_history_.back().first - attitude_history_.front().first) * kMicro >
-             options_.wheel_wait_s + options_.max_imu_gap_s + 5.0)
+         ((attitude_history_.back().first - attitude_history_.front().first) * kMicro >
+              options_.wheel_wait_s + options_.max_imu_gap_s + 5.0 ||
+          attitude_history_.size() > kMaxBufferedSamples))
     attitude_history_.pop_front();
   ++stats_.imu_used;
 
@@ -374,6 +382,13 @@ void DeadReckoning::AddWheel(const WheelOdometrySample& s) {
   }
   wheel_queue_.push_back(s);
   FlushWheel(false);
+  if (wheel_queue_.size() > kMaxBufferedSamples) {
+    LOG_EVERY_N(WARNING, 1000) << "dead reckoning: more than " << kMaxBufferedSamples
+                               << " wheel samples wait for the IMU (samples microseconds apart?); the oldest "
+                               << "integrated now (" << google::COUNTER << " so far)";
+    IntegrateWheel(wheel_queue_.front());
+    wheel_queue_.pop_front();
+  }
 }
 
 void DeadReckoning::FlushWheel(bool force_all) {
@@ -449,7 +464,7 @@ bool DeadReckoning::SetStartPose(const Pose3& world_from_body) {
     R_ = RotationFromRollPitchYaw(rpy.x(), rpy.y(), options_.initial_yaw_rad);
     p_ = options_.initial_position;
     for (auto& entry : attitude_history_) entry.second = R_;
-    if (!ready_sites_.empty() || sites_seen_.size() > pending_arrivals_.size())
+    if (!ready_sites_.empty() || site_reported_)
       LOG(WARNING) << "dead reckoning: start pose set after a site pose was reported; that one used the old start";
   }
   LOG(INFO) << "dead reckoning: start position (" << p_.transpose() << ") m, heading " << options_.initial_yaw_rad
@@ -473,20 +488,33 @@ void DeadReckoning::AddSiteEvent(const SiteEvent& event) {
                  << " us: negative site id or time outside [0, 2^53] us; rejected";
     return;
   }
-  if (!sites_seen_.empty() &&
-      static_cast<int64_t>(event.site_id) - *std::max_element(sites_seen_.begin(), sites_seen_.end()) > kMaxSiteIdJump) {
+  if (!sites_seen_.empty() && static_cast<int64_t>(event.site_id) - *sites_seen_.rbegin() > kMaxSiteIdJump) {
     ++stats_.implausible;
     LOG(WARNING) << "dead reckoning: arrival at site " << event.site_id << " is more than " << kMaxSiteIdJump
                  << " beyond the newest site (a corrupt id?); rejected";
     return;
   }
-  if (std::find(sites_seen_.begin(), sites_seen_.end(), event.site_id) != sites_seen_.end()) {
+  const bool repeat = sites_seen_.count(event.site_id) > 0;
+  const bool full = static_cast<int>(sites_seen_.size()) >= options_.site_window;
+  if (repeat || (full && event.site_id < *sites_seen_.begin())) {
     ++stats_.site_events_dropped;
-    LOG(WARNING) << "dead reckoning: site " << event.site_id << " arrival already reported; duplicate dropped";
+    LOG_EVERY_N(WARNING, 100) << "dead reckoning: site " << event.site_id
+                              << (repeat ? " arrival already reported"
+                                         : " arrival is older than the newest site_window " +
+                                               std::to_string(options_.site_window) + " arrivals")
+                              << "; dropped as a repeat (" << google::COUNTER << " so far)";
     return;
   }
-  sites_seen_.push_back(event.site_id);
+  sites_seen_.insert(event.site_id);
+  KeepNewestSites(&sites_seen_, static_cast<size_t>(options_.site_window));
   pending_arrivals_.push_back(event);
+  if (static_cast<int>(pending_arrivals_.size()) > options_.site_window) {
+    ++stats_.site_events_dropped;
+    LOG_EVERY_N(WARNING, 100) << "dead reckoning: more than site_window " << options_.site_window
+                              << " arrivals wait for attitude (no IMU yet); the oldest, site "
+                              << pending_arrivals_.front().site_id << ", dropped (" << google::COUNTER << " so far)";
+    pending_arrivals_.pop_front();
+  }
   EmitPendingArrivals();
 }
 
@@ -501,6 +529,7 @@ void DeadReckoning::EmitPendingArrivals() {
     PoseWithCovariance pose = Current();
     pose.utime = event.utime;
     ready_sites_.emplace_back(event.site_id, pose);
+    site_reported_ = true;
   }
   pending_arrivals_.clear();
 }

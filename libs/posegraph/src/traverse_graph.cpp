@@ -90,6 +90,7 @@ void PoseGraphOptions::Visit(OptionsReader& r) {
   r.Optional("root_uncertainty", &root_uncertainty, "site marginals include the root's DR covariance, carried to the site");
   r.Optional("loop_gate_chi2", &loop_gate_chi2, "loop/fix edges beyond this chi2 against the predicted covariance are switched off");
   r.Optional("max_site_id_jump", &max_site_id_jump, "site ids further beyond the newest are rejected as corrupt");
+  r.Optional("max_pending", &max_pending, "measurements waiting for their sites; beyond, the oldest goes");
 }
 
 bool PoseGraphOptions::Check(std::string* error) const {
@@ -113,6 +114,7 @@ bool PoseGraphOptions::Check(std::string* error) const {
     if (!(value > 0.0) || !std::isfinite(value)) return Fail(error, std::string(name) + " must be > 0");
   if (!(loop_gate_chi2 > 0.0)) return Fail(error, "loop_gate_chi2 must be > 0");
   if (max_site_id_jump < 1) return Fail(error, "max_site_id_jump must be >= 1, is " + std::to_string(max_site_id_jump));
+  if (max_pending < 1) return Fail(error, "max_pending must be >= 1, is " + std::to_string(max_pending));
   return true;
 }
 
@@ -303,7 +305,7 @@ AddResult TraverseGraph::AddEdge(int from, int to, EdgeKind kind, const PoseWith
   Matrix6d covariance = measurement.covariance;
   if (kind == EdgeKind::kAbsoluteFix) {
     if (!have_root_ || !has(to)) {
-      pending_.push_back({from, to, kind, measurement});
+      AddPending(from, to, kind, measurement);
       result.accepted = result.pending = true;
       result.message = name + ": site not in the graph yet; pending";
       return result;
@@ -319,12 +321,7 @@ AddResult TraverseGraph::AddEdge(int from, int to, EdgeKind kind, const PoseWith
     relative = world_from_root.inverse() * measurement.pose;
     covariance = RotateBlocks(world_from_root.linear().transpose(), measurement.covariance);
   } else if (!has(from)) {
-    for (auto it = pending_.begin(); it != pending_.end(); ++it)
-      if (it->from == from && it->to == to && it->kind == kind) {
-        pending_.erase(it);
-        break;
-      }
-    pending_.push_back({from, to, kind, measurement});
+    AddPending(from, to, kind, measurement);
     result.accepted = result.pending = true;
     result.message = name + ": reference site " + std::to_string(from) + " not in the graph yet; pending";
     return result;
@@ -344,6 +341,21 @@ AddResult TraverseGraph::AddEdge(int from, int to, EdgeKind kind, const PoseWith
   edges_dirty_ = true;
   result.accepted = result.changed = true;
   return result;
+}
+
+void TraverseGraph::AddPending(int from, int to, EdgeKind kind, const PoseWithCovariance& measurement) {
+  for (auto it = pending_.begin(); it != pending_.end(); ++it)
+    if (it->from == from && it->to == to && it->kind == kind) {
+      pending_.erase(it);
+      break;
+    }
+  pending_.push_back({from, to, kind, measurement});
+  if (static_cast<int>(pending_.size()) > options_.max_pending) {
+    LOG(WARNING) << "pose graph: more than max_pending " << options_.max_pending << " measurements wait for their "
+                 << "sites; the oldest (" << EdgeKindName(pending_.front().kind) << " edge to site "
+                 << pending_.front().to << ") dropped";
+    pending_.erase(pending_.begin());
+  }
 }
 
 void TraverseGraph::RetryPending() {
@@ -679,6 +691,12 @@ bool TraverseGraph::Deserialize(const std::string& text, std::string* error) {
       p.kind = static_cast<EdgeKind>(kind);
       loaded.pending_.push_back(p);
     }
+  }
+  if (loaded.pending_.size() > static_cast<size_t>(options_.max_pending)) {
+    const size_t dropped = loaded.pending_.size() - static_cast<size_t>(options_.max_pending);
+    LOG(WARNING) << "pose graph: " << loaded.pending_.size() << " pending measurements in the file, more than "
+                 << "max_pending " << options_.max_pending << "; the oldest " << dropped << " dropped";
+    loaded.pending_.erase(loaded.pending_.begin(), loaded.pending_.begin() + static_cast<std::ptrdiff_t>(dropped));
   }
   const auto& g = loaded.graph_;
   if (!kinds.empty() && kinds.size() != g.edges.size())

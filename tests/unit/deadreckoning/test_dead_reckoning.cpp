@@ -318,5 +318,75 @@ TEST(DeadReckoning, GravityUpdateCorrectsTilt) {
   EXPECT_NEAR(rpy.y(), -0.08, 2e-3);
 }
 
+// State a message can add is bounded (issue 30): the arrivals remembered to
+// drop repeats are the newest site_window ids, and so are those waiting for
+// attitude. Arrivals out of order within the window are still reported.
+std::vector<int> SiteIds(DeadReckoning& dr) {
+  std::vector<int> ids;
+  for (const auto& [site, pose] : dr.PopSitePoses()) ids.push_back(site);
+  return ids;
+}
+
+TEST(DeadReckoningSiteWindow, RepeatsAndArrivalsOlderThanTheWindowAreDropped) {
+  Traverse tr = MakeTraverse({});
+  DeadReckoningOptions o = Options();
+  o.site_window = 3;
+  DeadReckoning dr(o);
+  const FeedResult run = Feed(dr, tr);  // sites 0..3: the window holds 1, 2, 3
+  ASSERT_EQ(run.sites.size(), 4u);
+  const int64_t t = tr.imu.back().utime;
+  dr.AddSiteEvent({t, 2, SiteEventType::kArrived, 7});  // a repeat inside the window
+  dr.AddSiteEvent({t, 0, SiteEventType::kArrived, 7});  // older than the window
+  EXPECT_TRUE(SiteIds(dr).empty());
+  EXPECT_EQ(dr.stats().site_events_dropped, 2);
+  // Out of order but newer than the window's oldest: reported; then the window is 3, 5, 6.
+  for (const int site : {6, 5}) dr.AddSiteEvent({t, site, SiteEventType::kArrived, 7});
+  EXPECT_EQ(SiteIds(dr), (std::vector<int>{6, 5}));
+  dr.AddSiteEvent({t, 4, SiteEventType::kArrived, 7});  // newer than 3: a first arrival
+  EXPECT_EQ(SiteIds(dr), std::vector<int>{4});
+  for (const int site : {3, 2, 5}) dr.AddSiteEvent({t, site, SiteEventType::kArrived, 7});
+  EXPECT_TRUE(SiteIds(dr).empty());
+  EXPECT_EQ(dr.stats().site_events_dropped, 5);
+}
+
+TEST(DeadReckoningSiteWindow, AFloodOfSiteIdsIsBoundedAndTheDefaultWindowKeepsANormalTraverse) {
+  // The default window (1000) changes nothing for a traverse: every site reported, once.
+  const Traverse tr = MakeTraverse({});
+  DeadReckoning normal(Options());
+  const FeedResult run = Feed(normal, tr);
+  ASSERT_EQ(run.sites.size(), 4u);
+  EXPECT_EQ(normal.stats().site_events_dropped, 0);
+  // 20,000 new ids, each followed by the oldest id remembered: every new
+  // one reported once, every repeat dropped.
+  const int64_t t = tr.imu.back().utime;
+  size_t reported = 0;
+  for (int site = 4; site < 20'004; ++site) {
+    normal.AddSiteEvent({t, site, SiteEventType::kArrived, 7});
+    normal.AddSiteEvent({t, std::max(0, site - 999), SiteEventType::kArrived, 7});
+    reported += SiteIds(normal).size();
+  }
+  EXPECT_EQ(reported, 20'000u);
+  EXPECT_EQ(normal.stats().site_events_dropped, 20'000);
+}
+
+TEST(DeadReckoningSiteWindow, ArrivalsWaitingForAttitudeAreCapped) {
+  Traverse tr = MakeTraverse({});
+  tr.events.clear();
+  DeadReckoningOptions o = Options();
+  o.site_window = 3;
+  DeadReckoning dr(o);
+  // Ten arrivals before any IMU sample: the newest three wait.
+  for (int site = 0; site < 10; ++site) dr.AddSiteEvent({tr.imu.front().utime, site, SiteEventType::kArrived, 7});
+  EXPECT_TRUE(SiteIds(dr).empty());
+  EXPECT_EQ(dr.stats().site_events_dropped, 7);
+  std::vector<int> ids;
+  size_t i = 0;
+  while (ids.empty() && i < tr.imu.size()) {  // until the first stop aligns roll/pitch
+    dr.AddImu(tr.imu[i++]);
+    ids = SiteIds(dr);
+  }
+  EXPECT_EQ(ids, (std::vector<int>{7, 8, 9}));
+}
+
 }  // namespace
 }  // namespace vloc

@@ -11,6 +11,7 @@
 #include <mrpt/poses/Lie/SE.h>
 #include <random>
 #include <sstream>
+#include <unistd.h>
 
 #include "vloc/posegraph/graph_io.h"
 #include "vloc/posegraph/mrpt_optimize.h"
@@ -683,6 +684,65 @@ TEST(TraverseGraph, InformationThatIsNotPositiveDefiniteIsRepairedOnLoad) {
   for (size_t i = 0; i < sites.size(); ++i)
     EXPECT_LT((sites[i].world_from_body.pose.translation() - t.truth[i].translation()).norm(), 2.0) << i;
   std::remove(path.c_str());
+}
+
+// State a message can add is bounded (issue 30): a measurement waiting for
+// its sites replaces a waiting copy of itself, and at most max_pending wait
+// (the oldest goes, in one line), in memory and when a file is loaded.
+TEST(TraverseGraphPending, ARepeatReplacesItsCopyAndMaxPendingKeepsTheNewest) {
+  PoseGraphOptions o = PerMetreOptions();
+  o.max_pending = 3;
+  TraverseGraph g(o);
+  PoseWithCovariance first, again, fix;
+  first.pose = MakePose(10, 0, 0, 0, 0, 0);
+  again.pose = MakePose(9, 1, 0, 0, 0, 0);
+  first.covariance = again.covariance = Diag(0.01, 0.001);
+  fix.pose = MakePose(50, 0, 0, 0, 0, 0);
+  EXPECT_TRUE(g.AddAbsoluteFix(5, fix).pending);
+  EXPECT_TRUE(g.AddAbsoluteFix(5, fix).pending);  // replaces
+  EXPECT_TRUE(g.AddRelative(10, 11, first).pending);
+  EXPECT_TRUE(g.AddRelative(10, 11, again).pending);  // replaces: the newest copy counts
+  EXPECT_EQ(g.Optimize().num_pending, 2);
+  EXPECT_TRUE(g.AddRelative(20, 21, first).pending);
+  EXPECT_EQ(g.Optimize().num_pending, 3);
+  EXPECT_TRUE(g.AddRelative(30, 31, first).pending);  // the fix of site 5, the oldest, goes
+  EXPECT_EQ(g.Optimize().num_pending, 3);
+
+  PoseWithCovariance dr;
+  dr.pose = MakePose(0, 0, 0, 0, 0, 0);
+  ASSERT_TRUE(g.AddDeadReckoning(5, dr).accepted);  // the root: no fix waits for it
+  dr.pose = MakePose(100, 0, 0, 0, 0, 0);
+  ASSERT_TRUE(g.AddDeadReckoning(10, dr).accepted);  // site 11 placed from the newest copy
+  const PoseGraphSummary s = g.Optimize();
+  EXPECT_EQ(s.num_fix_edges, 0);
+  EXPECT_EQ(s.num_visual_edges, 1);  // 10 -> 11
+  EXPECT_EQ(s.num_pending, 2);  // 20 -> 21, 30 -> 31
+  ASSERT_TRUE(g.Site(11).has_value());
+  EXPECT_NEAR(g.Site(11)->world_from_body.pose.translation().x(), 109.0, 1e-6);
+  EXPECT_NEAR(g.Site(11)->world_from_body.pose.translation().y(), 1.0, 1e-6);
+
+  // A file holding more waiting measurements than max_pending: the newest are kept.
+  const std::string path = (std::filesystem::temp_directory_path() /
+                            ("vloc_test_posegraph_pending_" + std::to_string(getpid()) + ".graph")).string();
+  std::string error;
+  ASSERT_TRUE(g.Save(path, &error)) << error;
+  o.max_pending = 1;
+  TraverseGraph reloaded(o);
+  ASSERT_TRUE(reloaded.Load(path, &error)) << error;
+  std::remove(path.c_str());
+  EXPECT_EQ(reloaded.Optimize().num_pending, 1);
+  dr.pose = MakePose(200, 0, 0, 0, 0, 0);
+  ASSERT_TRUE(reloaded.AddDeadReckoning(30, dr).accepted);  // 30 -> 31 was the newest
+  EXPECT_EQ(reloaded.Optimize().num_pending, 0);
+  EXPECT_TRUE(reloaded.Site(31).has_value());
+}
+
+TEST(TraverseGraphPending, AFloodOfWaitingMeasurementsStaysAtMaxPending) {
+  TraverseGraph g(PerMetreOptions());  // max_pending 1000
+  PoseWithCovariance rel;
+  rel.pose = MakePose(10, 0, 0, 0, 0, 0);
+  for (int k = 0; k < 1500; ++k) EXPECT_TRUE(g.AddRelative(2 * k + 1, 2 * k + 2, rel).pending);
+  EXPECT_EQ(g.Optimize().num_pending, 1000);
 }
 
 TEST(MrptDataset, CircleGraphOptimisesToGroundTruth) {

@@ -22,6 +22,7 @@
 #include <cstdint>
 #include <deque>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -60,6 +61,9 @@ struct DeadReckoningOptions {
   double max_forward_jump_s = 60.0;        // s, a larger forward jump of a sample's time is held until the next sample confirms it
   double max_gyro_rate_rps = 10.0;         // rad/s, faster rates are not physical for a rover: sample rejected
   double max_accel_mps2 = 100.0;           // m/s^2, larger specific forces are rejected
+  int site_window = 1000;                  // site arrivals remembered (the newest ids) to drop repeats; an arrival
+                                           // older than all of them is dropped too, and at most this many wait
+                                           // for alignment (a flood of site ids stays bounded)
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
@@ -75,7 +79,7 @@ struct DeadReckoningStats {
   int64_t odometer_resets = 0;      // cumulative distance went down: rebased
   int64_t gravity_updates = 0;      // roll/pitch corrections from the accelerometer
   int64_t resets = 0;               // restarts after a large backward time jump
-  int64_t site_events_dropped = 0;  // duplicated arrivals
+  int64_t site_events_dropped = 0;  // arrivals dropped: repeated, older than the site window, or waiting beyond it
   int64_t implausible = 0;          // samples rejected: time outside [0, 2^53] us or values beyond the sensor's range
   int64_t time_outliers = 0;        // samples whose time jumped and the next sample did not confirm the jump
   double distance_m = 0;            // m, distance integrated
@@ -151,8 +155,9 @@ class DeadReckoning {
   std::optional<int64_t> held_imu_utime_, held_wheel_utime_;  // times of samples held by GateTime
   std::optional<ImuSample> held_imu_;
   std::optional<WheelOdometrySample> held_wheel_;
-  std::vector<int> sites_seen_;
-  std::vector<SiteEvent> pending_arrivals_;
+  std::set<int> sites_seen_;               // the newest site_window arrivals
+  bool site_reported_ = false;             // a site pose has been emitted
+  std::deque<SiteEvent> pending_arrivals_; // at most site_window
   std::vector<std::pair<int, PoseWithCovariance>> ready_sites_;
   void EmitPendingArrivals();
 };

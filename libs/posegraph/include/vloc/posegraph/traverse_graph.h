@@ -73,6 +73,8 @@ struct PoseGraphOptions {
   double loop_gate_chi2 = 22.46;                  // a loop/fix edge whose chi2 against its predicted covariance
                                                   // exceeds this (6 dof, 99.9 %) is switched off for the update
   int max_site_id_jump = kMaxSiteIdJump;          // a site id this far beyond the newest is corrupt: rejected
+  int max_pending = 1000;                         // measurements waiting for their sites; beyond, the oldest goes
+                                                  // (a repeated one replaces its earlier copy)
 
   void Visit(OptionsReader& r);
   bool Check(std::string* error) const;
@@ -176,6 +178,9 @@ class TraverseGraph {
   };
 
   AddResult AddEdge(int from, int to, EdgeKind kind, const PoseWithCovariance& measurement);
+  // Stores a measurement until its sites are in the graph: replaces a
+  // pending one of the same (from, to, kind), keeps at most max_pending.
+  void AddPending(int from, int to, EdgeKind kind, const PoseWithCovariance& measurement);
   bool MakeEdge(const Pose3& from_T_to, const Matrix6d& covariance_vloc, mrpt::poses::CPose3DPDFGaussianInf* edge,
                 std::string* error) const;
   // "" when `site_id` may belong to this traverse, else why not.

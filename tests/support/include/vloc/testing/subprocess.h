@@ -10,6 +10,7 @@
 
 #include <chrono>
 #include <cstdlib>
+#include <fstream>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -37,6 +38,16 @@ inline std::vector<std::string> ErrorLines(const std::string& output) {
   while (std::getline(in, line))
     if (!line.empty() && line[0] != 'I' && line[0] != 'W') lines.push_back(line);
   return lines;
+}
+
+// A field of a running process's /proc/<pid>/status in MB (VmRSS: resident
+// now, VmHWM: peak); -1 if there is none.
+inline double ProcStatusMb(pid_t pid, const std::string& field) {
+  std::ifstream f("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(f, line))
+    if (line.rfind(field, 0) == 0) return std::stod(line.substr(field.size())) / 1024.0;
+  return -1;
 }
 
 class Subprocess {
@@ -86,6 +97,19 @@ class Subprocess {
       if (!ReadSome(left) && exit_status_) return output_.find(text) != std::string::npos;
     }
     return true;
+  }
+
+  // Reads output until `text` appears at or after position `from`; its
+  // position, or npos after the timeout (or once the process has exited).
+  size_t WaitForOutputAfter(const std::string& text, size_t from, double timeout_s) {
+    const auto deadline = Now() + timeout_s;
+    for (;;) {
+      const size_t at = output_.find(text, from);
+      if (at != std::string::npos) return at;
+      const double left = deadline - Now();
+      if (left <= 0) return std::string::npos;
+      if (!ReadSome(left) && exit_status_) return output_.find(text, from);
+    }
   }
 
   // Waits for exit; returns the exit code (or 128 + signal), nullopt on timeout.
