@@ -53,9 +53,13 @@ site_pose_t Pose(int site) {
 
 TEST(TraverseGraphBounds, AFloodOfWaitingMeasurementsKeepsMaxPending) {
   const std::string url = TestLcmUrl(7623);
-  const auto dir = std::filesystem::temp_directory_path() / ("vloc_traverse_graph_bounds_" + std::to_string(getpid()));
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
+  struct Scratch {  // removed when the test ends, failed or not
+    Scratch() { std::filesystem::create_directories(dir); }
+    ~Scratch() { std::filesystem::remove_all(dir); }
+    std::filesystem::path dir =
+        std::filesystem::temp_directory_path() / ("vloc_traverse_graph_bounds_" + std::to_string(getpid()));
+  } scratch;
+  const std::filesystem::path& dir = scratch.dir;
   std::string error;
   auto transport = MakeLcmTransport(url, &error);
   ASSERT_TRUE(transport) << error;
@@ -118,7 +122,6 @@ TEST(TraverseGraphBounds, AFloodOfWaitingMeasurementsKeepsMaxPending) {
   EXPECT_EQ(std::stoi(m[1]), 1000);
   EXPECT_NE(out.find("more than max_pending 1000 measurements wait"), std::string::npos);
   EXPECT_NE(out.find("dropped (queue full) 0"), std::string::npos) << out.substr(out.size() - 3000);  // no queue overflow
-  std::filesystem::remove_all(dir);
 }
 
 }  // namespace
