@@ -24,6 +24,7 @@
 #include "vloc/common/command_line.h"
 #include "vloc/common/image_header.h"
 #include "vloc/common/logging.h"
+#include "vloc/common/options.h"
 #include "vloc/common/tool_main.h"
 #include "vloc/features/asift.h"
 #include "vloc/features/homography_match.h"
@@ -43,7 +44,7 @@ std::vector<double> ParseList(const std::string& text) {
 cv::Matx33d ReadHomography(const std::string& path) {
   cv::Matx33d h;
   try {
-    const YAML::Node n = YAML::LoadFile(path)["homography"];
+    const YAML::Node n = vloc::LoadYamlFile(path)["homography"];  // the config loader's limits
     if (n && n.size() == 9) {
       for (int k = 0; k < 9; ++k) h(k / 3, k % 3) = n[k].as<double>();
       return h;
