@@ -15,24 +15,33 @@
 // (principal point) gives the route. Frames are matched against the current
 // keyframe (the last frame that started a new reference), which is the
 // frame-to-frame chain of the paper with fewer links, hence less drift.
+//
+// ProcessFrame is a table of contents over one FrameWork (uav_mosaicker.cpp):
+// decode and undistort, calibrate (CalibrationStep, first frames), detect,
+// start the mosaic (first frame), predict (GpsTie), register (the ranked
+// candidates of registration.h: keyframe, guided, neighbours, mosaic; on
+// failure PlaceByGps), refine against the mosaic, ground plane, height,
+// keyframe, route and GPS tie, blend (MosaicBlender).
 
 #include <opencv2/core.hpp>
+
+#include <chrono>
 #include <cstdint>
-#include <condition_variable>
 #include <deque>
 #include <limits>
-#include <memory>
-#include <mutex>
-#include <thread>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "vloc/common/camera.h"
 #include "vloc/mosaic/calibration.h"
+#include "vloc/mosaic/calibration_step.h"
 #include "vloc/mosaic/frame_matcher.h"
 #include "vloc/mosaic/geometry.h"
+#include "vloc/mosaic/gps_tie.h"
 #include "vloc/mosaic/height_filter.h"
+#include "vloc/mosaic/mosaic_blender.h"
+#include "vloc/mosaic/registration.h"
 #include "vloc/mosaic/tiled_canvas.h"
 
 namespace vloc {
@@ -40,19 +49,6 @@ class OptionsReader;
 }
 
 namespace vloc::mosaic {
-
-struct GeoOptions {
-  int min_fixes = 5;              // GPS fixes paired with frames before the mosaic is tied to GPS
-  double min_spread = 10.0;       // m, RMS spread of those fixes needed (the rotation needs a baseline)
-  int window_fixes = 2000;        // most recent pairs used for the mosaic -> local ENU fit
-  double max_time_gap = 0.25;     // s, a fix pairs with the frames around it only within this gap
-  double gps_timeout = 1.5;       // s, without a fix for this long the route is carried by vision alone
-  int predict_window = 0;         // most recent pairs of a local tie used only to predict where frames land
-                                  // (robust to a chain whose scale drifts); 0 = the tie itself
-
-  void Visit(OptionsReader& reader);
-  bool Check(std::string* error) const;
-};
 
 struct MosaickerOptions {
   PinholeCamera camera;                 // intrinsics and distortion of the nadir camera
@@ -79,7 +75,6 @@ struct MosaickerOptions {
   bool guided_matching = false;         // when plain matching fails, match again inside a gate around the predicted
                                         // pose (GPS motion when tied to GPS, else the last frame-to-frame motion)
   double guide_gate = 0.12;             // gate radius as a fraction of the frame width (plus 3 GPS sigmas)
-  double guide_turn = 0.0;              // deg: guided matching also tries the predicted heading turned by +-this
   double gps_max_disagreement = 0.35;   // a registration whose frame centre lands farther than this fraction of the
                                         // frame width (or 5 GPS sigmas, the larger) from the GPS position is rejected
   std::string scale_source = "similarity";  // the frame's scale (height) from "similarity": the least-squares fit to
@@ -93,10 +88,9 @@ struct MosaickerOptions {
   int gps_check_below_inliers = 60;     // the GPS agreement test applies to registrations with fewer background matches
                                         // than this; stronger geometric evidence stands on its own (a GPS tie made
                                         // from a short or poor track must not veto a clear registration)
-  bool reseat_only_new_ground = true;   // reseat only when the mosaic does not cover where the GPS puts the frame
-                                        // (new ground: nothing to re-acquire against); else keep searching the mosaic
-  bool reseat_by_gps = false;           // a frame no image registers is placed at its GPS position and becomes the
-                                        // keyframe (reported LOST, not registered), so the next frame re-acquires
+  bool reseat_by_gps = false;           // a frame no image registers, where the mosaic holds nothing at its GPS
+                                        // position (new ground), is placed there and becomes the keyframe (reported
+                                        // LOST, not registered), so the next frame re-acquires
   int neighbour_frames = 0;             // registered frames whose features are kept (most recent first): a frame the
                                         // keyframe does not register is matched against the nearest of them (the
                                         // neighbour on the adjacent strip of a survey, the frame before a bad one)
@@ -109,15 +103,6 @@ struct MosaickerOptions {
   bool Check(std::string* error) const;
 };
 
-struct GpsFix {
-  int64_t utime = 0;                    // us
-  bool valid = false;                   // has a horizontal fix
-  double latitude = 0, longitude = 0;   // deg
-  double altitude = 0;                  // m, ellipsoid
-  double height_above_ground = std::numeric_limits<double>::quiet_NaN();  // m, NaN when unknown
-  double horizontal_sigma = 2.0;        // m
-  double vertical_sigma = 3.0;          // m
-};
 
 enum class TrackStatus { kCalibrating = 0, kTracking = 1, kLost = 2, kRecovered = 3 };
 const char* ToString(TrackStatus status);
@@ -196,130 +181,82 @@ class UavMosaicker {
   void SetCalibration(const Calibration& calibration);
 
  private:
-  struct Keyframe {
-    FrameFeatures features;
-    Similarity2 mosaic_from_frame;
+  // One frame on its way through ProcessFrame.
+  struct FrameWork {
     int64_t utime = 0;
-    cv::Vec3d normal{0, 0, 1};          // ground-plane normal in its camera frame (scale_source homography)
+    std::chrono::steady_clock::time_point t0;
+    cv::Mat frame;                          // undistorted
+    FrameFeatures features;
+    std::optional<Prediction> prediction;   // where the frame is expected (GPS or motion)
+    Registration registration;              // the candidate that registered it (or the keyframe attempt's counts)
+    const char* registered_by = nullptr;    // that candidate's name ("keyframe", ...), null when none did
+    std::string why;                        // the failed candidates' reasons, "; "-separated
+    bool reregistered = false;              // the pose was refined against the mosaic
+    bool plane_ok = false;                  // the ground plane came from the homography
+    bool was_lost = false;                  // the previous frame was not registered
+    bool new_keyframe = false;
+    FrameState state;
   };
-  struct TiePair {
-    cv::Point2d mosaic_px;
-    cv::Point2d enu;
+  // A ranked registration candidate (registration.h).
+  struct Candidate {
+    const char* name;                                   // for messages and the summary
+    Registration (*run)(const RegistrationInput&, const MosaickerOptions&);
+    int MosaickerSummary::*registered_count;            // bumped when it registers a frame (nullptr: none)
   };
-  cv::Mat Undistort(const cv::Mat& image);
-  bool TryCalibrate(const cv::Mat& frame, FrameState* state);
-  void StartMosaic(const cv::Mat& frame, const FrameFeatures& features, int64_t utime, FrameState* state);
-  // The mosaic rendered around last_good_ over view_scale frame sizes (0 = recovery_view_scale).
-  bool RegisterToMosaic(const cv::Mat& frame, const FrameFeatures& features, Similarity2* mosaic_from_frame,
-                        MotionEstimate* motion, std::string* why, double view_scale = 0);
-  // Periodic re-registration: *mosaic_from_frame (the chain's pose) replaced by
-  // the registration against the mosaic rendered there, when that agrees.
-  bool Reregister(const cv::Mat& frame, const FrameFeatures& features, Similarity2* mosaic_from_frame);
-  struct Prediction {
-    Similarity2 mosaic_from_frame;      // predicted pose of the new frame
-    double gate_px = 0;                 // px of the frame, uncertainty of the prediction
-    bool from_gps = false;              // GPS motion (else the last frame-to-frame motion)
-    cv::Point2d gps_px;                 // mosaic px of the GPS position (from_gps)
-    double gps_tolerance_px = 0;        // frame px, largest believable disagreement with the GPS
-  };
-  // Matches the frame against the kept registered frames nearest to where it is expected (neighbour_frames).
-  bool RegisterToNeighbours(const FrameFeatures& features, const std::optional<Prediction>& prediction,
-                            MotionEstimate* motion, Similarity2* mosaic_from_frame, const Keyframe** matched,
-                            std::string* why);
-  void KeepNeighbour(const FrameFeatures& features, const Similarity2& mosaic_from_frame, int64_t utime);
-  // The pose of a frame at `utime` from the GPS (when tied and a fix is at
-  // that time) or from constant motion (the last two registered frames were consecutive).
-  std::optional<Prediction> Predict(int64_t utime, cv::Size size) const;
-  // GPS course (rad, ENU, counter-clockwise from east) arriving at the fix
-  // nearest to utime, from the fix before it; nullopt when not moving.
-  std::optional<double> GpsCourseAt(int64_t utime) const;
-  // Learns the heading of the camera relative to the GPS course from a registered frame.
-  void UpdateYawOffset(const Similarity2& mosaic_from_frame, int64_t utime);
-  // GPS east/north (m) of the fix nearest to utime within geo.max_time_gap.
-  std::optional<cv::Point2d> GpsEnuAt(int64_t utime, double* sigma = nullptr) const;
-  // The evidence test: support, spread, agreement with the GPS position.
-  bool Evidence(const MotionEstimate& motion, const Similarity2& mosaic_from_frame, const std::optional<Prediction>& p,
-                std::string* why);
-  // Height ratio frame / keyframe and the ground normal in the frame from
-  // the homography keyframe -> frame; false when no decomposition is plausible.
+  static const std::vector<Candidate>& Candidates();
+
+  // The steps of ProcessFrame, in order.
+  FrameWork BeginFrame(int64_t utime);
+  bool Decode(const cv::Mat& image, FrameWork* w);
+  bool Calibrate(FrameWork* w);
+  void Detect(FrameWork* w);
+  void StartMosaic(FrameWork* w);
+  void PredictPose(FrameWork* w);
+  bool Register(FrameWork* w);
+  void RefinePose(FrameWork* w);
+  void MarkLost(FrameWork* w);
+  void MarkRegistered(FrameWork* w);
+  void EstimateGroundPlane(FrameWork* w);
+  void EstimateHeight(FrameWork* w);
+  void UpdateKeyframe(FrameWork* w);
+  void TieRouteToGps(FrameWork* w);
+  void Blend(FrameWork* w);
+  FrameState Finish(FrameWork* w);
+
+  RegistrationInput InputFor(const FrameWork& w) const;
+  cv::Point2d PrincipalPoint() const;
   // The ground plane of homography H (reference frame -> this frame): this frame's height relative to the
-  // reference's and the ground normal in this frame's camera.
+  // reference's and the ground normal in this frame's camera; false when no decomposition is plausible.
   bool PlaneFromHomography(const cv::Matx33d& H, const Keyframe& reference, double* height_ratio,
                            cv::Vec3d* normal) const;
-  double KeyframeOverlap(const Similarity2& key_to_cur, cv::Size size) const;
-  void PairPendingFixes();
-  void RefitTie();
+  void KeepNeighbour(const FrameFeatures& features, const Similarity2& mosaic_from_frame, int64_t utime);
   void FillRoute(FrameState* state);
-  // Blends now, or queues for the worker (async_mosaic). Returns false when not done/queued.
-  bool BlendOrQueue(const cv::Mat& frame, const Similarity2& S, FrameState* state);
-  void WorkerLoop();
-  void FlushMosaic();  // waits until the worker has blended what is queued
-  // The whole canvas (after FlushMosaic) as BGRA; TiledCanvas::Export.
-  bool ExportCanvas(cv::Mat* bgra, double* scale, cv::Point2d* origin, std::string* error);
 
   MosaickerOptions options_;
   Calibration calibration_;
   bool calibrated_ = false;
   double focal_ = 0;                       // px
   double metres_per_pixel_ = 0;            // mosaic m/px
-  std::unique_ptr<TiledCanvas> canvas_;
+  CalibrationStep calibration_step_;
+  FrameUndistorter undistorter_;
   HeightFilter height_filter_;
-  cv::Mat map1_, map2_;
-  cv::Size map_size_;
-  PinholeCamera camera_;                   // scaled to the incoming frame size
-  bool camera_scaled_warned_ = false;
+  GpsTie gps_;
+  MosaicBlender blender_;
 
   std::optional<Keyframe> keyframe_;
   std::deque<Keyframe> neighbours_;        // the last neighbour_frames registered frames (RegisterToNeighbours)
-  Similarity2 last_good_;                  // mosaic_from_frame of the last tracked frame
-  double last_scale_ = 0;                  // its similarity scale
-  std::optional<cv::Point2d> yaw_offset_;  // mean (cos, sin) of frame heading minus GPS course (ENU), registered frames
+  LastPoses last_;                         // the last registered frames' poses (predictions start there)
+  double last_scale_ = 0;                  // the last registered frame's similarity scale
   cv::Vec3d ground_normal_{0, 0, 1};       // ground-plane normal in the last registered frame's camera frame
-  std::optional<Similarity2> prev_good_;   // mosaic_from_frame of the tracked frame before last_good_ (consecutive)
-  double last_painted_ = 1.0;              // covered fraction of the last mosaic view searched (RegisterToMosaic)
-  int last_good_index_ = -1;               // frame index of last_good_
-  std::optional<cv::Point2d> last_good_enu_;  // m, GPS east/north at last_good_'s time (when a fix was there)
+  int last_good_index_ = -1;               // frame index of last_.last_good
   bool lost_ = false;
   int frames_since_blend_ = 0;
   int frames_since_reregister_ = 0;
   FrameState last_state_;
   MosaickerSummary summary_;
   int frame_counter_ = 0;
-
-  // GPS
-  std::optional<GpsFix> origin_fix_;
-  double last_hag_ = std::numeric_limits<double>::quiet_NaN();
-  std::vector<double> marker_sides_, marker_heights_;       // calibration sightings being averaged
-  int64_t last_fix_utime_ = INT64_MIN / 2;
-  std::deque<GpsFix> pending_fixes_;
-  std::deque<GpsFix> recent_fixes_;                       // last fixes, for predictions
-  std::deque<std::pair<int64_t, cv::Point2d>> history_;   // utime, route_px of tracked frames
-  std::deque<TiePair> pairs_;
-  std::optional<Similarity2> enu_from_flipped_;           // (x, -y) mosaic px -> ENU m
-  std::optional<Similarity2> local_tie_;                  // the same over the last geo.predict_window pairs
-  // The tie for predictions: the local one when there is one.
-  const Similarity2* PredictionTie() const;
-  // Similarity over pairs_[first..] when their GPS spread is at least min_spread.
-  bool FitTie(size_t first, Similarity2* tie, double* rms) const;
-  double tie_rms_ = 0;
-  std::vector<cv::Point2d> route_;                        // for the preview
-
-  // async_mosaic: one queued job, a worker thread, the canvas behind a mutex.
-  struct BlendJob {
-    cv::Mat frame;
-    Similarity2 mosaic_from_frame;
-  };
-  mutable std::mutex canvas_mutex_;     // guards canvas_ content
-  mutable std::mutex job_mutex_;
-  std::condition_variable job_cv_;
-  std::optional<BlendJob> job_;
-  bool worker_busy_ = false, stop_worker_ = false;
-  int64_t async_blends_ = 0, async_dropped_ = 0;  // guarded by job_mutex_
-  std::thread worker_;
+  double last_hag_ = std::numeric_limits<double>::quiet_NaN();  // m, latest GPS height above ground
+  std::vector<cv::Point2d> route_;         // for the preview
 };
-
-// Local east/north (m) of a lat/lon relative to an origin (flat earth).
-cv::Point2d LatLonToEnu(double lat, double lon, double lat0, double lon0);
-void EnuToLatLon(const cv::Point2d& enu, double lat0, double lon0, double* lat, double* lon);
 
 }  // namespace vloc::mosaic
