@@ -38,6 +38,8 @@ void FeatureFrontendProcOptions::Visit(OptionsReader& r) {
   r.Optional("max_sites_in_memory", &max_sites_in_memory, "earlier sites whose images stay in memory");
   r.Optional("site_cache_dir", &site_cache_dir, "older sites' images are written here (PNG); empty = dropped");
   r.Optional("manual_ties_channel", &manual_ties_channel, "subscribed manual_tie_points_t channel (\"\" = off)");
+  r.Optional("max_pairs_per_site", &max_pairs_per_site, "a site's num_pairs above this is refused");
+  r.Optional("max_sites_collecting", &max_sites_collecting, "sites collecting images at once; beyond, the oldest goes");
   r.Child("stereo_image_limits", [&](OptionsReader& c) { stereo_image_limits.Visit(c); });
 }
 
@@ -51,6 +53,9 @@ bool FeatureFrontendProcOptions::Check(std::string* error) const {
   if (loop_max_matches < 1) return Fail(error, "loop_max_matches must be >= 1");
   if (!(loop_max_position_sigma_fraction > 0)) return Fail(error, "loop_max_position_sigma_fraction must be > 0");
   if (max_sites_in_memory < 0) return Fail(error, "max_sites_in_memory must be >= 0");
+  if (max_pairs_per_site < 1 || max_pairs_per_site > kMaxPairsPerSite)
+    return Fail(error, "max_pairs_per_site must lie in [1, " + std::to_string(kMaxPairsPerSite) + "]");
+  if (max_sites_collecting < 1) return Fail(error, "max_sites_collecting must be >= 1");
   return stereo_image_limits.Check(error) && navcam.Check(error) && frontend.Check(error);
 }
 
@@ -204,8 +209,12 @@ void FeatureFrontendAdapter::OnStereo(const StereoPair& pair) {
                  << " arrived after that site was processed; ignored";
     return;
   }
+  if (pair.num_pairs > options_.max_pairs_per_site)
+    throw std::invalid_argument("stereo pair " + std::to_string(pair.pair_index) + " of site " +
+                                std::to_string(pair.site_id) + " says " + std::to_string(pair.num_pairs) +
+                                " pairs, more than max_pairs_per_site " + std::to_string(options_.max_pairs_per_site));
   Collecting& c = collecting_[pair.site_id];
-  c.pairs[pair.pair_index] = pair;
+  c.pairs[pair.pair_index] = pair;  // a repeated pair replaces the earlier copy
   c.num_pairs = std::max(c.num_pairs, pair.num_pairs);
   TryProcess();
 }
@@ -215,7 +224,7 @@ void FeatureFrontendAdapter::OnSiteEvent(const SiteEvent& event) {
   if (previous_ && event.site_id <= previous_->site_id) return;
   Collecting& c = collecting_[event.site_id];
   c.imaging_done = true;
-  if (event.num_pairs > 0) c.num_pairs = event.num_pairs;
+  if (event.num_pairs > 0) c.num_pairs = std::min(event.num_pairs, options_.max_pairs_per_site);
   TryProcess();
 }
 
@@ -271,7 +280,7 @@ void FeatureFrontendAdapter::TryProcess() {
     if (!Complete(it->second)) {
       const auto later = std::find_if(std::next(it), collecting_.end(),
                                       [this](const auto& kv) { return Complete(kv.second); });
-      if (later == collecting_.end() && static_cast<int>(collecting_.size()) <= kMaxSitesCollecting) return;
+      if (later == collecting_.end() && static_cast<int>(collecting_.size()) <= options_.max_sites_collecting) return;
       ReportDropped(it->first, it->second,
                     later == collecting_.end() ? "too many sites wait"
                                                : "incomplete while site " + std::to_string(later->first) + " is complete");

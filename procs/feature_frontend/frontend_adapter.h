@@ -46,6 +46,9 @@ struct FeatureFrontendProcOptions {
   int max_sites_in_memory = 3;                        // earlier sites whose images stay in memory for revisits
   std::string site_cache_dir;                         // older sites' images go here (PNG); empty = dropped
   std::string manual_ties_channel = "MANUAL_TIE_POINTS";  // subscribed: manual_tie_points_t (operator's clicks; "" = off)
+  int max_pairs_per_site = 32;                        // a pair saying more pairs than this is refused, IMAGING_DONE's
+                                                      // count capped (a full 360 x 3-tier panorama is about 30)
+  int max_sites_collecting = 8;                       // sites waiting for their images at once; beyond, the oldest goes
   ImageLimits stereo_image_limits = NavcamImageLimits();  // stereo_channel's PNG/JPEG images: larger refused before decoding
 
   // 4096 x 4096 px (a Navcam image is 1024 x 1024), 100 JPEG scans.
@@ -115,7 +118,6 @@ class FeatureFrontendAdapter {
   CrossSiteFrontend loop_frontend_;  // regions allowed to grow more (graph-predicted revisits)
   std::map<int, Collecting> collecting_;
   static constexpr int kSmallMessageQueue = 1000;  // site events, DR poses, traverses: small, and none may be lost
-  static constexpr int kMaxSitesCollecting = 8;  // sites waiting for their images at once; beyond, the oldest goes
   std::optional<SiteImages> previous_;
   std::optional<SiteImages> before_previous_;          // the site before previous_ (manual tie points), revisits off
   SiteArchive archive_;                                // sites before previous_, poses (revisits on)
