@@ -36,10 +36,17 @@ function(vloc_add_proc name)
   vloc_target_flags(${name})
 endfunction()
 
+# vloc_test_command(OUT NAME COMMAND [ARGS...]): the command line that runs a
+# test with a temporary folder of its own (TMPDIR), removed when it ends
+# (tests/support/run_with_tmpdir.sh); every add_test goes through it.
+function(vloc_test_command out name)
+  set(${out} sh ${CMAKE_SOURCE_DIR}/tests/support/run_with_tmpdir.sh ${name} ${ARGN} PARENT_SCOPE)
+endfunction()
+
 # vloc_add_test(NAME SOURCES t.cpp ... DEPS target ... [LABELS l ...] [TIMEOUT s] [GTEST])
 # A test executable registered with CTest. GTEST links gtest_main. The test
-# runs from the source root so paths like config/x.yaml resolve, and gets
-# VLOC_BIN_DIR / VLOC_SOURCE_DIR in its environment.
+# runs from the source root so paths like config/x.yaml resolve, gets
+# VLOC_BIN_DIR / VLOC_SOURCE_DIR in its environment and a TMPDIR of its own.
 function(vloc_add_test name)
   cmake_parse_arguments(ARG "GTEST" "TIMEOUT" "SOURCES;DEPS;LABELS;ARGS" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})
@@ -51,7 +58,8 @@ function(vloc_add_test name)
   target_compile_definitions(${name} PRIVATE
     VLOC_SOURCE_DIR="${CMAKE_SOURCE_DIR}" VLOC_BIN_DIR="${CMAKE_BINARY_DIR}/bin")
   vloc_target_flags(${name})
-  add_test(NAME ${name} COMMAND ${name} ${ARG_ARGS} WORKING_DIRECTORY ${CMAKE_SOURCE_DIR})
+  vloc_test_command(command ${name} $<TARGET_FILE:${name}> ${ARG_ARGS})
+  add_test(NAME ${name} COMMAND ${command} WORKING_DIRECTORY ${CMAKE_SOURCE_DIR})
   if(NOT ARG_TIMEOUT)
     set(ARG_TIMEOUT 300)
   endif()

@@ -18,10 +18,11 @@
 namespace vloc {
 namespace {
 
+// A folder under the test's TMPDIR (removed with it: tests/support/run_with_tmpdir.sh).
 std::string TempDir() {
-  char tmpl[] = "/tmp/vloc_matching_tools_XXXXXX";
-  const char* d = mkdtemp(tmpl);
-  return d ? d : "/tmp";
+  std::string tmpl = (std::filesystem::temp_directory_path() / "vloc_matching_tools_XXXXXX").string();
+  const char* d = mkdtemp(tmpl.data());
+  return d ? std::string(d) : std::filesystem::temp_directory_path().string();
 }
 
 cv::Mat ToU8(const cv::Mat& f) {
