@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
 #include <sstream>
 
 #include "vloc/crosssite/internal/frontend_steps.h"
@@ -24,10 +25,13 @@ std::optional<std::string> CheckInput(const SiteImages& previous, const SiteImag
   for (const SiteImages* s : {&state->previous, &state->current}) {
     for (const auto& p : s->pairs) {
       for (const cv::Mat* m : {&p.left, &p.right}) {
-        if (m->empty() || m->type() != CV_8UC1 || m->cols != cam.width || m->rows != cam.height) {
+        const bool grey_or_colour = m->type() == CV_8UC1 || m->type() == CV_8UC3;
+        if (m->empty() || !grey_or_colour || m->cols != cam.width || m->rows != cam.height) {
           std::ostringstream os;
-          os << "site " << s->site_id << " pair " << p.pair_index << ": image is not " << cam.width << "x"
-             << cam.height << " 8-bit grey (check the Navcam calibration file)";
+          os << "site " << s->site_id << " pair " << p.pair_index << ": image is " << m->cols << "x" << m->rows
+             << (m->type() == CV_8UC3 ? " colour" : m->type() == CV_8UC1 ? " grey" : " not 8-bit grey or colour")
+             << ", the camera file says " << cam.width << "x" << cam.height
+             << " 8-bit grey or colour (check the Navcam calibration file)";
           return os.str();
         }
       }
@@ -50,11 +54,14 @@ void InitTiePointSet(const SitePairState& state, TiePointSet* tps) {
 
 namespace {
 
+// A colour camera's image (BGR, as decoded) is matched on its luminance.
 void Prepare(const cv::Mat& raw, const PinholeCamera& cam, bool bspline, PreparedImage* p) {
+  cv::Mat grey = raw;
+  if (raw.type() == CV_8UC3) cv::cvtColor(raw, grey, cv::COLOR_BGR2GRAY);
   if (cam.HasDistortion()) {
-    cv::undistort(raw, p->gray, cv::Mat(cam.K()), cam.DistortionCoeffs(), cv::Mat(cam.K()));
+    cv::undistort(grey, p->gray, cv::Mat(cam.K()), cam.DistortionCoeffs(), cv::Mat(cam.K()));
   } else {
-    p->gray = raw;
+    p->gray = grey;
   }
   p->lsm = MakeLsmImage(p->gray, bspline);
 }

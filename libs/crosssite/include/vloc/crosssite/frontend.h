@@ -53,7 +53,7 @@ class OptionsReader;
 struct SiteImages {
   int site_id = 0;
   PoseWithCovariance world_from_body;  // DR pose of the site
-  std::vector<StereoPair> pairs;       // indexed by pair_index after sorting
+  std::vector<StereoPair> pairs;       // indexed by pair_index after sorting; grey or BGR colour (matched on luminance)
 };
 
 // Cross-site LSM on the previous region's grid: a larger window (the grid

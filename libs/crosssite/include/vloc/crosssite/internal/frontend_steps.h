@@ -190,7 +190,7 @@ void DropVehicleFeatures(const cv::Mat& mask, const cv::Matx33d& image_from_feat
 // Removes the candidates on the body in either left image; returns how many.
 int DropVehicleCandidates(SitePairState* state);
 
-// Sorts the pairs and checks every image (8-bit grey of the calibrated
+// Sorts the pairs and checks every image (8-bit grey or BGR colour of the calibrated
 // size); the problem when not usable.
 std::optional<std::string> CheckInput(const SiteImages& previous, const SiteImages& current, const NavcamModel& navcam,
                                       SitePairState* state);
