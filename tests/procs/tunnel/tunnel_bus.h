@@ -48,6 +48,7 @@ class TunnelBus {
           const bool intact = size >= 8 && std::vector<uint8_t>(data, data + size) == IndexedPayload(index, size);
           if (!intact) ++corrupt, corrupt_channels.push_back(channel + ":" + std::to_string(size));
           received[channel].push_back(index);
+          arrival_s[channel].push_back(NowS());
           arrival.push_back(channel);
         },
         100000);
@@ -70,7 +71,11 @@ class TunnelBus {
     return it == status.end() ? nullptr : &it->second;
   }
 
+  static double NowS() {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  }
   std::map<std::string, std::vector<int64_t>> received;
+  std::map<std::string, std::vector<double>> arrival_s;  // steady clock, s, beside `received`
   std::vector<std::string> arrival;  // channels in arrival order
   std::map<std::string, tunnel_status_t> status;
   int corrupt = 0;
@@ -84,11 +89,11 @@ class TunnelBus {
 inline bool WaitOn(const std::vector<TunnelBus*>& buses, const std::vector<Subprocess*>& procs,
                    const std::function<bool()>& done, double timeout_s) {
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-  while (std::chrono::steady_clock::now() < deadline) {
-    for (TunnelBus* b : buses) b->Handle(20);
+  do {  // at least once: a zero timeout handles what is waiting
+    for (TunnelBus* b : buses) b->Handle(buses.size() > 2 ? 2 : 20);
     for (Subprocess* p : procs) p->Drain();
     if (done()) return true;
-  }
+  } while (std::chrono::steady_clock::now() < deadline);
   return false;
 }
 
