@@ -2,8 +2,6 @@
 
 #include <omp.h>
 
-#include <Eigen/Cholesky>
-#include <Eigen/Core>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -13,6 +11,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "row_lsm.h"
 #include "vloc/common/options.h"
 
 namespace vloc {
@@ -80,37 +79,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-// Keys cubic convolution (a = -0.5): weights and derivative weights of the
-// taps at floor(x) - 1 .. floor(x) + 2, t = x - floor(x).
-inline void Keys(float t, float w[4], float dw[4]) {
-  const float t2 = t * t, t3 = t2 * t;
-  w[0] = -0.5f * t3 + t2 - 0.5f * t;
-  w[1] = 1.5f * t3 - 2.5f * t2 + 1.f;
-  w[2] = -1.5f * t3 + 2.f * t2 + 0.5f * t;
-  w[3] = 0.5f * t3 - 0.5f * t2;
-  dw[0] = -1.5f * t2 + 2.f * t - 0.5f;
-  dw[1] = 4.5f * t2 - 5.f * t;
-  dw[2] = -4.5f * t2 + 4.f * t + 0.5f;
-  dw[3] = 1.5f * t2 - t;
-}
-
-// Cubic B-spline weights and derivative weights (taps as in Keys). On
-// B-spline coefficients (PrepareRowLsmTarget) the interpolant passes
-// through the samples and its error depends far less on the sub-pixel
-// phase than Keys' kernel, whose phase-dependent smoothing biases LSM by up
-// to +-0.02 px (towards phase 0.5).
-inline void BSpline(float t, float w[4], float dw[4]) {
-  const float u = 1.f - t, t2 = t * t, t3 = t2 * t;
-  w[0] = u * u * u / 6.f;
-  w[1] = (3.f * t3 - 6.f * t2 + 4.f) / 6.f;
-  w[2] = (-3.f * t3 + 3.f * t2 + 3.f * t + 1.f) / 6.f;
-  w[3] = t3 / 6.f;
-  dw[0] = -0.5f * u * u;
-  dw[1] = 1.5f * t2 - 2.f * t;
-  dw[2] = -1.5f * t2 + t + 0.5f;
-  dw[3] = 0.5f * t2;
-}
 
 // Box mean and inverse standard deviation (0 where the std is below
 // min_std) of a float image over a square window.
@@ -279,9 +247,23 @@ long MedianTest(const DenseStereoOptions& o, double abs_tolerance, double rel_to
       }
       bool keep = false;
       if (static_cast<int>(neigh.size()) >= std::max(1, o.median_min_neighbours)) {
-        std::nth_element(neigh.begin(), neigh.begin() + neigh.size() / 2, neigh.end());
-        const double med = neigh[neigh.size() / 2];
-        keep = std::abs(d - med) <= abs_tolerance + rel_tolerance * std::abs(med);
+        const size_t k = neigh.size() / 2;  // the median is the k-th smallest
+        if (rel_tolerance == 0) {
+          // The median is within the tolerance unless k + 1 neighbours lie
+          // below the tolerated interval around d (the median among them)
+          // or size - k above it: the same test without sorting (the
+          // interval is contiguous: |d - v| rounds monotonically in v).
+          size_t below = 0, above = 0;
+          for (const float v : neigh) {
+            if (std::abs(d - static_cast<double>(v)) <= abs_tolerance) continue;
+            ++(v < d ? below : above);
+          }
+          keep = below <= k && above < neigh.size() - k;
+        } else {
+          std::nth_element(neigh.begin(), neigh.begin() + k, neigh.end());
+          const double med = neigh[k];
+          keep = std::abs(d - med) <= abs_tolerance + rel_tolerance * std::abs(med);
+        }
       } else {
         keep = o.median_min_neighbours == 0;
       }
@@ -296,152 +278,6 @@ long MedianTest(const DenseStereoOptions& o, double abs_tolerance, double rel_to
 }
 
 }  // namespace
-
-cv::Mat PrepareRowLsmTarget(const cv::Mat& right, const DenseStereoOptions& o) {
-  cv::Mat out;
-  right.convertTo(out, CV_32F);
-  if (!o.lsm_bspline) return out;
-  // Cubic B-spline prefilter along the rows (Unser 1999; mirror boundary).
-  const double z = std::sqrt(3.0) - 2.0;
-  const int W = out.cols;
-  std::vector<double> c(W);
-  const int horizon = std::min(W, 30);  // |z|^30 < 1e-17
-  for (int y = 0; y < out.rows; ++y) {
-    float* row = out.ptr<float>(y);
-    for (int k = 0; k < W; ++k) c[k] = 6.0 * row[k];
-    if (W > 1) {
-      double sum = c[0], zk = z;
-      for (int k = 1; k < horizon; ++k, zk *= z) sum += zk * c[k];
-      c[0] = sum;
-      for (int k = 1; k < W; ++k) c[k] += z * c[k - 1];
-      c[W - 1] = (z / (z * z - 1.0)) * (c[W - 1] + z * c[W - 2]);
-      for (int k = W - 2; k >= 0; --k) c[k] = z * (c[k + 1] - c[k]);
-    }
-    for (int k = 0; k < W; ++k) row[k] = static_cast<float>(c[k]);
-  }
-  return out;
-}
-
-bool RowLeastSquaresMatch(const cv::Mat& L, const cv::Mat& R, int x, int y, double initial_disparity,
-                          const DenseStereoOptions& o, RowLsmResult* result) {
-  const int h = o.lsm_half_window, hy = o.lsm_half_height;
-  const int W = R.cols;
-  if (x - h < 0 || x + h >= L.cols || y - hy < 0 || y + hy >= L.rows) return false;
-  const int ww = 2 * h + 1, wh = 2 * hy + 1, n = ww * wh;
-  constexpr int kMaxN = 41 * 41;
-  float T[kMaxN], G[kMaxN];
-  double tsum = 0;
-  for (int r = -hy, i = 0; r <= hy; ++r) {
-    const float* row = L.ptr<float>(y + r);
-    for (int c = -h; c <= h; ++c, ++i) tsum += T[i] = row[x + c];
-  }
-  const bool plane = o.lsm_disparity_plane;
-  const int np = plane ? 5 : 3;  // d, [dd/dx, dd/dy], r0, r1
-  using Mat5 = Eigen::Matrix<double, 5, 5>;
-  using Vec5 = Eigen::Matrix<double, 5, 1>;
-  double d = initial_disparity, gx = 0, gy = 0, r0 = 0, r1 = 1;
-  Mat5 N;
-  Vec5 b;
-  double ssr = 0;
-  bool converged = false;
-  int it = 0;
-  for (; it < o.lsm_max_iterations; ++it) {
-    // Right x of the window corners (linear in c and r): all taps inside?
-    const double xmin = x - h - d - std::abs(gx) * h - std::abs(gy) * hy;
-    const double xmax = x + h - d + std::abs(gx) * h + std::abs(gy) * hy;
-    if (xmin - 1 < 0 || xmax + 2 > W - 1) return false;
-    // Normal equations accumulated by hand (lower triangle): Eigen's
-    // rankUpdate per pixel was most of the time.
-    // Float accumulation per row, summed into doubles: the terms are
-    // grey-level products, the sums of a row stay well inside float range.
-    double nn[15] = {0}, bb[5] = {0};
-    ssr = 0;
-    float w[4], dw[4];
-    const float fr1 = static_cast<float>(r1), fr0 = static_cast<float>(r0);
-    for (int r = -hy, i = 0; r <= hy; ++r) {
-      const float* row = R.ptr<float>(y + r);
-      const double row_shift = x - d - gy * r;
-      float rn[15] = {0}, rb[5] = {0}, rs = 0;
-      for (int c = -h; c <= h; ++c, ++i) {
-        const double xr = row_shift + c * (1.0 - gx);
-        const int x0 = static_cast<int>(xr);  // xr >= 1: truncation is floor
-        const float t = static_cast<float>(xr - x0);
-        if (o.lsm_bspline) {
-          BSpline(t, w, dw);
-        } else {
-          Keys(t, w, dw);
-        }
-        const float* p = row + x0 - 1;
-        const float g = w[0] * p[0] + w[1] * p[1] + w[2] * p[2] + w[3] * p[3];
-        const float dg = fr1 * (dw[0] * p[0] + dw[1] * p[1] + dw[2] * p[2] + dw[3] * p[3]);
-        G[i] = g;
-        const float resid = T[i] - (fr0 + fr1 * g);
-        rs += resid * resid;
-        float j[5];
-        if (plane) {
-          j[0] = -dg, j[1] = -dg * c, j[2] = -dg * r, j[3] = 1.f, j[4] = g;
-        } else {
-          j[0] = -dg, j[1] = 1.f, j[2] = g, j[3] = 0.f, j[4] = 0.f;
-        }
-        for (int k = 0, q = 0; k < 5; ++k) {
-          rb[k] += j[k] * resid;
-          for (int l = 0; l <= k; ++l, ++q) rn[q] += j[k] * j[l];
-        }
-      }
-      for (int q = 0; q < 15; ++q) nn[q] += rn[q];
-      for (int k = 0; k < 5; ++k) bb[k] += rb[k];
-      ssr += rs;
-    }
-    for (int k = 0, q = 0; k < 5; ++k) {
-      b(k) = bb[k];
-      for (int l = 0; l <= k; ++l, ++q) N(k, l) = N(l, k) = nn[q];
-    }
-    if (!plane) N.block<2, 2>(3, 3).diagonal().array() += 1.0;
-    const Eigen::LDLT<Mat5> ldlt(N);
-    if (ldlt.info() != Eigen::Success) return false;
-    const Vec5 dx = ldlt.solve(b);
-    if (!dx.allFinite()) return false;
-    d += dx(0);
-    if (plane) {
-      gx += dx(1);
-      gy += dx(2);
-      r0 += dx(3);
-      r1 += dx(4);
-    } else {
-      r0 += dx(1);
-      r1 += dx(2);
-    }
-    if (std::abs(d - initial_disparity) > o.lsm_max_shift_px || std::abs(gx) > 0.5 || std::abs(gy) > 1.0 || r1 < 0.2)
-      return false;
-    if (std::abs(dx(0)) < o.lsm_convergence_px) {
-      converged = true;
-      ++it;
-      break;
-    }
-  }
-  if (!converged) return false;
-  const double sigma0_sq = ssr / std::max(1, n - np);
-  const Mat5 Ninv = Eigen::LDLT<Mat5>(N).solve(Mat5::Identity());
-  const double sigma = std::sqrt(std::max(0.0, sigma0_sq * Ninv(0, 0)));
-  const double tm = tsum / n;
-  double gm = 0;
-  for (int i = 0; i < n; ++i) gm += G[i];
-  gm /= n;
-  double stg = 0, stt = 0, sgg = 0;
-  for (int i = 0; i < n; ++i) {
-    stg += (T[i] - tm) * (G[i] - gm);
-    stt += (T[i] - tm) * (T[i] - tm);
-    sgg += (G[i] - gm) * (G[i] - gm);
-  }
-  const double corr = stg / std::sqrt(std::max(stt * sgg, 1e-12));
-  if (result) {
-    result->disparity = d;
-    result->sigma_px = sigma;
-    result->correlation = corr;
-    result->iterations = it;
-  }
-  return corr >= o.lsm_min_correlation && sigma <= o.lsm_max_sigma_px;
-}
 
 namespace {
 
@@ -459,17 +295,26 @@ struct LsmImages {
   cv::Mat L, R, Rraw, Lcoef;
 };
 
-// Step 3 for one grid point: row LSM of the left pixel (x, y) from the
-// ZNCC disparity `d0`, then the optional back check.
-bool RefinePixel(const LsmImages& im, const DenseStereoOptions& o, int x, int y, double d0, RowLsmResult* out) {
-  if (!RowLeastSquaresMatch(im.L, im.R, x, y, d0, o, out)) return false;
-  if (o.lsm_back_check_px <= 0) return true;
-  // Back from the nearest right pixel into the left image (disparity
-  // negated: the left point is to the right of the right point).
-  RowLsmResult back;
-  const int xr = static_cast<int>(std::lround(x - out->disparity));
-  return RowLeastSquaresMatch(im.Rraw, im.Lcoef, xr, y, -out->disparity, o, &back) &&
-         std::abs(-back.disparity - out->disparity) <= o.lsm_back_check_px;
+// Step 3 for the grid points of `tasks`: row LSM of each left pixel from
+// its ZNCC disparity (8 at a time, internal::RowLeastSquaresMatchBatch),
+// then the optional back check of those LSM accepted.
+void RefinePixels(const LsmImages& im, const DenseStereoOptions& o, const std::vector<internal::RowLsmTask>& tasks,
+                  std::vector<RowLsmResult>* results, std::vector<unsigned char>* accepted) {
+  results->resize(tasks.size());
+  accepted->resize(tasks.size());
+  internal::RowLeastSquaresMatchBatch(im.L, im.R, tasks.data(), static_cast<int>(tasks.size()), o, results->data(),
+                                      accepted->data());
+  if (o.lsm_back_check_px <= 0) return;
+  for (size_t k = 0; k < tasks.size(); ++k) {
+    if (!(*accepted)[k]) continue;
+    // Back from the nearest right pixel into the left image (disparity
+    // negated: the left point is to the right of the right point).
+    const RowLsmResult& out = (*results)[k];
+    RowLsmResult back;
+    const int xr = static_cast<int>(std::lround(tasks[k].x - out.disparity));
+    (*accepted)[k] = RowLeastSquaresMatch(im.Rraw, im.Lcoef, xr, tasks[k].y, -out.disparity, o, &back) &&
+                     std::abs(-back.disparity - out.disparity) <= o.lsm_back_check_px;
+  }
 }
 
 }  // namespace
@@ -499,19 +344,39 @@ cv::Mat DenseStereo(const cv::Mat& left, const cv::Mat& right, const DenseStereo
     const LsmImages images(left, right, o);
     cv::Mat sigma(disp.size(), CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
     long matched = 0, iterations = 0;
-#pragma omp parallel for schedule(dynamic, 4) num_threads(o.num_threads) reduction(+ : matched, iterations)
-    for (int gy = 0; gy < disp.rows; ++gy) {
-      float* row = disp.ptr<float>(gy);
-      for (int gx = 0; gx < disp.cols; ++gx) {
-        if (!std::isfinite(row[gx])) continue;
-        RowLsmResult r;
-        if (RefinePixel(images, o, gx * o.step, gy * o.step, row[gx], &r)) {
-          row[gx] = static_cast<float>(r.disparity);
-          sigma.at<float>(gy, gx) = static_cast<float>(r.sigma_px);
-          ++matched;
-          iterations += r.iterations;
-        } else {
-          row[gx] = std::numeric_limits<float>::quiet_NaN();
+    const int block = 8;  // grid rows per task
+    const int nblocks = (disp.rows + block - 1) / block;
+#pragma omp parallel num_threads(o.num_threads) reduction(+ : matched, iterations)
+    {
+      std::vector<internal::RowLsmTask> tasks;
+      std::vector<cv::Point> cells;
+      std::vector<RowLsmResult> results;
+      std::vector<unsigned char> accepted;
+#pragma omp for schedule(dynamic, 1)
+      for (int b = 0; b < nblocks; ++b) {
+        tasks.clear();
+        cells.clear();
+        for (int gy = b * block; gy < std::min(disp.rows, (b + 1) * block); ++gy) {
+          const float* row = disp.ptr<float>(gy);
+          for (int gx = 0; gx < disp.cols; ++gx) {
+            if (!std::isfinite(row[gx])) continue;
+            internal::RowLsmTask t;
+            t.x = gx * o.step, t.y = gy * o.step, t.initial_disparity = row[gx];
+            tasks.push_back(t);
+            cells.emplace_back(gx, gy);
+          }
+        }
+        RefinePixels(images, o, tasks, &results, &accepted);
+        for (size_t k = 0; k < tasks.size(); ++k) {
+          float& d = disp.at<float>(cells[k]);
+          if (accepted[k]) {
+            d = static_cast<float>(results[k].disparity);
+            sigma.at<float>(cells[k]) = static_cast<float>(results[k].sigma_px);
+            ++matched;
+            iterations += results[k].iterations;
+          } else {
+            d = std::numeric_limits<float>::quiet_NaN();
+          }
         }
       }
     }

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <vector>
 
+#include "cubic_kernels.h"
 #include "vloc/common/options.h"
 #include "vloc/features/stereo_match.h"
 
@@ -109,32 +110,8 @@ LsmImage MakeLsmImage(const cv::Mat& gray, bool bspline_coefficients) {
 
 namespace {
 
-// Keys cubic convolution (a = -0.5) weights and their derivatives for the
-// four taps at offsets -1, 0, 1, 2 from floor(x), t = x - floor(x).
-inline void CubicWeights(float t, float w[4], float dw[4]) {
-  const float t2 = t * t, t3 = t2 * t;
-  w[0] = -0.5f * t3 + t2 - 0.5f * t;
-  w[1] = 1.5f * t3 - 2.5f * t2 + 1.f;
-  w[2] = -1.5f * t3 + 2.f * t2 + 0.5f * t;
-  w[3] = 0.5f * t3 - 0.5f * t2;
-  dw[0] = -1.5f * t2 + 2.f * t - 0.5f;
-  dw[1] = 4.5f * t2 - 5.f * t;
-  dw[2] = -4.5f * t2 + 4.f * t + 0.5f;
-  dw[3] = 1.5f * t2 - t;
-}
-
-// Cubic B-spline weights and derivatives (same taps), for coefficients.
-inline void BSplineWeights(float t, float w[4], float dw[4]) {
-  const float u = 1.f - t, t2 = t * t, t3 = t2 * t;
-  w[0] = u * u * u / 6.f;
-  w[1] = (3.f * t3 - 6.f * t2 + 4.f) / 6.f;
-  w[2] = (-3.f * t3 + 3.f * t2 + 3.f * t + 1.f) / 6.f;
-  w[3] = t3 / 6.f;
-  dw[0] = -0.5f * u * u;
-  dw[1] = 1.5f * t2 - 2.f * t;
-  dw[2] = -1.5f * t2 + t + 0.5f;
-  dw[3] = 0.5f * t2;
-}
+using internal::BSplineWeights;
+using internal::CubicWeights;
 
 // Bicubic value and gradient at (x, y); the caller keeps (x, y) at least 2 px
 // inside the image. bspline: `img` holds B-spline coefficients.

@@ -67,4 +67,30 @@ class BlobTexture {
   std::vector<Blob> blobs_;
 };
 
+// Left and right views of a slanted plane, disparity d(x, y) = d0 + gx x + gy y
+// at left pixel (x, y), grey noise of `noise` levels (seeded).
+struct PlanePair {
+  cv::Mat left, right, truth;  // CV_8UC1, CV_8UC1, CV_32F
+};
+
+inline PlanePair RenderPlane(int w, int h, double d0, double gx, double gy, double noise, uint64_t seed) {
+  const BlobTexture tex(w + 80, h, w * h / 18, seed);
+  PlanePair p;
+  const cv::Mat l = tex.Render(w, h, [](int x, int y) { return std::make_pair<double, double>(x, y); });
+  // Right pixel xr sees the left point xl with xl - d(xl, y) = xr.
+  const cv::Mat r = tex.Render(w, h, [&](int x, int y) {
+    return std::make_pair<double, double>((x + d0 + gy * y) / (1.0 - gx), y);
+  });
+  cv::RNG rng(seed + 1);
+  cv::Mat nl(h, w, CV_32F), nr(h, w, CV_32F);
+  rng.fill(nl, cv::RNG::NORMAL, 0.0, noise);
+  rng.fill(nr, cv::RNG::NORMAL, 0.0, noise);
+  cv::Mat(l + nl).convertTo(p.left, CV_8U);
+  cv::Mat(r + nr).convertTo(p.right, CV_8U);
+  p.truth = cv::Mat(h, w, CV_32F);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) p.truth.at<float>(y, x) = static_cast<float>(d0 + gx * x + gy * y);
+  return p;
+}
+
 }  // namespace vloc::testing

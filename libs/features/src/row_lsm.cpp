@@ -1,0 +1,446 @@
+// Row least-squares matching (step 3 of vloc::DenseStereo): one pixel
+// (RowLeastSquaresMatch) or many at once (internal::RowLeastSquaresMatchBatch,
+// 8 pixels per AVX2 register, the same results bit for bit).
+#include "row_lsm.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "cubic_kernels.h"
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define VLOC_ROW_LSM_AVX2 1
+#endif
+
+namespace vloc {
+
+namespace {
+
+using Mat5 = Eigen::Matrix<double, 5, 5>;
+using Vec5 = Eigen::Matrix<double, 5, 1>;
+constexpr int kMaxN = 41 * 41;  // largest window (half sizes <= 20)
+
+// One pixel's Gauss-Newton state. The template T and the resampled window
+// G of a pixel are stored every `stride` floats (1 alone, 8 in the lanes).
+struct LsmState {
+  int x = 0, y = 0;
+  double initial_disparity = 0;
+  double d = 0, gx = 0, gy = 0, r0 = 0, r1 = 1;  // disparity, its gradients, radiometry
+  double tsum = 0;                              // sum of the template
+  double nn[15] = {0}, bb[5] = {0}, ssr = 0;    // this iteration's normal equations (lower triangle)
+  Mat5 N;
+  int it = 0;                                   // Gauss-Newton iterations done
+};
+
+// The template window: false when it leaves the left image.
+bool StartLsm(const cv::Mat& L, int x, int y, double initial_disparity, const DenseStereoOptions& o, LsmState* s,
+              float* T, int stride) {
+  const int h = o.lsm_half_window, hy = o.lsm_half_height;
+  if (x - h < 0 || x + h >= L.cols || y - hy < 0 || y + hy >= L.rows) return false;
+  *s = LsmState();
+  s->x = x, s->y = y, s->initial_disparity = initial_disparity, s->d = initial_disparity;
+  double tsum = 0;
+  for (int r = -hy, i = 0; r <= hy; ++r) {
+    const float* row = L.ptr<float>(y + r);
+    for (int c = -h; c <= h; ++c, ++i) tsum += T[i * stride] = row[x + c];
+  }
+  s->tsum = tsum;
+  return true;
+}
+
+// Right x of the window corners (linear in c and r): all taps inside?
+bool TapsInside(const LsmState& s, const DenseStereoOptions& o, int W) {
+  const int h = o.lsm_half_window, hy = o.lsm_half_height;
+  const double xmin = s.x - h - s.d - std::abs(s.gx) * h - std::abs(s.gy) * hy;
+  const double xmax = s.x + h - s.d + std::abs(s.gx) * h + std::abs(s.gy) * hy;
+  return !(xmin - 1 < 0 || xmax + 2 > W - 1);
+}
+
+// One pixel's normal equations at its current state (s->nn, s->bb, s->ssr, G).
+void AccumulateScalar(const cv::Mat& R, const DenseStereoOptions& o, const float* T, float* G, LsmState* s) {
+  const int h = o.lsm_half_window, hy = o.lsm_half_height;
+  const bool plane = o.lsm_disparity_plane;
+  const int x = s->x, y = s->y;
+  const double d = s->d, gx = s->gx, gy = s->gy;
+  // Normal equations accumulated by hand (lower triangle): Eigen's
+  // rankUpdate per pixel was most of the time.
+  // Float accumulation per row, summed into doubles: the terms are
+  // grey-level products, the sums of a row stay well inside float range.
+  double nn[15] = {0}, bb[5] = {0};
+  double ssr = 0;
+  float w[4], dw[4];
+  const float fr1 = static_cast<float>(s->r1), fr0 = static_cast<float>(s->r0);
+  for (int r = -hy, i = 0; r <= hy; ++r) {
+    const float* row = R.ptr<float>(y + r);
+    const double row_shift = x - d - gy * r;
+    float rn[15] = {0}, rb[5] = {0}, rs = 0;
+    for (int c = -h; c <= h; ++c, ++i) {
+      const double xr = row_shift + c * (1.0 - gx);
+      const int x0 = static_cast<int>(xr);  // xr >= 1: truncation is floor
+      const float t = static_cast<float>(xr - x0);
+      if (o.lsm_bspline) {
+        internal::BSplineWeights(t, w, dw);
+      } else {
+        internal::CubicWeights(t, w, dw);
+      }
+      const float* p = row + x0 - 1;
+      const float g = w[0] * p[0] + w[1] * p[1] + w[2] * p[2] + w[3] * p[3];
+      const float dg = fr1 * (dw[0] * p[0] + dw[1] * p[1] + dw[2] * p[2] + dw[3] * p[3]);
+      G[i] = g;
+      const float resid = T[i] - (fr0 + fr1 * g);
+      rs += resid * resid;
+      float j[5];
+      if (plane) {
+        j[0] = -dg, j[1] = -dg * c, j[2] = -dg * r, j[3] = 1.f, j[4] = g;
+      } else {
+        j[0] = -dg, j[1] = 1.f, j[2] = g, j[3] = 0.f, j[4] = 0.f;
+      }
+      for (int k = 0, q = 0; k < 5; ++k) {
+        rb[k] += j[k] * resid;
+        for (int l = 0; l <= k; ++l, ++q) rn[q] += j[k] * j[l];
+      }
+    }
+    for (int q = 0; q < 15; ++q) nn[q] += rn[q];
+    for (int k = 0; k < 5; ++k) bb[k] += rb[k];
+    ssr += rs;
+  }
+  std::copy(nn, nn + 15, s->nn);
+  std::copy(bb, bb + 5, s->bb);
+  s->ssr = ssr;
+}
+
+enum class LsmStep { kContinue, kConverged, kRejected };
+
+// Solves this iteration's normal equations and moves the state.
+LsmStep UpdateLsm(const DenseStereoOptions& o, LsmState* s) {
+  const bool plane = o.lsm_disparity_plane;
+  Vec5 b;
+  for (int k = 0, q = 0; k < 5; ++k) {
+    b(k) = s->bb[k];
+    for (int l = 0; l <= k; ++l, ++q) s->N(k, l) = s->N(l, k) = s->nn[q];
+  }
+  if (!plane) s->N.block<2, 2>(3, 3).diagonal().array() += 1.0;
+  const Eigen::LDLT<Mat5> ldlt(s->N);
+  if (ldlt.info() != Eigen::Success) return LsmStep::kRejected;
+  const Vec5 dx = ldlt.solve(b);
+  if (!dx.allFinite()) return LsmStep::kRejected;
+  s->d += dx(0);
+  if (plane) {
+    s->gx += dx(1);
+    s->gy += dx(2);
+    s->r0 += dx(3);
+    s->r1 += dx(4);
+  } else {
+    s->r0 += dx(1);
+    s->r1 += dx(2);
+  }
+  if (std::abs(s->d - s->initial_disparity) > o.lsm_max_shift_px || std::abs(s->gx) > 0.5 || std::abs(s->gy) > 1.0 ||
+      s->r1 < 0.2)
+    return LsmStep::kRejected;
+  ++s->it;
+  return std::abs(dx(0)) < o.lsm_convergence_px ? LsmStep::kConverged : LsmStep::kContinue;
+}
+
+// Precision and window correlation of a converged pixel: accepted?
+bool FinishLsm(const LsmState& s, const DenseStereoOptions& o, const float* T, const float* G, int stride,
+               RowLsmResult* result) {
+  const int n = (2 * o.lsm_half_window + 1) * (2 * o.lsm_half_height + 1);
+  const int np = o.lsm_disparity_plane ? 5 : 3;  // d, [dd/dx, dd/dy], r0, r1
+  const double sigma0_sq = s.ssr / std::max(1, n - np);
+  const Mat5 Ninv = Eigen::LDLT<Mat5>(s.N).solve(Mat5::Identity());
+  const double sigma = std::sqrt(std::max(0.0, sigma0_sq * Ninv(0, 0)));
+  const double tm = s.tsum / n;
+  double gm = 0;
+  for (int i = 0; i < n; ++i) gm += G[i * stride];
+  gm /= n;
+  double stg = 0, stt = 0, sgg = 0;
+  for (int i = 0; i < n; ++i) {
+    const float t = T[i * stride], g = G[i * stride];
+    stg += (t - tm) * (g - gm);
+    stt += (t - tm) * (t - tm);
+    sgg += (g - gm) * (g - gm);
+  }
+  const double corr = stg / std::sqrt(std::max(stt * sgg, 1e-12));
+  if (result) {
+    result->disparity = s.d;
+    result->sigma_px = sigma;
+    result->correlation = corr;
+    result->iterations = s.it;
+  }
+  return corr >= o.lsm_min_correlation && sigma <= o.lsm_max_sigma_px;
+}
+
+}  // namespace
+
+cv::Mat PrepareRowLsmTarget(const cv::Mat& right, const DenseStereoOptions& o) {
+  cv::Mat out;
+  right.convertTo(out, CV_32F);
+  if (!o.lsm_bspline) return out;
+  // Cubic B-spline prefilter along the rows (Unser 1999; mirror boundary).
+  const double z = std::sqrt(3.0) - 2.0;
+  const int W = out.cols;
+  std::vector<double> c(W);
+  const int horizon = std::min(W, 30);  // |z|^30 < 1e-17
+  for (int y = 0; y < out.rows; ++y) {
+    float* row = out.ptr<float>(y);
+    for (int k = 0; k < W; ++k) c[k] = 6.0 * row[k];
+    if (W > 1) {
+      double sum = c[0], zk = z;
+      for (int k = 1; k < horizon; ++k, zk *= z) sum += zk * c[k];
+      c[0] = sum;
+      for (int k = 1; k < W; ++k) c[k] += z * c[k - 1];
+      c[W - 1] = (z / (z * z - 1.0)) * (c[W - 1] + z * c[W - 2]);
+      for (int k = W - 2; k >= 0; --k) c[k] = z * (c[k + 1] - c[k]);
+    }
+    for (int k = 0; k < W; ++k) row[k] = static_cast<float>(c[k]);
+  }
+  return out;
+}
+
+bool RowLeastSquaresMatch(const cv::Mat& L, const cv::Mat& R, int x, int y, double initial_disparity,
+                          const DenseStereoOptions& o, RowLsmResult* result) {
+  float T[kMaxN], G[kMaxN];
+  LsmState s;
+  if (!StartLsm(L, x, y, initial_disparity, o, &s, T, 1)) return false;
+  for (;;) {
+    if (s.it >= o.lsm_max_iterations || !TapsInside(s, o, R.cols)) return false;
+    AccumulateScalar(R, o, T, G, &s);
+    const LsmStep step = UpdateLsm(o, &s);
+    if (step == LsmStep::kRejected) return false;
+    if (step == LsmStep::kConverged) break;
+  }
+  return FinishLsm(s, o, T, G, 1, result);
+}
+
+namespace internal {
+
+#ifdef VLOC_ROW_LSM_AVX2
+namespace {
+
+constexpr int kLanes = 8;
+
+#define VLOC_AVX2 __attribute__((target("avx2"), always_inline)) inline
+VLOC_AVX2 __m256 Mul(float a, __m256 b) { return _mm256_mul_ps(_mm256_set1_ps(a), b); }
+// acc (8 doubles in two registers) += v, converted to double.
+VLOC_AVX2 void AddTo(__m256d acc[2], __m256 v) {
+  acc[0] = _mm256_add_pd(acc[0], _mm256_cvtps_pd(_mm256_castps256_ps128(v)));
+  acc[1] = _mm256_add_pd(acc[1], _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1)));
+}
+VLOC_AVX2 void Store(const __m256d v[2], double* out) {
+  _mm256_storeu_pd(out, v[0]);
+  _mm256_storeu_pd(out + 4, v[1]);
+}
+#undef VLOC_AVX2
+
+// The window sums of 8 pixels (one per lane) at their current states:
+// AccumulateScalar's operations in its order, 8 at a time. T and G hold
+// window sample i of lane k at [i * 8 + k].
+template <bool kBspline>
+__attribute__((target("avx2"))) void AccumulateLanes(const cv::Mat& R, const DenseStereoOptions& o,
+                                                     LsmState* const* lanes, const float* T, float* G) {
+  const int h = o.lsm_half_window, hy = o.lsm_half_height;
+  const int stride = static_cast<int>(R.step1());
+  const float* base = R.ptr<float>(0);
+  alignas(32) double x_d[kLanes], gy_d[kLanes], omg_d[kLanes];
+  alignas(32) float r0_f[kLanes], r1_f[kLanes];
+  alignas(32) int row0[kLanes];
+  for (int k = 0; k < kLanes; ++k) {
+    const LsmState& s = *lanes[k];
+    x_d[k] = s.x - s.d;  // x - d - gy * r, left to right
+    gy_d[k] = s.gy;
+    omg_d[k] = 1.0 - s.gx;
+    r0_f[k] = static_cast<float>(s.r0);
+    r1_f[k] = static_cast<float>(s.r1);
+    row0[k] = s.y * stride - 1;  // tap 0 of x0 is x0 - 1
+  }
+  const __m256d xmd_lo = _mm256_load_pd(x_d), xmd_hi = _mm256_load_pd(x_d + 4);
+  const __m256d gy_lo = _mm256_load_pd(gy_d), gy_hi = _mm256_load_pd(gy_d + 4);
+  const __m256d omg_lo = _mm256_load_pd(omg_d), omg_hi = _mm256_load_pd(omg_d + 4);
+  const __m256 fr0 = _mm256_load_ps(r0_f), fr1 = _mm256_load_ps(r1_f);
+  const __m256i rows = _mm256_load_si256(reinterpret_cast<const __m256i*>(row0));
+  const __m256 sign = _mm256_set1_ps(-0.f);
+  __m256d nn[15][2], bb[5][2], ssr[2];
+  for (auto& v : nn) v[0] = v[1] = _mm256_setzero_pd();
+  for (auto& v : bb) v[0] = v[1] = _mm256_setzero_pd();
+  ssr[0] = ssr[1] = _mm256_setzero_pd();
+  for (int r = -hy, i = 0; r <= hy; ++r) {
+    const __m256d rd = _mm256_set1_pd(r);
+    const __m256d shift_lo = _mm256_sub_pd(xmd_lo, _mm256_mul_pd(gy_lo, rd));
+    const __m256d shift_hi = _mm256_sub_pd(xmd_hi, _mm256_mul_pd(gy_hi, rd));
+    const __m256i row = _mm256_add_epi32(rows, _mm256_set1_epi32((r) * stride));
+    const __m256 rf = _mm256_set1_ps(static_cast<float>(r));
+    __m256 rn[15], rb[5], rs = _mm256_setzero_ps();
+    for (auto& v : rn) v = _mm256_setzero_ps();
+    for (auto& v : rb) v = _mm256_setzero_ps();
+    for (int c = -h; c <= h; ++c, ++i) {
+      const __m256d cd = _mm256_set1_pd(c);
+      const __m256d xr_lo = _mm256_add_pd(shift_lo, _mm256_mul_pd(cd, omg_lo));
+      const __m256d xr_hi = _mm256_add_pd(shift_hi, _mm256_mul_pd(cd, omg_hi));
+      const __m128i x0_lo = _mm256_cvttpd_epi32(xr_lo), x0_hi = _mm256_cvttpd_epi32(xr_hi);
+      const __m128 t_lo = _mm256_cvtpd_ps(_mm256_sub_pd(xr_lo, _mm256_cvtepi32_pd(x0_lo)));
+      const __m128 t_hi = _mm256_cvtpd_ps(_mm256_sub_pd(xr_hi, _mm256_cvtepi32_pd(x0_hi)));
+      const __m256 t = _mm256_insertf128_ps(_mm256_castps128_ps256(t_lo), t_hi, 1);
+      const __m256i idx = _mm256_add_epi32(row, _mm256_insertf128_si256(_mm256_castsi128_si256(x0_lo), x0_hi, 1));
+      const __m256 p0 = _mm256_i32gather_ps(base, idx, 4), p1 = _mm256_i32gather_ps(base + 1, idx, 4);
+      const __m256 p2 = _mm256_i32gather_ps(base + 2, idx, 4), p3 = _mm256_i32gather_ps(base + 3, idx, 4);
+      const __m256 t2 = _mm256_mul_ps(t, t), t3 = _mm256_mul_ps(t2, t);
+      __m256 w0, w1, w2, w3, dw0, dw1, dw2, dw3;
+      if (kBspline) {
+        const __m256 u = _mm256_sub_ps(_mm256_set1_ps(1.f), t), six = _mm256_set1_ps(6.f);
+        w0 = _mm256_div_ps(_mm256_mul_ps(_mm256_mul_ps(u, u), u), six);
+        w1 = _mm256_div_ps(_mm256_add_ps(_mm256_sub_ps(Mul(3.f, t3), Mul(6.f, t2)), _mm256_set1_ps(4.f)), six);
+        w2 = _mm256_div_ps(
+            _mm256_add_ps(_mm256_add_ps(_mm256_add_ps(Mul(-3.f, t3), Mul(3.f, t2)), Mul(3.f, t)), _mm256_set1_ps(1.f)),
+            six);
+        w3 = _mm256_div_ps(t3, six);
+        dw0 = _mm256_mul_ps(Mul(-0.5f, u), u);
+        dw1 = _mm256_sub_ps(Mul(1.5f, t2), Mul(2.f, t));
+        dw2 = _mm256_add_ps(_mm256_add_ps(Mul(-1.5f, t2), t), _mm256_set1_ps(0.5f));
+        dw3 = Mul(0.5f, t2);
+      } else {
+        w0 = _mm256_sub_ps(_mm256_add_ps(Mul(-0.5f, t3), t2), Mul(0.5f, t));
+        w1 = _mm256_add_ps(_mm256_sub_ps(Mul(1.5f, t3), Mul(2.5f, t2)), _mm256_set1_ps(1.f));
+        w2 = _mm256_add_ps(_mm256_add_ps(Mul(-1.5f, t3), Mul(2.f, t2)), Mul(0.5f, t));
+        w3 = _mm256_sub_ps(Mul(0.5f, t3), Mul(0.5f, t2));
+        dw0 = _mm256_sub_ps(_mm256_add_ps(Mul(-1.5f, t2), Mul(2.f, t)), _mm256_set1_ps(0.5f));
+        dw1 = _mm256_sub_ps(Mul(4.5f, t2), Mul(5.f, t));
+        dw2 = _mm256_add_ps(_mm256_add_ps(Mul(-4.5f, t2), Mul(4.f, t)), _mm256_set1_ps(0.5f));
+        dw3 = _mm256_sub_ps(Mul(1.5f, t2), t);
+      }
+      const __m256 g = _mm256_add_ps(
+          _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(w0, p0), _mm256_mul_ps(w1, p1)), _mm256_mul_ps(w2, p2)),
+          _mm256_mul_ps(w3, p3));
+      const __m256 dg = _mm256_mul_ps(
+          fr1, _mm256_add_ps(_mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dw0, p0), _mm256_mul_ps(dw1, p1)),
+                                           _mm256_mul_ps(dw2, p2)),
+                             _mm256_mul_ps(dw3, p3)));
+      _mm256_storeu_ps(G + i * kLanes, g);
+      const __m256 resid = _mm256_sub_ps(_mm256_loadu_ps(T + i * kLanes), _mm256_add_ps(fr0, _mm256_mul_ps(fr1, g)));
+      rs = _mm256_add_ps(rs, _mm256_mul_ps(resid, resid));
+      // j = (-dg, -dg c, -dg r, 1, g); the products with 1 are exact.
+      const __m256 j0 = _mm256_xor_ps(dg, sign);
+      const __m256 j1 = _mm256_mul_ps(j0, _mm256_set1_ps(static_cast<float>(c)));
+      const __m256 j2 = _mm256_mul_ps(j0, rf);
+      const __m256 j4 = g;
+      rb[0] = _mm256_add_ps(rb[0], _mm256_mul_ps(j0, resid));
+      rb[1] = _mm256_add_ps(rb[1], _mm256_mul_ps(j1, resid));
+      rb[2] = _mm256_add_ps(rb[2], _mm256_mul_ps(j2, resid));
+      rb[3] = _mm256_add_ps(rb[3], resid);
+      rb[4] = _mm256_add_ps(rb[4], _mm256_mul_ps(j4, resid));
+      rn[0] = _mm256_add_ps(rn[0], _mm256_mul_ps(j0, j0));
+      rn[1] = _mm256_add_ps(rn[1], _mm256_mul_ps(j1, j0));
+      rn[2] = _mm256_add_ps(rn[2], _mm256_mul_ps(j1, j1));
+      rn[3] = _mm256_add_ps(rn[3], _mm256_mul_ps(j2, j0));
+      rn[4] = _mm256_add_ps(rn[4], _mm256_mul_ps(j2, j1));
+      rn[5] = _mm256_add_ps(rn[5], _mm256_mul_ps(j2, j2));
+      rn[6] = _mm256_add_ps(rn[6], j0);
+      rn[7] = _mm256_add_ps(rn[7], j1);
+      rn[8] = _mm256_add_ps(rn[8], j2);
+      rn[9] = _mm256_add_ps(rn[9], _mm256_set1_ps(1.f));
+      rn[10] = _mm256_add_ps(rn[10], _mm256_mul_ps(j4, j0));
+      rn[11] = _mm256_add_ps(rn[11], _mm256_mul_ps(j4, j1));
+      rn[12] = _mm256_add_ps(rn[12], _mm256_mul_ps(j4, j2));
+      rn[13] = _mm256_add_ps(rn[13], j4);
+      rn[14] = _mm256_add_ps(rn[14], _mm256_mul_ps(j4, j4));
+    }
+    for (int q = 0; q < 15; ++q) AddTo(nn[q], rn[q]);
+    for (int k = 0; k < 5; ++k) AddTo(bb[k], rb[k]);
+    AddTo(ssr, rs);
+  }
+  double buf[kLanes];
+  for (int q = 0; q < 15; ++q) {
+    Store(nn[q], buf);
+    for (int k = 0; k < kLanes; ++k) lanes[k]->nn[q] = buf[k];
+  }
+  for (int q = 0; q < 5; ++q) {
+    Store(bb[q], buf);
+    for (int k = 0; k < kLanes; ++k) lanes[k]->bb[q] = buf[k];
+  }
+  Store(ssr, buf);
+  for (int k = 0; k < kLanes; ++k) lanes[k]->ssr = buf[k];
+}
+
+bool HasAvx2() {
+  static const bool has = __builtin_cpu_supports("avx2");
+  return has;
+}
+
+}  // namespace
+#endif
+
+bool RowLsmBatchVectorised(const DenseStereoOptions& o) {
+#ifdef VLOC_ROW_LSM_AVX2
+  return HasAvx2() && o.lsm_disparity_plane;
+#else
+  (void)o;
+  return false;
+#endif
+}
+
+void RowLeastSquaresMatchBatch(const cv::Mat& L, const cv::Mat& R, const RowLsmTask* tasks, int count,
+                               const DenseStereoOptions& o, RowLsmResult* results, unsigned char* accepted) {
+  if (!RowLsmBatchVectorised(o)) {
+    for (int k = 0; k < count; ++k) {
+      results[k] = RowLsmResult();
+      accepted[k] = RowLeastSquaresMatch(L, R, tasks[k].x, tasks[k].y, tasks[k].initial_disparity, o, &results[k]);
+    }
+    return;
+  }
+#ifdef VLOC_ROW_LSM_AVX2
+  const int n = (2 * o.lsm_half_window + 1) * (2 * o.lsm_half_height + 1);
+  std::vector<float> T(static_cast<size_t>(n) * kLanes, 0.f), G(static_cast<size_t>(n) * kLanes, 0.f);
+  LsmState state[kLanes];
+  int task_of[kLanes];
+  int next = 0;
+  // Lane k takes the next task whose template fits (false: none left).
+  auto start = [&](int k) {
+    while (next < count) {
+      const int t = next++;
+      results[t] = RowLsmResult();
+      accepted[t] = 0;
+      if (StartLsm(L, tasks[t].x, tasks[t].y, tasks[t].initial_disparity, o, &state[k], T.data() + k, kLanes)) {
+        task_of[k] = t;
+        return true;
+      }
+    }
+    task_of[k] = -1;
+    return false;
+  };
+  for (int k = 0; k < kLanes; ++k) start(k);
+  LsmState* lanes[kLanes];
+  for (;;) {
+    // The iteration's bounds check; a lane that fails takes the next task.
+    int live = -1;
+    for (int k = 0; k < kLanes; ++k) {
+      while (task_of[k] >= 0 && (state[k].it >= o.lsm_max_iterations || !TapsInside(state[k], o, R.cols))) start(k);
+      if (task_of[k] >= 0) live = k;
+    }
+    if (live < 0) break;
+    // Idle lanes repeat a live one (their sums are ignored).
+    LsmState idle = state[live];
+    for (int k = 0; k < kLanes; ++k) lanes[k] = task_of[k] >= 0 ? &state[k] : &idle;
+    if (o.lsm_bspline) {
+      AccumulateLanes<true>(R, o, lanes, T.data(), G.data());
+    } else {
+      AccumulateLanes<false>(R, o, lanes, T.data(), G.data());
+    }
+    for (int k = 0; k < kLanes; ++k) {
+      if (task_of[k] < 0) continue;
+      const LsmStep step = UpdateLsm(o, &state[k]);
+      if (step == LsmStep::kContinue) continue;
+      const int t = task_of[k];
+      if (step == LsmStep::kConverged)
+        accepted[t] = FinishLsm(state[k], o, T.data() + k, G.data() + k, kLanes, &results[t]);
+      start(k);
+    }
+  }
+#endif
+}
+
+}  // namespace internal
+
+}  // namespace vloc

@@ -1,0 +1,29 @@
+#pragma once
+// Row LSM of many pixels at once (private to libs/features): the same
+// Gauss-Newton steps as vloc::RowLeastSquaresMatch, pixel for pixel, with
+// the window sums of 8 pixels in the 8 lanes of an AVX2 register (each
+// lane runs the scalar code's float and double operations in the scalar
+// code's order, so the results are bit for bit those of
+// RowLeastSquaresMatch; row_lsm_test checks it). Without AVX2, or without
+// the disparity plane, it loops over RowLeastSquaresMatch.
+
+#include <opencv2/core.hpp>
+
+#include "vloc/features/dense_stereo.h"
+
+namespace vloc::internal {
+
+struct RowLsmTask {
+  int x = 0, y = 0;                // left pixel
+  double initial_disparity = 0;    // px
+};
+
+// results[k], accepted[k] (1 = RowLeastSquaresMatch returned true) for
+// tasks[k]; `left32`, `right32` as for RowLeastSquaresMatch.
+void RowLeastSquaresMatchBatch(const cv::Mat& left32, const cv::Mat& right32, const RowLsmTask* tasks, int count,
+                               const DenseStereoOptions& options, RowLsmResult* results, unsigned char* accepted);
+
+// Whether RowLeastSquaresMatchBatch runs its AVX2 lanes for `options` on this CPU.
+bool RowLsmBatchVectorised(const DenseStereoOptions& options);
+
+}  // namespace vloc::internal
