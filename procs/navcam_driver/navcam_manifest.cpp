@@ -6,6 +6,9 @@
 #include <cmath>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "vloc/common/pds_label.h"
 
 namespace vloc {
 
@@ -154,21 +157,65 @@ NavcamManifest ReadNavcamManifest(const std::string& path) {
   return out;
 }
 
+namespace {
+
+bool IsPdsProduct(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return ext == ".IMG" || ext == ".LBL";  // a detached label is read with the .IMG it names
+}
+
+// 8-bit grey or BGR, as the file holds it (see LoadNavcamPair).
+cv::Mat LoadImage(const std::string& path, std::string* why) {
+  cv::Mat image;
+  if (IsPdsProduct(path)) {
+    std::string error;
+    if (!ReadPdsImage(path, &image, &error)) {
+      *why = "unreadable (" + error + ")";
+      return cv::Mat();
+    }
+  } else {
+    image = cv::imread(path, cv::IMREAD_UNCHANGED);
+    if (image.empty()) {
+      *why = "cannot be decoded (not an image or corrupt)";
+      return image;
+    }
+  }
+  if (image.depth() == CV_16U) {
+    double max = 0;
+    cv::minMaxLoc(image.reshape(1), nullptr, &max);
+    image.convertTo(image, CV_8U, max <= 4095 ? 1.0 / 16 : 1.0 / 256);
+  } else if (image.depth() != CV_8U) {
+    *why = "is not an 8- or 16-bit image";
+    return cv::Mat();
+  }
+  if (image.channels() == 4) cv::cvtColor(image, image, cv::COLOR_BGRA2BGR);
+  if (image.channels() == 2) cv::extractChannel(image, image, 0);  // grey + alpha
+  return image;
+}
+
+}  // namespace
+
 bool LoadNavcamPair(const NavcamManifestEntry& entry, StereoPair* pair, std::string* error) {
   const std::string where = "site " + std::to_string(entry.site_id) + " pair " + std::to_string(entry.pair_index);
-  pair->left = cv::imread(entry.left_path, cv::IMREAD_GRAYSCALE);
+  std::string why;
+  pair->left = LoadImage(entry.left_path, &why);
   if (pair->left.empty()) {
-    *error = where + ": left image " + entry.left_path + " cannot be decoded (not an image or corrupt); pair skipped";
+    *error = where + ": left image " + entry.left_path + " " + why + "; pair skipped";
     return false;
   }
-  pair->right = cv::imread(entry.right_path, cv::IMREAD_GRAYSCALE);
+  pair->right = LoadImage(entry.right_path, &why);
   if (pair->right.empty()) {
-    *error = where + ": right image " + entry.right_path + " cannot be decoded (not an image or corrupt); pair skipped";
+    *error = where + ": right image " + entry.right_path + " " + why + "; pair skipped";
     return false;
   }
   if (pair->left.size() != pair->right.size()) {
     *error = where + ": left and right images differ in size; pair skipped";
     return false;
+  }
+  if (pair->left.channels() != pair->right.channels()) {
+    for (cv::Mat* m : {&pair->left, &pair->right})
+      if (m->channels() == 3) cv::cvtColor(*m, *m, cv::COLOR_BGR2GRAY);
   }
   pair->utime = entry.utime;
   pair->site_id = entry.site_id;

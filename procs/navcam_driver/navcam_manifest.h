@@ -33,8 +33,10 @@ struct NavcamManifestEntry {
   int pair_index = 0;
   double pan = 0;         // rad, positive left
   double tilt = 0;        // rad, positive down
-  std::string left_path;  // resolved paths
+  std::string left_path;  // resolved paths (an .IMG is read as a PDS3 product, its label attached or beside it)
   std::string right_path;
+  bool has_rover_pose = false;                // PDS: the label gave the rover's pose
+  Pose3 site_from_rover = Pose3::Identity();  // PDS: ROVER_COORD_SYSTEM_PARMS (site frame x north, y east, z down)
 };
 
 struct NavcamManifest {
@@ -45,8 +47,12 @@ struct NavcamManifest {
 
 NavcamManifest ReadNavcamManifest(const std::string& path);
 
-// Loads both images of an entry as CV_8UC1. False with one line in *error
-// (unreadable image, sizes differ); `num_pairs` is set by the caller.
+// Loads both images of an entry as they are: 8-bit grey, or BGR colour when
+// both files are colour (a colour and a grey eye: both grey); 16-bit images
+// (PNG, PDS .IMG) scaled to 8 bits (12-bit data by 1/16, else by 1/256),
+// an alpha channel dropped. An .IMG path is read as a PDS3 product. False
+// with one line in *error (unreadable image, sizes differ); `num_pairs` is
+// set by the caller.
 bool LoadNavcamPair(const NavcamManifestEntry& entry, StereoPair* pair, std::string* error);
 
 }  // namespace vloc

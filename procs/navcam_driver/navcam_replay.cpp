@@ -2,6 +2,8 @@
 
 #include <glog/logging.h>
 
+#include <opencv2/imgproc.hpp>
+
 #include "vloc/common/options.h"
 #include "vloc/lcm_io/convert_rover.h"
 #include "vloc/lcm_io/typed.h"
@@ -9,7 +11,9 @@
 namespace vloc {
 
 void NavcamDriverOptions::Visit(OptionsReader& r) {
-  r.Optional("manifest", &manifest, "path of the manifest YAML");
+  r.Optional("manifest", &manifest, "path of the manifest YAML (a folder: read as PDS products)");
+  r.Optional("pds", &pds, "folder of PDS3 products (.IMG, .LBL + .IMG or browse .jpg/.png), read without a manifest");
+  pds_options.Visit(r);
   r.Optional("stereo_channel", &stereo_channel, "stereo_image_t channel");
   r.Optional("site_channel", &site_channel, "site_event_t channel");
   r.Optional("encoding", &encoding, "png, jpeg or gray8");
@@ -20,6 +24,8 @@ bool NavcamDriverOptions::Check(std::string* error) const {
   if (encoding != "png" && encoding != "jpeg" && encoding != "gray8")
     return Fail(error, "encoding '" + encoding + "' unknown (use png, jpeg or gray8)");
   if (speed < 0) return Fail(error, "speed must be >= 0 (0 = as fast as possible)");
+  if (!manifest.empty() && !pds.empty()) return Fail(error, "give a manifest or a PDS folder (pds), not both");
+  if (!pds_options.Check(error)) return false;
   return true;
 }
 
@@ -48,6 +54,9 @@ NavcamReplaySummary ReplayNavcam(const NavcamDriverOptions& options, const Navca
         continue;
       }
       pair.num_pairs = rows;
+      if (encoding == ImageEncoding::kGray8)  // asked for grey: a colour camera's pairs go as their luminance
+        for (cv::Mat* m : {&pair.left, &pair.right})
+          if (m->channels() == 3) cv::cvtColor(*m, *m, cv::COLOR_BGR2GRAY);
       Publish(transport, options.stereo_channel, StereoPairToMessage(pair, encoding));
       ++published;
       ++summary.pairs_published;

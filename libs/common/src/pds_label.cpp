@@ -580,6 +580,8 @@ bool ReadPdsCameraLabel(const std::string& path, PdsCameraLabel* out, std::strin
   out->instrument_id = Fields::Text(label, "INSTRUMENT_ID");
   out->frame_id = Upper(Fields::Text(label, "FRAME_ID"));
   out->start_time = Fields::Text(label, "START_TIME");
+  out->spacecraft_clock = Fields::Text(label, "SPACECRAFT_CLOCK_START_COUNT");
+  out->sequence_id = Fields::Text(label, "SEQUENCE_ID");
   if (const OdlAttribute* sol = label.Find("PLANET_DAY_NUMBER")) {
     if (sol->value.type != OdlValue::Type::kInteger || sol->value.number < 0 || sol->value.number > 1e6)
       return f.Bad("PLANET_DAY_NUMBER", "", "a sol number (integer >= 0) expected");

@@ -9,6 +9,7 @@
 #include <map>
 
 #include "driver_fixtures.h"
+#include "pds_fixtures.h"
 #include "vloc/imu_t.hpp"
 #include "vloc/lcm_io/convert.h"
 #include "vloc/lcm_io/convert_rover.h"
@@ -52,6 +53,21 @@ int CountLines(const std::string& output, const std::string& text) {
 }
 
 std::string FileUrl(const std::string& log) { return "file://" + log + "?mode=w"; }
+
+// Handles `transport` until the driver has exited and `received()` holds (or
+// it failed, or 60 s passed), then drains what is in flight; its exit code.
+template <class Received>
+std::optional<int> ReceiveUntilExit(Transport& transport, Subprocess& driver, Received received) {
+  std::optional<int> code;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (std::chrono::steady_clock::now() < deadline && !(code && received())) {
+    transport.Handle(50);
+    if (!code) code = driver.WaitExit(0.0);
+    if (code && *code != 0) break;
+  }
+  for (int i = 0; i < 5; ++i) transport.Handle(20);
+  return code;
+}
 
 TEST(NavcamDriver, PublishesTheGoodPairsWithSiteEventsAndNamesTheBadRows) {
   const std::string dir = testing::MakeFixtureDir("navcam_proc");
@@ -149,6 +165,86 @@ TEST(NavcamDriver, MissingManifestStopsWithOneLine) {
   EXPECT_EQ(CountLines(driver.output(), "/nonexistent/m.yaml cannot be read"), 1) << driver.output();
 }
 
+// Issue 33: a folder of PDS3 products, no manifest (procs/navcam_driver/
+// navcam_pds.h; fixture tests/unit/drivers/pds_fixtures.h): two sites of two
+// pairs, received over real LCM with their times, pointing and pixels (the
+// colour pair in colour); each of the nine bad products one line.
+TEST(NavcamDriver, PdsFolderWithoutManifestOverRealLcm) {
+  const std::string dir = testing::MakeFixtureDir("navcam_pds_proc");
+  const std::string folder = testing::WritePdsFixture(dir);
+  const std::string url = testing::TestLcmUrl(7731);
+  std::string error;
+  auto transport = MakeLcmTransport(url, &error);
+  ASSERT_TRUE(transport) << error;
+  std::vector<stereo_image_t> stereo;
+  std::vector<SiteEvent> events;
+  auto s1 = Subscribe<stereo_image_t>(*transport, "NAVCAM_STEREO", [&](const std::string&, const stereo_image_t& m) {
+    stereo.push_back(m);
+  }, 100);
+  auto s2 = Subscribe<site_event_t>(*transport, "ROVER_SITE", [&](const std::string&, const site_event_t& m) {
+    events.push_back(SiteEventFromMessage(m));
+  }, 100);
+  Subprocess driver({BinPath("navcam_driver"), "--config", "config/procs/navcam_driver.yaml", "--pds", folder,
+                     "--speed", "0", "--lcm-url", url});
+  const std::optional<int> code =
+      ReceiveUntilExit(*transport, driver, [&] { return stereo.size() >= 4 && events.size() >= 4; });
+  ASSERT_TRUE(code.has_value()) << driver.output();
+  ASSERT_EQ(*code, 0) << driver.output();
+  const std::string& out = driver.output();
+  for (const std::string& problem : testing::kPdsFixtureProblems) EXPECT_EQ(CountLines(out, problem), 1) << problem << "\n" << out;
+  EXPECT_EQ(CountLines(out, "PDS site 0: SITE 3 DRIVE 10 (sol 100): 2 stereo pair(s) of 5 frame(s)"), 1) << out;
+  EXPECT_NE(out.find("2 sites, 4 pairs published, 9 skipped"), std::string::npos) << out;
+
+  ASSERT_EQ(stereo.size(), 4u) << out;
+  const int site[] = {0, 0, 1, 1}, pair[] = {0, 1, 0, 1}, level[] = {10, 20, 40, 60};
+  const int64_t t0 = 1577836800000000;  // 2020-01-01T00:00:00 UTC
+  const int64_t utime[] = {t0 + 10000000, t0 + 30000000, t0 + 110000000, t0 + 120000000};
+  const double pan_deg[] = {-30, 15, 0, -90}, tilt_deg[] = {20, 25, 0, 0};
+  for (size_t i = 0; i < 4; ++i) {
+    const stereo_image_t& m = stereo[i];
+    EXPECT_EQ(m.site_id, site[i]);
+    EXPECT_EQ(m.pair_index, pair[i]);
+    EXPECT_EQ(m.num_pairs, 2);
+    EXPECT_EQ(m.utime, utime[i]);
+    if (i != 2) {  // pair 2's pointing comes from the model's axis (navcam_pds_test checks it)
+      EXPECT_NEAR(m.mast_pan, pan_deg[i] * M_PI / 180, 1e-9) << i;
+      EXPECT_NEAR(m.mast_tilt, tilt_deg[i] * M_PI / 180, 1e-9) << i;
+    }
+    const cv::Mat left = ImageFromMessage(m.left), right = ImageFromMessage(m.right);
+    if (i < 2) {
+      EXPECT_EQ(cv::norm(left, testing::FixtureImage(level[i]), cv::NORM_INF), 0.0) << i;
+      EXPECT_EQ(cv::norm(right, testing::FixtureImage(level[i] + 1), cv::NORM_INF), 0.0) << i;
+    } else if (i == 2) {
+      ASSERT_EQ(left.type(), CV_8UC3);  // colour kept
+      EXPECT_EQ(cv::norm(left, testing::FixtureColour(level[i]), cv::NORM_INF), 0.0);
+      EXPECT_EQ(cv::norm(right, testing::FixtureColour(level[i] + 1), cv::NORM_INF), 0.0);
+    } else {
+      EXPECT_NEAR(cv::mean(left)[0], cv::mean(testing::FixtureImage(level[i]))[0], 1.0);  // JPEG
+    }
+  }
+  ASSERT_EQ(events.size(), 4u);
+  const SiteEventType type[] = {SiteEventType::kArrived, SiteEventType::kImagingDone, SiteEventType::kArrived,
+                                SiteEventType::kImagingDone};
+  for (size_t i = 0; i < 4; ++i) {
+    EXPECT_EQ(events[i].event, type[i]);
+    EXPECT_EQ(events[i].site_id, static_cast<int>(i / 2));
+    EXPECT_EQ(events[i].num_pairs, 2);
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// A folder given as --manifest is read as PDS products.
+TEST(NavcamDriver, AFolderGivenAsTheManifestIsReadAsPds) {
+  const std::string dir = testing::MakeFixtureDir("navcam_pds_auto");
+  const std::string folder = testing::WritePdsFixture(dir);
+  const std::string log = dir + "/out.lcmlog";
+  Subprocess driver({BinPath("navcam_driver"), "--manifest", folder, "--speed", "0", "--lcm-url", FileUrl(log)});
+  ASSERT_EQ(driver.WaitExit(60), 0) << driver.output();
+  EXPECT_NE(driver.output().find("2 sites, 4 pairs published, 9 skipped"), std::string::npos) << driver.output();
+  EXPECT_EQ(ReadLog(log)["NAVCAM_STEREO"].size(), 4u);
+  std::filesystem::remove_all(dir);
+}
+
 TEST(ImuOdometryDriver, PublishesTheGoodSamplesOverRealLcm) {
   const std::string dir = testing::MakeFixtureDir("imu_proc");
   const std::string imu_csv = testing::WriteImuFixture(dir), wheel_csv = testing::WriteWheelFixture(dir);
@@ -166,14 +262,8 @@ TEST(ImuOdometryDriver, PublishesTheGoodSamplesOverRealLcm) {
   }, 100);
   Subprocess driver({BinPath("imu_odometry_driver"), "--config", "config/procs/imu_odometry_driver.yaml", "--imu",
                      imu_csv, "--wheel", wheel_csv, "--speed", "1", "--lcm-url", url});
-  std::optional<int> code;
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-  while (std::chrono::steady_clock::now() < deadline && !(code && imu.size() >= 8 && wheel.size() >= 4)) {
-    transport->Handle(50);
-    if (!code) code = driver.WaitExit(0.0);
-    if (code && *code != 0) break;
-  }
-  for (int i = 0; i < 5; ++i) transport->Handle(20);
+  const std::optional<int> code =
+      ReceiveUntilExit(*transport, driver, [&] { return imu.size() >= 8 && wheel.size() >= 4; });
   ASSERT_TRUE(code.has_value()) << driver.output();
   ASSERT_EQ(*code, 0) << driver.output();
   ASSERT_EQ(imu.size(), 8u);

@@ -92,6 +92,8 @@ struct PdsCameraLabel {
   std::string instrument_id;    // INSTRUMENT_ID, e.g. NAV_LEFT_A
   std::string frame_id;         // FRAME_ID: LEFT / RIGHT / MONO
   std::string start_time;       // START_TIME, UTC as written
+  std::string spacecraft_clock; // SPACECRAFT_CLOCK_START_COUNT as written ("402815759.199"); "" when absent
+  std::string sequence_id;      // SEQUENCE_ID ("ncam00451"); "" when absent
   int sol = -1;                 // PLANET_DAY_NUMBER, -1 when absent
   int site = -1;                // ROVER_MOTION_COUNTER[SITE]
   int drive = -1;               // ROVER_MOTION_COUNTER[DRIVE]
