@@ -124,6 +124,11 @@ void FeatureFrontendAdapter::Subscribe() {
   stats_.push_back(vloc::Subscribe<stereo_image_t>(
       transport_, options_.stereo_channel,
       [this](const std::string&, const stereo_image_t& m) {
+        // Colour pairs arrive grey here (BGR -> luminance, the conversion
+        // CrossSiteFrontend's Prepare applies to colour): the front end matches
+        // on luminance only and publishes no image, so colour would triple the
+        // memory of the collecting sites and the site cache without changing a
+        // tie point.
         OnStereo(StereoPairFromMessage(m, options_.stereo_image_limits));
       },
       options_.queue_capacity));
