@@ -5,6 +5,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <iterator>
 #include <opencv2/imgcodecs.hpp>
@@ -29,6 +31,15 @@ std::string SiteKey(const char* prefix, int site) {
   char buf[48];
   std::snprintf(buf, sizeof(buf), "%s/%09d", prefix, site);
   return buf;
+}
+
+// The site of a per-site picture key ("<prefix>/<site>" for a prefix of kSiteKeys), -1 for any other key.
+int SiteOfKey(const std::string& key) {
+  for (const char* prefix : kSiteKeys) {
+    const size_t n = std::strlen(prefix);
+    if (key.size() > n + 1 && key.compare(0, n, prefix) == 0 && key[n] == '/') return std::atoi(key.c_str() + n + 1);
+  }
+  return -1;
 }
 
 int64_t WallMicros() {
@@ -62,6 +73,7 @@ void ConsoleProcOptions::Visit(OptionsReader& r) {
   r.Optional("tie_points_channel", &tie_points_channel, "tie_points_t in");
   r.Optional("stereo_channel", &stereo_channel, "stereo_image_t in (\"\" = no images)");
   r.Optional("procman_status_channel", &procman_status_channel, "procman_status_t in");
+  r.Optional("tunnel_status_channel", &tunnel_status_channel, "tunnel_status_t in (\"\" = none)");
   r.Optional("uav_state_channel", &uav_state_channel, "uav_state_t in");
   r.Optional("uav_mosaic_channel", &uav_mosaic_channel, "image_t in (JPEG mosaic preview)");
   r.Optional("orders_channel", &orders_channel, "procman_order_t out");
@@ -110,18 +122,29 @@ void ConsoleAdapter::Subscribe() {
   SubscribeRover();
   SubscribeUav();
   Watch<procman_status_t>(options_.procman_status_channel, [this](const procman_status_t& m) { OnProcmanStatus(m); });
+  if (!options_.tunnel_status_channel.empty())
+    Watch<tunnel_status_t>(options_.tunnel_status_channel, [this](const tunnel_status_t& m) {
+      Post("tunnel/" + m.name, TunnelStatusJson(m));
+      KeepNewest(&tunnels_, "tunnel/", m.name, "tunnel_gone");
+    });
 }
 
 void ConsoleAdapter::OnProcmanStatus(const procman_status_t& m) {
   const std::string id = m.host + ":" + std::to_string(m.launcher_pid);
-  launchers_[id] = ++procman_messages_;
   Post("procman/" + id, ProcmanJson(m));
-  while (static_cast<int>(launchers_.size()) > options_.max_launchers) {
-    const auto oldest = std::min_element(launchers_.begin(), launchers_.end(),
+  KeepNewest(&launchers_, "procman/", id, "procman_gone");
+}
+
+void ConsoleAdapter::KeepNewest(std::map<std::string, int64_t>* heard, const std::string& prefix,
+                                const std::string& key, const char* gone_type) {
+  (*heard)[key] = ++heard_;
+  while (static_cast<int>(heard->size()) > options_.max_launchers) {
+    const auto oldest = std::min_element(heard->begin(), heard->end(),
                                          [](const auto& a, const auto& b) { return a.second < b.second; });
-    picture_.erase("procman/" + oldest->first);
-    server_.Broadcast(json{{"type", "procman_gone"}, {"key", oldest->first}}.dump(-1, ' ', false, json::error_handler_t::replace));
-    launchers_.erase(oldest);
+    picture_.erase(prefix + oldest->first);
+    server_.Broadcast(
+        json{{"type", gone_type}, {"key", oldest->first}}.dump(-1, ' ', false, json::error_handler_t::replace));
+    heard->erase(oldest);
   }
 }
 
@@ -269,7 +292,7 @@ std::vector<std::string> ConsoleAdapter::Welcome() const {
   size_t budget = static_cast<size_t>(options_.welcome_max_bytes);
   std::vector<std::string> general;
   for (const auto& [key, text] : picture_)
-    if (key.find('/') == std::string::npos || key.rfind("procman/", 0) == 0) general.push_back(text);
+    if (SiteOfKey(key) < 0) general.push_back(text);
   for (const std::string& text : general) budget -= std::min(budget, text.size());
   size_t first = uav_states_.size(), history_bytes = 0;  // the newest states within half the budget
   while (first > 0 && history_bytes + uav_states_[first - 1].size() + 1 < budget / 2)
@@ -287,12 +310,8 @@ std::vector<std::string> ConsoleAdapter::Welcome() const {
                      {"sites_not_sent", sites_.size() - sites.size()}}
                     .dump());
   for (const auto& [key, text] : picture_) {
-    const size_t slash = key.find('/');
-    if (slash == std::string::npos || key.rfind("procman/", 0) == 0) {
-      out.push_back(text);
-    } else if (sites.count(std::stoi(key.substr(slash + 1)))) {
-      out.push_back(text);
-    }
+    const int site = SiteOfKey(key);
+    if (site < 0 || sites.count(site)) out.push_back(text);
   }
   if (states) out.push_back("{\"type\":\"uav_history\",\"states\":[" + history + "]}");
   return out;

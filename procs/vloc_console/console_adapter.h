@@ -23,6 +23,7 @@
 #include "vloc/lcm_io/typed.h"
 #include "vloc/localization_t.hpp"
 #include "vloc/procman_status_t.hpp"
+#include "vloc/tunnel_status_t.hpp"
 #include "vloc/tie_points_t.hpp"
 
 namespace vloc {
@@ -50,6 +51,7 @@ struct ConsoleProcOptions {
   std::string tie_points_channel = "TIE_POINTS";            // tie_points_t in
   std::string stereo_channel = "NAVCAM_STEREO";             // stereo_image_t in (left images shown; "" = none)
   std::string procman_status_channel = "PROCMAN_STATUS";    // procman_status_t in
+  std::string tunnel_status_channel = "TUNNEL_STATUS";      // tunnel_status_t in (vloc_lcm_tunnel; "" = none)
   std::string uav_state_channel = "UAV_STATE";              // uav_state_t in
   std::string uav_mosaic_channel = "UAV_MOSAIC";            // image_t in (JPEG preview)
   std::string orders_channel = "PROCMAN_ORDERS";            // procman_order_t out
@@ -59,7 +61,8 @@ struct ConsoleProcOptions {
   int max_uav_states = 5000;                                // UAV states kept for the route and height plots
   int max_manual_points = 200;                              // picks in one manual tie-point command
   int tie_point_sites_kept = 10;                            // newest sites whose tie points are kept and sent
-  int max_launchers = 32;                                   // launchers (host, pid) whose process tables are kept
+  int max_launchers = 32;                                   // launchers (host, pid) whose process tables are kept,
+                                                            // and tunnel ends (by name) whose links are kept
   int64_t welcome_max_bytes = 4 << 20;                      // bytes a newly opened page is sent (newest sites first)
   OrthoimageOptions orthoimage;                             // drawn under the map (map `orthoimage`)
 
@@ -96,6 +99,9 @@ class ConsoleAdapter {
   void PostSite(const char* prefix, int site, const nlohmann::json& j);
   void TrimSites();
   void OnProcmanStatus(const procman_status_t& msg);
+  // Keeps `key` (under `prefix`) as heard now; the longest silent beyond max_launchers is dropped (`gone_type` sent).
+  void KeepNewest(std::map<std::string, int64_t>* heard, const std::string& prefix, const std::string& key,
+                  const char* gone_type);
   // The per-site keys a new page gets: the newest sites' first, within welcome_max_bytes.
   std::set<int> WelcomeSites(size_t budget) const;
   // Keeps a left image as it came: PNG / JPEG bytes are served as they are,
@@ -112,7 +118,8 @@ class ConsoleAdapter {
   std::map<std::string, std::string> picture_;         // key -> JSON text, the current picture
   std::set<int> sites_;                                // sites with per-site keys in the picture
   std::map<std::string, int64_t> launchers_;           // procman key -> when last heard (message count)
-  int64_t procman_messages_ = 0;
+  std::map<std::string, int64_t> tunnels_;             // tunnel end name -> when last heard (message count)
+  int64_t heard_ = 0;                                   // launcher and tunnel messages so far
   struct KeptImage {
     image_t message;     // as received
     std::string served;  // the bytes served (PNG / JPEG); "" until first asked for raw pixels

@@ -192,6 +192,46 @@ json UavStateJson(const uav_state_t& m) {
           {"matches", m.num_matches}};
 }
 
+json TunnelStatusJson(const tunnel_status_t& m) {
+  static const char* kPriority[] = {"urgent", "normal", "bulk"};
+  json channels = json::array();
+  for (const tunnel_channel_status_t& c : m.channels)
+    channels.push_back({{"channel", c.channel},
+                        {"priority", c.priority >= 0 && c.priority <= 2 ? kPriority[c.priority] : "unknown"},
+                        {"queued", c.queued_messages},
+                        {"queued_bytes", c.queued_bytes},
+                        {"sent", c.sent},
+                        {"received", c.received},
+                        {"dropped", c.dropped},
+                        {"latency_max_ms", Num(c.latency_max_ms)}});
+  return {{"type", "tunnel"},
+          {"utime", m.utime},
+          {"name", m.name},
+          {"peer", m.peer_name},
+          {"endpoint", m.endpoint},
+          {"connected", m.connected != 0},
+          {"connects", m.connects},
+          {"seconds_since_peer", Num(m.seconds_since_peer)},
+          {"tx_bytes_per_s", Num(m.tx_bytes_per_s)},
+          {"rx_bytes_per_s", Num(m.rx_bytes_per_s)},
+          {"cap_bytes_per_s", Num(m.bandwidth_cap_bytes_per_s)},
+          {"queued", m.queued_messages},
+          {"queued_bytes", m.queued_bytes},
+          {"queued_bytes_high_water", m.queued_bytes_high_water},
+          {"in_flight_bytes", m.in_flight_bytes},
+          {"resent_frames", m.resent_frames},
+          {"dropped", m.dropped_queue_full + m.dropped_too_large + m.dropped_too_many_channels},
+          {"dropped_queue_full", m.dropped_queue_full},
+          {"dropped_too_large", m.dropped_too_large},
+          {"dropped_too_many_channels", m.dropped_too_many_channels},
+          {"refused_from_peer", m.refused_from_peer},
+          {"rejected_frames", m.rejected_frames},
+          {"latency_samples", m.latency_samples},
+          {"latency_median_ms", Num(m.latency_median_ms)},
+          {"latency_max_ms", Num(m.latency_max_ms)},
+          {"channels", std::move(channels)}};
+}
+
 bool OrderFromJson(const json& c, int64_t utime, procman_order_t* order, std::string* error) {
   std::string host, target, kind, action;
   if (!GetString(c, "host", &host, error) || !GetString(c, "target", &target, error) ||

@@ -16,6 +16,7 @@
 #include "vloc/site_pose_t.hpp"
 #include "vloc/tie_points_t.hpp"
 #include "vloc/traverse_t.hpp"
+#include "vloc/tunnel_status_t.hpp"
 #include "vloc/uav_state_t.hpp"
 
 namespace vloc {
@@ -32,6 +33,8 @@ nlohmann::json FrontendStatusJson(const frontend_status_t& msg);
 nlohmann::json TiePointsJson(const tie_points_t& msg, const std::optional<Pose3>& previous_from_current);
 nlohmann::json ProcmanJson(const procman_status_t& msg);
 nlohmann::json UavStateJson(const uav_state_t& msg);
+// One end of an LCM tunnel (vloc_lcm_tunnel): link state, rates, queues, drops, latency, per channel.
+nlohmann::json TunnelStatusJson(const tunnel_status_t& msg);
 
 // A browser's {"type": "order", host, target, target_kind, action}; false
 // and *error (one line) when a field is missing or unknown.

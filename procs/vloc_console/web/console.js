@@ -6,6 +6,7 @@ const vloc = window.vloc = {
   tiePoints: {},        // current site -> tie_points message
   images: {},           // site -> [{pair, width, height}]
   procman: {},          // 'host:launcher pid' -> procman message (two launchers may share a host)
+  tunnels: {},          // tunnel end name -> its TUNNEL_STATUS
   uav: [], mosaicSeq: 0,
   mayAct: false, connected: false,
   pair: null, userPair: false,   // {previous, current} shown in the images panel
@@ -61,6 +62,8 @@ const handlers = {
   images: (m) => { vloc.images[m.site] = m.pairs; fillImageSelects(); },
   procman: (m) => { vloc.procman[m.host + ':' + m.pid] = m; drawProcs(); },
   procman_gone: (m) => { delete vloc.procman[m.key]; drawProcs(); },
+  tunnel: (m) => { vloc.tunnels[m.name] = m; drawTunnels(); },
+  tunnel_gone: (m) => { delete vloc.tunnels[m.key]; drawTunnels(); },
   uav_state: (m) => { vloc.uav.push(m); if (vloc.uav.length > 5000) vloc.uav.shift(); dirtyUav(); },
   uav_history: (m) => { vloc.uav = m.states; dirtyUav(); },
   uav_mosaic: (m) => { vloc.mosaicSeq = m.seq; dirtyUav(); },
@@ -341,6 +344,17 @@ function drawProcs() {
     rows.push(`<tr data-proc="${esc(p.name)}"><td>${esc(host)}</td><td>${esc(p.name)}</td><td>${esc(p.group)}</td><td class="${p.state === 'running' ? 'good' : 'bad'}">${p.state}</td><td>${p.pid}</td><td class="restarts">${p.restarts}</td><td>${Number(p.cpu_percent).toFixed(1)}</td><td>${(p.rss_bytes / 1048576).toFixed(1)}</td><td>${Number(p.uptime_seconds).toFixed(0)}</td><td>${b('start')} ${b('stop')} ${b('restart')}</td></tr>`);
   }
   $('procs').querySelector('tbody').innerHTML = rows.join('');
+}
+function drawTunnels() {
+  const kB = (v) => v === null ? '-' : (v / 1000).toFixed(1);
+  const rows = Object.keys(vloc.tunnels).sort().map((name) => {
+    const t = vloc.tunnels[name];
+    const link = t.connected ? 'up' : `down (${t.seconds_since_peer === null || t.seconds_since_peer < 0 ? 'never heard' : Number(t.seconds_since_peer).toFixed(0) + ' s'})`;
+    const dropped = `${t.dropped}` + (t.dropped ? ` (full ${t.dropped_queue_full}, large ${t.dropped_too_large}, channels ${t.dropped_too_many_channels})` : '');
+    const latency = t.latency_samples ? `${Number(t.latency_median_ms).toFixed(0)} / ${Number(t.latency_max_ms).toFixed(0)}` : '-';
+    return `<tr data-tunnel="${esc(name)}"><td>${esc(name)}</td><td>${esc(t.peer)}</td><td class="${t.connected ? 'good' : 'bad'}">${esc(link)}</td><td>${kB(t.tx_bytes_per_s)}</td><td>${kB(t.rx_bytes_per_s)}</td><td>${t.cap_bytes_per_s ? kB(t.cap_bytes_per_s) : 'none'}</td><td>${t.queued}</td><td>${(t.queued_bytes / 1e6).toFixed(1)} (${(t.queued_bytes_high_water / 1e6).toFixed(1)})</td><td class="${t.dropped ? 'bad' : ''}">${esc(dropped)}</td><td>${latency}</td></tr>`;
+  });
+  $('tunnels').querySelector('tbody').innerHTML = rows.join('');
 }
 function esc(s) { return String(s).replace(/[&<>"']/g, (ch) => `&#${ch.charCodeAt(0)};`); }
 async function onProcButton(e) {

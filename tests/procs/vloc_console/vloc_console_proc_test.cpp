@@ -26,6 +26,7 @@
 #include "vloc/uav_state_t.hpp"
 #include "vloc/testing/subprocess.h"
 #include "vloc/traverse_t.hpp"
+#include "vloc/tunnel_status_t.hpp"
 
 namespace vloc {
 namespace {
@@ -240,6 +241,26 @@ TEST(VlocConsole, BridgesWhatAnOperatorWatches) {
   auto ps = ws.WaitFor("\"procman\"", 5);
   ASSERT_TRUE(ps);
   EXPECT_EQ(json::parse(*ps)["procs"][0]["restarts"], 2);
+  // A tunnel end's link report (vloc_lcm_tunnel), with its channels; a newly opened page gets it too.
+  tunnel_status_t tunnel{};
+  tunnel.name = "rover", tunnel.peer_name = "ground", tunnel.endpoint = "tcp://10.0.0.2:7720";
+  tunnel.connected = true, tunnel.queued_messages = 3, tunnel.dropped_queue_full = 2, tunnel.latency_samples = 4;
+  tunnel.latency_median_ms = 30, tunnel.latency_max_ms = 94;
+  tunnel_channel_status_t channel{};
+  channel.channel = "NAVCAM_STEREO", channel.priority = tunnel_channel_status_t::PRIORITY_BULK, channel.dropped = 2;
+  tunnel.num_channels = 1, tunnel.channels = {channel};
+  ASSERT_TRUE(Publish(*lcm, "TUNNEL_STATUS", tunnel));
+  auto ts = ws.WaitFor("\"tunnel\"", 5);
+  ASSERT_TRUE(ts);
+  const json link = json::parse(*ts);
+  EXPECT_EQ(link["peer"], "ground");
+  EXPECT_EQ(link["dropped"], 2);
+  EXPECT_EQ(link["channels"][0]["priority"], "bulk");
+  {
+    RawClient later(c.port);
+    ASSERT_TRUE(later.Upgrade());
+    EXPECT_TRUE(later.WaitFor("\"tunnel\"", 5)) << "a page opened later gets the link too";
+  }
   // A raw left image is announced and served as PNG; an image not kept is 404.
   stereo_image_t stereo{};
   stereo.site_id = 5;
