@@ -15,6 +15,7 @@ namespace vloc::mosaic {
 void MatcherOptions::Visit(OptionsReader& r) {
   r.Optional("detector", &detector, "akaze | sift");
   r.Optional("downscale", &downscale, "the detector runs on the frame resized by this factor");
+  r.Optional("detect_width", &detect_width, "px, widest frame the detector runs on (0 = downscale alone)");
   r.Optional("akaze_threshold", &akaze_threshold, "A-KAZE detector response threshold");
   r.Optional("akaze_octaves", &akaze_octaves, "A-KAZE octaves");
   r.Optional("akaze_sublevels", &akaze_sublevels, "A-KAZE sublevels per octave");
@@ -38,6 +39,8 @@ bool MatcherOptions::Check(std::string* error) const {
   if (detector != "akaze" && detector != "sift") return Fail(error, "matcher.detector must be 'akaze' or 'sift'");
   if (!(sift_contrast > 0 && sift_contrast < 1)) return Fail(error, "matcher.sift_contrast must be in (0, 1)");
   if (!(downscale >= 0.1 && downscale <= 1.0)) return Fail(error, "matcher.downscale must be in [0.1, 1]");
+  if (detect_width != 0 && (detect_width < 64 || detect_width > 100000))
+    return Fail(error, "matcher.detect_width must be 0 (off) or in [64, 100000] px");
   if (!(akaze_threshold > 0)) return Fail(error, "matcher.akaze_threshold must be > 0");
   if (akaze_octaves < 1 || akaze_octaves > 8) return Fail(error, "matcher.akaze_octaves must be in [1, 8]");
   if (akaze_sublevels < 1 || akaze_sublevels > 8) return Fail(error, "matcher.akaze_sublevels must be in [1, 8]");
@@ -147,8 +150,11 @@ FrameFeatures ExtractFeatures(const cv::Mat& image, const MatcherOptions& option
     gray = image;
   }
   cv::Mat small;
-  if (options.downscale < 0.999) {
-    cv::resize(gray, small, cv::Size(), options.downscale, options.downscale, cv::INTER_AREA);
+  double downscale = options.downscale;
+  if (options.detect_width > 0 && gray.cols * downscale > options.detect_width)
+    downscale = static_cast<double>(options.detect_width) / gray.cols;
+  if (downscale < 0.999) {
+    cv::resize(gray, small, cv::Size(), downscale, downscale, cv::INTER_AREA);
   } else {
     small = gray;
   }

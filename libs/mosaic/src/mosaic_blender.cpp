@@ -6,7 +6,8 @@
 
 namespace vloc::mosaic {
 
-MosaicBlender::MosaicBlender(const CanvasOptions& options, bool async) : options_(options), async_(async) {
+MosaicBlender::MosaicBlender(const CanvasOptions& options, bool async, int queue)
+    : options_(options), async_(async), queue_(queue) {
   if (async_) worker_ = std::thread([this] { WorkerLoop(); });
 }
 
@@ -25,32 +26,36 @@ void MosaicBlender::Start() { canvas_ = std::make_unique<TiledCanvas>(options_);
 void MosaicBlender::WorkerLoop() {
   std::unique_lock<std::mutex> lock(job_mutex_);
   while (true) {
-    job_cv_.wait(lock, [this] { return stop_worker_ || job_.has_value(); });
-    if (stop_worker_ && !job_) return;
-    BlendJob job = std::move(*job_);
-    job_.reset();
+    job_cv_.wait(lock, [this] { return stop_worker_ || !jobs_.empty(); });
+    if (stop_worker_ && jobs_.empty()) return;
+    BlendJob job = std::move(jobs_.front());
+    jobs_.pop_front();
     worker_busy_ = true;
     lock.unlock();
+    job_cv_.notify_all();  // a place in the queue
     std::string why;
     bool ok = false;
+    const auto t0 = std::chrono::steady_clock::now();
     {
       std::lock_guard<std::mutex> canvas_lock(canvas_mutex_);
       ok = canvas_->Blend(job.frame, job.mosaic_from_frame, &why);
     }
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     if (!ok) {
       LOG_EVERY_N(WARNING, 50) << "mosaic: frame not blended: " << why;
     }
     lock.lock();
     worker_busy_ = false;
+    seconds_ += seconds;
     if (ok) ++blends_;
     job_cv_.notify_all();
   }
 }
 
-void MosaicBlender::Flush() {
+void MosaicBlender::Flush() const {
   if (!worker_.joinable()) return;
   std::unique_lock<std::mutex> lock(job_mutex_);
-  job_cv_.wait(lock, [this] { return !job_.has_value() && !worker_busy_; });
+  job_cv_.wait(lock, [this] { return jobs_.empty() && !worker_busy_; });
 }
 
 BlendResult MosaicBlender::Blend(const cv::Mat& frame, const Similarity2& S) {
@@ -58,9 +63,14 @@ BlendResult MosaicBlender::Blend(const cv::Mat& frame, const Similarity2& S) {
   if (!canvas_) return result;
   if (async_) {
     {
-      std::lock_guard<std::mutex> lock(job_mutex_);
-      if (job_) ++dropped_;  // the worker fell behind: the newer frame replaces the queued one
-      job_ = BlendJob{frame.clone(), S};
+      std::unique_lock<std::mutex> lock(job_mutex_);
+      if (queue_ == 0) {
+        if (!jobs_.empty()) ++dropped_;  // the worker fell behind: the newer frame replaces the queued one
+        jobs_.clear();
+      } else {
+        job_cv_.wait(lock, [this] { return static_cast<int>(jobs_.size()) < queue_; });
+      }
+      jobs_.push_back(BlendJob{frame.clone(), S});
     }
     job_cv_.notify_all();
     result.done = true;
@@ -79,11 +89,13 @@ BlendResult MosaicBlender::Blend(const cv::Mat& frame, const Similarity2& S) {
   }
   std::lock_guard<std::mutex> lock(job_mutex_);
   ++blends_;
+  seconds_ += result.seconds;
   return result;
 }
 
 double MosaicBlender::Render(const Similarity2& mosaic_from_view, cv::Size size, cv::Mat* bgr, cv::Mat* mask) const {
   if (!canvas_) return 0;
+  if (queue_ > 0) Flush();
   std::lock_guard<std::mutex> lock(canvas_mutex_);
   return canvas_->Render(mosaic_from_view, size, bgr, mask);
 }
@@ -108,6 +120,11 @@ CanvasStats MosaicBlender::stats() const {
   if (!canvas_) return {};
   std::lock_guard<std::mutex> lock(canvas_mutex_);
   return canvas_->stats();
+}
+
+double MosaicBlender::seconds() const {
+  std::lock_guard<std::mutex> lock(job_mutex_);
+  return seconds_;
 }
 
 int MosaicBlender::blends() const {

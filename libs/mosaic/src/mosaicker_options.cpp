@@ -43,14 +43,20 @@ void MosaickerOptions::Visit(OptionsReader& r) {
   r.Optional("gps_check_below_inliers", &gps_check_below_inliers, "GPS agreement tested below this many matches");
   r.Optional("neighbour_frames", &neighbour_frames, "registered frames kept for matching a frame the keyframe misses");
   r.Optional("neighbour_tries", &neighbour_tries, "nearest kept frames tried");
+  r.Optional("fallback_downscale", &fallback_downscale, "finer feature level tried against the keyframe (0 = off)");
+  r.Optional("fallback_frames", &fallback_frames, "last registered frames also tried at the finer level");
   r.Optional("reseat_by_gps", &reseat_by_gps, "place an unregistered frame on new ground at its GPS position");
   r.Optional("num_threads", &num_threads, "OpenCV threads");
   r.Optional("async_mosaic", &async_mosaic, "blend on a worker thread");
+  r.Optional("async_mosaic_queue", &async_mosaic_queue, "frames waiting for the worker, none dropped (0 = one, replaced)");
 }
 
 bool MosaickerOptions::Check(std::string* error) const {
   if (neighbour_frames < 0 || neighbour_frames > 1000) return Fail(error, "neighbour_frames must be in [0, 1000]");
   if (neighbour_tries < 1) return Fail(error, "neighbour_tries must be >= 1");
+  if (fallback_downscale != 0 && !(fallback_downscale > matcher.downscale && fallback_downscale <= 1))
+    return Fail(error, "fallback_downscale must be 0 (off) or in (matcher.downscale, 1]");
+  if (fallback_frames < 0 || fallback_frames > 16) return Fail(error, "fallback_frames must be in [0, 16]");
   if (!camera.Check(error) || !calibration.Check(error) || !matcher.Check(error) || !height_filter.Check(error) ||
       !canvas.Check(error) || !geo.Check(error))
     return false;
@@ -72,6 +78,7 @@ bool MosaickerOptions::Check(std::string* error) const {
   if (scale_source != "similarity" && scale_source != "homography")
     return Fail(error, "scale_source must be 'similarity' or 'homography'");
   if (num_threads < 1) return Fail(error, "num_threads must be >= 1");
+  if (async_mosaic_queue < 0 || async_mosaic_queue > 64) return Fail(error, "async_mosaic_queue must be in [0, 64]");
   return true;
 }
 

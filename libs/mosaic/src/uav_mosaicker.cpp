@@ -35,7 +35,7 @@ UavMosaicker::UavMosaicker(const MosaickerOptions& options)
       undistorter_(options.camera),
       height_filter_(options.height_filter),
       gps_(options.geo),
-      blender_(options.canvas, options.async_mosaic) {
+      blender_(options.canvas, options.async_mosaic, options.async_mosaic_queue) {
   cv::setNumThreads(options_.num_threads);
 }
 
@@ -46,6 +46,7 @@ const std::vector<UavMosaicker::Candidate>& UavMosaicker::Candidates() {
       {"keyframe", &RegisterToKeyframe, nullptr},
       {"guided", &RegisterGuided, &MosaickerSummary::guided},
       {"neighbours", &RegisterToNeighbours, nullptr},
+      {"finer", &RegisterAtFinerLevel, nullptr},
       {"mosaic", &RegisterToMosaicAfterLoss, nullptr},
   };
   return candidates;
@@ -54,25 +55,54 @@ const std::vector<UavMosaicker::Candidate>& UavMosaicker::Candidates() {
 FrameState UavMosaicker::ProcessFrame(const cv::Mat& image, int64_t utime) {
   FrameWork w = BeginFrame(utime);
   if (!Decode(image, &w)) return Finish(&w);
-  if (!Calibrate(&w)) return Finish(&w);
-  Detect(&w);
+  return Process(&w);
+}
+
+FrameState UavMosaicker::ProcessFrame(PreparedFrame frame, int64_t utime) {
+  FrameWork w = BeginFrame(utime);
+  if (!frame.usable) {
+    RejectUnusable(&w);
+    return Finish(&w);
+  }
+  undistorter_.Adopt(frame.camera);
+  w.frame = std::move(frame.frame);
+  w.features = std::move(frame.features);
+  w.detected = true;
+  return Process(&w);
+}
+
+FrameState UavMosaicker::Process(FrameWork* w) {
+  if (!Calibrate(w)) return Finish(w);
+  Detect(w);
   if (!blender_.started()) {
-    StartMosaic(&w);
-    return Finish(&w);
+    StartMosaic(w);
+    return Finish(w);
   }
-  PredictPose(&w);
-  if (!Register(&w)) {
-    MarkLost(&w);
-    return Finish(&w);
+  PredictPose(w);
+  if (!Register(w)) {
+    MarkLost(w);
+    return Finish(w);
   }
-  RefinePose(&w);
-  MarkRegistered(&w);
-  EstimateGroundPlane(&w);
-  EstimateHeight(&w);
-  UpdateKeyframe(&w);
-  TieRouteToGps(&w);
-  Blend(&w);
-  return Finish(&w);
+  RefinePose(w);
+  MarkRegistered(w);
+  EstimateGroundPlane(w);
+  EstimateHeight(w);
+  UpdateKeyframe(w);
+  TieRouteToGps(w);
+  Blend(w);
+  return Finish(w);
+}
+
+PreparedFrame FramePreparer::Prepare(const cv::Mat& image) {
+  const auto t0 = std::chrono::steady_clock::now();
+  PreparedFrame p;
+  p.usable = !image.empty() && (image.type() == CV_8UC1 || image.type() == CV_8UC3);
+  if (!p.usable) return p;
+  p.frame = undistorter_.Undistort(image);
+  p.camera = undistorter_.camera();
+  p.features = ExtractFeatures(p.frame, matcher_);
+  p.seconds = Seconds(t0);
+  return p;
 }
 
 UavMosaicker::FrameWork UavMosaicker::BeginFrame(int64_t utime) {
@@ -93,15 +123,17 @@ UavMosaicker::FrameWork UavMosaicker::BeginFrame(int64_t utime) {
 }
 
 bool UavMosaicker::Decode(const cv::Mat& image, FrameWork* w) {
-  if (image.empty() || (image.type() != CV_8UC1 && image.type() != CV_8UC3)) {
-    w->state.status = calibrated_ ? TrackStatus::kLost : TrackStatus::kCalibrating;
-    w->state.message = "frame empty or not 8-bit gray/BGR; skipped";
-    if (calibrated_) lost_ = true;
-    summary_.last_problem = w->state.message;
-    return false;
-  }
+  if (image.empty() || (image.type() != CV_8UC1 && image.type() != CV_8UC3)) return RejectUnusable(w);
   w->frame = undistorter_.Undistort(image);
   return true;
+}
+
+bool UavMosaicker::RejectUnusable(FrameWork* w) {
+  w->state.status = calibrated_ ? TrackStatus::kLost : TrackStatus::kCalibrating;
+  w->state.message = "frame empty or not 8-bit gray/BGR; skipped";
+  if (calibrated_) lost_ = true;
+  summary_.last_problem = w->state.message;
+  return false;
 }
 
 bool UavMosaicker::Calibrate(FrameWork* w) {
@@ -127,7 +159,12 @@ void UavMosaicker::SetCalibration(const Calibration& calibration) {
   focal_ = calibration.focal_px;
 }
 
-void UavMosaicker::Detect(FrameWork* w) { w->features = ExtractFeatures(w->frame, options_.matcher); }
+void UavMosaicker::Detect(FrameWork* w) {
+  w->state.features_seconds = 0;
+  if (w->detected) return;
+  w->features = ExtractFeatures(w->frame, options_.matcher);
+  w->state.features_seconds = w->features.seconds;
+}
 
 cv::Point2d UavMosaicker::PrincipalPoint() const {
   return {undistorter_.camera().cx, undistorter_.camera().cy};
@@ -150,6 +187,7 @@ void UavMosaicker::StartMosaic(FrameWork* w) {
   const cv::Point2d c = PrincipalPoint();
   const Similarity2 S{s, 0, -s * c.x, -s * c.y};
   keyframe_ = Keyframe{w->features, S, w->utime};
+  KeepImageForFinerLevel(w->frame);
   last_ = LastPoses{S, std::nullopt, gps_.GpsEnuAt(w->utime)};
   last_scale_ = s;
   last_good_index_ = state.frame_index;
@@ -186,6 +224,7 @@ RegistrationInput UavMosaicker::InputFor(const FrameWork& w) const {
   in.lost = lost_;
   in.keyframe = keyframe_ ? &*keyframe_ : nullptr;
   in.neighbours = &neighbours_;
+  in.recent = &recent_;
   in.mosaic = &blender_;
   return in;
 }
@@ -230,6 +269,7 @@ void UavMosaicker::MarkLost(FrameWork* w) {
   if (const std::optional<Similarity2> P = PlaceByGps(InputFor(*w), options_, &placed)) {
     // Restart from this frame at its GPS position: the next frame is matched against it.
     keyframe_ = Keyframe{w->features, *P, w->utime, ground_normal_};
+    KeepImageForFinerLevel(w->frame);
     last_ = LastPoses{*P, std::nullopt, gps_.GpsEnuAt(w->utime)};
     last_good_index_ = state.frame_index;
     state.reseated = true;
@@ -373,16 +413,25 @@ void UavMosaicker::UpdateKeyframe(FrameWork* w) {
   const bool via_neighbour = r.source == RegistrationSource::kNeighbour;
   w->state.reregistered = w->reregistered;
   KeepNeighbour(w->features, S, w->utime);
+  if (options_.fallback_downscale > 0 && options_.fallback_frames > 0) {
+    recent_.push_back(Keyframe{w->features, S, w->utime, ground_normal_, w->frame});
+    while (static_cast<int>(recent_.size()) > options_.fallback_frames) recent_.pop_front();
+  }
   w->new_keyframe = w->was_lost || via_mosaic || via_neighbour || w->reregistered ||
                     r.motion.num_background < options_.keyframe_min_inliers ||
                     key_scale > options_.keyframe_max_scale || key_scale < 1.0 / options_.keyframe_max_scale ||
                     (!via_mosaic && KeyframeOverlap(r.motion.similarity, w->frame.size()) < options_.keyframe_min_overlap);
   if (w->new_keyframe) {
     keyframe_ = Keyframe{w->features, S, w->utime, w->plane_ok ? ground_normal_ : keyframe_->normal};
+    KeepImageForFinerLevel(w->frame);
     w->state.keyframe = true;
     ++summary_.keyframes;
   }
   w->state.tracking_seconds = Seconds(w->t0);
+}
+
+void UavMosaicker::KeepImageForFinerLevel(const cv::Mat& frame) {
+  if (options_.fallback_downscale > 0) keyframe_->image = frame;
 }
 
 void UavMosaicker::KeepNeighbour(const FrameFeatures& features, const Similarity2& mosaic_from_frame, int64_t utime) {
@@ -452,6 +501,7 @@ MosaickerSummary UavMosaicker::summary() const {
   s.tie_pairs = gps_.tie_pairs();
   s.canvas = blender_.stats();
   s.blends = blender_.blends();
+  s.blend_seconds = blender_.seconds();
   return s;
 }
 

@@ -7,6 +7,7 @@
 #include <sys/resource.h>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -21,6 +22,7 @@
 
 #include "vloc/common/options.h"
 #include "vloc/mosaic/geotag.h"
+#include "vloc/mosaic/survey_runner.h"
 #include "vloc/mosaic/uav_mosaicker.h"
 
 namespace {
@@ -250,84 +252,121 @@ BENCHMARK(BM_TenMinuteFlightMemory)->Unit(benchmark::kSecond)->Iterations(1);
 
 }  // namespace
 
-// Real stills (../shared/data/real/uav_caliterra, 1000 x 750): the first
-// kStills photos through the mosaicker (geotags in, stills config) and, in
-// the same run, OpenCV's Stitcher in SCANS mode on the same photos.
-constexpr int kStills = 12;
-const char* kStillsDir = "../shared/data/real/uav_caliterra/images";
-
-struct Stills {
+// Real stills, in the same run as OpenCV's Stitcher (SCANS) on the same
+// photos: the first photos of uav_caliterra (1000 x 750), of uav_seneca
+// (960 x 720), and of uav_caliterra upscaled to 4000 x 3000 (12 MP, written
+// once to a temporary folder, without geotags). The survey runner (what
+// uav_mosaic_files runs) with
+//   Arg 0 "full resolution, serial": features on the full frame, one thread of work after another (the stills
+//         settings before issue 31);
+//   Arg 1 "stills settings": config/procs/uav_mosaic_files.yaml as it is (reduced-level features, the next photo
+//         prepared while this one registers, blending on a worker).
+// Counters: photos_per_s (wall), registered, and per photo the seconds of features, registration and blending
+// (summed over threads: with prefetch they overlap).
+//   build/bench/mosaic_bench --benchmark_filter=Stills --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
+struct StillsSet {
+  const char* name;
+  std::vector<std::string> paths;
   std::vector<cv::Mat> images;
-  std::vector<vm::ImageGeotag> tags;
 };
-const Stills& RealStills() {
-  static const auto* stills = [] {
-    auto* s = new Stills;
-    if (!std::filesystem::is_directory(kStillsDir)) return s;
-    std::vector<std::string> files;
-    for (const auto& e : std::filesystem::directory_iterator(kStillsDir)) files.push_back(e.path().string());
-    std::sort(files.begin(), files.end());
-    for (int i = 0; i < kStills && i < static_cast<int>(files.size()); ++i) {
-      s->images.push_back(cv::imread(files[i], cv::IMREAD_COLOR));
-      s->tags.emplace_back();
-      vm::ReadGeotag(files[i], &s->tags.back(), nullptr);
+
+std::vector<std::string> FirstPhotos(const std::string& folder, size_t n) {
+  std::vector<std::string> files;
+  if (!std::filesystem::is_directory(folder)) return files;
+  for (const auto& e : std::filesystem::directory_iterator(folder)) files.push_back(e.path().string());
+  std::sort(files.begin(), files.end());
+  if (files.size() > n) files.resize(n);
+  return files;
+}
+
+const std::vector<StillsSet>& StillsSets() {
+  static const auto* sets = [] {
+    auto* v = new std::vector<StillsSet>;
+    v->push_back({"uav_caliterra 1000x750", FirstPhotos("../shared/data/real/uav_caliterra/images", 12), {}});
+    v->push_back({"uav_seneca 960x720", FirstPhotos("../shared/data/real/uav_seneca/images", 12), {}});
+    // 12 MP: caliterra's first photos upscaled 4x (cubic), as a 4000 x 3000 camera would give them.
+    StillsSet big{"uav_caliterra x4 4000x3000", {}, {}};
+    const std::string dir = (std::filesystem::temp_directory_path() / "vloc_mosaic_bench_12mp").string();
+    std::filesystem::create_directories(dir);
+    for (const auto& p : FirstPhotos("../shared/data/real/uav_caliterra/images", 6)) {
+      const std::string out = dir + "/" + std::filesystem::path(p).filename().string();
+      if (!std::filesystem::exists(out)) {
+        cv::Mat up;
+        cv::resize(cv::imread(p, cv::IMREAD_COLOR), up, cv::Size(4000, 3000), 0, 0, cv::INTER_CUBIC);
+        cv::imwrite(out, up, {cv::IMWRITE_JPEG_QUALITY, 92});
+      }
+      big.paths.push_back(out);
     }
-    return s;
+    v->push_back(big);
+    for (auto& set : *v)
+      for (const auto& p : set.paths) set.images.push_back(cv::imread(p, cv::IMREAD_COLOR));
+    return v;
   }();
-  return *stills;
+  return *sets;
 }
 
-void BM_RealStillsMosaicker(benchmark::State& state) {
-  const Stills& s = RealStills();
-  if (s.images.empty()) {
-    state.SkipWithError("../shared/data/real/uav_caliterra absent");
+vm::SurveyOptions StillsOptions(bool fast) {
+  vm::SurveyOptions o = vm::LoadSurveyOptions("config/procs/uav_mosaic_files.yaml");
+  if (!fast) {
+    o.mosaicker.matcher.downscale = 1.0;
+    o.mosaicker.fallback_downscale = 0;
+    o.mosaicker.async_mosaic = false;
+    o.prefetch = false;
+  }
+  return o;
+}
+
+void BM_Stills(benchmark::State& state) {
+  const StillsSet& set = StillsSets().at(static_cast<size_t>(state.range(0)));
+  if (set.paths.size() < 2) {
+    state.SkipWithError("../shared/data/real absent");
     return;
   }
+  state.SetLabel(std::string(set.name) + (state.range(1) ? ", stills settings" : ", full resolution, serial"));
   int registered = 0;
+  vm::SurveyTimes times;
+  double wall = 0;
   for (auto _ : state) {
-    vm::MosaickerOptions o = vloc::LoadOptionsFile<vm::MosaickerOptions>("config/procs/uav_mosaic_files.yaml", "mosaicker");
-    o.camera.width = s.images[0].cols, o.camera.height = s.images[0].rows;
-    o.camera.fx = o.camera.fy = vm::FocalPixelsFromExif(s.tags[0], s.images[0].cols, nullptr);
-    o.camera.cx = (o.camera.width - 1) / 2.0, o.camera.cy = (o.camera.height - 1) / 2.0;
-    o.calibration.source = "config";
-    o.calibration.height = 50;
-    vm::UavMosaicker m(o);
-    registered = 0;
-    for (size_t i = 0; i < s.images.size(); ++i) {
-      vm::GpsFix fix;
-      fix.utime = s.tags[i].utime - s.tags[0].utime;
-      fix.valid = s.tags[i].has_gps;
-      fix.latitude = s.tags[i].latitude, fix.longitude = s.tags[i].longitude;
-      m.AddGps(fix);
-      const auto st = m.ProcessFrame(s.images[i], fix.utime);
-      registered += st.status == vm::TrackStatus::kTracking || st.status == vm::TrackStatus::kRecovered;
+    vm::SurveyRunner runner(StillsOptions(state.range(1) != 0), nullptr, nullptr);
+    if (!runner.LoadPhotos(set.paths) || !runner.ChooseCamera() || !runner.ChooseFirstHeight()) {
+      state.SkipWithError("photos not loaded");
+      return;
     }
+    runner.RegisterAll();
+    registered = runner.registered();
+    times = runner.times();
+    wall += times.wall;
   }
-  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(s.images.size()) * state.iterations(),
-                                                      benchmark::Counter::kIsRate);
+  const double n = static_cast<double>(set.paths.size());
+  state.counters["photos_per_s"] = n * state.iterations() / std::max(1e-9, wall);
   state.counters["registered"] = registered;
+  state.counters["features_s"] = times.features / n;
+  state.counters["registration_s"] = times.registration / n;
+  state.counters["blending_s"] = times.blending / n;
+  state.counters["decoding_s"] = times.decoding / n;
 }
-BENCHMARK(BM_RealStillsMosaicker)->Unit(benchmark::kSecond)->UseRealTime();
+BENCHMARK(BM_Stills)->ArgsProduct({{0, 1, 2}, {0, 1}})->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
 
-void BM_RealStillsStitcherScans(benchmark::State& state) {
-  const Stills& s = RealStills();
-  if (s.images.empty()) {
-    state.SkipWithError("../shared/data/real/uav_caliterra absent");
+void BM_StillsStitcherScans(benchmark::State& state) {
+  const StillsSet& set = StillsSets().at(static_cast<size_t>(state.range(0)));
+  if (set.images.size() < 2) {
+    state.SkipWithError("../shared/data/real absent");
     return;
   }
+  state.SetLabel(set.name);
   int status = -1, joined = 0;
   for (auto _ : state) {
     cv::setNumThreads(2);
     auto stitcher = cv::Stitcher::create(cv::Stitcher::SCANS);
     cv::Mat pano;
-    status = static_cast<int>(stitcher->stitch(s.images, pano));
+    status = static_cast<int>(stitcher->stitch(set.images, pano));
     joined = status == 0 ? static_cast<int>(stitcher->component().size()) : 0;
   }
-  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(s.images.size()) * state.iterations(),
+  state.counters["photos_per_s"] = benchmark::Counter(static_cast<double>(set.images.size()) * state.iterations(),
                                                       benchmark::Counter::kIsRate);
   state.counters["stitch_ok"] = status == 0;
   state.counters["joined"] = joined;  // photos in the panorama
 }
-BENCHMARK(BM_RealStillsStitcherScans)->Unit(benchmark::kSecond)->UseRealTime();
+BENCHMARK(BM_StillsStitcherScans)->DenseRange(0, 2)->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
 
 BENCHMARK_MAIN();

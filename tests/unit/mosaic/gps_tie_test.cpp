@@ -120,6 +120,28 @@ TEST(MosaicBlender, AsynchronousBlendingGivesTheSameCanvasAsSynchronous) {
   EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0);
 }
 
+TEST(MosaicBlender, AQueueDropsNothingAndRendersAfterTheQueuedBlends) {
+  const auto ground = testing::MakeGround(1200, 0.05, 4);
+  const testing::NadirCamera cam;
+  CanvasOptions co;
+  MosaicBlender sync(co, false), queued(co, true, 2);
+  sync.Start();
+  queued.Start();
+  cv::Mat view_sync, view_queued, mask;
+  for (int i = 0; i < 6; ++i) {
+    const cv::Mat frame = testing::RenderNadir(ground, cam, 2.0 * i, 0, 30, 0);
+    const Similarity2 S{0.5, 0, 30.0 * i, 0};
+    EXPECT_TRUE(sync.Blend(frame, S).done);
+    EXPECT_TRUE(queued.Blend(frame, S).done);  // no Flush: up to 2 wait
+  }
+  const Similarity2 view{0.5, 0, 60, 0};
+  EXPECT_EQ(sync.Render(view, cam.size, &view_sync, &mask), queued.Render(view, cam.size, &view_queued, &mask));
+  EXPECT_EQ(cv::norm(view_sync, view_queued, cv::NORM_INF), 0.0);
+  queued.Flush();
+  EXPECT_EQ(queued.blends(), 6);
+  EXPECT_GT(queued.seconds(), 0.0);
+}
+
 TEST(CalibrationStep, ConfigAtOnceGpsWhenAHeightArrives) {
   CalibrationOptions co;
   co.source = "config";

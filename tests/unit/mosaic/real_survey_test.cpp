@@ -7,17 +7,14 @@
 // a message when the data is absent.
 #include <gtest/gtest.h>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
 
 #include "vloc/common/options.h"
-#include "vloc/mosaic/geotag.h"
 #include "vloc/mosaic/survey_eval.h"
-#include "vloc/mosaic/uav_mosaicker.h"
+#include "vloc/mosaic/survey_runner.h"
 
 namespace vloc::mosaic {
 namespace {
@@ -26,66 +23,36 @@ const char* kCaliterra = "../shared/data/real/uav_caliterra/images";
 const char* kCaliterraReference = "../shared/data/real/uav_caliterra/reference_orthomosaic.jpg";
 const char* kSeneca = "../shared/data/real/uav_seneca/images";
 
+// Every photo through the survey runner (what uav_mosaic_files runs) with
+// the stills settings, GPS tags of frames [drop_a, drop_b] withheld.
+// expected_focal: px, from the data's README (focal length / sensor width x image width).
 struct SurveyRun {
   int frames = 0, registered = 0;
   RouteComparison route;
+  ReferenceComparison reference;
   std::vector<FrameState> states;
-  std::vector<std::string> files;
-  std::vector<cv::Point2d> gps_enu;
 };
 
-// Every photo through the mosaicker with its geotag (except frames in
-// [drop_a, drop_b]), focal length from EXIF, stills options from the config.
-// expected_focal: px, from the data's README (focal length / sensor width x image width).
-SurveyRun RunSurvey(const std::string& folder, double expected_focal, int drop_a = -1, int drop_b = -2) {
+SurveyRun RunSurvey(const std::string& folder, double expected_focal, int drop_a = -1, int drop_b = -2,
+                    const std::string& reference = "") {
   std::vector<std::string> files;
   for (const auto& e : std::filesystem::directory_iterator(folder)) files.push_back(e.path().string());
   std::sort(files.begin(), files.end());
-  MosaickerOptions options = LoadOptionsFile<MosaickerOptions>("config/procs/uav_mosaic_files.yaml", "mosaicker");
-  const cv::Mat first = cv::imread(files[0], cv::IMREAD_COLOR);
-  ImageGeotag tag0;
-  EXPECT_TRUE(ReadGeotag(files[0], &tag0, nullptr));
-  const double focal = FocalPixelsFromExif(tag0, first.cols, nullptr);
-  EXPECT_NEAR(focal, expected_focal, 0.5);
-  options.camera = PinholeCamera();
-  options.camera.width = first.cols, options.camera.height = first.rows;
-  options.camera.fx = options.camera.fy = focal;
-  options.camera.cx = (first.cols - 1) / 2.0, options.camera.cy = (first.rows - 1) / 2.0;
-  options.calibration.source = "config";
-  options.calibration.height = 50.0;  // unknown: scales the heights only
-  options.async_mosaic = false;
-  std::string error;
-  EXPECT_TRUE(options.Check(&error)) << error;
-  UavMosaicker mosaicker(options);
+  SurveyOptions options = LoadSurveyOptions("config/procs/uav_mosaic_files.yaml");
+  options.drop_gps_first = drop_a, options.drop_gps_last = drop_b;
+  SurveyRunner runner(options, nullptr, &std::cerr);
+  EXPECT_TRUE(runner.LoadPhotos(files) && runner.ChooseCamera() && runner.ChooseFirstHeight());
+  EXPECT_NEAR(runner.mosaicker_options().camera.fx, expected_focal, 0.5);
+  runner.RegisterAll();
+  runner.Evaluate(reference);
   SurveyRun run;
-  std::vector<cv::Point2d> route, enu;
-  std::vector<bool> usable, in_fit;
-  for (size_t i = 0; i < files.size(); ++i) {
-    ImageGeotag tag;
-    EXPECT_TRUE(ReadGeotag(files[i], &tag, nullptr));
-    const int64_t utime = tag.utime - tag0.utime;
-    const bool dropped = static_cast<int>(i) >= drop_a && static_cast<int>(i) <= drop_b;
-    if (!dropped) {
-      GpsFix fix;
-      fix.utime = utime;
-      fix.valid = tag.has_gps;
-      fix.latitude = tag.latitude, fix.longitude = tag.longitude, fix.altitude = tag.altitude;
-      fix.horizontal_sigma = 3.0;
-      mosaicker.AddGps(fix);
-    }
-    const FrameState s = mosaicker.ProcessFrame(cv::imread(files[i], cv::IMREAD_COLOR), utime);
-    const bool ok = s.status == TrackStatus::kTracking || s.status == TrackStatus::kRecovered;
-    run.registered += ok ? 1 : 0;
-    run.states.push_back(s);
-    route.push_back(s.route_px);
-    enu.push_back(LatLonToEnu(tag.latitude, tag.longitude, tag0.latitude, tag0.longitude));
-    run.gps_enu.push_back(enu.back());
-    usable.push_back(ok && tag.has_gps);
-    in_fit.push_back(!dropped);
-  }
-  run.frames = static_cast<int>(files.size());
-  run.files = files;
-  run.route = CompareRouteToGps(route, enu, usable, in_fit);
+  run.frames = static_cast<int>(runner.frames().size());
+  run.registered = runner.registered();
+  run.route = runner.figures().route;
+  run.reference = runner.reference();
+  for (const auto& f : runner.frames()) run.states.push_back(f.state);
+  std::cout << folder << ": " << run.registered << " of " << run.frames << " registered in " << runner.times().wall
+            << " s\n";
   return run;
 }
 
@@ -93,7 +60,7 @@ TEST(RealSurvey, CaliterraEveryFrameRegisteredRouteFollowsGpsThroughADropOut) {
   if (!std::filesystem::is_directory(kCaliterra))
     GTEST_SKIP() << kCaliterra << " absent (real data lives beside the repo, see ../shared/data/README.md): skipped";
   // GPS tags of frames 30-39 dropped (about 100 m of flight).
-  const SurveyRun run = RunSurvey(kCaliterra, 729.3, 30, 39);  // 4.5 mm on a 6.17 mm sensor at 1000 px
+  const SurveyRun run = RunSurvey(kCaliterra, 729.3, 30, 39, kCaliterraReference);  // 4.5 mm on a 6.17 mm sensor at 1000 px
   EXPECT_EQ(run.frames, 75);
   EXPECT_EQ(run.registered, 75);
   for (const auto& s : run.states)
@@ -114,16 +81,7 @@ TEST(RealSurvey, CaliterraEveryFrameRegisteredRouteFollowsGpsThroughADropOut) {
   // Against OpenDroneMap's orthomosaic of the same flight (an independent
   // reconstruction): the route must be closer to it than the camera's GPS is,
   // which shows where the route-vs-GPS residual comes from.
-  const cv::Mat reference = cv::imread(kCaliterraReference, cv::IMREAD_GRAYSCALE);
-  ASSERT_FALSE(reference.empty()) << kCaliterraReference;
-  const ReferenceLocator locator(reference);
-  std::vector<ReferenceFix> fixes;
-  std::vector<cv::Point2d> route_m;
-  for (size_t i = 0; i < run.states.size(); ++i) {
-    fixes.push_back(locator.Locate(cv::imread(run.files[i], cv::IMREAD_COLOR)));
-    route_m.push_back(run.route.enu_from_flipped.Apply({run.states[i].route_px.x, -run.states[i].route_px.y}));
-  }
-  const ReferenceComparison c = CompareWithReference(fixes, route_m, run.gps_enu, std::vector<bool>(fixes.size(), true));
+  const ReferenceComparison& c = run.reference;
   const RouteComparison& route = c.route;
   const RouteComparison& gps = c.gps;
   ASSERT_TRUE(route.ok && gps.ok);

@@ -219,6 +219,44 @@ TEST_F(RegistrationCandidates, PlaceByGpsOnlyOnNewGroundAndOnlyWhenAsked) {
   EXPECT_FALSE(PlaceByGps(in, o, &why).has_value());
 }
 
+TEST_F(RegistrationCandidates, FinerLevelTriesTheKeyframeThenTheRecentFramesWithFinerFeatures) {
+  const View a = Shoot(0, 0, 0.0, 60), last = Shoot(4, 0, 0.0, 61), b = Shoot(8, 1, 0.05, 62);
+  MosaickerOptions o = Options();
+  o.matcher.downscale = 0.3;
+  Keyframe key = KeyOf(a, 1);
+  EXPECT_FALSE(RegisterAtFinerLevel(Input(b, &key), o).tried);  // fallback_downscale 0: off
+  o.fallback_downscale = 1.0;
+  EXPECT_FALSE(RegisterAtFinerLevel(Input(b, &key), o).tried);  // no keyframe image kept
+  key.image = a.image;
+  const Registration r = RegisterAtFinerLevel(Input(b, &key), o);
+  ASSERT_TRUE(r.ok) << r.why;
+  EXPECT_EQ(r.reference, &key);
+  ASSERT_TRUE(key.finer != nullptr);  // the keyframe's finer features, kept for the next frame
+  EXPECT_GT(key.finer->points.size(), ExtractFeatures(a.image, o.matcher).points.size());
+  EXPECT_LT(CentreError(r.mosaic_from_frame, b.mosaic_from_frame), 1.0);
+  // A keyframe that does not overlap: the recent frame registers it.
+  Keyframe far = KeyOf(Shoot(300, 300, 0.0, 63), 2);
+  far.image = Shoot(300, 300, 0.0, 63).image;
+  std::deque<Keyframe> recent{Keyframe{last.features, last.mosaic_from_frame, 3, {0, 0, 1}, last.image}};
+  RegistrationInput in = Input(b, &far);
+  in.recent = &recent;
+  const Registration via_recent = RegisterAtFinerLevel(in, o);
+  ASSERT_TRUE(via_recent.ok) << via_recent.why;
+  EXPECT_EQ(via_recent.reference, &recent.front());
+  EXPECT_LT(CentreError(via_recent.mosaic_from_frame, b.mosaic_from_frame), 1.0);
+}
+
+TEST_F(RegistrationCandidates, DetectWidthCapsTheDetectorsFrame) {
+  MatcherOptions wide = Options().matcher, capped = wide;
+  wide.downscale = 0.5;
+  capped.downscale = 1.0;
+  capped.detect_width = cam_.size.width / 2;
+  const View v = Shoot(0, 0, 0, 70);
+  const FrameFeatures a = ExtractFeatures(v.image, wide), b = ExtractFeatures(v.image, capped);
+  ASSERT_EQ(a.points.size(), b.points.size());
+  for (size_t i = 0; i < a.points.size(); ++i) ASSERT_EQ(a.points[i], b.points[i]);
+}
+
 // The whole mosaicker with reseat_by_gps: the aircraft jumps to unmapped
 // ground (frames 20-24 rendered 150 m away, GPS following), the first of them
 // is placed by GPS and LOST, the next ones register against it.

@@ -37,6 +37,8 @@ class FrameUndistorter {
   cv::Mat Undistort(const cv::Mat& image);
   // The camera of the last frame (scaled to its size).
   const PinholeCamera& camera() const { return camera_; }
+  // A frame undistorted elsewhere (FramePreparer) with this camera.
+  void Adopt(const PinholeCamera& camera) { camera_ = camera; }
 
  private:
   PinholeCamera configured_;

@@ -19,6 +19,8 @@ struct MatcherOptions {
   std::string detector = "akaze";    // "akaze" (the paper's: binary MLDB descriptors, fast on video) or "sift" (float
                                      // descriptors; finds 1.3-2x the consistent matches on low-texture fields)
   double downscale = 0.5;            // the detector runs on the frame resized by this factor (0.1..1)
+  int detect_width = 0;              // px: the detector's frame is at most this wide (large photos: the factor shrinks
+                                     // with the frame, the cost stays that of this width); 0 = downscale alone
   double akaze_threshold = 0.0005;   // A-KAZE detector response threshold
   int akaze_octaves = 3;             // A-KAZE octaves
   int akaze_sublevels = 2;           // A-KAZE sublevels per octave (OpenCV default 4; 2 halves the scale-space cost)

@@ -6,6 +6,7 @@
 //   keyframe     register_keyframe.cpp    plain matching against the keyframe
 //   guided       register_guided.cpp      matching inside a gate around the GPS / motion prediction
 //   neighbours   register_neighbours.cpp  the kept registered frames nearest the prediction
+//   finer        register_finer.cpp       the keyframe and the last frames with features at a finer level
 //   mosaic       register_mosaic.cpp      the mosaic rendered around the prediction (after a loss)
 //
 // then, on success, RefineAgainstMosaic (register_mosaic.cpp: periodic
@@ -17,6 +18,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -36,6 +38,8 @@ struct Keyframe {
   Similarity2 mosaic_from_frame;
   int64_t utime = 0;
   cv::Vec3d normal{0, 0, 1};          // ground-plane normal in its camera frame (scale_source homography)
+  cv::Mat image;                      // undistorted (the keyframe and recent frames only: RegisterAtFinerLevel)
+  mutable std::shared_ptr<FrameFeatures> finer;  // features of image at fallback_downscale, found when first needed
 };
 
 // What a candidate may use to register the frame.
@@ -48,6 +52,7 @@ struct RegistrationInput {
   bool lost = false;                              // the previous frame was not registered
   const Keyframe* keyframe = nullptr;
   const std::deque<Keyframe>* neighbours = nullptr;  // kept registered frames (neighbour_frames)
+  const std::deque<Keyframe>* recent = nullptr;      // the last registered frames with their images (fallback_frames)
   const MosaicBlender* mosaic = nullptr;
 };
 
@@ -77,6 +82,7 @@ bool Evidence(const MotionEstimate& motion, const Similarity2& mosaic_from_frame
 Registration RegisterToKeyframe(const RegistrationInput& in, const MosaickerOptions& options);
 Registration RegisterGuided(const RegistrationInput& in, const MosaickerOptions& options);
 Registration RegisterToNeighbours(const RegistrationInput& in, const MosaickerOptions& options);
+Registration RegisterAtFinerLevel(const RegistrationInput& in, const MosaickerOptions& options);
 Registration RegisterToMosaicAfterLoss(const RegistrationInput& in, const MosaickerOptions& options);
 
 // The mosaic rendered around `search` (mosaic_from_frame of where the frame

@@ -19,7 +19,7 @@
 // ProcessFrame is a table of contents over one FrameWork (uav_mosaicker.cpp):
 // decode and undistort, calibrate (CalibrationStep, first frames), detect,
 // start the mosaic (first frame), predict (GpsTie), register (the ranked
-// candidates of registration.h: keyframe, guided, neighbours, mosaic; on
+// candidates of registration.h: keyframe, guided, neighbours, finer, mosaic; on
 // failure PlaceByGps), refine against the mosaic, ground plane, height,
 // keyframe, route and GPS tie, blend (MosaicBlender).
 
@@ -94,10 +94,16 @@ struct MosaickerOptions {
   int neighbour_frames = 0;             // registered frames whose features are kept (most recent first): a frame the
                                         // keyframe does not register is matched against the nearest of them (the
                                         // neighbour on the adjacent strip of a survey, the frame before a bad one)
+  double fallback_downscale = 0.0;      // a frame the candidates above miss at matcher.downscale is matched against the
+                                        // keyframe again with features at this finer level (1 = full resolution: the
+                                        // detector runs on a reduced level, the full one only when needed); 0 = off
+  int fallback_frames = 2;              // the last registered frames also tried at the finer level (images kept)
   int neighbour_tries = 3;              // nearest kept frames (by predicted position) tried, within one frame width
   int num_threads = 2;                  // OpenCV threads (A-KAZE, matching, warping)
   bool async_mosaic = false;            // blend on a worker thread (real time: tracking never waits; a frame due while
                                         // the worker is busy replaces the queued one). false = blend inside ProcessFrame
+  int async_mosaic_queue = 0;           // async_mosaic: 0 = as above (video); n > 0 = up to n frames wait, none dropped,
+                                        // registration against the mosaic waits for them (stills: the same mosaic)
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
@@ -131,6 +137,7 @@ struct FrameState {
   double tilt = 0;                      // rad, camera tilt from the ground normal (homography), 0 when not known
   bool mosaic_updated = false;          // blended into the mosaic (async_mosaic: queued for blending)
   double tracking_seconds = 0;          // s, features + matching + height
+  double features_seconds = 0;          // s, of which features (0 when the frame was prepared ahead: FramePreparer)
   double mosaic_seconds = 0;            // s, blending (0 when not blended or async_mosaic)
 };
 
@@ -147,8 +154,32 @@ struct MosaickerSummary {
   bool georeferenced = false;
   double tie_rms = 0;                   // m, residual of the GPS tie
   int tie_pairs = 0;
+  double blend_seconds = 0;             // s, blending (on the worker too)
   CanvasStats canvas;
   std::string BriefReport() const;
+};
+
+// A frame decoded, undistorted and with its features: what ProcessFrame does
+// before registration, done ahead (e.g. on another thread while the previous
+// frame registers) by a FramePreparer and handed to ProcessFrame.
+struct PreparedFrame {
+  bool usable = false;                  // 8-bit gray or BGR, not empty
+  cv::Mat frame;                        // undistorted
+  PinholeCamera camera;                 // the camera scaled to the frame size
+  FrameFeatures features;
+  double seconds = 0;                   // s, undistortion + features
+};
+
+// Prepares frames as the mosaicker with the same options would; one thread at a time.
+class FramePreparer {
+ public:
+  explicit FramePreparer(const MosaickerOptions& options)
+      : undistorter_(options.camera), matcher_(options.matcher) {}
+  PreparedFrame Prepare(const cv::Mat& image);
+
+ private:
+  FrameUndistorter undistorter_;
+  MatcherOptions matcher_;
 };
 
 class UavMosaicker {
@@ -159,6 +190,8 @@ class UavMosaicker {
   // One frame (BGR or gray, raw: undistorted here). Never throws on bad
   // input: an empty frame gives status LOST with a message.
   FrameState ProcessFrame(const cv::Mat& image, int64_t utime);
+  // The same for a frame prepared ahead (FramePreparer with these options): same result.
+  FrameState ProcessFrame(PreparedFrame frame, int64_t utime);
   void AddGps(const GpsFix& fix);
 
   // Downscaled mosaic (BGR) with the route drawn, longest side <= max_side.
@@ -177,6 +210,8 @@ class UavMosaicker {
   double metres_per_pixel() const { return metres_per_pixel_; }
   // Local ENU east/north (m) of a mosaic pixel (best current estimate).
   cv::Point2d MosaicToLocal(const cv::Point2d& mosaic_px) const;
+  // Waits until queued blends are done (async_mosaic).
+  void FlushMosaic() { blender_.Flush(); }
   // Forces calibration (e.g. from a tool that knows height and focal).
   void SetCalibration(const Calibration& calibration);
 
@@ -187,6 +222,7 @@ class UavMosaicker {
     std::chrono::steady_clock::time_point t0;
     cv::Mat frame;                          // undistorted
     FrameFeatures features;
+    bool detected = false;                  // features already there (prepared ahead)
     std::optional<Prediction> prediction;   // where the frame is expected (GPS or motion)
     Registration registration;              // the candidate that registered it (or the keyframe attempt's counts)
     const char* registered_by = nullptr;    // that candidate's name ("keyframe", ...), null when none did
@@ -206,8 +242,10 @@ class UavMosaicker {
   static const std::vector<Candidate>& Candidates();
 
   // The steps of ProcessFrame, in order.
+  FrameState Process(FrameWork* w);
   FrameWork BeginFrame(int64_t utime);
   bool Decode(const cv::Mat& image, FrameWork* w);
+  bool RejectUnusable(FrameWork* w);
   bool Calibrate(FrameWork* w);
   void Detect(FrameWork* w);
   void StartMosaic(FrameWork* w);
@@ -229,6 +267,8 @@ class UavMosaicker {
   // reference's and the ground normal in this frame's camera; false when no decomposition is plausible.
   bool PlaneFromHomography(const cv::Matx33d& H, const Keyframe& reference, double* height_ratio,
                            cv::Vec3d* normal) const;
+  // The keyframe's image, for the finer-level candidate (fallback_downscale).
+  void KeepImageForFinerLevel(const cv::Mat& frame);
   void KeepNeighbour(const FrameFeatures& features, const Similarity2& mosaic_from_frame, int64_t utime);
   void FillRoute(FrameState* state);
 
@@ -245,6 +285,7 @@ class UavMosaicker {
 
   std::optional<Keyframe> keyframe_;
   std::deque<Keyframe> neighbours_;        // the last neighbour_frames registered frames (RegisterToNeighbours)
+  std::deque<Keyframe> recent_;            // the last fallback_frames registered frames with images (RegisterAtFinerLevel)
   LastPoses last_;                         // the last registered frames' poses (predictions start there)
   double last_scale_ = 0;                  // the last registered frame's similarity scale
   cv::Vec3d ground_normal_{0, 0, 1};       // ground-plane normal in the last registered frame's camera frame
