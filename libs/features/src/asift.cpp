@@ -171,6 +171,37 @@ double DescriptorDistanceSq(const float* a, const float* b, int dim) {
   return s;
 }
 
+// True when every value of `descriptors` is an integer in [0, 255] (OpenCV's
+// SIFT stores its uchar-rounded values as floats) and the squared distance
+// of two rows, at most dim * 255^2, stays below 2^24: then
+// every partial sum of DescriptorDistanceSq is an integer a float holds
+// exactly, and summing in float, in any order, gives the same value.
+bool SmallIntegerDescriptors(const cv::Mat& descriptors) {
+  if (descriptors.type() != CV_32F || static_cast<double>(descriptors.cols) * 255.0 * 255.0 >= 16777216.0) return false;
+  for (int r = 0; r < descriptors.rows; ++r) {
+    const float* p = descriptors.ptr<float>(r);
+    for (int k = 0; k < descriptors.cols; ++k)
+      if (!(p[k] >= 0.f && p[k] <= 255.f) || p[k] != std::nearbyint(p[k])) return false;
+  }
+  return true;
+}
+
+// DescriptorDistanceSq for SmallIntegerDescriptors: 8 float partial sums the
+// compiler vectorises; exact, so the same value.
+double DescriptorDistanceSqExactFloat(const float* a, const float* b, int dim) {
+  float acc[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  int k = 0;
+  for (; k + 8 <= dim; k += 8)
+    for (int l = 0; l < 8; ++l) {
+      const float d = a[k + l] - b[k + l];
+      acc[l] += d * d;
+    }
+  float s = 0;
+  for (; k < dim; ++k) s += (a[k] - b[k]) * (a[k] - b[k]);
+  for (int l = 0; l < 8; ++l) s += acc[l];
+  return s;
+}
+
 // Keeps the best match per train location (within 1 px) and per query location.
 std::vector<FeatureMatch> UniqueMatches(std::vector<FeatureMatch> matches, const FeatureSet& query,
                                         const FeatureSet& train) {
@@ -198,6 +229,8 @@ std::vector<FeatureMatch> GatedMatch(const FeatureSet& query, const std::vector<
   CV_Assert(predicted.size() == query.size());
   if (query.size() == 0 || train.size() == 0) return {};
   const int dim = query.descriptors.cols;
+  const bool exact_float = SmallIntegerDescriptors(query.descriptors) && SmallIntegerDescriptors(train.descriptors);
+  const auto distance_sq = exact_float ? DescriptorDistanceSqExactFloat : DescriptorDistanceSq;
   const double cell = o.gate_radius;
   std::unordered_map<long long, std::vector<int>> grid;
   auto key = [](int cx, int cy) { return (static_cast<long long>(cx) << 32) ^ static_cast<unsigned>(cy); };
@@ -222,7 +255,7 @@ std::vector<FeatureMatch> GatedMatch(const FeatureSet& query, const std::vector<
         if (it == grid.end()) continue;
         for (int j : it->second) {
           if ((train.points[j] - pr).squaredNorm() > r2) continue;
-          cands.emplace_back(DescriptorDistanceSq(dq, train.descriptors.ptr<float>(j), dim), j);
+          cands.emplace_back(distance_sq(dq, train.descriptors.ptr<float>(j), dim), j);
         }
       }
     }
