@@ -227,8 +227,13 @@ LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& templa
         }
         J(np - 2) = 1;
         J(np - 1) = g;
-        N.selfadjointView<Eigen::Lower>().rankUpdate(J);
-        b += J * resid;
+        // N's lower triangle += J J^T, b += J resid: rankUpdate's
+        // operations (each N(k, l) += J(l) J(k)) inline; the call per
+        // pixel was a fifth of this function's time.
+        for (int l = 0; l < np; ++l) {
+          for (int k = l; k < np; ++k) N(k, l) += J(l) * J(k);
+          b(l) += J(l) * resid;
+        }
       }
     }
     N.triangularView<Eigen::StrictlyUpper>() = N.transpose();
