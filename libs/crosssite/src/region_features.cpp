@@ -5,6 +5,7 @@
 // One flat job list of (image, view) over both sites keeps the threads busy.
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 #include <opencv2/core.hpp>
 
@@ -82,11 +83,22 @@ int DetectRegionFeatures(const FrontendOptions& o, SitePairState* s) {
   std::vector<FeatureSet> job_sets(jobs.size());
   AsiftOptions single = o.asift;
   single.num_threads = 1;
+  // Largest images first (SIFT's time grows with the pixels; the zoomed
+  // previous regions differ up to 7x): the last job to finish is a small
+  // one. The results keep the job order.
+  auto image_of = [&](const Job& jb) -> const cv::Mat& {
+    return jb.current ? s->current_regions[jb.image].image : s->previous_regions[jb.image].image;
+  };
+  std::vector<int> order(jobs.size());
+  for (size_t k = 0; k < jobs.size(); ++k) order[k] = static_cast<int>(k);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+    return image_of(jobs[a]).total() / jobs[a].view.tilt > image_of(jobs[b]).total() / jobs[b].view.tilt;
+  });
 #pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
-  for (int k = 0; k < static_cast<int>(jobs.size()); ++k) {
+  for (int i = 0; i < static_cast<int>(jobs.size()); ++i) {
+    const int k = order[i];
     const Job& jb = jobs[k];
-    const cv::Mat& img = jb.current ? s->current_regions[jb.image].image : s->previous_regions[jb.image].image;
-    job_sets[k] = DetectAsift(img, cv::Mat(), {jb.view}, single);
+    job_sets[k] = DetectAsift(image_of(jb), cv::Mat(), {jb.view}, single);
   }
   for (size_t k = 0; k < jobs.size(); ++k)
     AddViewFeatures(jobs[k].view, job_sets[k],
