@@ -2,8 +2,12 @@
 // text) and writes the result in the same format.
 //   vloc_posegraph IN.g2o --out OUT.g2o [--weights file|sesync] [--init chordal|none]
 //                  [--max-iterations N] [--threads N] [--linear-solver cholmod|eigen] [--verbose 1]
-// --weights sesync solves with SE-Sync's isotropic weights (the measure of
-// the published optima); the output keeps the file's information matrices.
+// --weights sesync solves SE-Sync's objective exactly (its isotropic weights
+// from each edge's translation and rotation blocks: the measure of the
+// published optima; a 6 x 6 information that is not positive definite is
+// taken as it is when its blocks are); --weights file (the default) solves
+// the file's chi2, and refuses such a matrix in one line. The output keeps the
+// file's information matrices.
 // Prints the chi2 (file weights) and SE-Sync's objective before and after,
 // the iterations and the time, and with --weights sesync whether SE-Sync's
 // certificate of global optimality holds. Exit code 0 when the solve is usable.
@@ -48,7 +52,9 @@ int main(int argc, char** argv) {
       return 1;
     }
     vloc::posegraph::GraphFile file;
-    if (!vloc::posegraph::ReadGraphFile(args.positional()[0], &file, &error)) {
+    const auto use = weights == "sesync" ? vloc::posegraph::InformationUse::kSeSyncBlocks
+                                         : vloc::posegraph::InformationUse::kChi2;
+    if (!vloc::posegraph::ReadGraphFile(args.positional()[0], &file, &error, use)) {
       std::cerr << "vloc_posegraph: " << error << "\n";
       return 1;
     }
@@ -56,7 +62,7 @@ int main(int argc, char** argv) {
     std::cout << args.positional()[0] << ": " << vloc::posegraph::GraphFormatName(file.format) << ", "
               << file.dimension << "D, " << file.num_nodes() << " poses, " << file.num_edges() << " edges"
               << (file.had_vertices ? "" : " (no vertices: started from chained odometry)") << "\n";
-    const auto report = vloc::posegraph::OptimizeGraphFile(&file, options, weights == "sesync");
+    const auto report = vloc::posegraph::OptimizeGraphFile(&file, options);
     std::cout << report.BriefReport() << "\n";
     if (!report.solver.usable) return 1;
     if (!vloc::posegraph::WriteGraphFile(args.Get("out"), file, &error)) {

@@ -1,5 +1,6 @@
 #include "vloc/posegraph/graph_io.h"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <cmath>
@@ -15,7 +16,7 @@
 
 #include "vloc/common/options.h"
 #include "vloc/common/pose.h"
-#include "vloc/posegraph/mrpt_optimize.h"
+#include "vloc/posegraph/mrpt_graph.h"
 
 namespace vloc::posegraph {
 
@@ -125,10 +126,14 @@ std::string Excerpt(const std::string& line) {
   return out;
 }
 
-std::string RepairReport(int repaired, int skipped, const std::string& first_skipped) {
-  if (!repaired && !skipped) return "";
+std::string RepairReport(int repaired, int skipped, const std::string& first_skipped, int indefinite) {
+  if (!repaired && !skipped && !indefinite) return "";
   std::ostringstream os;
   os << "pose graph: ";
+  if (indefinite)
+    os << indefinite << " information matrices not positive definite as a whole (their translation and rotation "
+       << "blocks are): SE-Sync's weights read only the blocks, unchanged; the file's chi2 is not an objective here"
+       << (repaired || skipped ? "; " : "");
   if (skipped) os << skipped << " records of other types skipped (the first: " << first_skipped << ")";
   if (skipped && repaired) os << "; ";
   if (repaired)
@@ -210,21 +215,63 @@ bool CheckQuaternion(const Record& rec, const std::string& what, double qx, doub
                     "): not a rotation");
 }
 
-// An edge's information: refused when not finite, or when not positive
-// (semi-)definite (an eigenvalue below -1e-9 of the largest, or none
-// positive); a semi-definite one is repaired (RepairInformation) and counted.
+// Eigenvalues of a symmetric matrix, quoted "a to b".
+template <int N>
+std::string EigenvalueRange(const Eigen::Matrix<double, N, N>& m, double* smallest = nullptr) {
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> eig(0.5 * (m + m.transpose()), Eigen::EigenvaluesOnly);
+  if (smallest) *smallest = eig.info() == Eigen::Success ? eig.eigenvalues().minCoeff() : -1.0;
+  return Str(eig.eigenvalues().minCoeff()) + " to " + Str(eig.eigenvalues().maxCoeff());
+}
+
+// Positive definite by Cholesky of its symmetric part.
+template <int N>
+bool PositiveDefinite(const Eigen::Matrix<double, N, N>& m) {
+  const Eigen::Matrix<double, N, N> sym = 0.5 * (m + m.transpose());
+  return Eigen::LLT<Eigen::Matrix<double, N, N>>(sym).info() == Eigen::Success;
+}
+
+// An edge's information, checked for what it is read for (file->information_use):
+//  - kSeSyncBlocks: its translation and rotation blocks must be positive
+//    definite (SE-Sync's weights come from their inverses); the whole matrix
+//    is neither checked nor changed (counted when it is not positive definite);
+//  - kChi2: the whole matrix must be positive (semi-)definite (an eigenvalue
+//    below -1e-9 of the largest, or none positive, is refused, saying when its
+//    blocks are positive definite); a semi-definite one is repaired
+//    (RepairInformation) and counted.
+// Not finite: refused either way.
 template <int N>
 bool CheckInformation(const Record& rec, const std::string& what, Eigen::Matrix<double, N, N>* information,
                       GraphFile* file) {
+  constexpr int D = N == 6 ? 3 : 2, kRot = N - D;
   if (!information->allFinite()) return rec.Refuse(what + ": information matrix not finite (nan or inf in it)");
-  const Eigen::Matrix<double, N, N> sym = 0.5 * (*information + information->transpose());
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> eig(sym, Eigen::EigenvaluesOnly);
-  const double smallest = eig.eigenvalues().minCoeff(), largest = eig.eigenvalues().maxCoeff();
+  const Eigen::Matrix<double, D, D> tt = information->template topLeftCorner<D, D>();
+  const Eigen::Matrix<double, kRot, kRot> rr = information->template bottomRightCorner<kRot, kRot>();
+  const bool blocks_pd = PositiveDefinite<D>(tt) && PositiveDefinite<kRot>(rr);
+  if (file->information_use == InformationUse::kSeSyncBlocks) {
+    if (!PositiveDefinite<D>(tt))
+      return rec.Refuse(what + ": translation block of the information not positive definite (eigenvalues " +
+                        EigenvalueRange<D>(tt) + "): SE-Sync's weight tau = " + std::to_string(D) +
+                        " / tr(inv(I_tt)) needs it");
+    if (!PositiveDefinite<kRot>(rr))
+      return rec.Refuse(what + ": rotation block of the information not positive definite (eigenvalues " +
+                        EigenvalueRange<kRot>(rr) + "): SE-Sync's weight kappa needs it");
+    file->num_indefinite += PositiveDefinite<N>(*information) ? 0 : 1;
+    return true;
+  }
+  double smallest = 0.0;
+  const std::string range = EigenvalueRange<N>(*information, &smallest);
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> eig(0.5 * (*information + information->transpose()),
+                                                                   Eigen::EigenvaluesOnly);
+  const double largest = eig.eigenvalues().maxCoeff();
   bool repaired = false;
   if (eig.info() != Eigen::Success || !(largest > 0) || smallest < -1e-9 * largest ||
-      !RepairInformation<N>(information, &repaired))
-    return rec.Refuse(what + ": information matrix not positive definite (eigenvalues " + Str(smallest) + " to " +
-                      Str(largest) + ")");
+      !RepairInformation<N>(information, &repaired)) {
+    if (blocks_pd && largest > 0)
+      return rec.Refuse(what + ": information matrix not positive definite (eigenvalues " + range + ") though its "
+                        "translation and rotation blocks are: the file's chi2 has no minimum; SE-Sync's weights read "
+                        "only the blocks (vloc_posegraph --weights sesync)");
+    return rec.Refuse(what + ": information matrix not positive definite (eigenvalues " + range + ")");
+  }
   file->num_repaired += repaired ? 1 : 0;
   return true;
 }
@@ -443,8 +490,9 @@ bool ParseToro2D(std::istream& in, GraphFile* file, std::string* error) {
   return ParseRecords(in, file, &file->graph2, error, is_vertex, on_vertex, on_other);
 }
 
-bool ParseGraphStream(std::istream& in, GraphFile* file, std::string* error) {
+bool ParseGraphStream(std::istream& in, GraphFile* file, std::string* error, InformationUse use) {
   *file = GraphFile{};
+  file->information_use = use;
   // The first vertex or edge keyword decides the dimension and format.
   std::string line, key;
   while (key.empty() && std::getline(in, line)) {
@@ -468,18 +516,18 @@ bool ParseGraphStream(std::istream& in, GraphFile* file, std::string* error) {
   else ok = ParseToro2D(in, file, error);
   if (!ok) return false;
   if (file->num_edges() == 0) return Fail(error, "no edge");
-  file->repair_report = RepairReport(file->num_repaired, file->num_skipped, file->first_skipped);
+  file->repair_report = RepairReport(file->num_repaired, file->num_skipped, file->first_skipped, file->num_indefinite);
   return true;
 }
 
 }  // namespace
 
-bool ParseGraphText(const std::string& text, GraphFile* file, std::string* error) {
+bool ParseGraphText(const std::string& text, GraphFile* file, std::string* error, InformationUse use) {
   std::istringstream in(text);
-  return ParseGraphStream(in, file, error);
+  return ParseGraphStream(in, file, error, use);
 }
 
-bool ReadGraphFile(const std::string& path, GraphFile* file, std::string* error) {
+bool ReadGraphFile(const std::string& path, GraphFile* file, std::string* error, InformationUse use) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) {
     *file = GraphFile{};
@@ -489,7 +537,7 @@ bool ReadGraphFile(const std::string& path, GraphFile* file, std::string* error)
   std::ifstream f(path);
   if (!f) return Fail(error, "cannot read pose graph file " + path);
   std::string sub;
-  if (!ParseGraphStream(f, file, &sub)) return Fail(error, "pose graph file " + path + ": " + sub);
+  if (!ParseGraphStream(f, file, &sub, use)) return Fail(error, "pose graph file " + path + ": " + sub);
   return true;
 }
 

@@ -11,9 +11,8 @@
 
 #include <Eigen/SparseCholesky>
 #include <algorithm>
-#include <stdexcept>
 
-#include "vloc/posegraph/mrpt_optimize.h"
+#include "vloc/posegraph/sparse_solver.h"
 
 namespace vloc::posegraph {
 
@@ -167,36 +166,6 @@ bool BlockDiagonalOfInverseLDLT(const Eigen::SparseMatrix<double>& L, const Eige
     for (int r = 0; r < block_size; ++r)
       for (int c = 0; c <= r; ++c) block(r, c) = block(c, r) = z_at(b * block_size + r, b * block_size + c);
   }
-  return true;
-}
-
-bool LocalMarginals(const mrpt::graphs::CNetworkOfPoses3DInf& graph,
-                    std::map<mrpt::graphs::TNodeID, Matrix6d>* marginals, std::string* error, int num_threads) {
-  marginals->clear();
-  std::map<mrpt::graphs::TNodeID, int> index;
-  std::vector<mrpt::graphs::TNodeID> ids;
-  for (const auto& n : graph.nodes) {
-    if (n.first == graph.root) continue;
-    index[n.first] = static_cast<int>(ids.size());
-    ids.push_back(n.first);
-  }
-  if (ids.empty()) return true;
-  Eigen::SparseMatrix<double> H;
-  Eigen::VectorXd g;
-  try {
-    Linearise(graph, index, num_threads, &H, &g);
-  } catch (const std::exception& e) {
-    if (error) *error = e.what();
-    return false;
-  }
-  std::vector<Eigen::MatrixXd> blocks;
-  if (!BlockDiagonalOfInverse(H, 6, &blocks)) {
-    if (error)
-      *error = "the pose graph's Hessian is singular (a site not linked to site " + std::to_string(graph.root) +
-               " by edges?); marginal covariances not computed";
-    return false;
-  }
-  for (size_t i = 0; i < ids.size(); ++i) (*marginals)[ids[i]] = blocks[i];
   return true;
 }
 

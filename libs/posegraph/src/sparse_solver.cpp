@@ -30,6 +30,8 @@ void SolverOptions::Visit(OptionsReader& r) {
   r.Optional("robust_width", &robust_width, "kernel width in chi2 units");
   r.Optional("linear_solver", &linear_solver, "cholmod | eigen");
   r.Optional("rotation_residual", &rotation_residual, "geodesic | chordal (SE-Sync's objective)");
+  r.Optional("reuse_factorisation", &reuse_factorisation, "CG iterations preconditioned by the last factor before refactorising; 0 = none");
+  r.Optional("cg_relative_residual", &cg_relative_residual, "CG stops at this relative residual");
   r.Optional("num_threads", &num_threads, "OpenMP threads linearising the edges");
   r.Optional("verbose", &verbose, "print every iteration");
 }
@@ -47,6 +49,8 @@ bool SolverOptions::Check(std::string* error) const {
   if (rotation_residual != "geodesic" && rotation_residual != "chordal")
     return Fail(error, "rotation_residual must be geodesic or chordal, got '" + rotation_residual + "'");
   if (num_threads < 1) return Fail(error, "num_threads must be >= 1");
+  if (reuse_factorisation < 0) return Fail(error, "reuse_factorisation must be >= 0");
+  if (!(cg_relative_residual > 0.0 && cg_relative_residual < 1.0)) return Fail(error, "cg_relative_residual must be in (0, 1)");
   return true;
 }
 
@@ -56,7 +60,7 @@ std::string SolverSummary::BriefReport() const {
   os << (usable ? "usable" : "NOT usable") << ": " << num_poses << " poses, " << num_edges << " edges";
   if (num_robust_edges) os << " (" << num_robust_edges << " robust, " << num_downweighted << " down-weighted)";
   os << ", cost " << initial_cost << " -> " << initialised_cost << " (initialised) -> " << final_cost << " in "
-     << iterations << " iterations, " << total_seconds << " s (init " << initialisation_seconds << " s)";
+     << iterations << " iterations (" << factorisations << " factorisations, " << cg_iterations << " CG), " << total_seconds << " s (init " << initialisation_seconds << " s)";
   if (!message.empty()) os << "; " << message;
   return os.str();
 }
@@ -287,9 +291,9 @@ int BlockOrdering(const PoseGraphProblem<D>& problem, std::vector<int>* free_ind
   }
   Eigen::SparseMatrix<double> adjacency(num_free, num_free);
   adjacency.setFromTriplets(pattern.begin(), pattern.end());
+  std::vector<int> position(static_cast<size_t>(num_free));
   Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> order;  // new position k holds old order[k]
   Eigen::AMDOrdering<int>()(adjacency, order);
-  std::vector<int> position(static_cast<size_t>(num_free));
   for (int k = 0; k < num_free; ++k) position[static_cast<size_t>(order.indices()[k])] = k;
   for (size_t p = 0; p < n; ++p)
     if (compact[p] >= 0) (*free_index)[p] = position[static_cast<size_t>(compact[p])];
@@ -452,6 +456,14 @@ class NormalEquations {
   std::vector<Linearised> lin_;
 };
 
+// The diagonal blocks of the inverse of the linearised H (held in a
+// fill-reducing order already).
+template <int D>
+bool InverseBlocks(const NormalEquations<D>& normal, std::vector<Eigen::MatrixXd>* blocks) {
+  const Eigen::SparseMatrix<double> lower = normal.H().transpose();
+  return BlockDiagonalOfInverse(lower, PoseGraphProblem<D>::kTangent, blocks, /*keep_order=*/true);
+}
+
 // "" when the solver can take the problem, else why not.
 template <int D>
 std::string ProblemError(const PoseGraphProblem<D>& problem) {
@@ -470,6 +482,36 @@ std::string ProblemError(const PoseGraphProblem<D>& problem) {
       return name + ": information matrix is not positive definite";
   }
   return "";
+}
+
+// Solves A x = -g by conjugate gradients preconditioned with the last
+// factorisation held by `solver` (of a nearby A). False (x undefined) when
+// the relative residual does not reach options.cg_relative_residual within
+// options.reuse_factorisation iterations: factorise A then.
+bool PreconditionedCg(const Eigen::SparseMatrix<double>& A, const Eigen::VectorXd& g, LinearSolver& solver,
+                      const SolverOptions& options, Eigen::VectorXd* x, int* iterations) {
+  const auto Aself = A.selfadjointView<Eigen::Upper>();
+  const double target = options.cg_relative_residual * g.norm();
+  x->setZero(g.size());
+  Eigen::VectorXd r = -g;  // b - A x with b = -g
+  Eigen::VectorXd z = solver.Solve(r);
+  Eigen::VectorXd p = z;
+  double rz = r.dot(z);
+  for (int k = 0; k < options.reuse_factorisation; ++k) {
+    ++*iterations;
+    const Eigen::VectorXd Ap = Aself * p;
+    const double pAp = p.dot(Ap);
+    if (!(pAp > 0)) return false;
+    const double alpha = rz / pAp;
+    *x += alpha * p;
+    r -= alpha * Ap;
+    if (r.norm() <= target) return x->allFinite();
+    z = solver.Solve(r);
+    const double rz_next = r.dot(z);
+    p = z + (rz_next / rz) * p;
+    rz = rz_next;
+  }
+  return false;
 }
 
 // Levenberg-Marquardt (Nielsen's damping update) from the current poses.
@@ -493,11 +535,15 @@ bool Minimise(PoseGraphProblem<D>* problem, const SolverOptions& options, Solver
   double lambda = options.initial_lambda, nu = 2.0;
   bool linearise = true;
   double factor_lambda = -1.0;  // damping of the last successful factorisation
+  bool factor_current = false;  // the last step was solved by that factorisation (not by CG)
   bool converged = false;       // stopped on an accepted step below the tolerance
   std::vector<typename PoseGraphProblem<D>::Pose> backup;
+  double t_linearise = 0, t_factorise = 0, t_solve = 0, t_cost = 0;
   for (int iter = 0; iter < options.max_iterations; ++iter) {
     if (linearise) {
+      const Stopwatch lin;
       normal.Linearise(*problem, options);
+      t_linearise += lin.Seconds();
       if (normal.g().template lpNorm<Eigen::Infinity>() <= options.gradient_tolerance) break;
       linearise = false;
     }
@@ -509,22 +555,48 @@ bool Minimise(PoseGraphProblem<D>* problem, const SolverOptions& options, Solver
       scaled_diagonal[c] = lambda * std::max(d, 1e-12);
       d += scaled_diagonal[c];
     }
-    factor_lambda = -1.0;
-    if (!solver.Factorise(A)) {
-      lambda *= nu;
-      nu *= 2.0;
-      if (lambda > 1e16) return Fail(&summary->message, "the damped normal equations stay singular");
-      continue;
+    // A step: by conjugate gradients preconditioned with the last factor
+    // when there is one to reuse, else (or when CG does not converge) by a
+    // new factorisation.
+    Eigen::VectorXd step;
+    const Stopwatch sol;
+    const bool reuse = factor_lambda >= 0 && options.reuse_factorisation > 0;
+    if (reuse && PreconditionedCg(A, normal.g(), solver, options, &step, &summary->cg_iterations)) {
+      factor_current = false;
+      t_solve += sol.Seconds();
+    } else {
+      factor_lambda = -1.0;
+      const Stopwatch fac;
+      const bool factorised = solver.Factorise(A);
+      t_factorise += fac.Seconds();
+      ++summary->factorisations;
+      if (!factorised) {
+        lambda *= nu;
+        nu *= 2.0;
+        if (lambda > 1e16) return Fail(&summary->message, "the damped normal equations stay singular");
+        continue;
+      }
+      factor_lambda = lambda;
+      factor_current = true;
+      const Stopwatch solve;
+      step = -solver.Solve(normal.g());
+      t_solve += solve.Seconds();
     }
-    factor_lambda = lambda;
-    const Eigen::VectorXd step = -solver.Solve(normal.g());
     if (!step.allFinite()) return Fail(&summary->message, "the linear solve gave a non-finite step");
     backup = problem->poses;
     for (size_t p = 0; p < problem->poses.size(); ++p)
       if (free_index[p] >= 0)
         Retract<D>(&problem->poses[p], step.template segment<K>(K * free_index[p]));
+    const Stopwatch cos;
     const double new_cost = Cost(*problem, &options);
-    const double predicted = step.dot(scaled_diagonal.cwiseProduct(step) - normal.g());
+    t_cost += cos.Seconds();
+    // The model's decrease -2 g.s - s^T H s: s.(lambda D s - g) for an exact
+    // solve of A s = -g; for a CG step from s^T H s = s^T A s - lambda s^T D s.
+    double predicted = step.dot(scaled_diagonal.cwiseProduct(step) - normal.g());
+    if (!factor_current) {
+      const Eigen::VectorXd As = A.selfadjointView<Eigen::Upper>() * step;
+      predicted = -2.0 * step.dot(normal.g()) - (step.dot(As) - step.dot(scaled_diagonal.cwiseProduct(step)));
+    }
     const double rho = predicted > 0 ? (cost - new_cost) / predicted : -1.0;
     if (options.verbose)
       std::printf("[vloc posegraph] iter %d cost %.9g -> %.9g lambda %.3g |step| %.3g (%.3f ms)\n", iter, cost, new_cost,
@@ -544,6 +616,10 @@ bool Minimise(PoseGraphProblem<D>* problem, const SolverOptions& options, Solver
       if (lambda > 1e16) break;
     }
   }
+  if (options.verbose)
+    std::printf("[vloc posegraph] linearise %.1f ms, factorise %.1f ms (%d), solve %.1f ms (%d CG iterations), cost %.1f ms\n",
+                1e3 * t_linearise, 1e3 * t_factorise, summary->factorisations, 1e3 * t_solve, summary->cg_iterations,
+                1e3 * t_cost);
   if (marginals) {
     // At convergence the last factorisation (H + lambda diag(H), lambda <=
     // 1e-6, one converged step before the optimum) is the Hessian's to that
@@ -552,12 +628,11 @@ bool Minimise(PoseGraphProblem<D>* problem, const SolverOptions& options, Solver
     const Stopwatch marginal;
     std::vector<Eigen::MatrixXd> blocks;
     marginals->assign(problem->poses.size(), PoseGraphProblem<D>::Information::Zero());
-    const bool reuse = converged && factor_lambda >= 0 && factor_lambda <= 1e-6;
+    const bool reuse = converged && factor_current && factor_lambda >= 0 && factor_lambda <= 1e-6;
     summary->marginals_valid = reuse && solver.BlockDiagonalOfInverse(K, &blocks);
     if (!summary->marginals_valid) {
-      if (linearise) normal.Linearise(*problem, options);
-      const Eigen::SparseMatrix<double> lower = normal.H().transpose();
-      summary->marginals_valid = BlockDiagonalOfInverse(lower, K, &blocks, /*keep_order=*/true);
+      if (linearise || !factor_current) normal.Linearise(*problem, options);
+      summary->marginals_valid = InverseBlocks(normal, &blocks);
     }
     if (summary->marginals_valid) {
       for (size_t p = 0; p < problem->poses.size(); ++p)
@@ -625,6 +700,27 @@ SolverSummary SolvePoseGraph(PoseGraphProblem<D>* problem, const SolverOptions& 
   return s;
 }
 
+template <int D>
+bool MarginalCovariances(const PoseGraphProblem<D>& problem, const SolverOptions& options,
+                         std::vector<typename PoseGraphProblem<D>::Information>* marginals, std::string* error) {
+  marginals->assign(problem.poses.size(), PoseGraphProblem<D>::Information::Zero());
+  if (const std::string problem_error = ProblemError(problem); !problem_error.empty()) return Fail(error, problem_error);
+  std::vector<int> free_index;
+  const int num_free = BlockOrdering(problem, &free_index);
+  if (num_free == 0) return true;
+  NormalEquations<D> normal(problem, free_index, num_free);
+  normal.Linearise(problem, options);
+  std::vector<Eigen::MatrixXd> blocks;
+  if (!InverseBlocks(normal, &blocks)) return Fail(error, "the Hessian is singular (a pose not linked to a fixed one?)");
+  for (size_t p = 0; p < problem.poses.size(); ++p)
+    if (free_index[p] >= 0) (*marginals)[p] = blocks[static_cast<size_t>(free_index[p])];
+  return true;
+}
+
+template bool MarginalCovariances<2>(const PoseGraph2&, const SolverOptions&, std::vector<PoseGraph2::Information>*,
+                                     std::string*);
+template bool MarginalCovariances<3>(const PoseGraph3&, const SolverOptions&, std::vector<PoseGraph3::Information>*,
+                                     std::string*);
 template double Cost<2>(const PoseGraph2&, const SolverOptions*);
 template double Cost<3>(const PoseGraph3&, const SolverOptions*);
 template SolverSummary SolvePoseGraph<2>(PoseGraph2*, const SolverOptions&, std::vector<PoseGraph2::Information>*);

@@ -73,7 +73,7 @@ const char* EdgeKindName(EdgeKind kind) {
 }
 
 void PoseGraphOptions::Visit(OptionsReader& r) {
-  r.Child("optimizer", [this](OptionsReader& c) { optimizer.Visit(c); });
+  r.Child("solver", [this](OptionsReader& c) { solver.Visit(c); });
   r.Optional("dr_covariance", &dr_covariance, "difference | per_metre: how DR edge covariances are made");
   r.Optional("dr_position_sigma_per_metre", &dr_position_sigma_per_metre, "m/m, horizontal DR 1-sigma");
   r.Optional("dr_vertical_sigma_per_metre", &dr_vertical_sigma_per_metre, "m/m, vertical DR 1-sigma");
@@ -95,7 +95,7 @@ void PoseGraphOptions::Visit(OptionsReader& r) {
 
 bool PoseGraphOptions::Check(std::string* error) const {
   std::string sub;
-  if (!optimizer.Check(&sub)) return Fail(error, "optimizer." + sub);
+  if (!solver.Check(&sub)) return Fail(error, "solver." + sub);
   if (dr_covariance != "difference" && dr_covariance != "per_metre")
     return Fail(error, "dr_covariance must be 'difference' or 'per_metre', got '" + dr_covariance + "'");
   const std::pair<const char*, double> positive[] = {
@@ -240,7 +240,6 @@ AddResult TraverseGraph::AddDeadReckoning(int site_id, const PoseWithCovariance&
     if (fallback) ++num_dr_fallbacks_;
     edges_[EdgeKey{*from, *to, EdgeKind::kDeadReckoning}] = edge;
   }
-  edges_dirty_ = true;
   RetryPending();
   result.accepted = true;
   result.changed = true;
@@ -338,7 +337,6 @@ AddResult TraverseGraph::AddEdge(int from, int to, EdgeKind kind, const PoseWith
   }
   edges_[EdgeKey{from, to, kind}] = edge;
   if (!sites_.count(to)) sites_[to].utime = measurement.utime;
-  edges_dirty_ = true;
   result.accepted = result.changed = true;
   return result;
 }
@@ -364,26 +362,21 @@ void TraverseGraph::RetryPending() {
   for (const Pending& p : waiting) AddEdge(p.from, p.to, p.kind, p.measurement);
 }
 
-mrpt::graphs::CNetworkOfPoses3DInf& TraverseGraph::Synced() const {
-  if (edges_dirty_) {
-    graph_.edges.clear();
-    for (const auto& [key, edge] : edges_)
-      graph_.insertEdge(static_cast<mrpt::graphs::TNodeID>(key.from), static_cast<mrpt::graphs::TNodeID>(key.to),
-                        edge);
-    edges_dirty_ = false;
-  }
-  return graph_;
+mrpt::graphs::CNetworkOfPoses3DInf TraverseGraph::graph() const {
+  mrpt::graphs::CNetworkOfPoses3DInf g = graph_;
+  for (const auto& [key, edge] : edges_)
+    g.insertEdge(static_cast<mrpt::graphs::TNodeID>(key.from), static_cast<mrpt::graphs::TNodeID>(key.to), edge);
+  return g;
 }
 
-OptimizerResult TraverseGraph::SolveSparse(const std::vector<double>& robust) {
-  // The solver's problem straight from edges_ (no MRPT edge map needed).
-  const Stopwatch watch;
+PoseGraph3 TraverseGraph::Problem(std::vector<mrpt::graphs::TNodeID>* ids, const std::vector<double>* robust,
+                                  bool (*keep)(EdgeKind)) const {
   PoseGraph3 problem;
-  std::vector<mrpt::graphs::TNodeID> ids;
   std::map<mrpt::graphs::TNodeID, int> index;
+  ids->clear();
   for (const auto& [id, node] : graph_.nodes) {
-    index.emplace(id, static_cast<int>(ids.size()));
-    ids.push_back(id);
+    index.emplace(id, static_cast<int>(ids->size()));
+    ids->push_back(id);
     PoseGraph3::Pose p;
     p.R = node.getRotationMatrix().asEigen();
     p.t = Eigen::Vector3d(node.x(), node.y(), node.z());
@@ -392,6 +385,8 @@ OptimizerResult TraverseGraph::SolveSparse(const std::vector<double>& robust) {
   }
   size_t k = 0;
   for (const auto& [key, edge] : edges_) {
+    const size_t at = k++;
+    if (keep && !keep(key.kind)) continue;
     const auto a = index.find(static_cast<mrpt::graphs::TNodeID>(key.from));
     const auto b = index.find(static_cast<mrpt::graphs::TNodeID>(key.to));
     if (a == index.end() || b == index.end())
@@ -403,22 +398,11 @@ OptimizerResult TraverseGraph::SolveSparse(const std::vector<double>& robust) {
     e.measurement.R = edge.mean.getRotationMatrix().asEigen();
     e.measurement.t = Eigen::Vector3d(edge.mean.x(), edge.mean.y(), edge.mean.z());
     e.information = edge.cov_inv.asEigen();
-    e.robust = robust[k] > 0;
-    if (e.robust) e.robust_scale = robust[k];
+    e.robust = robust && (*robust)[at] > 0;
+    if (e.robust) e.robust_scale = (*robust)[at];
     problem.edges.push_back(e);
-    ++k;
   }
-  SolverOptions solver = options_.optimizer.solver;
-  solver.verbose |= options_.optimizer.verbose;
-  std::vector<PoseGraph3::Information> blocks;
-  const SolverSummary summary = SolvePoseGraph(&problem, solver, options_.compute_marginals ? &blocks : nullptr);
-  if (!summary.usable) throw std::runtime_error("pose graph solver: " + summary.message);
-  for (size_t p = 0; p < ids.size(); ++p) {
-    if (problem.fixed[p]) continue;
-    graph_.nodes.at(ids[p]) = ToMrpt(MakePose(problem.poses[p].R, problem.poses[p].t));
-    if (summary.marginals_valid) marginals_[ids[p]] = blocks[p];
-  }
-  return ToOptimizerResult(summary, watch.Seconds());
+  return problem;
 }
 
 std::vector<double> TraverseGraph::RobustEdgeScales() const {
@@ -447,14 +431,15 @@ std::vector<double> TraverseGraph::RobustEdgeScales() const {
   });
   std::map<mrpt::graphs::TNodeID, Matrix6d> computed;
   if (any_robust && marginals_.empty()) {
-    mrpt::graphs::CNetworkOfPoses3DInf plain;
-    plain.nodes = graph_.nodes;
-    plain.root = graph_.root;
-    for (const auto& [key, edge] : edges_)
-      if (key.kind != EdgeKind::kLoop && key.kind != EdgeKind::kAbsoluteFix)
-        plain.insertEdge(static_cast<mrpt::graphs::TNodeID>(key.from), static_cast<mrpt::graphs::TNodeID>(key.to), edge);
+    std::vector<mrpt::graphs::TNodeID> ids;
+    const PoseGraph3 plain = Problem(&ids, nullptr, [](EdgeKind kind) {
+      return kind != EdgeKind::kLoop && kind != EdgeKind::kAbsoluteFix;
+    });
+    std::vector<PoseGraph3::Information> blocks;
     std::string ignored;
-    if (!LocalMarginals(plain, &computed, &ignored, options_.optimizer.num_threads)) computed.clear();
+    if (MarginalCovariances(plain, options_.solver, &blocks, &ignored))
+      for (size_t p = 0; p < ids.size(); ++p)
+        if (!plain.fixed[p]) computed[ids[p]] = blocks[p];
   }
   const std::map<mrpt::graphs::TNodeID, Matrix6d>& prior = marginals_.empty() ? computed : marginals_;
   auto marginal = [this, &prior](mrpt::graphs::TNodeID id) -> Matrix6d {
@@ -479,7 +464,8 @@ std::vector<double> TraverseGraph::RobustEdgeScales() const {
     double scale = 1.0;
     if (!prior.empty() && graph_.nodes.count(i) && graph_.nodes.count(j)) {
       Matrix6d J_i, J_j;
-      const Vector6d e = EdgeResidualAndJacobians(edge.mean, graph_.nodes.at(i), graph_.nodes.at(j), &J_i, &J_j);
+      const Vector6d e = EdgeResidual<3>(ToSolver(edge.mean), ToSolver(graph_.nodes.at(i)), ToSolver(graph_.nodes.at(j)),
+                                         &J_i, &J_j);
       const Matrix6d W = edge.cov_inv.asEigen();
       const Matrix6d S = J_i * marginal(i) * J_i.transpose() + J_j * marginal(j) * J_j.transpose() + W.inverse();
       const double own = e.dot(W * e);
@@ -513,17 +499,25 @@ PoseGraphSummary TraverseGraph::Optimize() {
   // Revisits and absolute fixes go through the robust kernel: a false
   // match must not bend the traverse.
   const std::vector<double> robust = RobustEdgeScales();
-  const bool sparse = options_.optimizer.method == "sparse";
-  const bool solver_marginals = options_.compute_marginals && sparse;
   marginals_.clear();
   try {
-    const OptimizerResult r = sparse ? SolveSparse(robust) : OptimizeGraph(Synced(), options_.optimizer);
-    s.initial_chi2 = r.initial_chi2;
-    s.final_chi2 = r.final_chi2;
+    const Stopwatch watch;
+    std::vector<mrpt::graphs::TNodeID> ids;
+    PoseGraph3 problem = Problem(&ids, &robust);
+    std::vector<PoseGraph3::Information> blocks;
+    const SolverSummary r = SolvePoseGraph(&problem, options_.solver, options_.compute_marginals ? &blocks : nullptr);
+    if (!r.usable) throw std::runtime_error("pose graph solver: " + r.message);
+    for (size_t p = 0; p < ids.size(); ++p) {
+      if (problem.fixed[p]) continue;
+      graph_.nodes.at(ids[p]) = ToMrpt(MakePose(problem.poses[p].R, problem.poses[p].t));
+      if (r.marginals_valid) marginals_[ids[p]] = blocks[p];
+    }
+    s.initial_chi2 = r.initial_cost;
+    s.final_chi2 = r.final_cost;
     s.iterations = r.iterations;
-    s.optimize_seconds = r.seconds - r.marginal_seconds;
+    s.optimize_seconds = watch.Seconds() - r.marginal_seconds;
     s.num_downweighted = r.num_downweighted;
-    if (solver_marginals) {
+    if (options_.compute_marginals) {
       s.marginals_valid = r.marginals_valid;
       s.marginal_seconds = r.marginal_seconds;
       if (!s.marginals_valid)
@@ -535,13 +529,6 @@ PoseGraphSummary TraverseGraph::Optimize() {
     s.total_seconds = total.Seconds();
     summary_ = s;
     return s;
-  }
-  if (options_.compute_marginals && !solver_marginals) {
-    const Stopwatch marginals;
-    std::string error;
-    s.marginals_valid = LocalMarginals(Synced(), &marginals_, &error, options_.optimizer.num_threads);
-    if (!s.marginals_valid) s.message = error;
-    s.marginal_seconds = marginals.Seconds();
   }
   s.usable = std::isfinite(s.final_chi2);
   if (!s.usable) s.message = "chi2 is not finite";
@@ -616,10 +603,10 @@ std::string TraverseGraph::Serialize(GraphFormat format) const {
     GraphFile file;
     file.dimension = 3;
     file.format = GraphFormat::kG2o;
-    file.graph3 = Synced();
+    file.graph3 = graph();
     os << GraphText(file);
   } else {
-    Synced().writeAsText(os);
+    graph().writeAsText(os);
   }
   return os.str();
 }
@@ -737,7 +724,7 @@ bool TraverseGraph::Deserialize(const std::string& text, std::string* error) {
     if (!loaded.sites_.count(id)) loaded.sites_[id] = SiteRecord{};
   }
   loaded.have_root_ = !g.nodes.empty();
-  loaded.edges_dirty_ = true;
+  loaded.graph_.edges.clear();  // edges_ holds them now
   *this = std::move(loaded);
   return true;
 }

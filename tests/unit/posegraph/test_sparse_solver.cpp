@@ -14,9 +14,10 @@
 
 #include "vloc/common/pose.h"
 #include "vloc/posegraph/graph_io.h"
-#include "vloc/posegraph/mrpt_optimize.h"
+#include "vloc/posegraph/mrpt_graph.h"
 #include "vloc/posegraph/sesync_objective.h"
 #include "vloc/posegraph/sparse_solver.h"
+#include "vloc/posegraph/synthetic_sets.h"
 
 namespace vloc::posegraph {
 namespace {
@@ -343,8 +344,8 @@ TEST(PublicDatasets, ReachThePublishedOptimum) {
   for (const auto& [name, published] : sets) {
     GraphFile file;
     std::string error;
-    ASSERT_TRUE(ReadGraphFile(kData + "/" + name + ".g2o", &file, &error)) << error;
-    const GraphFileReport report = OptimizeGraphFile(&file, SolverOptions(), /*sesync_weights=*/true);
+    ASSERT_TRUE(ReadGraphFile(kData + "/" + name + ".g2o", &file, &error, InformationUse::kSeSyncBlocks)) << error;
+    const GraphFileReport report = OptimizeGraphFile(&file, SolverOptions());
     ASSERT_TRUE(report.solver.usable) << name << ": " << report.solver.message;
     std::printf("%s: %s\n", name.c_str(), report.BriefReport().c_str());
     EXPECT_TRUE(report.certificate.certified) << name << ": " << report.certificate.message;
@@ -352,12 +353,93 @@ TEST(PublicDatasets, ReachThePublishedOptimum) {
       EXPECT_LT(std::abs(report.final_sesync - published), 1e-3 * published) << name;
     } else {
       GraphFile again;
-      ASSERT_TRUE(ReadGraphFile(kData + "/" + name + ".g2o", &again, &error));
+      ASSERT_TRUE(ReadGraphFile(kData + "/" + name + ".g2o", &again, &error, InformationUse::kSeSyncBlocks));
       for (auto& [id, node] : again.graph3.nodes) node = mrpt::poses::CPose3D();  // no initial guess
-      const GraphFileReport other = OptimizeGraphFile(&again, SolverOptions(), true);
+      const GraphFileReport other = OptimizeGraphFile(&again, SolverOptions());
       EXPECT_LT(std::abs(report.final_sesync - other.final_sesync), 1e-3 * report.final_sesync) << name;
     }
   }
+}
+
+// Made sets in the layouts real files use (synthetic_sets.h), small enough
+// for a test: each read for SE-Sync's objective reaches a certified optimum
+// (also from no initial guess: the same F), and a perturbed copy of that
+// optimum is NOT certified. The indefinite layout (6 x 6 not positive
+// definite, blocks positive definite, as in SE-Sync's cubicle) loads and
+// solves by SE-Sync's weights untouched, and is refused in one line when
+// read for the file's chi2.
+TEST(SyntheticSets, ReachACertifiedOptimumAndAPerturbedOneIsNot) {
+  const std::vector<SyntheticSet> sets = {
+      {"torus", "torus", 24, 16, 0.82, 0.05, 0.02, "isotropic", 11},
+      {"torus_indefinite", "torus", 24, 16, 0.82, 0.05, 0.02, "indefinite", 12},
+      {"cube", "cube", 6, 0, 0.96, 0.05, 0.02, "correlated", 13},
+      {"sphere_heavy", "sphere", 16, 16, 1.0, 0.1, 0.1, "indefinite", 14},
+  };
+  for (const SyntheticSet& set : sets) {
+    const std::string text = SyntheticG2o(set);
+    GraphFile file;
+    std::string error;
+    ASSERT_TRUE(ParseGraphText(text, &file, &error, InformationUse::kSeSyncBlocks)) << set.name << ": " << error;
+    EXPECT_EQ(file.num_repaired, 0) << set.name;
+    EXPECT_EQ(file.num_indefinite > 0, set.information == "indefinite") << set.name;
+    const GraphFileReport report = OptimizeGraphFile(&file, SolverOptions());
+    ASSERT_TRUE(report.solver.usable) << set.name << ": " << report.solver.message;
+    std::printf("%s: %s\n", set.name.c_str(), report.BriefReport().c_str());
+    EXPECT_TRUE(report.certificate.certified) << set.name << ": " << report.certificate.message;
+    EXPECT_NE(report.certificate.message.find("certified global optimum: F = "), std::string::npos);
+    EXPECT_NEAR(report.certificate.objective, report.final_sesync, 1e-9 * report.final_sesync);
+    // No initial guess at all: chordal + LM reaches the same F.
+    GraphFile blank;
+    ASSERT_TRUE(ParseGraphText(text, &blank, &error, InformationUse::kSeSyncBlocks));
+    for (auto& [id, node] : blank.graph3.nodes) node = mrpt::poses::CPose3D();
+    EXPECT_NEAR(OptimizeGraphFile(&blank, SolverOptions()).final_sesync, report.final_sesync,
+                1e-3 * report.final_sesync) << set.name;
+    // The optimum perturbed (one pose in ten turned by 0.05 rad and moved 5 cm): NOT certified.
+    std::vector<mrpt::graphs::TNodeID> ids;
+    PoseGraph3 perturbed = ProblemFromGraph(file.graph3, &ids);
+    PoseGraph3::Tangent push;
+    push << 0.05, 0, 0, 0, 0, 0.05;
+    for (size_t k = 1; k < perturbed.poses.size(); k += 10) Retract<3>(&perturbed.poses[k], push);
+    const OptimalityCertificate bad = CertifyGlobalOptimum(perturbed);
+    EXPECT_FALSE(bad.certified) << set.name << ": " << bad.message;
+    EXPECT_EQ(bad.message.rfind("NOT certified: F = ", 0), 0u) << bad.message;
+    EXPECT_GT(bad.objective, report.final_sesync);
+    // Read for the file's chi2: the indefinite layout is refused in one line saying what is wrong and what to do.
+    GraphFile chi2;
+    const bool read = ParseGraphText(text, &chi2, &error, InformationUse::kChi2);
+    if (set.information != "indefinite") {
+      EXPECT_TRUE(read) << set.name << ": " << error;
+      continue;
+    }
+    EXPECT_FALSE(read) << set.name;
+    EXPECT_NE(error.find("information matrix not positive definite (eigenvalues"), std::string::npos) << error;
+    EXPECT_NE(error.find("though its translation and rotation blocks are: the file's chi2 has no minimum"),
+              std::string::npos) << error;
+    EXPECT_EQ(error.find('\n'), std::string::npos) << error;
+  }
+}
+
+// Read for SE-Sync's objective, a block that is not positive definite is
+// refused (its weight needs the block's inverse); the whole 6 x 6 is not
+// looked at.
+TEST(GraphFiles, SeSyncReadingNeedsPositiveDefiniteBlocks) {
+  const std::string v3 = "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 1 1 0 0 0 0 0 1\n";
+  GraphFile file;
+  std::string error;
+  EXPECT_FALSE(ParseGraphText(v3 + "EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 100 0 0 0 0 0 -100 0 0 0 0 100 0 0 0 400 0 0 400 0 400\n",
+                              &file, &error, InformationUse::kSeSyncBlocks));
+  EXPECT_NE(error.find("line 3: EDGE_SE3:QUAT 0 -> 1: translation block of the information not positive definite"),
+            std::string::npos) << error;
+  EXPECT_FALSE(ParseGraphText(v3 + "EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 100 0 0 0 0 0 100 0 0 0 0 100 0 0 0 0 0 0 400 0 400\n",
+                              &file, &error, InformationUse::kSeSyncBlocks));
+  EXPECT_NE(error.find("rotation block of the information not positive definite"), std::string::npos) << error;
+  // Cross terms larger than the blocks: kept as they are, counted, said in one line.
+  ASSERT_TRUE(ParseGraphText(v3 + "EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 100 0 0 300 0 0 100 0 0 0 0 100 0 0 0 400 0 0 400 0 400\n",
+                             &file, &error, InformationUse::kSeSyncBlocks)) << error;
+  EXPECT_EQ(file.num_indefinite, 1);
+  EXPECT_EQ(file.num_repaired, 0);
+  EXPECT_EQ(file.graph3.edges.begin()->second.cov_inv(0, 3), 150.0);  // 300 in quaternion units, unchanged
+  EXPECT_NE(file.repair_report.find("1 information matrices not positive definite as a whole"), std::string::npos);
 }
 
 // Random symmetric positive-definite information with cross terms.
@@ -496,7 +578,7 @@ TEST(GraphFiles, SemiDefiniteInformationIsRepairedWithOneLine) {
       << file.repair_report;
   for (const auto& [ids, edge] : file.graph2.edges)
     EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(edge.cov_inv.asEigen()).eigenvalues().minCoeff(), 0.0);
-  const GraphFileReport report = OptimizeGraphFile(&file, SolverOptions(), false);
+  const GraphFileReport report = OptimizeGraphFile(&file, SolverOptions());
   EXPECT_TRUE(report.solver.usable) << report.solver.message;
   EXPECT_GE(report.final_chi2, 0.0);
   // Handed to the solver directly, an indefinite matrix is refused with the reason.

@@ -27,10 +27,19 @@
 // vertex defined twice, an edge to a vertex the file does not define (when
 // it defines any), a self-loop, a quaternion whose norm is more than 1e-3
 // from 1, a pose or information matrix that is not finite, an information
-// matrix that is not positive definite (an eigenvalue below -1e-9 of the
-// largest, or none positive), a FIX naming no vertex. A positive
-// semi-definite information (a zero eigenvalue) is repaired (eigenvalues
-// raised to 1e-9 of the largest), and repair_report says how many.
+// matrix not fit for the objective it is read for (InformationUse), a FIX
+// naming no vertex.
+// Information matrices are read for one objective:
+//  - kChi2 (the file's own chi2): the whole matrix must be positive definite;
+//    one with an eigenvalue below -1e-9 of the largest (or none positive) is
+//    refused, and the line says when its translation and rotation blocks are
+//    positive definite (real files hold such matrices: SE-Sync's cubicle has
+//    5,021); a semi-definite one (a zero eigenvalue) is repaired (eigenvalues
+//    raised to 1e-9 of the largest) and repair_report says how many;
+//  - kSeSyncBlocks (SE-Sync's objective, whose weights come from the blocks
+//    alone): the translation and rotation blocks must be positive definite;
+//    the whole matrix is kept as the file gives it, never repaired, and
+//    repair_report counts those that are not positive definite as a whole.
 
 #include <Eigen/Core>
 #include <mrpt/graphs/CNetworkOfPoses.h>
@@ -42,6 +51,7 @@
 namespace vloc::posegraph {
 
 enum class GraphFormat { kG2o, kMrptText };
+enum class InformationUse { kChi2, kSeSyncBlocks };
 const char* GraphFormatName(GraphFormat format);
 
 struct GraphFile {
@@ -50,7 +60,9 @@ struct GraphFile {
   mrpt::graphs::CNetworkOfPoses2DInf graph2;
   mrpt::graphs::CNetworkOfPoses3DInf graph3;
   bool had_vertices = true;                // false: poses from chained odometry
-  int num_repaired = 0;                    // semi-definite information matrices made positive definite
+  InformationUse information_use = InformationUse::kChi2;  // what the information was read for (checked)
+  int num_repaired = 0;                    // kChi2: semi-definite information matrices made positive definite
+  int num_indefinite = 0;                  // kSeSyncBlocks: matrices not positive definite as a whole (blocks are)
   int num_skipped = 0;                     // g2o records of other types (landmarks, priors, ...) skipped
   std::string first_skipped;               // the first such record's type
   std::string repair_report;               // one line when any count is non-zero, else ""
@@ -61,8 +73,10 @@ struct GraphFile {
 
 // False with *error naming the file and line when the file cannot be read or
 // parsed, lies (above), or holds no edge.
-bool ReadGraphFile(const std::string& path, GraphFile* file, std::string* error);
-bool ParseGraphText(const std::string& text, GraphFile* file, std::string* error);
+bool ReadGraphFile(const std::string& path, GraphFile* file, std::string* error,
+                   InformationUse use = InformationUse::kChi2);
+bool ParseGraphText(const std::string& text, GraphFile* file, std::string* error,
+                    InformationUse use = InformationUse::kChi2);
 
 // Writes (atomically) in file.format; vertices hold the current poses.
 bool WriteGraphFile(const std::string& path, const GraphFile& file, std::string* error);
@@ -77,6 +91,7 @@ bool RepairInformation(Eigen::Matrix<double, N, N>* information, bool* repaired)
 // What OptimizeGraphFile did.
 struct GraphFileReport {
   SolverSummary solver;          // the solve (its costs use the weights solved with)
+  bool chi2_defined = true;      // false: some information matrices are not positive definite (SE-Sync reading)
   double initial_chi2 = 0.0;     // sum e^T W e with the file's information, at the file's poses
   double final_chi2 = 0.0;       // and at the optimum
   double initial_sesync = 0.0;   // SE-Sync's objective (sesync_objective.h) at the file's poses
@@ -86,10 +101,12 @@ struct GraphFileReport {
   std::string BriefReport() const;
 };
 
-// Optimises the poses of `file` in place (its root fixed). With
-// `sesync_weights` the solve uses SE-Sync's isotropic weights
-// (UseSeSyncWeights) instead of the file's information matrices; the file
-// keeps its own. The solver's failure is in report.solver (poses unchanged).
-GraphFileReport OptimizeGraphFile(GraphFile* file, const SolverOptions& options, bool sesync_weights);
+// Optimises the poses of `file` in place (its root fixed), for the objective
+// the file was read for: kChi2, the file's information matrices; kSeSyncBlocks,
+// SE-Sync's objective exactly (its isotropic weights from the blocks,
+// UseSeSyncWeights, on the chordal rotation residual), then its certificate.
+// The file keeps its own information. The solver's failure is in
+// report.solver (poses unchanged).
+GraphFileReport OptimizeGraphFile(GraphFile* file, const SolverOptions& options);
 
 }  // namespace vloc::posegraph

@@ -32,16 +32,27 @@ void UseSeSyncWeights(PoseGraphProblem<D>* problem);
 // rotations' Lagrange multipliers are Lambda_i = sym(R_i^T (X M)_{R_i}), and
 // the poses are a global minimum of F (and of its semidefinite relaxation)
 // when C = M - blockdiag(0, Lambda) is positive semidefinite (Rosen et al.,
-// IJRR 2019, thm. 7). C + eta I is factorised (LDL^T, AMD): all pivots
-// positive <=> lambda_min(C) > -eta. eta = relative_tolerance * max diag(C).
+// IJRR 2019, thm. 7). C is built from the file's weights. As SE-Sync does (SESyncProblem::verify_solution,
+// fast_verification), C + eta I is factorised: all pivots positive <=>
+// lambda_min(C) > -eta, with eta = SE-Sync's min_eig_num_tol (1e-3, absolute:
+// in the objective's units, not scaled by C). Certified only at a critical
+// point: the theorem needs one, so the relative stationarity
+// |C X^T|_F / |M X^T|_F must also be below stationarity_tolerance (a
+// perturbed optimum is refused by it before the eigenvalues are looked at).
+struct CertificateOptions {
+  double min_eig_num_tol = 1e-3;          // eta: SE-Sync's tolerance on lambda_min(C)
+  double stationarity_tolerance = 1e-4;   // |C X^T|_F / |M X^T|_F at most this
+};
 struct OptimalityCertificate {
-  bool certified = false;     // lambda_min(C) > -eta
+  bool certified = false;     // a critical point and lambda_min(C) > -eta
+  double objective = 0.0;     // F at the poses certified (or not)
   double eta = 0.0;           // the tolerance used
-  int negative_pivots = 0;    // eigenvalues of C below -eta (inertia)
+  int negative_pivots = 0;    // 1 when C + eta I is not positive definite (the factorisation stops at the first)
   double stationarity = 0.0;  // |C X^T|_F / |M X^T|_F: how far from a critical point of F the poses are
-  std::string message;        // one line
+  double seconds = 0.0;       // wall time of the check
+  std::string message;        // one line: "certified global optimum: F = ..." or "NOT certified: F = ..., why"
 };
 template <int D>
-OptimalityCertificate CertifyGlobalOptimum(const PoseGraphProblem<D>& problem, double relative_tolerance = 1e-6);
+OptimalityCertificate CertifyGlobalOptimum(const PoseGraphProblem<D>& problem, const CertificateOptions& options = {});
 
 }  // namespace vloc::posegraph

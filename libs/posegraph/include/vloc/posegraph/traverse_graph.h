@@ -1,11 +1,12 @@
 #pragma once
-// The traverse pose graph: one MRPT node per rover site, optimised after
-// every change by vloc's sparse solver (sparse_solver.h), warm-started from
-// the last optimum, its marginals from the solver's last factorisation.
-// Revisit (loop) and absolute-fix edges are robust: each update tests them
-// against their predicted covariance (RobustEdgeScales): an implausible one
-// (a match to the wrong place) is switched off, the others go through the
-// DCS kernel. optimizer.method "mrpt" keeps the former MRPT optimiser.
+// The traverse pose graph: one MRPT node per rover site (MRPT holds the
+// poses and, for saving and loading, the graph container and its text
+// format), optimised after every change by vloc's sparse solver
+// (sparse_solver.h, the only optimiser), warm-started from the last
+// optimum, its marginals from the solver's last factorisation. Revisit
+// (loop) and absolute-fix edges are robust: each update tests them against
+// their predicted covariance (RobustEdgeScales): an implausible one (a match
+// to the wrong place) is switched off, the others go through the DCS kernel.
 //
 //   TraverseGraph graph(options);
 //   graph.AddDeadReckoning(site, utime, world_from_body_dr);      // node + DR edge
@@ -45,7 +46,7 @@
 #include "vloc/common/pose.h"
 #include "vloc/common/rover_data.h"
 #include "vloc/posegraph/graph_io.h"
-#include "vloc/posegraph/mrpt_optimize.h"
+#include "vloc/posegraph/mrpt_graph.h"
 
 namespace vloc::posegraph {
 
@@ -53,7 +54,7 @@ enum class EdgeKind : int { kDeadReckoning = 0, kVisual = 1, kLoop = 2, kAbsolut
 const char* EdgeKindName(EdgeKind kind);
 
 struct PoseGraphOptions {
-  OptimizerOptions optimizer;                     // MRPT Levenberg-Marquardt settings
+  SolverOptions solver = WarmStartSolverOptions();  // vloc's solver, warm-started (mrpt_graph.h)
   std::string dr_covariance = "difference";       // "difference" (from the DR covariance growth) or "per_metre"
   double dr_position_sigma_per_metre = 0.05;      // m/m, horizontal 1-sigma of a DR edge per metre driven
   double dr_vertical_sigma_per_metre = 0.02;      // m/m, vertical 1-sigma per metre driven
@@ -97,7 +98,7 @@ struct PoseGraphSummary {
   double final_chi2 = 0.0;
   int iterations = 0;
   bool marginals_valid = false;
-  double optimize_seconds = 0.0; // MRPT optimiser
+  double optimize_seconds = 0.0; // the solver (without the marginals)
   double marginal_seconds = 0.0; // marginal covariances
   double total_seconds = 0.0;
 
@@ -142,7 +143,8 @@ class TraverseGraph {
   std::optional<SiteEstimate> Site(int site_id) const;
   int num_sites() const { return static_cast<int>(graph_.nodes.size()); }
   int64_t newest_utime() const;
-  const mrpt::graphs::CNetworkOfPoses3DInf& graph() const { return Synced(); }
+  // The graph in MRPT's container (nodes and edges), as it is saved.
+  mrpt::graphs::CNetworkOfPoses3DInf graph() const;
   const PoseGraphOptions& options() const { return options_; }
 
   // Writes atomically (temporary file + rename), in g2o when `path` ends in
@@ -187,14 +189,14 @@ class TraverseGraph {
   std::string SiteIdProblem(int site_id) const;
   Matrix6d DrEdgeCovariance(int from, int to, const Pose3& relative, bool* fallback) const;
   void AddNode(int site_id, const Pose3& world_from_body);
-  // graph_ with its edges rebuilt from edges_ when they changed (the MRPT
-  // edge map is only needed to save and for method "mrpt").
-  mrpt::graphs::CNetworkOfPoses3DInf& Synced() const;
+  // The solver's problem: graph_'s nodes (ids[k] is pose k's site), edges_
+  // in order (robust[k] > 0: edge k robust, its kernel width scaled by it);
+  // `keep` (optional) chooses the edges.
+  PoseGraph3 Problem(std::vector<mrpt::graphs::TNodeID>* ids, const std::vector<double>* robust = nullptr,
+                     bool (*keep)(EdgeKind) = nullptr) const;
   // The solver's robust-kernel width scale of every edge (edges_ order, 0 =
   // not robust).
   std::vector<double> RobustEdgeScales() const;
-  // Method "sparse": SolvePoseGraph over graph_'s nodes and edges_.
-  OptimizerResult SolveSparse(const std::vector<double>& robust);
   void RetryPending();
   // The root's DR covariance carried to a site at world_from_site (zero
   // without one).
@@ -203,12 +205,11 @@ class TraverseGraph {
   bool Deserialize(const std::string& text, std::string* error);
 
   PoseGraphOptions options_;
-  mutable mrpt::graphs::CNetworkOfPoses3DInf graph_;  // nodes authoritative; edges a cache of edges_ (Synced)
-  mutable bool edges_dirty_ = false;
+  mrpt::graphs::CNetworkOfPoses3DInf graph_;  // the nodes (site poses); its edges stay empty: edges_ holds them
   std::map<EdgeKey, mrpt::poses::CPose3DPDFGaussianInf> edges_;  // authoritative edge list
   std::map<int, SiteRecord> sites_;
   std::vector<Pending> pending_;
-  std::map<mrpt::graphs::TNodeID, Matrix6d> marginals_;  // MRPT local tangent
+  std::map<mrpt::graphs::TNodeID, Matrix6d> marginals_;  // the solver's (MRPT's) local tangent
   bool have_root_ = false;
   int num_dr_fallbacks_ = 0;
   int num_repaired_informations_ = 0;      // loaded edges whose information was not positive definite
