@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <opencv2/core/hal/intrin.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <stdexcept>
@@ -106,6 +107,97 @@ struct ZnccStage {
   long points = 0, matches = 0;
 };
 
+// Adds sign * L(r, x) R(r, x - d) to V[x * nd + di] (d = dlo + di, x - d >= 0);
+// `rrev`: the right row reversed (rrev[k] = R(r, W - 1 - k)). The scalar
+// loop's operations, vectorised along di (AVX2 where the CPU has it).
+__attribute__((target_clones("avx2", "default"))) void AddRowProducts(const float* l, const float* rrev, int W,
+                                                                       int dlo, int nd, float sign, float* V) {
+  for (int x = dlo; x < W; ++x) {
+    const int m = std::min(nd - 1, x - dlo);
+    float* v = V + static_cast<size_t>(x) * nd;
+    const float sl = sign * l[x];
+    const float* rp = rrev + (W - 1 - x + dlo);  // rp[di] = R(r, x - d)
+    for (int di = 0; di <= m; ++di) v[di] += sl * rp[di];
+  }
+}
+
+// ZNCC C[x * nd + di] of one row from the column sums V, for x in
+// [d + h, W - h - 1]: the window sum S[di] starts at x = d + h (summed in
+// x order) and slides with x, in double; the best score of each right pixel
+// x - d in bestRrev / bestRdrev (reversed: index W - 1 - (x - d); the first
+// of equal scores in d order). mRrev, iRrev: the right row's window mean and
+// inverse std, reversed. Each lane does the scalar operations in their order.
+__attribute__((target_clones("avx2", "default"))) void RowScores(const float* V, int W, int nd, int dlo, int h, int n,
+                                                                  const float* mL, const float* iL,
+                                                                  const float* mRrev, const float* iRrev, double* S,
+                                                                  float* C, float* bestRrev, int* bestRdrev) {
+  for (int x = dlo + h; x <= W - h - 1; ++x) {
+    const int started = x - dlo - h;  // disparities below this slide; this one starts at x
+    const float* va = V + static_cast<size_t>(x + h) * nd;
+    const float* vb = V + static_cast<size_t>(x - h - 1) * nd;
+    const int slide = std::min(nd, started);
+    for (int di = 0; di < slide; ++di) S[di] += static_cast<double>(va[di]) - vb[di];
+    if (started < nd) {
+      double s = 0;
+      for (int k = x - h; k <= x + h; ++k) s += V[static_cast<size_t>(k) * nd + started];
+      S[started] = s;
+    }
+    const int active = std::min(nd, started + 1);
+    float* c = C + static_cast<size_t>(x) * nd;
+    const float ml = mL[x], il = iL[x];
+    const int k0 = W - 1 - x + dlo;  // reversed index of x - dlo
+    const float* mr = mRrev + k0;
+    const float* ir = iRrev + k0;
+    float* br = bestRrev + k0;
+    int* brd = bestRdrev + k0;
+    for (int di = 0; di < active; ++di) {
+      const float cov = static_cast<float>(S[di] / n) - ml * mr[di];
+      const float z = il > 0 && ir[di] > 0 ? cov * il * ir[di] : -2.f;
+      c[di] = z;
+      const bool up = z > br[di];
+      br[di] = up ? z : br[di];
+      brd[di] = up ? di : brd[di];
+    }
+  }
+}
+
+// The best score of c[0, nd) (-2 = none) and its disparity (the first of
+// equal scores; -1 = none), and the best local maximum at least 3
+// disparities from it (-2 = none): maxima of exact values, 4 at a time.
+void BestAndSecondPeak(const float* c, int nd, int* best_index, float* best_score, float* second_score) {
+  cv::v_float32x4 vbest = cv::v_setall_f32(-2.f);
+  int di = 0;
+  for (; di + 4 <= nd; di += 4) vbest = cv::v_max(vbest, cv::v_load(c + di));
+  float best = cv::v_reduce_max(vbest);
+  for (; di < nd; ++di) best = std::max(best, c[di]);
+  int bi = -1;
+  if (best > -2.f)
+    for (bi = 0; c[bi] != best; ++bi) {
+    }
+  // A disparity d qualifies when |d - bi| >= 3 and c[d] >= its neighbours.
+  auto qualifies = [&](int d) {
+    return std::abs(d - bi) >= 3 && (d == 0 || c[d] >= c[d - 1]) && (d + 1 == nd || c[d] >= c[d + 1]);
+  };
+  float second = -2.f;
+  if (qualifies(0)) second = std::max(second, c[0]);
+  cv::v_float32x4 vsec = cv::v_setall_f32(-2.f);
+  const cv::v_int32x4 lo = cv::v_setall_s32(bi - 2), hi = cv::v_setall_s32(bi + 2), four = cv::v_setall_s32(4);
+  cv::v_int32x4 idx(1, 2, 3, 4);
+  di = 1;
+  for (; di + 5 <= nd; di += 4, idx += four) {  // d = di .. di + 3, all with both neighbours
+    const cv::v_float32x4 cur = cv::v_load(c + di);
+    const cv::v_float32x4 peak = (cur >= cv::v_load(c + di - 1)) & (cur >= cv::v_load(c + di + 1));
+    const cv::v_float32x4 far = cv::v_reinterpret_as_f32((idx < lo) | (idx > hi));
+    vsec = cv::v_max(vsec, cv::v_select(peak & far, cur, cv::v_setall_f32(-2.f)));
+  }
+  second = std::max(second, cv::v_reduce_max(vsec));
+  for (; di < nd; ++di)
+    if (qualifies(di)) second = std::max(second, c[di]);
+  *best_index = bi;
+  *best_score = best;
+  *second_score = second;
+}
+
 // Step 1: ZNCC for every grid pixel and integer disparity.
 ZnccStage ZnccRows(const cv::Mat& left8, const cv::Mat& right8, const DenseStereoOptions& o) {
   const int W = left8.cols, H = left8.rows, h = o.zncc_window / 2, n = o.zncc_window * o.zncc_window;
@@ -126,24 +218,24 @@ ZnccStage ZnccRows(const cv::Mat& left8, const cv::Mat& right8, const DenseStere
   long points = 0, matches = 0;
 #pragma omp parallel num_threads(o.num_threads) reduction(+ : points, matches)
   {
+    // Disparity-major per x: V[x * nd + di], C[x * nd + di]. The right
+    // image's rows and statistics are read reversed, so that x - d runs
+    // forward with di; bestR / bestRd are kept reversed too.
     std::vector<float> V(static_cast<size_t>(nd) * W), C(static_cast<size_t>(nd) * W);
-    std::vector<float> best(W), second(W), bestR(W);
-    std::vector<int> bestd(W), bestRd(W);
+    std::vector<double> S(nd);
+    std::vector<float> rrev(W), mRrev(W), iRrev(W), bestRrev(W);
+    std::vector<int> bestRdrev(W);
 #pragma omp for schedule(dynamic, 1)
     for (int b = 0; b < nblocks; ++b) {
       int prev_y = -(1 << 20);
       for (int gy = b * block; gy < std::min(gh, (b + 1) * block); ++gy) {
         const int y = gy * o.step;
         if (y - h < 0 || y + h >= H) continue;
-        // Column sums V[d][x] = sum over the window rows of L(r, x) R(r, x - d).
+        // Column sums V[x][d] = sum over the window rows of L(r, x) R(r, x - d).
         auto add_row = [&](int r, float sign) {
-          const float* l = L.ptr<float>(r);
           const float* rr = R.ptr<float>(r);
-          for (int di = 0; di < nd; ++di) {
-            const int d = dlo + di;
-            float* v = V.data() + static_cast<size_t>(di) * W;
-            for (int x = d; x < W; ++x) v[x] += sign * l[x] * rr[x - d];
-          }
+          std::reverse_copy(rr, rr + W, rrev.begin());
+          AddRowProducts(L.ptr<float>(r), rrev.data(), W, dlo, nd, sign, V.data());
         };
         if (y - prev_y < o.zncc_window) {
           for (int r = prev_y + h + 1; r <= y + h; ++r) add_row(r, 1.f);
@@ -153,63 +245,38 @@ ZnccStage ZnccRows(const cv::Mat& left8, const cv::Mat& right8, const DenseStere
           for (int r = y - h; r <= y + h; ++r) add_row(r, 1.f);
         }
         prev_y = y;
-        // Scores C[d][x] (-2 = undefined), best left and right disparities.
-        std::fill(best.begin(), best.end(), -2.f);
-        std::fill(bestR.begin(), bestR.end(), -2.f);
-        std::fill(bestd.begin(), bestd.end(), -1);
-        std::fill(bestRd.begin(), bestRd.end(), -1);
-        const float* mL = muL.ptr<float>(y);
-        const float* iL = isdL.ptr<float>(y);
+        // Scores C[x][d] (-2 = undefined) and the right pixels' best disparities.
+        std::fill(C.begin(), C.end(), -2.f);
+        std::fill(bestRrev.begin(), bestRrev.end(), -2.f);
+        std::fill(bestRdrev.begin(), bestRdrev.end(), -1);
         const float* mR = muR.ptr<float>(y);
         const float* iR = isdR.ptr<float>(y);
-        for (int di = 0; di < nd; ++di) {
-          const int d = dlo + di;
-          const float* v = V.data() + static_cast<size_t>(di) * W;
-          float* c = C.data() + static_cast<size_t>(di) * W;
-          std::fill(c, c + W, -2.f);
-          const int x0 = d + h, x1 = W - h - 1;
-          if (x0 > x1) continue;
-          double s = 0;
-          for (int x = x0 - h; x <= x0 + h; ++x) s += v[x];
-          for (int x = x0; x <= x1; ++x) {
-            if (x > x0) s += static_cast<double>(v[x + h]) - v[x - h - 1];
-            const float cov = static_cast<float>(s / n) - mL[x] * mR[x - d];
-            const float z = iL[x] > 0 && iR[x - d] > 0 ? cov * iL[x] * iR[x - d] : -2.f;
-            c[x] = z;
-            if (z > best[x]) best[x] = z, bestd[x] = di;
-            if (z > bestR[x - d]) bestR[x - d] = z, bestRd[x - d] = di;
-          }
-        }
-        // Competing local maxima at least 3 disparities from the best.
-        std::fill(second.begin(), second.end(), -2.f);
-        for (int di = 0; di < nd; ++di) {
-          const float* c = C.data() + static_cast<size_t>(di) * W;
-          const float* cm = di > 0 ? c - W : nullptr;
-          const float* cp = di + 1 < nd ? c + W : nullptr;
-          for (int x = 0; x < W; x += o.step) {
-            if (std::abs(di - bestd[x]) < 3) continue;
-            const bool peak = (!cm || c[x] >= cm[x]) && (!cp || c[x] >= cp[x]);
-            if (peak && c[x] > second[x]) second[x] = c[x];
-          }
-        }
+        std::reverse_copy(mR, mR + W, mRrev.begin());
+        std::reverse_copy(iR, iR + W, iRrev.begin());
+        RowScores(V.data(), W, nd, dlo, h, n, muL.ptr<float>(y), isdL.ptr<float>(y), mRrev.data(), iRrev.data(),
+                  S.data(), C.data(), bestRrev.data(), bestRdrev.data());
         float* out_row = out.disparity.ptr<float>(gy);
         for (int gx = 0; gx < gw; ++gx) {
           const int x = gx * o.step;
+          const float* c = C.data() + static_cast<size_t>(x) * nd;
+          int bi;
+          float best, second;
+          BestAndSecondPeak(c, nd, &bi, &best, &second);
           // Near the left edge the search stops at the largest disparity
           // whose window fits the right image; a best score at that limit
           // may still be rising, so it is no peak.
           if (x - h < 0 || x + h >= W || x - dlo - h < 0) continue;
           ++points;
-          const int bi = bestd[x], last = std::min(nd - 1, x - h - dlo);
-          if (bi < 0 || best[x] < o.min_score || best[x] - second[x] < o.min_peak_margin) continue;
+          const int last = std::min(nd - 1, x - h - dlo);
+          if (bi < 0 || best < o.min_score || best - second < o.min_peak_margin) continue;
           if (last < nd - 1 && bi == last) continue;
           const int xr = x - (dlo + bi);
-          if (o.left_right_check && std::abs(bestRd[xr] - bi) > o.max_left_right_diff) continue;
+          if (o.left_right_check && std::abs(bestRdrev[W - 1 - xr] - bi) > o.max_left_right_diff) continue;
           double offset = 0;
           if (bi > 0 && bi + 1 < nd) {
-            const double a = C[static_cast<size_t>(bi - 1) * W + x], bb = best[x], c = C[static_cast<size_t>(bi + 1) * W + x];
-            const double den = a - 2 * bb + c;
-            if (a > -2 && c > -2 && den < -1e-9) offset = std::clamp(0.5 * (a - c) / den, -0.5, 0.5);
+            const double a = c[bi - 1], bb = best, cc = c[bi + 1];
+            const double den = a - 2 * bb + cc;
+            if (a > -2 && cc > -2 && den < -1e-9) offset = std::clamp(0.5 * (a - cc) / den, -0.5, 0.5);
           }
           out_row[gx] = static_cast<float>(dlo + bi + offset);
           ++matches;
