@@ -285,8 +285,20 @@ __attribute__((target("avx2"))) void AccumulateLanes(const cv::Mat& R, const Den
       const __m128 t_hi = _mm256_cvtpd_ps(_mm256_sub_pd(xr_hi, _mm256_cvtepi32_pd(x0_hi)));
       const __m256 t = _mm256_insertf128_ps(_mm256_castps128_ps256(t_lo), t_hi, 1);
       const __m256i idx = _mm256_add_epi32(row, _mm256_insertf128_si256(_mm256_castsi128_si256(x0_lo), x0_hi, 1));
-      const __m256 p0 = _mm256_i32gather_ps(base, idx, 4), p1 = _mm256_i32gather_ps(base + 1, idx, 4);
-      const __m256 p2 = _mm256_i32gather_ps(base + 2, idx, 4), p3 = _mm256_i32gather_ps(base + 3, idx, 4);
+      // The 4 taps of each lane are adjacent: one 4-float load per lane and
+      // a transpose (fewer loads than 4 gathers).
+      alignas(32) int at[kLanes];
+      _mm256_store_si256(reinterpret_cast<__m256i*>(at), idx);
+      __m128 a0 = _mm_loadu_ps(base + at[0]), a1 = _mm_loadu_ps(base + at[1]), a2 = _mm_loadu_ps(base + at[2]),
+             a3 = _mm_loadu_ps(base + at[3]);
+      __m128 b0 = _mm_loadu_ps(base + at[4]), b1 = _mm_loadu_ps(base + at[5]), b2 = _mm_loadu_ps(base + at[6]),
+             b3 = _mm_loadu_ps(base + at[7]);
+      _MM_TRANSPOSE4_PS(a0, a1, a2, a3);
+      _MM_TRANSPOSE4_PS(b0, b1, b2, b3);
+      const __m256 p0 = _mm256_insertf128_ps(_mm256_castps128_ps256(a0), b0, 1);
+      const __m256 p1 = _mm256_insertf128_ps(_mm256_castps128_ps256(a1), b1, 1);
+      const __m256 p2 = _mm256_insertf128_ps(_mm256_castps128_ps256(a2), b2, 1);
+      const __m256 p3 = _mm256_insertf128_ps(_mm256_castps128_ps256(a3), b3, 1);
       const __m256 t2 = _mm256_mul_ps(t, t), t3 = _mm256_mul_ps(t2, t);
       __m256 w0, w1, w2, w3, dw0, dw1, dw2, dw3;
       if (kBspline) {
