@@ -309,6 +309,7 @@ vm::SurveyOptions StillsOptions(bool fast) {
   vm::SurveyOptions o = vm::LoadSurveyOptions("config/procs/uav_mosaic_files.yaml");
   if (!fast) {
     o.mosaicker.matcher.downscale = 1.0;
+    o.mosaicker.matcher.detect_width = 0;
     o.mosaicker.fallback_downscale = 0;
     o.mosaicker.async_mosaic = false;
     o.prefetch = false;
@@ -325,8 +326,9 @@ void BM_Stills(benchmark::State& state) {
   state.SetLabel(std::string(set.name) + (state.range(1) ? ", stills settings" : ", full resolution, serial"));
   int registered = 0;
   vm::SurveyTimes times;
-  double wall = 0;
+  double wall = 0, cpu = 0;
   for (auto _ : state) {
+    const double cpu0 = ProcessCpuSeconds();
     vm::SurveyRunner runner(StillsOptions(state.range(1) != 0), nullptr, nullptr);
     if (!runner.LoadPhotos(set.paths) || !runner.ChooseCamera() || !runner.ChooseFirstHeight()) {
       state.SkipWithError("photos not loaded");
@@ -336,6 +338,7 @@ void BM_Stills(benchmark::State& state) {
     registered = runner.registered();
     times = runner.times();
     wall += times.wall;
+    cpu += ProcessCpuSeconds() - cpu0;
   }
   const double n = static_cast<double>(set.paths.size());
   state.counters["photos_per_s"] = n * state.iterations() / std::max(1e-9, wall);
@@ -344,6 +347,7 @@ void BM_Stills(benchmark::State& state) {
   state.counters["registration_s"] = times.registration / n;
   state.counters["blending_s"] = times.blending / n;
   state.counters["decoding_s"] = times.decoding / n;
+  state.counters["cpu_s_per_photo"] = cpu / (n * state.iterations());  // all threads: what 2 quiet cores share
 }
 BENCHMARK(BM_Stills)->ArgsProduct({{0, 1, 2}, {0, 1}})->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
 
@@ -355,13 +359,17 @@ void BM_StillsStitcherScans(benchmark::State& state) {
   }
   state.SetLabel(set.name);
   int status = -1, joined = 0;
+  double cpu = 0;
   for (auto _ : state) {
+    const double cpu0 = ProcessCpuSeconds();
     cv::setNumThreads(2);
     auto stitcher = cv::Stitcher::create(cv::Stitcher::SCANS);
     cv::Mat pano;
     status = static_cast<int>(stitcher->stitch(set.images, pano));
     joined = status == 0 ? static_cast<int>(stitcher->component().size()) : 0;
+    cpu += ProcessCpuSeconds() - cpu0;
   }
+  state.counters["cpu_s_per_photo"] = cpu / (set.images.size() * state.iterations());
   state.counters["photos_per_s"] = benchmark::Counter(static_cast<double>(set.images.size()) * state.iterations(),
                                                       benchmark::Counter::kIsRate);
   state.counters["stitch_ok"] = status == 0;
