@@ -20,269 +20,35 @@
 
 #include <gtest/gtest.h>
 #include <signal.h>
-#include <unistd.h>
 
-#include <chrono>
-#include <cmath>
-#include <filesystem>
-#include <fstream>
-#include <functional>
 #include <iostream>
-#include <lcm/lcm-cpp.hpp>
-#include <map>
-#include <set>
 #include <sstream>
-#include <thread>
 
 #include "netns_link.h"
-#include "vloc/lcm_io/transport.h"
-#include "vloc/lcm_io/typed.h"
-#include "vloc/procman_peers_t.hpp"
-#include "vloc/procman_status_t.hpp"
-#include "vloc/site_pose_t.hpp"
-#include "vloc/stereo_image_t.hpp"
-#include "vloc/testing/subprocess.h"
-#include "vloc/traverse_t.hpp"
+#include "split_traverse.h"
 
 namespace vloc {
 namespace {
 
-namespace fs = std::filesystem;
-using testing::BinPath;
-using testing::InNetns;
-using testing::NetnsLink;
-using testing::Subprocess;
-using Clock = std::chrono::steady_clock;
+using namespace testing;  // split_traverse.h: GroundBus, LaunchIn, CountLog, ReportLink, ...
+using Clock = SplitClock;
 
 // ttl=1: the multicast crosses the link (one hop); ttl=0 would stay on each host.
 const std::string kUrl = "udpm://239.255.76.67:7981?ttl=1&recv_buf_size=33554432";
 constexpr double kLostAfter = 3.0;  // s, --lost-after of both launchers
 
-double Since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
-std::string SourceDir() {
-  const char* dir = std::getenv("VLOC_SOURCE_DIR");
-  return dir ? dir : VLOC_SOURCE_DIR;
-}
-
-std::string BinDir() {
-  const std::string launch = BinPath("vloc_launch");
-  return launch.substr(0, launch.rfind('/'));
-}
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-// What the test hears on the ground's side of the bus.
-class GroundBus {
- public:
-  explicit GroundBus(const std::string& url) {
-    std::string error;
-    transport_ = MakeLcmTransport(url, &error);
-    EXPECT_TRUE(transport_) << error;
-    if (!transport_) return;
-    Subscribe<traverse_t>(*transport_, "TRAVERSE", [this](const std::string&, const traverse_t& m) { traverse = m; }, 100);
-    Subscribe<site_pose_t>(*transport_, "SITE_POSE_GT",
-                           [this](const std::string&, const site_pose_t& m) { gt[m.site_id] = m; }, 100);
-    Subscribe<procman_status_t>(
-        *transport_, "PROCMAN_STATUS",
-        [this](const std::string&, const procman_status_t& m) {
-          status[m.host] = m;
-          ++status_count[m.host];
-        },
-        100);
-    Subscribe<procman_peers_t>(*transport_, "PROCMAN_PEERS",
-                               [this](const std::string&, const procman_peers_t& m) { peers[m.host] = m; }, 100);
-  }
-  // Forgets what was heard, after handling what is still queued (the
-  // previous run's last messages), so that it cannot pass for the next run's.
-  void Reset() {
-    WaitFor([] { return false; }, 1.0, {});
-    traverse.reset();
-    gt.clear();
-    status.clear();
-    status_count.clear();
-    peers.clear();
-  }
-  // Handles messages (draining the launchers' output) until `done` or the timeout.
-  bool WaitFor(const std::function<bool()>& done, double timeout_s, const std::vector<Subprocess*>& drain) {
-    const auto start = Clock::now();
-    while (Since(start) < timeout_s) {
-      if (transport_) transport_->Handle(100);
-      for (Subprocess* p : drain) p->Drain();
-      if (done()) return true;
-    }
-    return false;
-  }
-  // `name` in the newest status of the launcher of `host` with pid
-  // `launcher_pid` (a stopped launcher's last reports may still be queued).
-  const proc_status_t* Proc(const std::string& host, const std::string& name, int launcher_pid) const {
-    auto it = status.find(host);
-    if (it == status.end() || it->second.launcher_pid != launcher_pid) return nullptr;
-    for (const auto& p : it->second.procs)
-      if (p.name == name) return &p;
-    return nullptr;
-  }
-  bool AllRunning(const std::string& host, size_t count, int launcher_pid) const {
-    auto it = status.find(host);
-    if (it == status.end() || it->second.launcher_pid != launcher_pid || it->second.procs.size() != count)
-      return false;
-    for (const auto& p : it->second.procs)
-      if (p.state != proc_status_t::STATE_RUNNING) return false;
-    return true;
-  }
-  bool TraverseComplete(int sites) const {
-    return traverse && traverse->num_sites == sites && traverse->num_visual_edges == sites - 1;
-  }
-
-  std::optional<traverse_t> traverse;
-  std::map<int, site_pose_t> gt;
-  std::map<std::string, procman_status_t> status;
-  std::map<std::string, int> status_count;
-  std::map<std::string, procman_peers_t> peers;
-
- private:
-  std::unique_ptr<Transport> transport_;
-};
-
-// config/procs/sim_rover.yaml with 4 stereo pairs per site instead of 7
-// (rendering dominates the run time), its includes made absolute.
-std::string ShortSimConfig(const std::string& dir) {
-  std::string text = ReadFile(SourceDir() + "/config/procs/sim_rover.yaml");
-  auto replace = [&](const std::string& from, const std::string& to) {
-    const size_t at = text.find(from);
-    EXPECT_NE(at, std::string::npos) << from;
-    if (at != std::string::npos) text.replace(at, from.size(), to);
-  };
-  replace("num_pairs: 7", "num_pairs: 4");
-  replace("include: ../navcam.yaml", "include: " + SourceDir() + "/config/navcam.yaml");
-  replace("include: ../sim/terrain.yaml", "include: " + SourceDir() + "/config/sim/terrain.yaml");
-  fs::create_directories(dir);
-  const std::string path = dir + "/sim_rover_4pairs.yaml";
-  std::ofstream(path) << text;
-  return path;
-}
-
 // A vloc_launch in a namespace, running rover_split.yaml (its part of it
 // for a non-empty host).
 Subprocess Launch(const NetnsLink& link, const std::string& ns, const std::string& host, const std::string& log_dir,
                   int sites) {
-  std::vector<std::string> argv = {BinPath("vloc_launch"), "--config", SourceDir() + "/config/groups/rover_split.yaml",
-                                   "--lcm-url", kUrl, "--log-dir", log_dir, "--lost-after", "3"};
-  if (!host.empty()) argv.insert(argv.end(), {"--host", host});
-  fs::create_directories(log_dir);
-  return Subprocess(link.In(ns, argv), {"VLOC_ROOT=" + SourceDir(), "VLOC_BIN=" + BinDir(),
-                                        "VLOC_SIM_SITES=" + std::to_string(sites), "VLOC_SIM_SPEED=30",
-                                        "VLOC_SIM_CONFIG=" + ShortSimConfig(log_dir)});
+  return LaunchIn(link, ns, host, log_dir, sites, {"config/groups/rover_split.yaml", kUrl});
 }
 
-// SIGTERM, then the launcher must have stopped everything and exited.
-void Stop(Subprocess& launcher, const std::string& what) {
-  launcher.Signal(SIGTERM);
-  const auto code = launcher.WaitExit(45);
-  ASSERT_TRUE(code.has_value()) << what << " did not stop within 45 s:\n" << launcher.output();
-  EXPECT_EQ(*code, 0) << what << ":\n" << launcher.output();
-}
+void Stop(Subprocess& launcher, const std::string& what) { StopLauncher(launcher, what); }
 
-double Distance(const pose_t& a, const pose_t& b) {
-  return std::hypot(a.position[0] - b.position[0], a.position[1] - b.position[1], a.position[2] - b.position[2]);
-}
-
-// Site id -> position error against ground truth (m).
-std::map<int, double> Errors(const traverse_t& t, const std::map<int, site_pose_t>& gt) {
-  std::map<int, double> out;
-  for (int i = 0; i < t.num_sites; ++i) {
-    auto it = gt.find(t.site_ids[i]);
-    if (it != gt.end()) out[t.site_ids[i]] = Distance(t.poses[i], it->second.pose);
-  }
-  return out;
-}
-
-// One recorded log, counted: messages per channel and the stereo pairs
-// (site -> pair indices) it holds.
-struct LogCounts {
-  std::map<std::string, int> messages;
-  std::map<int, std::set<int>> pairs;
-};
-
-LogCounts CountLog(const std::string& path) {
-  LogCounts c;
-  lcm::LogFile log(path, "r");
-  if (!log.good()) return c;
-  for (const lcm::LogEvent* e = log.readNextEvent(); e; e = log.readNextEvent()) {
-    ++c.messages[e->channel];
-    if (e->channel == "NAVCAM_STEREO") {
-      stereo_image_t m;
-      if (m.decode(e->data, 0, e->datalen) == e->datalen) c.pairs[m.site_id].insert(m.pair_index);
-    }
-  }
-  return c;
-}
-
-// What crossed from the vehicle to the ground: one line per channel the
-// vehicle published (sent, received, lost) and one per site whose images
-// did not all arrive (which pairs). Returns the stereo pairs lost.
-int ReportLink(const std::string& title, const LogCounts& sent, const LogCounts& received, std::string* text) {
-  std::ostringstream out;
-  out << title << "\n  channel            sent  received  lost\n";
-  for (const char* ch : {"NAVCAM_STEREO", "ROVER_SITE", "IMU", "WHEEL_ODOM", "GT_POSE", "SITE_POSE_GT",
-                         "SITE_POSE_DR", "DR_POSE"}) {
-    const int s = sent.messages.count(ch) ? sent.messages.at(ch) : 0;
-    const int r = received.messages.count(ch) ? received.messages.at(ch) : 0;
-    char line[128];
-    std::snprintf(line, sizeof(line), "  %-16s %6d  %8d  %4d (%.1f %%)\n", ch, s, r, s - r,
-                  s > 0 ? 100.0 * (s - r) / s : 0.0);
-    out << line;
-  }
-  int lost = 0;
-  for (const auto& [site, pairs] : sent.pairs) {
-    std::set<int> got = received.pairs.count(site) ? received.pairs.at(site) : std::set<int>{};
-    std::string missing;
-    int n = 0;
-    for (int p : pairs)
-      if (!got.count(p)) {
-        missing += (missing.empty() ? "" : ",") + std::to_string(p);
-        ++n;
-      }
-    lost += n;
-    if (n > 0)
-      out << "  site " << site << ": " << n << " of " << pairs.size() << " stereo pairs lost (pairs " << missing
-          << ")\n";
-  }
-  *text = out.str();
-  return lost;
-}
-
-class MultiHost : public ::testing::Test {
+class MultiHost : public SplitLinkTest {
  protected:
-  void SetUp() override {
-    if (geteuid() != 0) GTEST_SKIP() << "needs root (CAP_NET_ADMIN) to create network namespaces; run as root";
-    std::string error;
-    link_ = std::make_unique<NetnsLink>("vl18" + std::to_string(getpid() % 100000));
-    if (!link_->Create(&error))
-      GTEST_SKIP() << "cannot create network namespaces (needs root / CAP_NET_ADMIN and iproute2): " << error;
-    in_ground_ = std::make_unique<InNetns>(link_->ground());
-    ASSERT_TRUE(in_ground_->ok()) << "cannot enter namespace " << link_->ground();
-    bus_ = std::make_unique<GroundBus>(kUrl);
-    dir_ = ::testing::TempDir() + "/multihost_" + std::to_string(getpid());
-    fs::remove_all(dir_);
-  }
-  void TearDown() override {
-    bus_.reset();
-    in_ground_.reset();
-    link_.reset();
-    // The runs' logs (tens of MB of images) are kept only to look into a failure.
-    if (!HasFailure() && !dir_.empty()) fs::remove_all(dir_);
-  }
-
-  std::unique_ptr<NetnsLink> link_;
-  std::unique_ptr<InNetns> in_ground_;
-  std::unique_ptr<GroundBus> bus_;
-  std::string dir_;
+  void SetUp() override { SetUpLink("vl18", kUrl); }
 };
 
 TEST_F(MultiHost, SplitGroupMatchesOneHostSurvivesKillCutAndLoss) {
@@ -330,21 +96,7 @@ TEST_F(MultiHost, SplitGroupMatchesOneHostSurvivesKillCutAndLoss) {
   EXPECT_NE(vehicle.output().find("peers: launcher 'ground'"), std::string::npos) << vehicle.output();
 
   // The same traverse as on one host: same inputs, same processes.
-  const traverse_t split = *bus_->traverse;
-  ASSERT_EQ(split.num_sites, reference->num_sites);
-  auto split_errors = Errors(split, bus_->gt), reference_errors = Errors(*reference, reference_gt);
-  for (int i = 0; i < split.num_sites; ++i) {
-    ASSERT_EQ(split.site_ids[i], reference->site_ids[i]);
-    const double diff = Distance(split.poses[i], reference->poses[i]);
-    std::cout << "[multihost] site " << split.site_ids[i] << ": split vs one host " << diff * 1000 << " mm; error vs "
-              << "truth split " << split_errors[split.site_ids[i]] * 1000 << " mm, one host "
-              << reference_errors[split.site_ids[i]] * 1000 << " mm\n";
-    // Thread timing in the front end and BA moves a site by up to ~2 mm
-    // between two runs on one host; the split run must stay within the
-    // accuracy target (0.1 % of the distance between sites) of the one-host run.
-    const double spacing = i == 0 ? 0.0 : Distance(bus_->gt[split.site_ids[i]].pose, bus_->gt[split.site_ids[i - 1]].pose);
-    EXPECT_LE(diff, 1e-3 * spacing) << "site " << split.site_ids[i] << ", " << spacing << " m from the previous site";
-  }
+  ExpectSameTraverse("multihost", *bus_->traverse, bus_->gt, *reference, reference_gt);
 
   // A process killed on the vehicle: restarted there, seen from the ground.
   {
