@@ -46,9 +46,13 @@ int main(int argc, char** argv) {
   }
   std::atomic<bool> stop{false};
   std::thread link([&] { adapter.RunLink(stop); });
-  const int rc = vloc::RunUntilSignal(*setup->transport, 100);
+  const int rc = vloc::RunUntilSignal(*setup->transport, 100, {}, [&] { return adapter.LoopDetected(); });
   stop = true;
   link.join();
   LOG(INFO) << adapter.Summary();
+  if (adapter.LoopDetected()) {
+    std::cerr << "vloc_lcm_tunnel: " << adapter.LoopProblem() << "\n";
+    return 1;
+  }
   return rc;
 }

@@ -112,9 +112,27 @@ bool TunnelAdapter::Start(std::string* error) {
 void TunnelAdapter::OnBusMessage(const std::string& channel, const uint8_t* data, size_t size) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    core_.OnLocalMessage(channel, data, size, WallUs(), NowS());
+    const bool taken = core_.OnLocalMessage(channel, data, size, WallUs(), NowS());
+    if (taken && channel == options_.status_channel) CheckForLoop(data, size);
   }
   link_.Wake();
+}
+
+void TunnelAdapter::CheckForLoop(const uint8_t* data, size_t size) {
+  tunnel_status_t status;
+  if (!Decode(data, size, &status) || status.name == options_.name) return;
+  const std::string& peer = core_.peer_name();
+  if (peer.empty() || status.name != peer) return;  // another tunnel on this bus (a ground with two rovers) is fine
+  if (++peer_reports_heard_directly_ < kLoopEvidence || loop_detected_.load()) return;
+  loop_peer_ = peer;
+  loop_detected_ = true;
+}
+
+std::string TunnelAdapter::LoopProblem() const {
+  return options_.name + ": the peer '" + loop_peer_ + "' publishes on this tunnel's own bus (" +
+         std::to_string(kLoopEvidence) +
+         " of its status reports heard here directly): the two ends would forward every message round and round; "
+         "run one end per bus (one host each: rover_split_tunnel.yaml with --host), or join them without a tunnel";
 }
 
 void TunnelAdapter::RunLink(const std::atomic<bool>& stop) {

@@ -30,9 +30,16 @@ class TunnelAdapter {
   void RunLink(const std::atomic<bool>& stop);
   // One line of totals, for the end of the run.
   std::string Summary();
+  // The peer's own status reports are heard on this bus, not only this end's
+  // republished copies: both ends share one bus and would forward every
+  // message round and round. The process stops with `LoopProblem()`.
+  bool LoopDetected() const { return loop_detected_.load(); }
+  std::string LoopProblem() const;
 
  private:
   void OnBusMessage(const std::string& channel, const uint8_t* data, size_t size);
+  // A status report heard on this bus that this end did not republish: the peer's means a loop.
+  void CheckForLoop(const uint8_t* data, size_t size);
   void PublishStatus(double now_s);
 
   Transport& transport_;
@@ -43,6 +50,10 @@ class TunnelAdapter {
   std::map<std::string, int64_t> dropped_logged_;  // per channel, drops already logged
   double next_status_s_ = 0;
   tunnel::TunnelReport last_report_;
+  static constexpr int kLoopEvidence = 3;  // the peer's reports heard directly before it is called a loop
+  int peer_reports_heard_directly_ = 0;     // guarded by mutex_
+  std::string loop_peer_;                   // guarded by mutex_
+  std::atomic<bool> loop_detected_{false};
 };
 
 }  // namespace vloc

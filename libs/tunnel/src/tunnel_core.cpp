@@ -132,22 +132,22 @@ bool TunnelCore::ConsumeEcho(uint64_t key, double now_s) {
   return true;
 }
 
-void TunnelCore::OnLocalMessage(const std::string& channel, const uint8_t* data, size_t size, int64_t wall_us,
+bool TunnelCore::OnLocalMessage(const std::string& channel, const uint8_t* data, size_t size, int64_t wall_us,
                                 double now_s) {
   if (ConsumeEcho(EchoKey(channel, data, size), now_s)) {
     ++echoes_skipped_;
-    return;
+    return false;
   }
   Channel* c = FindOrAdd(channel);
   if (!c) {
     ++dropped_too_many_channels_;
-    return;
+    return true;
   }
-  if (!c->send) return;  // heard, but not ours to send (e.g. a wider subscription)
+  if (!c->send) return true;  // heard, but not ours to send (e.g. a wider subscription)
   if (size > limits_.max_message_bytes || !ValidChannelName(channel)) {
     ++dropped_too_large_;
     ++c->dropped;
-    return;
+    return true;
   }
   Outgoing out;
   out.msg_id = next_msg_id_++;
@@ -176,6 +176,7 @@ void TunnelCore::OnLocalMessage(const std::string& channel, const uint8_t* data,
   }
   c->high_water = std::max(c->high_water, c->queued_bytes);
   queued_high_water_ = std::max(queued_high_water_, queued_bytes_);
+  return true;
 }
 
 void TunnelCore::OnFrame(const uint8_t* bytes, size_t size, int64_t wall_us, double now_s, const DeliverFn& deliver) {

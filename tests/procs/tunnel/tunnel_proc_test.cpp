@@ -8,6 +8,9 @@
 //     the surviving end's bus arrives, complete and in order.
 //   - a bad command line and garbage on the TCP port: one line, exit 1 /
 //     the tunnel keeps working.
+//   - both ends on one bus (a split group run whole on one machine): each
+//     hears the other's reports directly and stops with one line, exit 1,
+//     instead of forwarding every message round and round.
 // Counts and order are asserted, never timings.
 
 #include <arpa/inet.h>
@@ -217,6 +220,32 @@ TEST_F(TunnelProc, BadCommandLineOneLineAndGarbageOnTheLinkSurvived) {
   ASSERT_TRUE(Wait([&] { return ground_bus.Count("T_IMU") >= 20; }, {vehicle.get(), ground.get()}))
       << ground->output();
   EXPECT_TRUE(InOrder(ground_bus.received["T_IMU"], 20));
+}
+
+TEST(TunnelLoop, BothEndsOnOneBusStopWithOneLine) {
+  const std::string url = testing::TestLcmUrl(8213);
+  const std::string port = std::to_string(kTcpPort + 2);
+  Subprocess ground({BinPath("vloc_lcm_tunnel"), "--config", "config/procs/vloc_lcm_tunnel.yaml", "--name", "ground",
+                     "--bind", "tcp://127.0.0.1:" + port, "--lcm-url", url});
+  Subprocess vehicle({BinPath("vloc_lcm_tunnel"), "--config", "config/procs/vloc_lcm_tunnel.yaml", "--name", "vehicle",
+                      "--connect", "tcp://127.0.0.1:" + port, "--lcm-url", url});
+  const std::string line = "publishes on this tunnel's own bus";
+  // Either end may notice first; the other then loses its peer and keeps waiting for it.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(kDeadline);
+  int noticed = 0;
+  while (noticed == 0 && std::chrono::steady_clock::now() < deadline) {
+    ground.Drain();
+    vehicle.Drain();
+    for (Subprocess* p : {&ground, &vehicle})
+      if (p->WaitExit(0.1).has_value() && p->output().find(line) != std::string::npos) ++noticed;
+  }
+  ASSERT_GE(noticed, 1) << ground.output() << "\n----\n" << vehicle.output();
+  for (Subprocess* p : {&ground, &vehicle}) {
+    if (p->output().find(line) == std::string::npos) continue;
+    EXPECT_EQ(p->WaitExit(1).value_or(-1), 1) << p->output();
+    const std::string& out = p->output();
+    EXPECT_EQ(out.find(line), out.rfind(line)) << "one line, not one per report: " << out;
+  }
 }
 
 }  // namespace

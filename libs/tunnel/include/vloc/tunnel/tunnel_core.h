@@ -103,7 +103,8 @@ class TunnelCore {
   // A message heard on this bus (channel already matched send_channels).
   // Queues it unless it is the echo of one this end republished. `wall_us`
   // is the wall-clock time (us).
-  void OnLocalMessage(const std::string& channel, const uint8_t* data, size_t size, int64_t wall_us, double now_s);
+  // False when the message is the echo of one this end republished (skipped), true when taken.
+  bool OnLocalMessage(const std::string& channel, const uint8_t* data, size_t size, int64_t wall_us, double now_s);
   // A frame from the link. Messages completed by it go to `deliver` (after
   // being remembered as echoes). Malformed frames are counted, never trusted.
   void OnFrame(const uint8_t* bytes, size_t size, int64_t wall_us, double now_s, const DeliverFn& deliver);
@@ -122,6 +123,8 @@ class TunnelCore {
   // The report for TUNNEL_STATUS; rates and latencies over the time since
   // the previous report (which this call starts anew).
   TunnelReport Report(double now_s);
+  // The other end's name as it introduced itself ("" until heard).
+  const std::string& peer_name() const { return peer_name_; }
   bool connected() const { return connected_; }
   uint64_t session() const { return session_; }
 
