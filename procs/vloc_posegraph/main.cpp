@@ -12,6 +12,8 @@
 // the iterations and the time, and with --weights sesync whether SE-Sync's
 // certificate of global optimality holds. Exit code 0 when the solve is usable.
 
+#include <omp.h>
+
 #include <iostream>
 
 #include "vloc/common/command_line.h"
@@ -51,6 +53,7 @@ int main(int argc, char** argv) {
       std::cerr << "vloc_posegraph: " << error << "\n";
       return 1;
     }
+    omp_set_num_threads(options.num_threads);  // CHOLMOD's and METIS' OpenMP too, not only the solver's loops
     vloc::posegraph::GraphFile file;
     const auto use = weights == "sesync" ? vloc::posegraph::InformationUse::kSeSyncBlocks
                                          : vloc::posegraph::InformationUse::kChi2;

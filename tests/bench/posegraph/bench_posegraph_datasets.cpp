@@ -21,6 +21,8 @@
 // synthetic sets as g2o files (for vloc_posegraph) and exits.
 // Skips the public sets with a message when the data is absent.
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -300,6 +302,7 @@ int main(int argc, char** argv) {
     }
     return 0;
   }
+  omp_set_num_threads(1);  // 1 thread: CHOLMOD's and METIS' OpenMP too
   const std::string dir = args.Get("data", std::string(VLOC_SOURCE_DIR) + "/../shared/data/posegraph");
   const int reps = args.GetInt("reps", 5), peer_reps = args.GetInt("peer-reps", 5);
   const std::string sets = args.Get("sets", "");

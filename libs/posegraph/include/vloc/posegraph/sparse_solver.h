@@ -78,7 +78,7 @@ using PoseGraph3 = PoseGraphProblem<3>;
 struct SolverOptions {
   bool chordal_initialisation = true;     // rotation averaging + linear translations before the local solve
   int max_iterations = 100;               // Levenberg-Marquardt iterations
-  double relative_cost_tolerance = 1e-9;  // stop when an accepted step lowers the cost by less than this fraction
+  double relative_cost_tolerance = 1e-8;  // stop when an accepted step lowers the cost by less than this fraction
   double gradient_tolerance = 1e-10;      // stop when |J^T W e|_inf <= this
   double initial_lambda = 1e-12;          // initial damping, relative to each diagonal entry of the Hessian (Gauss-Newton first)
   std::string robust_kernel = "dcs";      // on robust edges: "none", "cauchy" or "dcs" (dynamic covariance scaling)
