@@ -2,6 +2,7 @@
 // it publishes UAV_STATE for the frames with heights that follow UAV_GT, a
 // UAV_MOSAIC preview, and writes the mosaic on SIGUSR1; a misspelt key stops it.
 #include <gtest/gtest.h>
+#include <iterator>
 #include <signal.h>
 #include <unistd.h>
 
@@ -50,10 +51,24 @@ TEST(UavMosaickerProcess, TracksSimulatedFlightOverRealLcm) {
     ++previews;
     preview_size = ImageFromMessage(m).size();
   }, 10);
-  Subprocess mosaicker({BinPath("uav_mosaicker"), "--config", "config/procs/uav_mosaicker.yaml", "--lcm-url", url,
-                        "--output", mosaic});
+  // The flight's config with every frame kept (camera_queue 1000, not 8): this test checks tracking and height, and
+  // a mosaicker starved of CPU (a loaded machine) would otherwise drop frames as it does in real time and lose the
+  // track across the gap (found at load 10: 16 LOST, "too few matches").
+  const std::string config = TempPath("uav_mosaicker.yaml");
+  {
+    std::ifstream in("config/procs/uav_mosaicker.yaml");
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    for (size_t at = text.find("include: ../"); at != std::string::npos; at = text.find("include: ../", at))
+      text.replace(at, 12, "include: " + std::filesystem::absolute("config").string() + "/");
+    const size_t q = text.find("camera_queue: 8");
+    ASSERT_NE(q, std::string::npos);
+    text.replace(q, 15, "camera_queue: 1000");
+    std::ofstream(config) << text;
+  }
+  Subprocess mosaicker({BinPath("uav_mosaicker"), "--config", config, "--lcm-url", url, "--output", mosaic});
   // Frames published before the mosaicker has subscribed would be lost.
   ASSERT_TRUE(mosaicker.WaitForOutput(kReadyLine, 60)) << mosaicker.output();
+  std::filesystem::remove(config);  // read at start
   Subprocess sim({BinPath("sim_uav"), "--config", "config/procs/sim_uav.yaml", "--lcm-url", url, "--duration", "9",
                   "--fps", "10", "--speed", "0.5"});
   std::optional<int> sim_code;
@@ -82,9 +97,11 @@ TEST(UavMosaickerProcess, TracksSimulatedFlightOverRealLcm) {
   // 91 frames published; real-time processing may drop some (camera_queue), most arrive.
   ASSERT_GT(states.size(), 40u) << mosaicker.output();
   int tracked = 0, checked = 0, lost = 0, well_matched = 0;
+  std::string lost_why;  // the first LOST frames' reasons
   double worst = 0;
   for (const auto& s : states) {
-    if (s.status == uav_state_t::STATUS_LOST) ++lost;
+    if (s.status == uav_state_t::STATUS_LOST && ++lost <= 5)
+      lost_why += "frame " + std::to_string(s.frame_index) + ": " + s.message + "\n";
     if (s.status != uav_state_t::STATUS_TRACKING && s.status != uav_state_t::STATUS_RECOVERED) continue;
     ++tracked;
     auto it = truth_height.find(s.utime);
@@ -93,7 +110,7 @@ TEST(UavMosaickerProcess, TracksSimulatedFlightOverRealLcm) {
     worst = std::max(worst, std::abs(s.height - it->second) / it->second);
     if (s.num_inliers > 25) ++well_matched;  // all but the frame that starts the mosaic
   }
-  EXPECT_EQ(lost, 0);
+  EXPECT_EQ(lost, 0) << lost_why;
   EXPECT_GT(tracked, 30);
   EXPECT_EQ(well_matched, tracked - 1);
   EXPECT_GT(checked, 30);
