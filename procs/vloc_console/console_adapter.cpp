@@ -165,11 +165,7 @@ void ConsoleAdapter::SubscribeRover() {
   Watch<stereo_image_t>(
       o.stereo_channel,
       [this](const stereo_image_t& m) {
-        if (m.site_id < 0 || m.num_pairs < 1 || m.num_pairs > kMaxPairsPerSite || m.pair_index < 0 ||
-            m.pair_index >= m.num_pairs)
-          throw std::invalid_argument("stereo pair " + std::to_string(m.pair_index) + " of site " +
-                                      std::to_string(m.site_id) + ": pair_index must be in [0, num_pairs) and " +
-                                      "num_pairs in [1, " + std::to_string(kMaxPairsPerSite) + "]");
+        CheckStereoPairIndex(m);  // a pair index beyond num_pairs would add a kept image per index
         OnLeftImage(m.site_id, m.pair_index, m.left);
       },
       kStereoQueue);
@@ -290,10 +286,8 @@ std::vector<std::string> ConsoleAdapter::Welcome() const {
   // The page's whole picture within welcome_max_bytes: what is not per site
   // first, the UAV history (newest states), then the newest sites.
   size_t budget = static_cast<size_t>(options_.welcome_max_bytes);
-  std::vector<std::string> general;
   for (const auto& [key, text] : picture_)
-    if (SiteOfKey(key) < 0) general.push_back(text);
-  for (const std::string& text : general) budget -= std::min(budget, text.size());
+    if (SiteOfKey(key) < 0) budget -= std::min(budget, text.size());
   size_t first = uav_states_.size(), history_bytes = 0;  // the newest states within half the budget
   while (first > 0 && history_bytes + uav_states_[first - 1].size() + 1 < budget / 2)
     history_bytes += uav_states_[--first].size() + 1;

@@ -231,15 +231,20 @@ struct ConsoleServer::Impl {
     return true;
   }
 
+  // Whether the request's Host names this server (DNS rebinding); false and *why (counted) otherwise.
+  bool OurHost(const std::string& host, std::string* why) {
+    if (HostAllowed(host, options.allowed_hosts)) return true;
+    ++stats.hosts_refused;
+    *why = "host '" + host.substr(0, 100) + "' is not served here (server.allowed_hosts)";
+    return false;
+  }
+
   void OnHttp(Hdl hdl) {
     ++stats.http_requests;
     const WsServer::connection_ptr con = server.get_con_from_hdl(hdl);
     if (Crowded()) return Reply(con, Error(503, "busy: too many connections, try again"));
-    const std::string host = con->get_request_header("Host");
-    if (!HostAllowed(host, options.allowed_hosts)) {
-      ++stats.hosts_refused;
-      return Reply(con, Error(403, "host '" + host.substr(0, 100) + "' is not served here (server.allowed_hosts)"));
-    }
+    std::string why;
+    if (!OurHost(con->get_request_header("Host"), &why)) return Reply(con, Error(403, why));
     try {
       Reply(con, Route(con->get_request().get_method(), con->get_resource()));
     } catch (const std::exception& e) {
@@ -258,10 +263,7 @@ struct ConsoleServer::Impl {
     const std::string host = con->get_request_header("Host");
     const std::string origin = con->get_request_header("Origin");
     std::string why;
-    if (!HostAllowed(host, options.allowed_hosts)) {
-      ++stats.hosts_refused;
-      why = "host '" + host.substr(0, 100) + "' is not served here (server.allowed_hosts)";
-    } else if (!origin.empty() && !OriginAllowed(origin, host, options.allowed_origins)) {
+    if (OurHost(host, &why) && !origin.empty() && !OriginAllowed(origin, host, options.allowed_origins)) {
       ++stats.origins_refused;
       why = "a page from '" + origin.substr(0, 100) + "' may not open this console (server.allowed_origins)";
     }

@@ -40,13 +40,18 @@ stereo_image_t StereoPairToMessage(const StereoPair& pair, ImageEncoding encodin
 
 StereoPair StereoPairFromMessage(const stereo_image_t& msg) { return StereoPairFromMessage(msg, ImageLimits()); }
 
-StereoPair StereoPairFromMessage(const stereo_image_t& msg, const ImageLimits& limits) {
+void CheckStereoPairIndex(const stereo_image_t& msg) {
   const std::string who = "stereo pair " + std::to_string(msg.pair_index) + " of site " + std::to_string(msg.site_id);
   if (msg.site_id < 0) throw std::invalid_argument(who + ": negative site id");
   if (msg.num_pairs <= 0 || msg.num_pairs > kMaxPairsPerSite || msg.pair_index < 0 || msg.pair_index >= msg.num_pairs)
     throw std::invalid_argument(who + ": pair_index must be in [0, num_pairs) and num_pairs in [1, " +
                                 std::to_string(kMaxPairsPerSite) + "] (num_pairs " + std::to_string(msg.num_pairs) +
                                 ")");
+}
+
+StereoPair StereoPairFromMessage(const stereo_image_t& msg, const ImageLimits& limits) {
+  CheckStereoPairIndex(msg);
+  const std::string who = "stereo pair " + std::to_string(msg.pair_index) + " of site " + std::to_string(msg.site_id);
   RequireFinite(msg.mast_pan, who + ": mast_pan");
   RequireFinite(msg.mast_tilt, who + ": mast_tilt");
   StereoPair pair;

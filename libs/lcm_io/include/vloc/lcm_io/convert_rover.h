@@ -14,6 +14,9 @@ namespace vloc {
 
 stereo_image_t StereoPairToMessage(const StereoPair& pair, ImageEncoding encoding);
 StereoPair StereoPairFromMessage(const stereo_image_t& msg);  // images as CV_8UC1
+// Throws (one line) unless site_id >= 0, num_pairs in [1, kMaxPairsPerSite] and pair_index in [0, num_pairs):
+// what StereoPairFromMessage checks first, for a reader that takes no images out (the console).
+void CheckStereoPairIndex(const stereo_image_t& msg);
 
 imu_t ImuToMessage(const ImuSample& sample);
 ImuSample ImuFromMessage(const imu_t& msg);
