@@ -105,13 +105,7 @@ OptimalityCertificate CertifyGlobalOptimum(const PoseGraphProblem<D>& problem, c
       for (int b = 0; b < D; ++b) lambda.emplace_back(r_col(i) + a, r_col(i) + b, -L(a, b));
   }
   c.stationarity = CX.norm() / std::max(XM.norm(), 1e-300);
-  Eigen::SparseMatrix<double> C(size, size);
-  std::vector<Eigen::Triplet<double>> all = m;
-  all.insert(all.end(), lambda.begin(), lambda.end());
-  C.setFromTriplets(all.begin(), all.end());
   c.eta = options.min_eig_num_tol;
-  for (int k = 0; k < size; ++k) all.emplace_back(k, k, c.eta);
-  C.setFromTriplets(all.begin(), all.end());
   std::ostringstream os;
   os.precision(10);
   os << "F = " << c.objective;
@@ -124,6 +118,11 @@ OptimalityCertificate CertifyGlobalOptimum(const PoseGraphProblem<D>& problem, c
   } else {
     // As SE-Sync's fast_verification: a supernodal Cholesky of C + eta I,
     // which stops at the first pivot that is not positive.
+    std::vector<Eigen::Triplet<double>> all = m;
+    all.insert(all.end(), lambda.begin(), lambda.end());
+    for (int k = 0; k < size; ++k) all.emplace_back(k, k, c.eta);
+    Eigen::SparseMatrix<double> C(size, size);
+    C.setFromTriplets(all.begin(), all.end());
     Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> llt;
     llt.cholmod().quick_return_if_not_posdef = 1;
     llt.cholmod().print = 0;
