@@ -259,14 +259,14 @@ ZnccStage ZnccRows(const cv::Mat& left8, const cv::Mat& right8, const DenseStere
         for (int gx = 0; gx < gw; ++gx) {
           const int x = gx * o.step;
           const float* c = C.data() + static_cast<size_t>(x) * nd;
-          int bi;
-          float best, second;
-          BestAndSecondPeak(c, nd, &bi, &best, &second);
           // Near the left edge the search stops at the largest disparity
           // whose window fits the right image; a best score at that limit
           // may still be rising, so it is no peak.
           if (x - h < 0 || x + h >= W || x - dlo - h < 0) continue;
           ++points;
+          int bi;
+          float best, second;
+          BestAndSecondPeak(c, nd, &bi, &best, &second);
           const int last = std::min(nd - 1, x - h - dlo);
           if (bi < 0 || best < o.min_score || best - second < o.min_peak_margin) continue;
           if (last < nd - 1 && bi == last) continue;
