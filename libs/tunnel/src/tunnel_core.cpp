@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "vloc/common/stats.h"
+
 namespace vloc::tunnel {
 namespace {
 
@@ -439,9 +441,7 @@ TunnelReport TunnelCore::Report(double now_s) {
   r.echoes_skipped = echoes_skipped_;
   r.latency_samples = static_cast<int>(period_latencies_ms_.size());
   if (!period_latencies_ms_.empty()) {
-    auto mid = period_latencies_ms_.begin() + static_cast<long>(period_latencies_ms_.size() / 2);
-    std::nth_element(period_latencies_ms_.begin(), mid, period_latencies_ms_.end());
-    r.latency_median_ms = *mid;
+    r.latency_median_ms = Median(period_latencies_ms_);
     r.latency_max_ms = *std::max_element(period_latencies_ms_.begin(), period_latencies_ms_.end());
   }
   for (auto& [name, c] : channels_) {
