@@ -8,6 +8,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "vloc/common/image_header.h"
 #include "vloc/common/pds_label.h"
 
 namespace vloc {
@@ -175,7 +176,15 @@ cv::Mat LoadImage(const std::string& path, std::string* why) {
       return cv::Mat();
     }
   } else {
-    image = cv::imread(path, cv::IMREAD_UNCHANGED);
+    // The header is checked before anything is decoded: a file that claims 30,000 x 30,000 px is refused, not decoded.
+    std::vector<uint8_t> bytes;
+    ImageHeader header;
+    std::string error;
+    if (!ReadCheckedImageFile(path, ImageLimits(), &bytes, &header, &error)) {
+      *why = "cannot be decoded (" + error + ")";
+      return image;
+    }
+    image = cv::imdecode(bytes, cv::IMREAD_UNCHANGED);
     if (image.empty()) {
       *why = "cannot be decoded (not an image or corrupt)";
       return image;

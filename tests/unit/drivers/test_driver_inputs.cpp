@@ -2,6 +2,8 @@
 // clear line, and the good rows are kept.
 #include <gtest/gtest.h>
 
+#include <fstream>
+
 #include <cmath>
 #include <exiv2/exiv2.hpp>
 
@@ -50,6 +52,26 @@ TEST(NavcamManifest, KeepsGoodRowsAndNamesEachBadOne) {
   EXPECT_FALSE(LoadNavcamPair(m.entries[2], &pair, &error));
   EXPECT_NE(error.find("site 0 pair 2: left image"), std::string::npos) << error;
   EXPECT_NE(error.find("cannot be decoded"), std::string::npos) << error;
+  std::filesystem::remove_all(dir);
+}
+
+TEST(NavcamManifest, AnImageThatClaimsTooManyPixelsIsRefusedBeforeDecoding) {
+  const std::string dir = testing::MakeFixtureDir("manifest_bomb");
+  const NavcamManifest m = ReadNavcamManifest(testing::WriteNavcamFixture(dir));
+  ASSERT_FALSE(m.entries.empty());
+  // A PNG signature and an IHDR claiming 30,000 x 30,000 x 3 (2.7 GB decoded), then nothing worth decoding.
+  std::vector<uint8_t> png = {0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A, 0, 0, 0, 13, 'I', 'H', 'D', 'R'};
+  for (const uint32_t side : {30000u, 30000u})
+    for (int shift = 24; shift >= 0; shift -= 8) png.push_back(static_cast<uint8_t>(side >> shift));
+  png.insert(png.end(), {8, 2, 0, 0, 0, 0, 0, 0, 0});
+  std::ofstream(dir + "/site0/L0.png", std::ios::binary).write(reinterpret_cast<const char*>(png.data()), png.size());
+  StereoPair pair;
+  std::string error;
+  EXPECT_FALSE(LoadNavcamPair(m.entries[0], &pair, &error));
+  EXPECT_NE(error.find("site 0 pair 0: left image"), std::string::npos) << error;
+  EXPECT_NE(error.find("over the limit"), std::string::npos) << error;
+  EXPECT_EQ(error.find('\n'), std::string::npos) << "one line: " << error;
+  EXPECT_TRUE(LoadNavcamPair(m.entries[1], &pair, &error)) << error;  // the good pairs still load
   std::filesystem::remove_all(dir);
 }
 
