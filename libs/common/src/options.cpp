@@ -17,6 +17,51 @@ bool Fail(std::string* error, const std::string& message) {
 
 namespace {
 
+// A number as the rules print it: 3, 0.5, 1e-06.
+std::string Num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.12g", v);
+  return buf;
+}
+
+}  // namespace
+
+NumberBound operator&&(const NumberBound& a, const NumberBound& b) {
+  return NumberBound([a, b](double v) { return a.Holds(v) && b.Holds(v); }, a.rule() + " and " + b.rule());
+}
+NumberBound operator||(const NumberBound& a, const NumberBound& b) {
+  return NumberBound([a, b](double v) { return a.Holds(v) || b.Holds(v); }, a.rule() + " or " + b.rule());
+}
+NumberBound AtLeast(double a) { return NumberBound([a](double v) { return v >= a; }, ">= " + Num(a)); }
+NumberBound Above(double a) { return NumberBound([a](double v) { return v > a; }, "> " + Num(a)); }
+NumberBound AtMost(double b) { return NumberBound([b](double v) { return v <= b; }, "<= " + Num(b)); }
+NumberBound Below(double b) { return NumberBound([b](double v) { return v < b; }, "< " + Num(b)); }
+NumberBound InRange(double a, double b) {
+  return NumberBound([a, b](double v) { return v >= a && v <= b; }, "in [" + Num(a) + ", " + Num(b) + "]");
+}
+NumberBound InOpen(double a, double b) {
+  return NumberBound([a, b](double v) { return v > a && v < b; }, "in (" + Num(a) + ", " + Num(b) + ")");
+}
+NumberBound InLeftOpen(double a, double b) {
+  return NumberBound([a, b](double v) { return v > a && v <= b; }, "in (" + Num(a) + ", " + Num(b) + "]");
+}
+NumberBound InRightOpen(double a, double b) {
+  return NumberBound([a, b](double v) { return v >= a && v < b; }, "in [" + Num(a) + ", " + Num(b) + ")");
+}
+NumberBound Is(double x) { return NumberBound([x](double v) { return v == x; }, Num(x)); }
+NumberBound Odd() { return NumberBound([](double v) { return std::fmod(std::fabs(v), 2.0) == 1.0; }, "odd"); }
+NumberBound Finite() { return NumberBound([](double v) { return std::isfinite(v); }, "finite"); }
+
+Bound<std::string> OneOf(std::initializer_list<const char*> values) {
+  std::vector<std::string> list(values.begin(), values.end());
+  std::string rule = "one of";
+  for (size_t i = 0; i < list.size(); ++i) rule += (i ? ", " : " ") + list[i];
+  return Bound<std::string>(
+      [list](const std::string& v) { return std::find(list.begin(), list.end(), v) != list.end(); }, rule);
+}
+
+namespace {
+
 // What loading one config file (its includes and aliases expanded) may
 // build: a 320-byte file of nested aliases (a "billion laughs") expands to
 // billions of nodes, so nodes are counted as they are copied and the file
@@ -223,8 +268,39 @@ void OptionsReader::Throw(const std::string& key, const std::string& what) const
   throw ConfigError(context_ + "." + key + ": " + what);
 }
 
+OptionsReader OptionsReader::Checker(std::string* error) {
+  OptionsReader checker(YAML::Node(), "");
+  checker.check_error_ = error;
+  return checker;
+}
+
+void OptionsReader::CheckFailed(const std::string& key, const std::string& rule) {
+  if (!check_error_->empty()) return;  // the first failure is the one reported
+  std::string value;
+  const YAML::Node& echo = echo_;  // const: looking a key up must not add it
+  if (echo[key]) {
+    YAML::Emitter out;
+    out.SetMapFormat(YAML::Flow);
+    out.SetSeqFormat(YAML::Flow);
+    out << echo[key];
+    value = out.c_str();
+  }
+  *check_error_ = context_ + key + (value.empty() ? "" : " = " + value) + ": " + rule;
+}
+
+void OptionsReader::Relation(const std::string& key, bool holds, const std::string& rule) {
+  if (checking() && !holds) CheckFailed(key, rule);
+}
+
 template <class T>
-void OptionsReader::Read(const std::string& key, T* value, bool required, const char* /*comment*/) {
+void OptionsReader::Read(const std::string& key, T* value, bool required, const char* /*doc*/,
+                         const Bound<T>& bound) {
+  if (checking()) {  // the value, for a relation's message; then its bound
+    if (!check_error_->empty()) return;
+    echo_[key] = Encode(*value);
+    if (!bound.Holds(*value)) CheckFailed(key, "must be " + bound.rule());
+    return;
+  }
   visited_.insert(key);
   const YAML::Node n = (node_ && node_.IsMap()) ? node_[key] : YAML::Node();
   if (!n || n.IsNull()) {
@@ -240,7 +316,7 @@ void OptionsReader::Read(const std::string& key, T* value, bool required, const 
 }
 
 #define VLOC_INSTANTIATE(T) \
-  template void OptionsReader::Read<T>(const std::string&, T*, bool, const char*);
+  template void OptionsReader::Read<T>(const std::string&, T*, bool, const char*, const Bound<T>&);
 VLOC_INSTANTIATE(bool)
 VLOC_INSTANTIATE(int)
 VLOC_INSTANTIATE(int64_t)
@@ -256,6 +332,13 @@ VLOC_INSTANTIATE(Eigen::Vector3d)
 #undef VLOC_INSTANTIATE
 
 void OptionsReader::Child(const std::string& key, const std::function<void(OptionsReader&)>& visit) {
+  if (checking()) {
+    if (!check_error_->empty()) return;
+    OptionsReader child = Checker(check_error_);
+    child.context_ = context_ + key + ".";
+    visit(child);
+    return;
+  }
   visited_.insert(key);
   const YAML::Node n = (node_ && node_.IsMap()) ? node_[key] : YAML::Node();
   OptionsReader child(n ? n : YAML::Node(YAML::NodeType::Map), context_ + "." + key);

@@ -127,16 +127,13 @@ struct Demo {
   Eigen::Vector3d v = Eigen::Vector3d(1, 2, 3);
   int must = 0;             // required
   void Visit(OptionsReader& r) {
-    r.Optional("num_threads", &num_threads);
-    r.Optional("ratio", &ratio);
-    r.Optional("name", &name);
+    r.Optional("num_threads", &num_threads, "threads", AtLeast(1));
+    r.Optional("ratio", &ratio, "Lowe ratio", InLeftOpen(0, 1));
+    r.Optional("name", &name, "a name", NonEmpty());
     r.Optional("v", &v);
     r.Required("must", &must);
   }
-  bool Check(std::string* error) const {
-    if (num_threads < 1) return Fail(error, "num_threads must be >= 1 (got " + std::to_string(num_threads) + ")");
-    return true;
-  }
+  bool Check(std::string* error) const { return CheckOptions(*this, error); }
 };
 
 std::string ErrorOf(const std::string& yaml) {
@@ -170,7 +167,135 @@ TEST(Options, MissingRequiredKey) {
 }
 
 TEST(Options, OutOfRangeValue) {
-  EXPECT_EQ(ErrorOf("{must: 1, num_threads: 0}"), "test.yaml: num_threads must be >= 1 (got 0)");
+  EXPECT_EQ(ErrorOf("{must: 1, num_threads: 0}"), "test.yaml: num_threads = 0: must be >= 1");
+  EXPECT_EQ(ErrorOf("{must: 1, name: ''}"), "test.yaml: name = \"\": must be non-empty");
+}
+
+// One option per line: key, doc, bound; Check() follows from Visit.
+struct Bounded {
+  int window = 5;
+  double contrast = 0.8;
+  double brightness = 0.5;
+  double score = 0.0;
+  double sigma = 1.0;
+  int height = 0;
+  double limit = 10;
+  std::string mode = "fast";
+  std::vector<double> tilts = {1, 2};
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+  double min_x = 0, max_x = 1;
+  struct Inner {
+    double gain = 1;
+    void Visit(OptionsReader& r) { r.Optional("gain", &gain, "", Positive()); }
+  } inner;
+  void Visit(OptionsReader& r) {
+    r.Optional("window", &window, "px, odd", Odd() && AtLeast(3));
+    r.Optional("contrast", &contrast, "", InLeftOpen(0, 1));
+    r.Optional("brightness", &brightness, "", InRange(0, 1));
+    r.Optional("score", &score, "", InOpen(-1, 1));
+    r.Optional("sigma", &sigma, "", Above(0) && Below(5));
+    r.Optional("height", &height, "px, 0 = the window", Is(0) || AtLeast(3));
+    r.Optional("limit", &limit, "", AtMost(10) && Finite());
+    r.Optional("mode", &mode, "", OneOf({"fast", "exact"}));
+    r.Optional("tilts", &tilts, "", NonEmpty() && Each(InRightOpen(1, 8)));
+    r.Optional("offset", &offset, "m", Each(Finite()));
+    r.Optional("min_x", &min_x);
+    r.Optional("max_x", &max_x);
+    r.Relation("max_x", max_x >= min_x, "must be >= min_x");
+    r.Child("inner", [&](OptionsReader& c) { inner.Visit(c); });
+  }
+  bool Check(std::string* error) const { return CheckOptions(*this, error); }
+};
+
+// The error Check() gives after `change` on the defaults ("" when it passes).
+std::string BoundError(const std::function<void(Bounded&)>& change) {
+  Bounded b;
+  change(b);
+  std::string error;
+  return b.Check(&error) ? "" : error;
+}
+
+TEST(OptionBounds, EachKindPassesInsideAndFailsOutsideNamingKeyValueAndRule) {
+  EXPECT_EQ(BoundError([](Bounded&) {}), "");  // the defaults pass
+  EXPECT_EQ(BoundError([](Bounded& b) { b.window = 4; }), "window = 4: must be odd and >= 3");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.window = 1; }), "window = 1: must be odd and >= 3");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.window = 3; }), "");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.contrast = 0; }), "contrast = 0: must be in (0, 1]");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.contrast = 1; }), "");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.brightness = 1.5; }), "brightness = 1.5: must be in [0, 1]");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.brightness = 0; }), "");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.score = -1; }), "score = -1: must be in (-1, 1)");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.sigma = 0; }), "sigma = 0: must be > 0 and < 5");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.sigma = 5; }), "sigma = 5: must be > 0 and < 5");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.height = 2; }), "height = 2: must be 0 or >= 3");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.height = 3; }), "");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.limit = 10.5; }), "limit = 10.5: must be <= 10 and finite");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.limit = -INFINITY; }), "limit = -inf: must be <= 10 and finite");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.mode = "slow"; }), "mode = slow: must be one of fast, exact");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.tilts = {}; }), "tilts = []: must be non-empty and each in [1, 8)");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.tilts = {1, 8}; }), "tilts = [1, 8]: must be non-empty and each in [1, 8)");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.offset.y() = INFINITY; }), "offset = [0, .inf, 0]: must be each finite");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.min_x = 2; }), "max_x = 1: must be >= min_x");
+  EXPECT_EQ(BoundError([](Bounded& b) { b.inner.gain = 0; }), "inner.gain = 0: must be > 0");
+  // The first failure in Visit's order is the one named.
+  EXPECT_EQ(BoundError([](Bounded& b) { b.window = 2, b.inner.gain = 0; }), "window = 2: must be odd and >= 3");
+}
+
+TEST(OptionBounds, NanFailsEveryBound) {
+  const double nan = std::nan("");
+  EXPECT_EQ(BoundError([&](Bounded& b) { b.contrast = nan; }), "contrast = nan: must be in (0, 1]");
+  EXPECT_EQ(BoundError([&](Bounded& b) { b.sigma = nan; }), "sigma = nan: must be > 0 and < 5");
+  EXPECT_EQ(BoundError([&](Bounded& b) { b.height = 2, b.limit = nan; }), "height = 2: must be 0 or >= 3");
+  EXPECT_EQ(BoundError([&](Bounded& b) { b.limit = nan; }), "limit = nan: must be <= 10 and finite");
+  EXPECT_EQ(BoundError([&](Bounded& b) { b.tilts = {2, nan}; }), "tilts = [2, .nan]: must be non-empty and each in [1, 8)");
+  for (const NumberBound& bound : {AtLeast(0), Above(0), AtMost(0), Below(0), InRange(0, 1), InOpen(0, 1),
+                                    InLeftOpen(0, 1), InRightOpen(0, 1), Is(0), Finite(), Is(0) || AtLeast(1)})
+    EXPECT_FALSE(bound.Holds(nan)) << bound.rule();
+}
+
+TEST(OptionBounds, CodeBuiltOptionsAreCheckedLikeLoadedOnes) {
+  // Built in code: Check() holds them to the same bounds as a load.
+  Bounded built;
+  built.contrast = 2;
+  std::string error;
+  EXPECT_FALSE(built.Check(&error));
+  EXPECT_EQ(error, "contrast = 2: must be in (0, 1]");
+  // Loaded: the same line, the context in front.
+  try {
+    LoadOptions<Bounded>(YAML::Load("{contrast: 2}"), "x.yaml:wallis");
+    FAIL() << "contrast 2 accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()), "x.yaml:wallis: contrast = 2: must be in (0, 1]");
+  }
+  try {
+    LoadOptions<Bounded>(YAML::Load("{inner: {gain: -1}}"), "x.yaml");
+    FAIL() << "gain -1 accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()), "x.yaml: inner.gain = -1: must be > 0");
+  }
+  // Check mode reads nothing and changes nothing; the echo is the values.
+  std::string echo;
+  const Bounded loaded = LoadOptions<Bounded>(YAML::Load("{window: 7, mode: exact}"), "x.yaml", &echo);
+  EXPECT_EQ(loaded.window, 7);
+  EXPECT_EQ(loaded.mode, "exact");
+  EXPECT_TRUE(loaded.Check(&error));
+  EXPECT_NE(echo.find("window: 7\ncontrast: 0.8\n"), std::string::npos) << echo;
+}
+
+// A default that breaks its own bound fails the defaults-pass test every
+// options struct has (Options{}.Check()).
+struct BadDefault {
+  int window = 4;
+  void Visit(OptionsReader& r) { r.Optional("window", &window, "px", Odd()); }
+  bool Check(std::string* error) const { return CheckOptions(*this, error); }
+};
+
+TEST(OptionBounds, ADefaultThatBreaksItsBoundFailsTheDefaultsTest) {
+  std::string error;
+  EXPECT_FALSE(BadDefault{}.Check(&error));
+  EXPECT_EQ(error, "window = 4: must be odd");
+  EXPECT_TRUE(Bounded{}.Check(&error)) << error;
+  EXPECT_TRUE(Demo{}.Check(&error)) << error;
 }
 
 TEST(Options, WrongType) {
