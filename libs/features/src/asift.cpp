@@ -13,29 +13,20 @@
 namespace vloc {
 
 void AsiftOptions::Visit(OptionsReader& r) {
-  r.Optional("tilts", &tilts, "transition tilts to simulate (1 = original image)");
-  r.Optional("longitude_step_deg", &longitude_step_deg, "deg, longitude step at tilt t is this / t");
+  r.Optional("tilts", &tilts, "transition tilts to simulate (1 = original image)", NonEmpty() && Each(InRange(1, 8)));
+  r.Optional("longitude_step_deg", &longitude_step_deg, "deg, longitude step at tilt t is this / t", Positive());
   r.Optional("longitude_min_deg", &longitude_min_deg, "deg, lowest simulated longitude");
   r.Optional("longitude_max_deg", &longitude_max_deg, "deg, simulated longitudes are below this");
-  r.Optional("max_features_per_view", &max_features_per_view, "SIFT features per view (0 = all)");
-  r.Optional("sift_octave_layers", &sift_octave_layers, "SIFT layers per octave");
+  r.Optional("max_features_per_view", &max_features_per_view, "SIFT features per view (0 = all)", NonNegative());
+  r.Optional("sift_octave_layers", &sift_octave_layers, "SIFT layers per octave", AtLeast(1));
   r.Optional("sift_contrast_threshold", &sift_contrast_threshold, "SIFT contrast threshold");
   r.Optional("sift_edge_threshold", &sift_edge_threshold, "SIFT edge threshold");
   r.Optional("sift_sigma", &sift_sigma, "SIFT base blur");
-  r.Optional("num_threads", &num_threads, "OpenMP threads over views");
+  r.Optional("num_threads", &num_threads, "OpenMP threads over views", AtLeast(1));
+  r.Relation("longitude_max_deg", longitude_max_deg > longitude_min_deg, "must exceed longitude_min_deg");
 }
 
-bool AsiftOptions::Check(std::string* error) const {
-  if (tilts.empty()) return Fail(error, "asift.tilts must list at least one tilt (1 = no simulation)");
-  for (double t : tilts)
-    if (!(t >= 1.0 && t <= 8.0)) return Fail(error, "asift.tilts must be in [1, 8]");
-  if (longitude_step_deg <= 0) return Fail(error, "asift.longitude_step_deg must be > 0");
-  if (longitude_max_deg <= longitude_min_deg) return Fail(error, "asift.longitude_max_deg must exceed longitude_min_deg");
-  if (max_features_per_view < 0) return Fail(error, "asift.max_features_per_view must be >= 0");
-  if (sift_octave_layers < 1) return Fail(error, "asift.sift_octave_layers must be >= 1");
-  if (num_threads < 1) return Fail(error, "asift.num_threads must be >= 1");
-  return true;
-}
+bool AsiftOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 std::vector<AffineView> AsiftOptions::Views() const {
   std::vector<AffineView> views;
@@ -145,20 +136,14 @@ FeatureSet DetectAsift(const cv::Mat& image, const cv::Mat& mask, const std::vec
 }
 
 void GatedMatchOptions::Visit(OptionsReader& r) {
-  r.Optional("gate_radius", &gate_radius, "px, search radius around the predicted position");
-  r.Optional("ratio", &ratio, "Lowe ratio test threshold");
-  r.Optional("distinct_radius", &distinct_radius, "px, candidates this close to the best are the same point");
+  r.Optional("gate_radius", &gate_radius, "px, search radius around the predicted position", Positive());
+  r.Optional("ratio", &ratio, "Lowe ratio test threshold", InLeftOpen(0, 1));
+  r.Optional("distinct_radius", &distinct_radius, "px, candidates this close to the best are the same point", NonNegative());
   r.Optional("max_descriptor_distance", &max_descriptor_distance, "L2 descriptor distance limit (0 = none)");
-  r.Optional("num_threads", &num_threads, "OpenMP threads over the query features");
+  r.Optional("num_threads", &num_threads, "OpenMP threads over the query features", AtLeast(1));
 }
 
-bool GatedMatchOptions::Check(std::string* error) const {
-  if (gate_radius <= 0) return Fail(error, "matching.gate_radius must be > 0");
-  if (ratio <= 0 || ratio > 1) return Fail(error, "matching.ratio must be in (0, 1]");
-  if (distinct_radius < 0) return Fail(error, "matching.distinct_radius must be >= 0");
-  if (num_threads < 1) return Fail(error, "matching.num_threads must be >= 1");
-  return true;
-}
+bool GatedMatchOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 namespace {
 

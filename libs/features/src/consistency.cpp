@@ -20,22 +20,14 @@ Eigen::Matrix3d StereoPointCovariance(const Eigen::Vector3d& ray, double range, 
 }
 
 void ConsistencyOptions::Visit(OptionsReader& r) {
-  r.Optional("k_sigma", &k_sigma, "threshold e_L in standard deviations of the distance residual");
-  r.Optional("min_threshold", &min_threshold, "m, added to every pair's threshold");
-  r.Optional("min_weight_fraction", &min_weight_fraction, "weight threshold as a fraction of the median weight");
-  r.Optional("min_weight", &min_weight, "votes, lowest weight threshold");
-  r.Optional("max_passes", &max_passes, "voting passes among the survivors");
+  r.Optional("k_sigma", &k_sigma, "threshold e_L in standard deviations of the distance residual", Positive());
+  r.Optional("min_threshold", &min_threshold, "m, added to every pair's threshold", NonNegative());
+  r.Optional("min_weight_fraction", &min_weight_fraction, "weight threshold as a fraction of the median weight", InLeftOpen(0, 1));
+  r.Optional("min_weight", &min_weight, "votes, lowest weight threshold", AtLeast(1));
+  r.Optional("max_passes", &max_passes, "voting passes among the survivors", AtLeast(1));
 }
 
-bool ConsistencyOptions::Check(std::string* error) const {
-  if (k_sigma <= 0) return Fail(error, "consistency.k_sigma must be > 0");
-  if (min_threshold < 0) return Fail(error, "consistency.min_threshold must be >= 0");
-  if (min_weight_fraction <= 0 || min_weight_fraction > 1)
-    return Fail(error, "consistency.min_weight_fraction must be in (0, 1]");
-  if (min_weight < 1) return Fail(error, "consistency.min_weight must be >= 1");
-  if (max_passes < 1) return Fail(error, "consistency.max_passes must be >= 1");
-  return true;
-}
+bool ConsistencyOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 ConsistencyResult DistanceConsistencyCheck(const std::vector<Eigen::Vector3d>& p1,
                                            const std::vector<Eigen::Matrix3d>& cov1,
@@ -95,16 +87,12 @@ ConsistencyResult DistanceConsistencyCheck(const std::vector<Eigen::Vector3d>& p
 }
 
 void MotionConsistencyOptions::Visit(OptionsReader& r) {
-  r.Optional("max_mahalanobis_sq", &max_mahalanobis_sq, "squared Mahalanobis residual of an inlier (chi-square, 3 DoF)");
-  r.Optional("ransac_iterations", &ransac_iterations, "3-point RANSAC samples");
+  r.Optional("max_mahalanobis_sq", &max_mahalanobis_sq, "squared Mahalanobis residual of an inlier (chi-square, 3 DoF)", Positive());
+  r.Optional("ransac_iterations", &ransac_iterations, "3-point RANSAC samples", AtLeast(1));
   r.Optional("seed", &seed, "sample generator seed");
 }
 
-bool MotionConsistencyOptions::Check(std::string* error) const {
-  if (!(max_mahalanobis_sq > 0)) return Fail(error, "motion consistency max_mahalanobis_sq must be > 0");
-  if (ransac_iterations < 1) return Fail(error, "motion consistency ransac_iterations must be >= 1");
-  return true;
-}
+bool MotionConsistencyOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 namespace {
 

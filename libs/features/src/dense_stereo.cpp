@@ -18,54 +18,37 @@
 namespace vloc {
 
 void DenseStereoOptions::Visit(OptionsReader& r) {
-  r.Optional("min_disparity", &min_disparity, "px, smallest searched disparity (left x - right x)");
+  r.Optional("min_disparity", &min_disparity, "px, smallest searched disparity (left x - right x)", NonNegative());
   r.Optional("max_disparity", &max_disparity, "px, largest searched disparity");
-  r.Optional("step", &step, "px, grid spacing");
-  r.Optional("zncc_window", &zncc_window, "px, ZNCC window side (odd)");
-  r.Optional("min_score", &min_score, "minimum ZNCC of the best disparity");
-  r.Optional("min_peak_margin", &min_peak_margin, "best minus the next local maximum >= 3 px away");
+  r.Optional("step", &step, "px, grid spacing", AtLeast(1));
+  r.Optional("zncc_window", &zncc_window, "px, ZNCC window side", Odd() && InRange(3, 41));
+  r.Optional("min_score", &min_score, "minimum ZNCC of the best disparity", InOpen(-1, 1));
+  r.Optional("min_peak_margin", &min_peak_margin, "best minus the next local maximum >= 3 px away", NonNegative());
   r.Optional("min_template_std", &min_template_std, "grey level, minimum left window std");
   r.Optional("left_right_check", &left_right_check, "require the right pixel's best disparity to agree");
-  r.Optional("max_left_right_diff", &max_left_right_diff, "px, allowed left-right disagreement");
-  r.Optional("median_radius", &median_radius, "grid cells, median window half side");
-  r.Optional("median_stride", &median_stride, "grid cells, neighbour sampling step");
-  r.Optional("median_min_neighbours", &median_min_neighbours, "fewer valid neighbours: dropped");
-  r.Optional("median_abs_tolerance", &median_abs_tolerance, "px, allowed deviation from the median");
-  r.Optional("median_rel_tolerance", &median_rel_tolerance, "fraction of the median added to the tolerance");
+  r.Optional("max_left_right_diff", &max_left_right_diff, "px, allowed left-right disagreement", NonNegative());
+  r.Optional("median_radius", &median_radius, "grid cells, median window half side", NonNegative());
+  r.Optional("median_stride", &median_stride, "grid cells, neighbour sampling step", AtLeast(1));
+  r.Optional("median_min_neighbours", &median_min_neighbours, "fewer valid neighbours: dropped", NonNegative());
+  r.Optional("median_abs_tolerance", &median_abs_tolerance, "px, allowed deviation from the median", NonNegative());
+  r.Optional("median_rel_tolerance", &median_rel_tolerance, "fraction of the median added to the tolerance", NonNegative());
   r.Optional("lsm_enabled", &lsm_enabled, "refine by row least-squares matching");
-  r.Optional("lsm_half_window", &lsm_half_window, "px, LSM window half width");
-  r.Optional("lsm_half_height", &lsm_half_height, "px, LSM window half height");
+  r.Optional("lsm_half_window", &lsm_half_window, "px, LSM window half width", InRange(2, 20));
+  r.Optional("lsm_half_height", &lsm_half_height, "px, LSM window half height", InRange(0, 20));
   r.Optional("lsm_bspline", &lsm_bspline, "cubic B-spline resampling (false: Keys cubic convolution)");
   r.Optional("lsm_disparity_plane", &lsm_disparity_plane, "estimate the disparity gradients");
-  r.Optional("lsm_max_iterations", &lsm_max_iterations, "Gauss-Newton iterations");
-  r.Optional("lsm_convergence_px", &lsm_convergence_px, "px, disparity update that ends the iteration");
-  r.Optional("lsm_max_shift_px", &lsm_max_shift_px, "px, largest accepted move from the ZNCC disparity");
+  r.Optional("lsm_max_iterations", &lsm_max_iterations, "Gauss-Newton iterations", AtLeast(1));
+  r.Optional("lsm_convergence_px", &lsm_convergence_px, "px, disparity update that ends the iteration", Positive());
+  r.Optional("lsm_max_shift_px", &lsm_max_shift_px, "px, largest accepted move from the ZNCC disparity", Positive());
   r.Optional("lsm_min_correlation", &lsm_min_correlation, "minimum window correlation at the solution");
-  r.Optional("lsm_max_sigma_px", &lsm_max_sigma_px, "px, largest accepted 1-sigma disparity precision");
+  r.Optional("lsm_max_sigma_px", &lsm_max_sigma_px, "px, largest accepted 1-sigma disparity precision", Positive());
   r.Optional("lsm_back_check_px", &lsm_back_check_px, "px, LSM back from the right image must agree (0 = off)");
   r.Optional("lsm_median_tolerance", &lsm_median_tolerance, "px, median test again after LSM (0 = off)");
-  r.Optional("num_threads", &num_threads, "OpenMP threads");
+  r.Optional("num_threads", &num_threads, "OpenMP threads", AtLeast(1));
+  r.Relation("max_disparity", max_disparity >= min_disparity + 1, "must exceed min_disparity by >= 1");
 }
 
-bool DenseStereoOptions::Check(std::string* error) const {
-  if (!(min_disparity >= 0)) return Fail(error, "dense_stereo.min_disparity must be >= 0");
-  if (!(max_disparity >= min_disparity + 1)) return Fail(error, "dense_stereo.max_disparity must exceed min_disparity by >= 1");
-  if (step < 1) return Fail(error, "dense_stereo.step must be >= 1");
-  if (zncc_window < 3 || zncc_window % 2 == 0 || zncc_window > 41) return Fail(error, "dense_stereo.zncc_window must be odd, in [3, 41]");
-  if (!(min_score > -1 && min_score < 1)) return Fail(error, "dense_stereo.min_score must be in (-1, 1)");
-  if (min_peak_margin < 0) return Fail(error, "dense_stereo.min_peak_margin must be >= 0");
-  if (max_left_right_diff < 0) return Fail(error, "dense_stereo.max_left_right_diff must be >= 0");
-  if (median_radius < 0 || median_stride < 1) return Fail(error, "dense_stereo.median_radius must be >= 0 and median_stride >= 1");
-  if (median_min_neighbours < 0) return Fail(error, "dense_stereo.median_min_neighbours must be >= 0");
-  if (median_abs_tolerance < 0 || median_rel_tolerance < 0) return Fail(error, "dense_stereo median tolerances must be >= 0");
-  if (lsm_half_window < 2 || lsm_half_window > 20 || lsm_half_height < 0 || lsm_half_height > 20)
-    return Fail(error, "dense_stereo.lsm_half_window must be in [2, 20], lsm_half_height in [0, 20]");
-  if (lsm_max_iterations < 1) return Fail(error, "dense_stereo.lsm_max_iterations must be >= 1");
-  if (!(lsm_convergence_px > 0) || !(lsm_max_shift_px > 0) || !(lsm_max_sigma_px > 0))
-    return Fail(error, "dense_stereo.lsm_convergence_px, lsm_max_shift_px and lsm_max_sigma_px must be > 0");
-  if (num_threads < 1) return Fail(error, "dense_stereo.num_threads must be >= 1");
-  return true;
-}
+bool DenseStereoOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 std::string DenseStereoSummary::BriefReport() const {
   std::ostringstream s;

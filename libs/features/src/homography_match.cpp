@@ -34,34 +34,22 @@ LsmOptions HomographyMatchOptions::DefaultLsm() {
 
 void HomographyMatchOptions::Visit(OptionsReader& r) {
   r.Child("asift", [&](OptionsReader& c) { asift.Visit(c); });
-  r.Optional("coarse_scale", &coarse_scale, "images reduced by this for the ASIFT stage");
-  r.Optional("ratio", &ratio, "Lowe ratio of the coarse matches");
-  r.Optional("coarse_ransac_px", &coarse_ransac_px, "px, RANSAC threshold of the coarse homography");
-  r.Optional("refine_rounds", &refine_rounds, "LSM refinement rounds (0 = coarse only)");
-  r.Optional("refine_points", &refine_points, "corners of the first image matched by LSM");
-  r.Optional("refine_cell_px", &refine_cell_px, "px, one corner (the strongest) per cell of this size");
-  r.Optional("refine_corner_quality", &refine_corner_quality, "goodFeaturesToTrack quality level");
-  r.Optional("refine_min_distance", &refine_min_distance, "px, minimum distance between corners");
-  r.Optional("refine_search_px", &refine_search_px, "px, ZNCC search radius around the prediction");
+  r.Optional("coarse_scale", &coarse_scale, "images reduced by this for the ASIFT stage", InLeftOpen(0.05, 1));
+  r.Optional("ratio", &ratio, "Lowe ratio of the coarse matches", InLeftOpen(0, 1));
+  r.Optional("coarse_ransac_px", &coarse_ransac_px, "px, RANSAC threshold of the coarse homography", Positive());
+  r.Optional("refine_rounds", &refine_rounds, "LSM refinement rounds (0 = coarse only)", NonNegative());
+  r.Optional("refine_points", &refine_points, "corners of the first image matched by LSM", AtLeast(4));
+  r.Optional("refine_cell_px", &refine_cell_px, "px, one corner (the strongest) per cell of this size", AtLeast(1));
+  r.Optional("refine_corner_quality", &refine_corner_quality, "goodFeaturesToTrack quality level", InOpen(0, 1));
+  r.Optional("refine_min_distance", &refine_min_distance, "px, minimum distance between corners", AtLeast(1));
+  r.Optional("refine_search_px", &refine_search_px, "px, ZNCC search radius around the prediction", AtLeast(1));
   r.Optional("refine_min_zncc", &refine_min_zncc, "minimum ZNCC of the search peak");
-  r.Optional("refine_ransac_px", &refine_ransac_px, "px, RANSAC threshold on the LSM correspondences");
+  r.Optional("refine_ransac_px", &refine_ransac_px, "px, RANSAC threshold on the LSM correspondences", Positive());
   r.Child("lsm", [&](OptionsReader& c) { lsm.Visit(c); });
-  r.Optional("num_threads", &num_threads, "OpenMP threads");
+  r.Optional("num_threads", &num_threads, "OpenMP threads", AtLeast(1));
 }
 
-bool HomographyMatchOptions::Check(std::string* error) const {
-  if (!asift.Check(error) || !lsm.Check(error)) return false;
-  if (!(coarse_scale > 0.05 && coarse_scale <= 1)) return Fail(error, "homography_match.coarse_scale must be in (0.05, 1]");
-  if (!(ratio > 0 && ratio <= 1)) return Fail(error, "homography_match.ratio must be in (0, 1]");
-  if (!(coarse_ransac_px > 0) || !(refine_ransac_px > 0)) return Fail(error, "homography_match RANSAC thresholds must be > 0");
-  if (refine_rounds < 0) return Fail(error, "homography_match.refine_rounds must be >= 0");
-  if (refine_points < 4) return Fail(error, "homography_match.refine_points must be >= 4");
-  if (!(refine_corner_quality > 0 && refine_corner_quality < 1)) return Fail(error, "homography_match.refine_corner_quality must be in (0, 1)");
-  if (refine_cell_px < 1) return Fail(error, "homography_match.refine_cell_px must be >= 1");
-  if (refine_min_distance < 1 || refine_search_px < 1) return Fail(error, "homography_match.refine_min_distance and refine_search_px must be >= 1");
-  if (num_threads < 1) return Fail(error, "homography_match.num_threads must be >= 1");
-  return true;
-}
+bool HomographyMatchOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 std::string HomographyMatchSummary::BriefReport() const {
   std::ostringstream s;

@@ -13,28 +13,20 @@
 namespace vloc {
 
 void LsmOptions::Visit(OptionsReader& r) {
-  r.Optional("half_window", &half_window, "px, template half size");
-  r.Optional("half_height", &half_height, "px, template half height (0 = half_window: square)");
-  r.Optional("max_iterations", &max_iterations, "Gauss-Newton iterations");
-  r.Optional("convergence_px", &convergence_px, "px, shift update that ends the iteration");
-  r.Optional("max_shift_px", &max_shift_px, "px, largest accepted move from the initial position");
+  r.Optional("half_window", &half_window, "px, template half size", InRange(2, 30));
+  r.Optional("half_height", &half_height, "px, template half height (0 = half_window: square)", Is(0) || InRange(2, 30));
+  r.Optional("max_iterations", &max_iterations, "Gauss-Newton iterations", AtLeast(1));
+  r.Optional("convergence_px", &convergence_px, "px, shift update that ends the iteration", Positive());
+  r.Optional("max_shift_px", &max_shift_px, "px, largest accepted move from the initial position", Positive());
   r.Optional("min_template_std", &min_template_std, "grey level, minimum template std");
-  r.Optional("max_sigma_px", &max_sigma_px, "px, largest accepted 1-sigma precision");
+  r.Optional("max_sigma_px", &max_sigma_px, "px, largest accepted 1-sigma precision", Positive());
   r.Optional("max_sigma_axis_px", &max_sigma_axis_px, "px, largest accepted sigma along the worst direction (0 = off)");
   r.Optional("min_correlation", &min_correlation, "minimum correlation at the solution");
   r.Optional("estimate_affine", &estimate_affine, "estimate the 4 affine shape parameters");
   r.Optional("bspline", &bspline, "cubic B-spline resampling (false: Keys cubic convolution)");
 }
 
-bool LsmOptions::Check(std::string* error) const {
-  if (half_window < 2 || half_window > 30) return Fail(error, "lsm.half_window must be in [2, 30]");
-  if (half_height != 0 && (half_height < 2 || half_height > 30)) return Fail(error, "lsm.half_height must be 0 or in [2, 30]");
-  if (max_iterations < 1) return Fail(error, "lsm.max_iterations must be >= 1");
-  if (convergence_px <= 0) return Fail(error, "lsm.convergence_px must be > 0");
-  if (max_shift_px <= 0) return Fail(error, "lsm.max_shift_px must be > 0");
-  if (max_sigma_px <= 0) return Fail(error, "lsm.max_sigma_px must be > 0");
-  return true;
-}
+bool LsmOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 cv::Mat BSplineCoefficients(const cv::Mat& gray) {
   CV_Assert(gray.type() == CV_32FC1);

@@ -8,34 +8,23 @@
 namespace vloc {
 
 void ZnccOptions::Visit(OptionsReader& r) {
-  r.Optional("window", &window, "px, side of the correlation window (odd)");
-  r.Optional("min_score", &min_score, "minimum ZNCC of the accepted peak");
-  r.Optional("min_peak_margin", &min_peak_margin, "best minus second peak (>= 3 steps away)");
+  r.Optional("window", &window, "px, side of the correlation window", Odd() && AtLeast(3));
+  r.Optional("min_score", &min_score, "minimum ZNCC of the accepted peak", InOpen(-1, 1));
+  r.Optional("min_peak_margin", &min_peak_margin, "best minus second peak (>= 3 steps away)", NonNegative());
   r.Optional("min_template_std", &min_template_std, "grey level, minimum template std (texture)");
-  r.Optional("step", &step, "px, sampling step along the epipolar segment");
+  r.Optional("step", &step, "px, sampling step along the epipolar segment", InLeftOpen(0, 2));
 }
 
-bool ZnccOptions::Check(std::string* error) const {
-  if (window < 3 || window % 2 == 0) return Fail(error, "zncc.window must be odd and >= 3");
-  if (min_score <= -1 || min_score >= 1) return Fail(error, "zncc.min_score must be in (-1, 1)");
-  if (min_peak_margin < 0) return Fail(error, "zncc.min_peak_margin must be >= 0");
-  if (step <= 0 || step > 2) return Fail(error, "zncc.step must be in (0, 2]");
-  return true;
-}
+bool ZnccOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 void MedianFilterOptions::Visit(OptionsReader& r) {
-  r.Optional("radius", &radius, "px, neighbourhood radius in the left image");
-  r.Optional("min_neighbours", &min_neighbours, "points with fewer neighbours are kept");
-  r.Optional("abs_tolerance", &abs_tolerance, "px, allowed disparity deviation from the median");
-  r.Optional("rel_tolerance", &rel_tolerance, "fraction of the median disparity added to the tolerance");
+  r.Optional("radius", &radius, "px, neighbourhood radius in the left image", Positive());
+  r.Optional("min_neighbours", &min_neighbours, "points with fewer neighbours are kept", AtLeast(1));
+  r.Optional("abs_tolerance", &abs_tolerance, "px, allowed disparity deviation from the median", NonNegative());
+  r.Optional("rel_tolerance", &rel_tolerance, "fraction of the median disparity added to the tolerance", NonNegative());
 }
 
-bool MedianFilterOptions::Check(std::string* error) const {
-  if (radius <= 0) return Fail(error, "median_filter.radius must be > 0");
-  if (min_neighbours < 1) return Fail(error, "median_filter.min_neighbours must be >= 1");
-  if (abs_tolerance < 0 || rel_tolerance < 0) return Fail(error, "median_filter tolerances must be >= 0");
-  return true;
-}
+bool MedianFilterOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 float SampleBilinear(const cv::Mat& image, double x, double y) {
   x = std::clamp(x, 0.0, image.cols - 1.001);

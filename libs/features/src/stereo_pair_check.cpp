@@ -14,26 +14,17 @@
 namespace vloc {
 
 void StereoPairCheckOptions::Visit(OptionsReader& r) {
-  r.Optional("max_features", &max_features, "SIFT keypoints per image");
-  r.Optional("ratio", &ratio, "Lowe's ratio test");
-  r.Optional("ransac_px", &ransac_px, "px, fundamental-matrix RANSAC threshold");
-  r.Optional("min_matches", &min_matches, "fewer inliers: no verdict");
-  r.Optional("max_median_dy_px", &max_median_dy_px, "px, largest median row difference of a rectified pair, offset removed");
-  r.Optional("max_row_offset_px", &max_row_offset_px, "px, largest common row offset absorbed");
-  r.Optional("range_percentile", &range_percentile, "%, disparity range from this percentile to 100 minus it");
-  r.Optional("range_margin_px", &range_margin_px, "px, margin added to both ends of the range");
+  r.Optional("max_features", &max_features, "SIFT keypoints per image", AtLeast(10));
+  r.Optional("ratio", &ratio, "Lowe's ratio test", InLeftOpen(0, 1));
+  r.Optional("ransac_px", &ransac_px, "px, fundamental-matrix RANSAC threshold", Positive());
+  r.Optional("min_matches", &min_matches, "fewer inliers: no verdict", AtLeast(8));
+  r.Optional("max_median_dy_px", &max_median_dy_px, "px, largest median row difference of a rectified pair, offset removed", Positive());
+  r.Optional("max_row_offset_px", &max_row_offset_px, "px, largest common row offset absorbed", NonNegative());
+  r.Optional("range_percentile", &range_percentile, "%, disparity range from this percentile to 100 minus it", InRightOpen(0, 50));
+  r.Optional("range_margin_px", &range_margin_px, "px, margin added to both ends of the range", NonNegative());
 }
 
-bool StereoPairCheckOptions::Check(std::string* error) const {
-  if (max_features < 10) return Fail(error, "stereo_pair_check.max_features must be >= 10");
-  if (!(ratio > 0 && ratio <= 1)) return Fail(error, "stereo_pair_check.ratio must be in (0, 1]");
-  if (!(ransac_px > 0) || !(max_median_dy_px > 0) || !(max_row_offset_px >= 0))
-    return Fail(error, "stereo_pair_check pixel thresholds must be > 0");
-  if (min_matches < 8) return Fail(error, "stereo_pair_check.min_matches must be >= 8 (the fundamental matrix)");
-  if (!(range_percentile >= 0 && range_percentile < 50)) return Fail(error, "stereo_pair_check.range_percentile must be in [0, 50)");
-  if (!(range_margin_px >= 0)) return Fail(error, "stereo_pair_check.range_margin_px must be >= 0");
-  return true;
-}
+bool StereoPairCheckOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 namespace {
 

@@ -9,24 +9,16 @@
 namespace vloc {
 
 void TileRegistrationOptions::Visit(OptionsReader& r) {
-  r.Optional("reduction", &reduction, "both images are reduced by this factor before correlation");
-  r.Optional("tile_px", &tile_px, "px (reduced), width of a correlated tile");
-  r.Optional("tile_height_px", &tile_height_px, "px (reduced), height of a correlated tile (0 = tile_px)");
-  r.Optional("min_coverage", &min_coverage, "fraction of a tile that must be valid");
+  r.Optional("reduction", &reduction, "both images are reduced by this factor before correlation", AtLeast(1));
+  r.Optional("tile_px", &tile_px, "px (reduced), width of a correlated tile", AtLeast(8));
+  r.Optional("tile_height_px", &tile_height_px, "px (reduced), height of a correlated tile (0 = tile_px)", Is(0) || AtLeast(3));
+  r.Optional("min_coverage", &min_coverage, "fraction of a tile that must be valid", InLeftOpen(0, 1));
   r.Optional("min_tile_std", &min_tile_std, "grey level, flatter tiles are not searched");
-  r.Optional("min_ncc", &min_ncc, "correlation peak needed");
-  r.Optional("min_peak_margin", &min_peak_margin, "peak minus the best score away from it");
+  r.Optional("min_ncc", &min_ncc, "correlation peak needed", InRange(-1, 1));
+  r.Optional("min_peak_margin", &min_peak_margin, "peak minus the best score away from it", NonNegative());
 }
 
-bool TileRegistrationOptions::Check(std::string* error) const {
-  if (reduction < 1) return Fail(error, "tile registration reduction must be >= 1");
-  if (tile_px < 8) return Fail(error, "tile registration tile_px must be >= 8");
-  if (tile_height_px != 0 && tile_height_px < 3) return Fail(error, "tile registration tile_height_px must be 0 or >= 3");
-  if (min_coverage <= 0 || min_coverage > 1) return Fail(error, "tile registration min_coverage must be in (0, 1]");
-  if (min_ncc < -1 || min_ncc > 1) return Fail(error, "tile registration min_ncc must be in [-1, 1]");
-  if (min_peak_margin < 0) return Fail(error, "tile registration min_peak_margin must be >= 0");
-  return true;
-}
+bool TileRegistrationOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 namespace {
 

@@ -7,22 +7,15 @@
 namespace vloc {
 
 void WallisOptions::Visit(OptionsReader& r) {
-  r.Optional("window", &window, "px, side of the local statistics window (odd)");
+  r.Optional("window", &window, "px, side of the local statistics window", Odd() && AtLeast(3));
   r.Optional("target_mean", &target_mean, "grey level, mean after filtering (m_f)");
-  r.Optional("target_std", &target_std, "grey level, std after filtering (s_f)");
-  r.Optional("contrast", &contrast, "c in (0,1], contrast expansion constant");
-  r.Optional("brightness", &brightness, "b in [0,1], brightness forcing constant");
-  r.Optional("min_std", &min_std, "grey level, floor of the local std");
+  r.Optional("target_std", &target_std, "grey level, std after filtering (s_f)", Positive());
+  r.Optional("contrast", &contrast, "c, contrast expansion constant", InLeftOpen(0, 1));
+  r.Optional("brightness", &brightness, "b, brightness forcing constant", InRange(0, 1));
+  r.Optional("min_std", &min_std, "grey level, floor of the local std", Positive());
 }
 
-bool WallisOptions::Check(std::string* error) const {
-  if (window < 3 || window % 2 == 0) return Fail(error, "wallis.window must be odd and >= 3");
-  if (target_std <= 0) return Fail(error, "wallis.target_std must be > 0");
-  if (contrast <= 0 || contrast > 1) return Fail(error, "wallis.contrast must be in (0, 1]");
-  if (brightness < 0 || brightness > 1) return Fail(error, "wallis.brightness must be in [0, 1]");
-  if (min_std <= 0) return Fail(error, "wallis.min_std must be > 0");
-  return true;
-}
+bool WallisOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 ImageStats ComputeImageStats(const cv::Mat& image, const cv::Mat& mask) {
   cv::Scalar mean, stddev;
