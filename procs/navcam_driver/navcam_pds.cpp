@@ -11,6 +11,7 @@
 #include "vloc/common/image_header.h"
 #include "vloc/common/options.h"
 #include "vloc/common/pds_label.h"
+#include "vloc/common/pds_product.h"
 
 namespace vloc {
 
@@ -66,23 +67,9 @@ struct Frame {
   bool used = false;
 };
 
-const char* const kBrowseExtensions[] = {".jpg", ".JPG", ".jpeg", ".JPEG", ".png", ".PNG",
-                                         ".IMG.png", ".IMG.jpg", ".img.png", ".img.jpg"};
-
 bool IsBrowseImage(const fs::path& p) {
   const std::string ext = Upper(p.extension().string());
   return ext == ".JPG" || ext == ".JPEG" || ext == ".PNG";
-}
-
-// The browse image beside a detached label, or "".
-std::string FindBrowseImage(const fs::path& label) {
-  const std::string stem = (label.parent_path() / label.stem()).string();
-  std::vector<std::string> bases = {stem};
-  if (!label.stem().string().empty()) bases.push_back(stem.substr(0, stem.size() - 1) + "_");  // ...M1.LBL -> ...M_.jpg
-  for (const std::string& base : bases)
-    for (const char* ext : kBrowseExtensions)
-      if (fs::is_regular_file(base + ext)) return base + ext;
-  return "";
 }
 
 // The eye of a frame: FRAME_ID, else INSTRUMENT_ID.
@@ -137,7 +124,7 @@ class FolderReader {
       if (ext == ".LBL") {
         // Its browse image belongs to it even when the label is unusable:
         // one line for the product, not a second one for an orphan image.
-        const std::string browse = FindBrowseImage(p);
+        const std::string browse = FindPdsBrowseImage(p.string());
         if (!browse.empty()) claimed.insert(fs::path(browse).lexically_normal().string());
         ReadProduct(p, &claimed);
       }
@@ -205,7 +192,7 @@ class FolderReader {
           if (fs::is_regular_file(path.parent_path() / name)) f.image_path = path.string();
       }
       if (f.image_path.empty()) {
-        f.image_path = FindBrowseImage(path);
+        f.image_path = FindPdsBrowseImage(path.string());
         if (f.image_path.empty()) {
           Problem(f.name + ": ^IMAGE: its file " + (l.image_file.empty() ? "(none named)" : l.image_file) +
                   " is absent and no browse image (.jpg, .png) lies beside the label; skipped");

@@ -1,6 +1,14 @@
 // vloc_match: homography between two images of a planar scene (operators' tool).
 //   vloc_match IMG1 IMG2 [--homography H.yaml] [--tilts 1,1.41,2] [--gate PX] [--ratio R]
 //              [--coarse-scale S] [--refine-rounds N] [--truth H.yaml|H.xml] [--threads N] [--out overlay.png]
+//              [--rectify [--rectify-range 20] [--rectified PREFIX]]
+// IMG1, IMG2: image files, or PDS3 products (vloc/common/pds_product.h: an
+// .IMG with its label attached or beside it, a .LBL, or a browse .jpg/.png
+// with its .LBL). --rectify (PDS products of a stereo pair) rectifies them
+// epipolarly through their CAHV / CAHVOR / CAHVORE models first (JPL's
+// marscahv: vloc::LineariseStereoPair; CAHVORE's rays at --rectify-range m;
+// --rectified PREFIX writes PREFIX_left.png, PREFIX_right.png), matches the
+// rectified images and prints the row error of the inliers.
 // Prints YAML: features, matches, inliers, homography (IMG1 -> IMG2 px),
 // seconds. Without a prior: ASIFT on images reduced by --coarse-scale
 // (default 0.5), FLANN + ratio test, RANSAC, then --refine-rounds (default
@@ -11,7 +19,9 @@
 // position (--gate px, default 40) and the RANSAC homography is refined the
 // same way. --truth (same YAML, or an OpenCV XML/YAML file whose first node
 // is the 3x3 matrix, e.g. H1to3p.xml) adds the corner errors.
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <iomanip>
 #include <iostream>
 #include <opencv2/calib3d.hpp>
@@ -25,6 +35,7 @@
 #include "vloc/common/image_header.h"
 #include "vloc/common/logging.h"
 #include "vloc/common/options.h"
+#include "vloc/common/pds_product.h"
 #include "vloc/common/tool_main.h"
 #include "vloc/features/asift.h"
 #include "vloc/features/homography_match.h"
@@ -80,27 +91,85 @@ cv::Mat ReadImage(const std::string& path, std::string* error) {
   return image;
 }
 
+// IMG1 and IMG2: image files, or PDS products (rectified with --rectify).
+// False after one line on stderr.
+bool ReadPair(const vloc::CommandLine& args, cv::Mat* a, cv::Mat* b) {
+  const std::string& path_a = args.positional()[0];
+  const std::string& path_b = args.positional()[1];
+  const bool pds = vloc::IsPdsProductPath(path_a) || vloc::IsPdsProductPath(path_b);
+  const bool rectify = args.Has("rectify");
+  if (!rectify && (args.Has("rectify-range") || args.Has("rectified"))) {
+    std::cerr << "vloc_match: --rectify-range / --rectified go with --rectify\n";
+    return false;
+  }
+  std::string error;
+  if (!pds) {
+    if (rectify) {
+      std::cerr << "vloc_match: --rectify needs two PDS products (their camera models)\n";
+      return false;
+    }
+    *a = ReadImage(path_a, &error);
+    *b = a->empty() ? cv::Mat() : ReadImage(path_b, &error);
+    if (a->empty() || b->empty()) std::cerr << "vloc_match: " << error << "\n";
+    return !a->empty() && !b->empty();
+  }
+  const double range = args.GetDouble("rectify-range", 20.0);
+  if (!(range > 0 && range < 1e6)) {
+    std::cerr << "vloc_match: --rectify-range must be in (0, 1e6) m\n";
+    return false;
+  }
+  vloc::RectifiedPdsPair pair;
+  if (!vloc::ReadPdsStereoPair(path_a, path_b, rectify, range, &pair, &error)) {
+    std::cerr << "vloc_match: " << error << "\n";
+    return false;
+  }
+  for (const cv::Mat* m : {&pair.left, &pair.right})
+    if (m->cols < kMinImageSide || m->rows < kMinImageSide) {
+      std::cerr << "vloc_match: " << (m == &pair.left ? path_a : path_b) << ": LINES / LINE_SAMPLES of IMAGE: "
+                << m->cols << " x " << m->rows << " is too small to match (at least " << kMinImageSide << " px a side)\n";
+      return false;
+    }
+  if (rectify) {
+    std::cout << vloc::DescribeRectification(pair);
+    if (args.Has("rectified")) {
+      if (!vloc::WriteRectifiedPair(pair, args.Get("rectified"), &error)) {
+        std::cerr << "vloc_match: " << error << "\n";
+        return false;
+      }
+    }
+  }
+  *a = pair.left, *b = pair.right;
+  return true;
+}
+
+// |row a - row b| of the inliers: median and 95th percentile, px.
+void PrintRowError(const vloc::HomographyMatchResult& result) {
+  std::vector<double> dy;
+  for (size_t k = 0; k < result.inliers_a.size(); ++k) dy.push_back(std::abs(result.inliers_a[k].y() - result.inliers_b[k].y()));
+  std::sort(dy.begin(), dy.end());
+  const auto at = [&](double q) { return dy.empty() ? NAN : dy[std::min(dy.size() - 1, static_cast<size_t>(q * dy.size()))]; };
+  std::cout << "row_error_px: {median: " << at(0.5) << ", p95: " << at(0.95) << ", points: " << dy.size()
+            << "}  # |row 1 - row 2| of the refined inliers (rectified pair)\n";
+}
+
 // The tool; main() turns any exception into one line and exit code 1.
 int Run(int argc, char** argv) {
   vloc::CommandLine args;
   std::string error;
   const char* usage =
       "usage: vloc_match IMG1 IMG2 [--homography H.yaml] [--tilts 1,1.41,2] [--gate PX] [--ratio R] [--coarse-scale S] "
-      "[--refine-rounds N] [--truth H.yaml|H.xml] [--threads N] [--out overlay.png]";
+      "[--refine-rounds N] [--truth H.yaml|H.xml] [--threads N] [--out overlay.png] "
+      "[--rectify [--rectify-range 20] [--rectified PREFIX]]";
   if (!args.Parse(argc, argv,
-                  {"homography", "tilts", "gate", "ratio", "coarse-scale", "refine-rounds", "truth", "threads", "out", "help"},
+                  {"homography", "tilts", "gate", "ratio", "coarse-scale", "refine-rounds", "truth", "threads", "out", "rectify",
+                   "rectify-range", "rectified", "help"},
                   &error) ||
       args.Has("help") || args.positional().size() != 2) {
     std::cerr << (error.empty() ? usage : "vloc_match: " + error + "\n" + usage) << "\n";
     return args.Has("help") ? 0 : 1;
   }
-  std::string read_error;
-  const cv::Mat a = ReadImage(args.positional()[0], &read_error);
-  const cv::Mat b = a.empty() ? cv::Mat() : ReadImage(args.positional()[1], &read_error);
-  if (a.empty() || b.empty()) {
-    std::cerr << "vloc_match: " << read_error << "\n";
-    return 1;
-  }
+  cv::Mat a, b;
+  if (!ReadPair(args, &a, &b)) return 1;
   const int threads = std::max(1, args.GetInt("threads", 2));
   vloc::HomographyMatchOptions hm;
   hm.num_threads = threads;
@@ -209,6 +278,7 @@ int Run(int argc, char** argv) {
       std::cout << "corner_error_px: {mean: " << sum / 4 << ", max: " << worst << "}  # against --truth\n";
     }
   }
+  if (args.Has("rectify")) PrintRowError(result);
   std::cout << "seconds: " << seconds << "\n";
   std::vector<cv::Point2f> pa, pb;
   for (size_t k = 0; k < result.inliers_a.size(); ++k) {

@@ -1,7 +1,16 @@
 // vloc_stereo: ZNCC + least-squares matching of a rectified stereo pair
 // (operators' tool).
 //   vloc_stereo LEFT RIGHT [--config stereo.yaml] [--min-disp 0] [--max-disp 128 | --auto-range] [--step 4]
-//               [--threads 2] [--no-pair-check] --out disp.png|disp.pfm
+//               [--threads 2] [--no-pair-check] [--no-rectify] [--rectify-range 20] [--rectified PREFIX]
+//               --out disp.png|disp.pfm
+// LEFT, RIGHT: image files, or PDS3 products (vloc/common/pds_product.h: an
+// .IMG with its label attached or beside it, a .LBL, or a browse .jpg/.png
+// with its .LBL). A PDS pair whose camera models (CAHV, CAHVOR, CAHVORE) are
+// not already a common CAHV pair is rectified epipolarly first, as JPL's
+// marscahv does (vloc::LineariseStereoPair; CAHVORE's rays at
+// --rectify-range m); --no-rectify matches the images as they are;
+// --rectified PREFIX writes PREFIX_left.png and PREFIX_right.png. The
+// disparities are then those of the rectified images.
 // --config: a YAML of vloc::DenseStereoOptions keys (see dense_stereo.h);
 // the flags override it.
 // Matches the left pixels of a grid (every --step px) along their row of the
@@ -28,6 +37,7 @@
 #include "vloc/common/logging.h"
 #include "vloc/common/tool_main.h"
 #include "vloc/common/options.h"
+#include "vloc/common/pds_product.h"
 #include "vloc/features/dense_stereo.h"
 #include "vloc/features/stereo_pair_check.h"
 
@@ -56,8 +66,69 @@ bool CheckPair(const cv::Mat& left, const cv::Mat& right, bool auto_range, doubl
     return !auto_range;
   }
   std::cout << "pair_check: \"" << c.message << "\"\n";
+  std::cout << "row_error_px: {median: " << c.median_abs_dy_px << ", p90: " << c.p90_abs_dy_px << ", matches: " << c.matches
+            << "}  # |left y - right y| of the check's matches, before the row offset\n";
   *row_offset = c.row_offset_px;
   if (auto_range) *dmin = c.min_disparity, *dmax = c.max_disparity;
+  return true;
+}
+
+// Two images from files: the headers checked before decoding (sizes over
+// vloc::ImageLimits' defaults, about 100 MP, are refused).
+bool ReadImages(const std::string& left_path, const std::string& right_path, cv::Mat* left, cv::Mat* right) {
+  cv::Mat images[2];
+  std::string error;
+  for (int k = 0; k < 2; ++k) {
+    std::vector<uint8_t> bytes;
+    vloc::ImageHeader header;
+    if (!vloc::ReadCheckedImageFile(k ? right_path : left_path, vloc::ImageLimits(), &bytes, &header, &error)) {
+      std::cerr << "vloc_stereo: cannot read two images of the same size from " << left_path << " and " << right_path
+                << ": " << error << "\n";
+      return false;
+    }
+    images[k] = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+  }
+  *left = images[0], *right = images[1];
+  return true;
+}
+
+// LEFT and RIGHT: image files, or PDS products rectified through their
+// models (unless --no-rectify). False after one line on stderr.
+bool ReadPair(const vloc::CommandLine& args, cv::Mat* left, cv::Mat* right) {
+  const std::string& left_path = args.positional()[0];
+  const std::string& right_path = args.positional()[1];
+  const bool pds[2] = {vloc::IsPdsProductPath(left_path), vloc::IsPdsProductPath(right_path)};
+  if (pds[0] != pds[1]) {
+    std::cerr << "vloc_stereo: " << (pds[0] ? right_path : left_path)
+              << " is not a PDS product (its partner is): give two PDS products or two images\n";
+    return false;
+  }
+  if (!pds[0]) {
+    if (args.Has("rectified") || args.Has("no-rectify") || args.Has("rectify-range")) {
+      std::cerr << "vloc_stereo: --rectified / --no-rectify / --rectify-range need PDS products (camera models)\n";
+      return false;
+    }
+    return ReadImages(left_path, right_path, left, right);
+  }
+  const double range = args.GetDouble("rectify-range", 20.0);
+  if (!(range > 0 && range < 1e6)) {
+    std::cerr << "vloc_stereo: --rectify-range must be in (0, 1e6) m\n";
+    return false;
+  }
+  vloc::RectifiedPdsPair pair;
+  std::string error;
+  if (!vloc::ReadPdsStereoPair(left_path, right_path, !args.Has("no-rectify"), range, &pair, &error)) {
+    std::cerr << "vloc_stereo: " << error << "\n";
+    return false;
+  }
+  std::cout << vloc::DescribeRectification(pair);
+  if (args.Has("rectified")) {
+    if (!vloc::WriteRectifiedPair(pair, args.Get("rectified"), &error)) {
+      std::cerr << "vloc_stereo: " << error << "\n";
+      return false;
+    }
+  }
+  *left = pair.left, *right = pair.right;
   return true;
 }
 
@@ -67,28 +138,18 @@ int Run(int argc, char** argv) {
   std::string error;
   const char* usage =
       "usage: vloc_stereo LEFT RIGHT [--config stereo.yaml] [--min-disp 0] [--max-disp 128 | --auto-range] [--step 4] "
-      "[--threads 2] [--no-lsm] [--no-pair-check] --out disp.png|disp.pfm";
+      "[--threads 2] [--no-lsm] [--no-pair-check] [--no-rectify] [--rectify-range 20] [--rectified PREFIX] "
+      "--out disp.png|disp.pfm";
   if (!args.Parse(argc, argv,
-                  {"config", "min-disp", "max-disp", "auto-range", "step", "threads", "no-lsm", "no-pair-check", "out", "help"},
+                  {"config", "min-disp", "max-disp", "auto-range", "step", "threads", "no-lsm", "no-pair-check", "no-rectify",
+                   "rectify-range", "rectified", "out", "help"},
                   &error) ||
       args.Has("help") || args.positional().size() != 2 || !args.Has("out")) {
     std::cerr << (error.empty() ? usage : "vloc_stereo: " + error + "\n" + usage) << "\n";
     return args.Has("help") ? 0 : 1;
   }
-  // Headers before decoding: sizes over vloc::ImageLimits' defaults (about 100 MP) are refused.
-  cv::Mat images[2];
-  for (int k = 0; k < 2; ++k) {
-    std::vector<uint8_t> bytes;
-    vloc::ImageHeader header;
-    if (!vloc::ReadCheckedImageFile(args.positional()[k], vloc::ImageLimits(), &bytes, &header, &error)) {
-      std::cerr << "vloc_stereo: cannot read two images of the same size from " << args.positional()[0] << " and "
-                << args.positional()[1] << ": " << error << "\n";
-      return 1;
-    }
-    images[k] = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
-  }
-  const cv::Mat left8 = images[0];
-  cv::Mat right8 = images[1];
+  cv::Mat left8, right8;
+  if (!ReadPair(args, &left8, &right8)) return 1;
   if (left8.empty() || right8.empty() || left8.size() != right8.size()) {
     std::cerr << "vloc_stereo: cannot read two images of the same size from " << args.positional()[0] << " and "
               << args.positional()[1] << "\n";

@@ -13,17 +13,13 @@
 #include <string>
 
 #include "test_images.h"
+#include "tool_run.h"
 #include "vloc/testing/subprocess.h"
 
 namespace vloc {
 namespace {
 
-// A folder under the test's TMPDIR (removed with it: tests/support/run_with_tmpdir.sh).
-std::string TempDir() {
-  std::string tmpl = (std::filesystem::temp_directory_path() / "vloc_matching_tools_XXXXXX").string();
-  const char* d = mkdtemp(tmpl.data());
-  return d ? std::string(d) : std::filesystem::temp_directory_path().string();
-}
+std::string TempDir() { return testing::ToolTempDir("vloc_matching_tools"); }
 
 cv::Mat ToU8(const cv::Mat& f) {
   cv::Mat out;
@@ -31,22 +27,9 @@ cv::Mat ToU8(const cv::Mat& f) {
   return out;
 }
 
-struct ToolRun {
-  int exit_code = -1;
-  std::string output;
-};
-
-ToolRun RunTool(const std::vector<std::string>& argv) {
-  testing::Subprocess p(argv);
-  const auto code = p.WaitExit(240);
-  return {code ? *code : -1, p.output()};
-}
-
-double Number(const std::string& text, const std::string& key) {
-  std::smatch m;
-  if (!std::regex_search(text, m, std::regex(key + ": *([-0-9.eE+]+)"))) return NAN;
-  return std::stod(m[1]);
-}
+using testing::Number;
+using testing::RunTool;
+using testing::ToolRun;
 
 TEST(VlocMatch, FindsASyntheticHomographyToATenthOfAPixel) {
   const std::string dir = TempDir();

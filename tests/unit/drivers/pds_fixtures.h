@@ -40,6 +40,8 @@ struct PdsFixtureFrame {
   bool derived_pointing = true;
   double azimuth_deg = 0, elevation_deg = 0;
   std::string model_4 = kPdsFixtureModel[3];
+  std::string model_type = "CAHVOR";
+  std::vector<std::string> model;  // MODEL_COMPONENT_1..n as written; empty = kPdsFixtureModel with model_4
   std::string image_pointer;  // e.g. ^IMAGE = 2 or ^IMAGE = ("X.IMG", 1); "" = none
   int record_bytes = 4096;
   int lines = 48, samples = 64, bits = 8;
@@ -57,9 +59,10 @@ inline std::string PdsLabelText(const PdsFixtureFrame& f) {
   if (f.motion_counter)
     os << "ROVER_MOTION_COUNTER = (" << f.site << "," << f.drive << ",8,10)\r\n"
        << "ROVER_MOTION_COUNTER_NAME = (\"SITE\",\"DRIVE\",\"POSE\",\"ARM\")\r\n";
-  os << "GROUP = GEOMETRIC_CAMERA_MODEL_PARMS\r\n  MODEL_TYPE = CAHVOR\r\n";
-  for (int k = 0; k < 6; ++k)
-    os << "  MODEL_COMPONENT_" << k + 1 << " = " << (k == 3 ? f.model_4 : std::string(kPdsFixtureModel[k])) << "\r\n";
+  os << "GROUP = GEOMETRIC_CAMERA_MODEL_PARMS\r\n  MODEL_TYPE = " << f.model_type << "\r\n";
+  for (size_t k = 0; k < (f.model.empty() ? 6 : f.model.size()); ++k)
+    os << "  MODEL_COMPONENT_" << k + 1 << " = "
+       << (!f.model.empty() ? f.model[k] : k == 3 ? f.model_4 : std::string(kPdsFixtureModel[k])) << "\r\n";
   os << "  REFERENCE_COORD_SYSTEM_NAME = ROVER_NAV_FRAME\r\nEND_GROUP = GEOMETRIC_CAMERA_MODEL_PARMS\r\n"
      << "GROUP = ROVER_COORD_SYSTEM_PARMS\r\n  ORIGIN_OFFSET_VECTOR = (" << 1.5 + f.drive << ", -2.0, 0.25)\r\n"
      << "  ORIGIN_ROTATION_QUATERNION = (1.0, 0.0, 0.0, 0.0)\r\n  REFERENCE_COORD_SYSTEM_NAME = SITE_FRAME\r\n"
