@@ -32,7 +32,9 @@ double SecondsSince(std::chrono::steady_clock::time_point t0) {
 SurveyOptions LoadSurveyOptions(const std::string& config_path) {
   SurveyOptions o;
   o.mosaicker = LoadOptionsFile<MosaickerOptions>(config_path, "mosaicker");
-  if (LoadYamlFile(config_path)["photo_limits"]) o.limits = LoadOptionsFile<ImageLimits>(config_path, "photo_limits");
+  const YAML::Node root = LoadYamlFile(config_path);
+  if (root["photo_limits"]) o.limits = LoadOptionsFile<ImageLimits>(config_path, "photo_limits");
+  if (root["altitude_fusion"]) o.altitude_fusion = LoadOptionsFile<AltitudeFusionOptions>(config_path, "altitude_fusion");
   return o;
 }
 
@@ -273,7 +275,8 @@ void SurveyRunner::RegisterOne(size_t i, Loaded loaded) {
     ++failures_;
     return;
   }
-  const int64_t utime = times_ok_ ? rec.tag.utime - frames_[0].tag.utime : static_cast<int64_t>(i) * 1000000;
+  const int64_t utime = rec.utime =
+      times_ok_ ? rec.tag.utime - frames_[0].tag.utime : static_cast<int64_t>(i) * 1000000;
   if (origin_ && rec.tag.has_gps)
     rec.enu = LatLonToEnu(rec.tag.latitude, rec.tag.longitude, origin_->latitude, origin_->longitude);
   rec.dropped = static_cast<int>(i) >= options_.drop_gps_first && static_cast<int>(i) <= options_.drop_gps_last;
@@ -398,13 +401,30 @@ void SurveyRunner::Evaluate(const std::string& reference_path) {
           << " m (x " << fig.height_scale << ")\n";
   }
   if (rc.ok && !reference_path.empty()) CompareWithReference(reference_path);
-  const HeightComparison& hc = fig.height = CompareHeights(fig.heights, fig.gps_heights, !fig.relative_altitude);
-  if (hc.ok) {
-    Out() << "height vs GPS "
-          << (fig.relative_altitude ? "relative altitude"
-                                    : "altitude minus a fitted ground level (" + std::to_string(hc.offset_m) + " m)")
-          << " over " << hc.pairs << " frames: RMS " << hc.rms_m << " m = " << hc.rms_percent << " %\n";
-  }
+  CompareHeightsWithTags();
+}
+
+// Vision heights (the tags withheld after the first height) against the
+// altitude tags, then the tags fused with them (altitude_fusion.h) and the
+// fused heights against the tags.
+void SurveyRunner::CompareHeightsWithTags() {
+  SurveyFigures& fig = figures_;
+  const bool fit_ground = !fig.relative_altitude;
+  const HeightComparison& hc = fig.height = CompareHeights(fig.heights, fig.gps_heights, fit_ground);
+  if (!hc.ok) return;
+  const std::string against =
+      fig.relative_altitude ? "relative altitude" : "altitude minus a fitted ground level (" + std::to_string(hc.offset_m) + " m)";
+  Out() << "height vs GPS " << against << " over " << hc.pairs << " frames: RMS " << hc.rms_m << " m = " << hc.rms_percent
+        << " % (vision only)\n";
+  std::vector<double> seconds;
+  for (const auto& f : frames_) seconds.push_back(f.utime * 1e-6);
+  fig.fusion = FuseAltitude(seconds, fig.heights, fig.gps_heights, fig.relative_altitude, options_.altitude_fusion);
+  Out() << "heights: " << fig.fusion.why << "\n";
+  if (!fig.fusion.fused) return;
+  const HeightComparison& fc = fig.fused_height = CompareHeights(fig.fusion.height_m, fig.gps_heights, fit_ground);
+  if (fc.ok)
+    Out() << "height vs GPS " << against << " over " << fc.pairs << " frames: RMS " << fc.rms_m << " m = "
+          << fc.rms_percent << " % (fused)\n";
 }
 
 // Route and GPS against a reference orthomosaic of the same flight made by
@@ -443,13 +463,19 @@ void SurveyRunner::CompareWithReference(const std::string& reference_path) {
         << 100 * c.gps.rms_m / path << " %\n";
 }
 
+double SurveyRunner::FusedHeight(size_t i) const {
+  const AltitudeFusion& f = figures_.fusion;
+  return f.fused && i < f.height_m.size() ? f.height_m[i] : std::nan("");
+}
+
 bool SurveyRunner::WriteReport(const std::string& tsv_path) {
   if (!figures_.evaluated) return true;
   const RouteComparison& rc = figures_.route;
   const HeightComparison& hc = figures_.height;
+  const AltitudeFusion& fusion = figures_.fusion;
   std::ofstream out(tsv_path);
   out << "frame\tname\tstatus\tguided\tgps_used\troute_east_m\troute_north_m\tgps_east_m\tgps_north_m\tresidual_m\theight_m"
-         "\tgps_height_m\tmatches\tinliers\tmessage\n";
+         "\tgps_height_m\tfused_height_m\theight_source\tmatches\tinliers\tmessage\n";
   out << std::setprecision(8);
   for (size_t i = 0; i < frames_.size(); ++i) {
     const auto& f = frames_[i];
@@ -457,7 +483,8 @@ bool SurveyRunner::WriteReport(const std::string& tsv_path) {
     out << i << "\t" << std::filesystem::path(f.name).filename().string() << "\t" << ToString(f.state.status) << "\t"
         << f.state.guided << "\t" << f.gps_used << "\t" << e.x << "\t" << e.y << "\t" << f.enu.x << "\t" << f.enu.y
         << "\t" << (rc.ok && i < rc.residual_m.size() ? rc.residual_m[i] : std::nan("")) << "\t" << figures_.heights[i]
-        << "\t" << (hc.ok ? figures_.gps_heights[i] - hc.offset_m : std::nan("")) << "\t" << f.state.num_matches
+        << "\t" << (hc.ok ? figures_.gps_heights[i] - hc.offset_m : std::nan("")) << "\t" << FusedHeight(i) << "\t"
+        << ToString(i < fusion.source.size() ? fusion.source[i] : HeightSource::kNone) << "\t" << f.state.num_matches
         << "\t" << f.state.num_inliers << "\t" << f.state.message << "\n";
   }
   if (!out) {
@@ -486,7 +513,7 @@ bool SurveyRunner::WriteGeoJson(const std::string& geojson_path) {
     g.name = std::filesystem::path(f.name).filename().string();
     g.index = static_cast<int>(i);
     g.status = ToString(f.state.status);
-    g.height = f.state.height;
+    g.height = std::isfinite(FusedHeight(i)) ? FusedHeight(i) : f.state.height;
     g.registered = f.registered;
     cv::Point2d ll;
     if (f.registered && mosaicker_->MosaicToLatLon(f.state.route_px, &ll)) {

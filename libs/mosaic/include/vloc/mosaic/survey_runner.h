@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "vloc/common/image_header.h"
+#include "vloc/mosaic/altitude_fusion.h"
 #include "vloc/mosaic/geotag.h"
 #include "vloc/mosaic/survey_eval.h"
 #include "vloc/mosaic/uav_mosaicker.h"
@@ -40,6 +41,7 @@ namespace vloc::mosaic {
 struct SurveyOptions {
   MosaickerOptions mosaicker;          // the stills settings ("mosaicker" of config/procs/uav_mosaic_files.yaml)
   ImageLimits limits;                  // photo_limits: photos over these are refused by name
+  AltitudeFusionOptions altitude_fusion;  // altitude_fusion: the photos' altitude tags fused with the vision height
   std::string calibration_file;        // camera YAML; "" = the focal from focal_px, EXIF or the image width
   std::optional<double> focal_px;      // px, the focal length (no calibration file); must be in (0, 1e6)
   std::optional<double> height_m;      // m, the first height when no marker or relative altitude; (0, 10 km]
@@ -61,6 +63,7 @@ struct SurveyFrame {
   bool dropped = false;        // tag withheld (drop_gps_*): compared, not in the fit
   bool repeated_fix = false;   // the camera tagged it with the previous photo's fix (same GPS time): no new position
   FrameState state;
+  int64_t utime = 0;           // us since the first photo (EXIF capture time, else one second a photo)
   bool registered = false;
   cv::Point2d enu;             // GPS east/north of the frame (m, from the first tagged frame)
 };
@@ -72,8 +75,10 @@ struct SurveyFigures {
   RouteComparison route;               // robust fit
   bool relative_altitude = false;      // the first photo carries a DJI relative altitude
   double height_scale = 1.0;           // heights put on the GPS track's scale (no relative altitude)
-  std::vector<double> heights, gps_heights;  // m, per frame (NaN when not registered)
-  HeightComparison height;
+  std::vector<double> heights, gps_heights;  // m, per frame (NaN when not registered): vision heights, altitude tags
+  HeightComparison height;             // vision heights (altitude tags withheld) against the tags
+  AltitudeFusion fusion;               // the tags fused with the vision heights, or why not
+  HeightComparison fused_height;       // fused heights against the tags (when fused)
 };
 
 // Seconds over the survey. With prefetch, decoding and features overlap registration: wall < the sum.
@@ -133,6 +138,8 @@ class SurveyRunner {
   void RegisterOne(size_t i, Loaded loaded);
   bool WriteObliqueMosaic(const std::string& png_path);
   void CompareWithReference(const std::string& reference_path);
+  void CompareHeightsWithTags();
+  double FusedHeight(size_t i) const;  // m, NaN when the tags were not fused
   std::ostream& Out() const;
   std::ostream& Err() const;
 
