@@ -8,12 +8,12 @@
 namespace vloc {
 
 void PinholeCamera::Visit(OptionsReader& r) {
-  r.Optional("width", &width, "px");
-  r.Optional("height", &height, "px");
-  r.Optional("fx", &fx, "px, focal length along x");
-  r.Optional("fy", &fy, "px, focal length along y");
-  r.Optional("cx", &cx, "px, principal point column");
-  r.Optional("cy", &cy, "px, principal point row");
+  r.Optional("width", &width, "px", Positive());
+  r.Optional("height", &height, "px", Positive());
+  r.Optional("fx", &fx, "px, focal length along x", Positive());
+  r.Optional("fy", &fy, "px, focal length along y", Positive());
+  r.Optional("cx", &cx, "px, principal point column", InRange(0, width));
+  r.Optional("cy", &cy, "px, principal point row", InRange(0, height));
   r.Optional("k1", &k1, "radial distortion");
   r.Optional("k2", &k2, "radial distortion");
   r.Optional("p1", &p1, "tangential distortion");
@@ -21,13 +21,7 @@ void PinholeCamera::Visit(OptionsReader& r) {
   r.Optional("k3", &k3, "radial distortion");
 }
 
-bool PinholeCamera::Check(std::string* error) const {
-  if (width <= 0 || height <= 0) return Fail(error, "camera width and height must be positive");
-  if (!(fx > 0) || !(fy > 0)) return Fail(error, "camera fx and fy must be positive");
-  if (cx < 0 || cx > width || cy < 0 || cy > height)
-    return Fail(error, "camera principal point (cx, cy) must lie inside the image");
-  return true;
-}
+bool PinholeCamera::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 bool PinholeCamera::HasDistortion() const {
   return k1 != 0.0 || k2 != 0.0 || p1 != 0.0 || p2 != 0.0 || k3 != 0.0;
@@ -93,13 +87,10 @@ void StereoRig::Visit(OptionsReader& r) {
   r.Optional("right_in_left_translation", &t, "m, right camera origin in the left camera frame");
   r.Optional("right_in_left_rpy", &rpy, "rad, roll/pitch/yaw of the right camera in the left frame");
   left_from_right = MakePose(RotationFromRollPitchYaw(rpy.x(), rpy.y(), rpy.z()), t);
+  r.Relation("right_in_left_translation", Baseline() >= 1e-3, "must be at least 1 mm long (the stereo baseline)");
 }
 
-bool StereoRig::Check(std::string* error) const {
-  if (!left.Check(error) || !right.Check(error)) return false;
-  if (Baseline() < 1e-3) return Fail(error, "stereo baseline must be at least 1 mm");
-  return true;
-}
+bool StereoRig::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 Eigen::Matrix3d BodyFromCameraAxes() {
   Eigen::Matrix3d R;
@@ -113,14 +104,11 @@ Eigen::Matrix3d BodyFromCameraAxes() {
 void MastKinematics::Visit(OptionsReader& r) {
   r.Optional("mast_head", &mast_head, "m, tilt centre in the body frame");
   r.Optional("camera_offset", &camera_offset, "m, tilt axis to stereo bar along the optical axis");
+  r.Relation("mast_head", mast_head.allFinite() && mast_head.z() >= 0.1 && mast_head.z() <= 5.0,
+             "must be finite with z in [0.1, 5] m");
 }
 
-bool MastKinematics::Check(std::string* error) const {
-  if (!mast_head.allFinite()) return Fail(error, "mast_head must be finite");
-  if (mast_head.z() < 0.1 || mast_head.z() > 5.0)
-    return Fail(error, "mast_head z must be between 0.1 and 5 m");
-  return true;
-}
+bool MastKinematics::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 Pose3 MastKinematics::BodyFromLeft(double pan, double tilt, const StereoRig& rig) const {
   const Eigen::Matrix3d R_mast =
@@ -143,6 +131,6 @@ void NavcamModel::Visit(OptionsReader& r) {
   r.Child("mast", [&](OptionsReader& c) { mast.Visit(c); });
 }
 
-bool NavcamModel::Check(std::string* error) const { return rig.Check(error) && mast.Check(error); }
+bool NavcamModel::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 }  // namespace vloc

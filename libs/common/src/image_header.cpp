@@ -265,19 +265,13 @@ std::string ImageHeader::Describe() const {
 }
 
 void ImageLimits::Visit(OptionsReader& r) {
-  r.Optional("max_width", &max_width, "px, wider encoded images are refused before decoding");
-  r.Optional("max_height", &max_height, "px, taller encoded images are refused before decoding");
-  r.Optional("max_pixels", &max_pixels, "px, width x height above this is refused before decoding");
-  r.Optional("max_jpeg_scans", &max_jpeg_scans, "scans of one JPEG (progressive JPEGs have about 10)");
+  r.Optional("max_width", &max_width, "px, wider encoded images are refused before decoding", AtLeast(1));
+  r.Optional("max_height", &max_height, "px, taller encoded images are refused before decoding", AtLeast(1));
+  r.Optional("max_pixels", &max_pixels, "px, width x height above this is refused before decoding", InRange(1, double(int64_t(1) << 30)));
+  r.Optional("max_jpeg_scans", &max_jpeg_scans, "scans of one JPEG (progressive JPEGs have about 10)", AtLeast(1));
 }
 
-bool ImageLimits::Check(std::string* error) const {
-  if (max_width < 1 || max_height < 1) return Fail(error, "image limits: max_width and max_height must be >= 1");
-  if (max_pixels < 1) return Fail(error, "image limits: max_pixels must be >= 1");
-  if (max_pixels > (int64_t(1) << 30)) return Fail(error, "image limits: max_pixels must be <= 2^30 (OpenCV's own limit)");
-  if (max_jpeg_scans < 1) return Fail(error, "image limits: max_jpeg_scans must be >= 1");
-  return true;
-}
+bool ImageLimits::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 std::string ImageLimits::Describe() const {
   return std::to_string(max_width) + " x " + std::to_string(max_height) + " px, " + Megapixels(max_pixels);
