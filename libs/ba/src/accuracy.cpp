@@ -10,40 +10,37 @@
 
 namespace vloc {
 
-void AccuracyOptions::Visit(OptionsReader& r) {
-  r.Optional("focal_px", &focal_px, "px, Navcam focal length f");
-  r.Optional("baseline_m", &baseline_m, "m, stereo baseline B");
-  r.Optional("sigma_parallax_px", &sigma_parallax_px, "px, parallax 1-sigma");
-  r.Optional("sigma_azimuth_px", &sigma_azimuth_px, "px, azimuth 1-sigma; sigma_theta = atan(px / f)");
-  r.Optional("previous_site", &previous_site, "m, previous site centre (x, y)");
-  r.Optional("current_site", &current_site, "m, current site centre (x, y)");
-  r.Optional("landmarks_xy", &landmarks_xy, "m, landmark positions x0 y0 x1 y1 ...");
-  r.Optional("error_model", &error_model, "previous | current | both: covariances in M_c^p");
-  r.Optional("current_frame", &current_frame, "world | site: frame of the current-site coordinates");
-  r.Optional("paper_eq8_offdiagonal", &paper_eq8_offdiagonal, "use eq. 8's off-diagonal as printed");
-}
+namespace {
 
-bool AccuracyOptions::Check(std::string* error) const {
-  if (!(focal_px > 0)) return Fail(error, "focal_px must be positive");
-  if (!(baseline_m > 0)) return Fail(error, "baseline_m must be positive");
-  if (!(sigma_parallax_px > 0)) return Fail(error, "sigma_parallax_px must be positive");
-  if (!(sigma_azimuth_px > 0)) return Fail(error, "sigma_azimuth_px must be positive");
-  if (!previous_site.allFinite() || !current_site.allFinite()) return Fail(error, "site positions must be finite");
-  if ((current_site - previous_site).norm() < 1e-6) return Fail(error, "previous_site and current_site must differ");
-  if (landmarks_xy.size() % 2 != 0) return Fail(error, "landmarks_xy needs pairs x y (an even count)");
-  if (landmarks_xy.size() < 4) return Fail(error, "landmarks_xy needs at least 2 landmarks (4 numbers)");
-  for (double v : landmarks_xy)
-    if (!std::isfinite(v)) return Fail(error, "landmarks_xy must be finite");
-  for (const auto& l : Landmarks()) {
-    if ((l - previous_site).norm() < 1e-3 || (l - current_site).norm() < 1e-3)
-      return Fail(error, "a landmark coincides with a site; move it");
-  }
-  if (error_model != "previous" && error_model != "current" && error_model != "both")
-    return Fail(error, "error_model must be previous, current or both");
-  if (current_frame != "world" && current_frame != "site")
-    return Fail(error, "current_frame must be world or site");
+bool PairsOfAtLeastTwo(const std::vector<double>& xy) { return xy.size() % 2 == 0 && xy.size() >= 4; }
+
+bool LandmarksClearOfSites(const AccuracyOptions& o) {
+  for (const auto& l : o.Landmarks())
+    if ((l - o.previous_site).norm() < 1e-3 || (l - o.current_site).norm() < 1e-3) return false;
   return true;
 }
+
+}  // namespace
+
+void AccuracyOptions::Visit(OptionsReader& r) {
+  r.Optional("focal_px", &focal_px, "px, Navcam focal length f", Positive());
+  r.Optional("baseline_m", &baseline_m, "m, stereo baseline B", Positive());
+  r.Optional("sigma_parallax_px", &sigma_parallax_px, "px, parallax 1-sigma", Positive());
+  r.Optional("sigma_azimuth_px", &sigma_azimuth_px, "px, azimuth 1-sigma; sigma_theta = atan(px / f)", Positive());
+  r.Optional("previous_site", &previous_site, "m, previous site centre (x, y)", Each(Finite()));
+  r.Optional("current_site", &current_site, "m, current site centre (x, y)", Each(Finite()));
+  r.Optional("landmarks_xy", &landmarks_xy, "m, landmark positions x0 y0 x1 y1 ...",
+             Each(Finite()) && Rule<std::vector<double>>(PairsOfAtLeastTwo, "pairs x y of at least 2 landmarks"));
+  r.Optional("error_model", &error_model, "which site's covariances go into M_c^p",
+             OneOf({"previous", "current", "both"}));
+  r.Optional("current_frame", &current_frame, "frame of the current-site coordinates", OneOf({"world", "site"}));
+  r.Optional("paper_eq8_offdiagonal", &paper_eq8_offdiagonal, "use eq. 8's off-diagonal as printed");
+  r.Relation("current_site", (current_site - previous_site).norm() >= 1e-6, "must differ from previous_site");
+  r.Relation("landmarks_xy", LandmarksClearOfSites(*this),
+             "must keep every landmark 1 mm or more away from both sites");
+}
+
+bool AccuracyOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 double AccuracyOptions::SigmaAzimuthRad() const { return std::atan(sigma_azimuth_px / focal_px); }
 

@@ -18,37 +18,24 @@
 namespace vloc {
 
 void CrossSiteBaOptions::Visit(OptionsReader& r) {
-  r.Optional("min_tie_points", &min_tie_points, "count, usable tie points needed");
-  r.Optional("huber_sigmas", &huber_sigmas, "sigmas, Huber loss threshold");
-  r.Optional("outlier_sigmas", &outlier_sigmas, "sigmas, tie-point rejection threshold");
-  r.Optional("rejection_rounds", &rejection_rounds, "count, robust solve + rejection rounds");
-  r.Optional("max_iterations", &max_iterations, "count, Ceres iterations per solve");
-  r.Optional("function_tolerance", &function_tolerance, "relative cost change to stop");
-  r.Optional("max_condition_number", &max_condition_number, "scaled pose covariance condition limit");
-  r.Optional("max_final_rms_sigmas", &max_final_rms_sigmas, "sigmas, final normalised RMS limit");
-  r.Optional("max_correction_m", &max_correction_m, "m, largest accepted move from dead reckoning");
-  r.Optional("min_intersection_parallax_rad", &min_intersection_parallax_rad, "rad, intersection ray angle");
+  r.Optional("min_tie_points", &min_tie_points, "count, usable tie points needed", AtLeast(3));
+  r.Optional("huber_sigmas", &huber_sigmas, "sigmas, Huber loss threshold", Positive());
+  r.Optional("outlier_sigmas", &outlier_sigmas, "sigmas, tie-point rejection threshold", Positive());
+  r.Optional("rejection_rounds", &rejection_rounds, "count, robust solve + rejection rounds", NonNegative());
+  r.Optional("max_iterations", &max_iterations, "count, Ceres iterations per solve", AtLeast(1));
+  r.Optional("function_tolerance", &function_tolerance, "relative cost change to stop", Positive());
+  r.Optional("max_condition_number", &max_condition_number, "scaled pose covariance condition limit", Above(1));
+  r.Optional("max_final_rms_sigmas", &max_final_rms_sigmas, "sigmas, final normalised RMS limit", Positive());
+  r.Optional("max_correction_m", &max_correction_m, "m, largest accepted move from dead reckoning", Positive());
+  r.Optional("min_intersection_parallax_rad", &min_intersection_parallax_rad, "rad, intersection ray angle",
+             Positive());
   r.Optional("inflate_by_variance_factor", &inflate_by_variance_factor, "scale covariance by max(1, s0^2)");
   r.Optional("max_independent_points", &max_independent_points,
-             "covariance scaled by max(1, points / this): shared errors do not average down (0 = off)");
-  r.Optional("num_threads", &num_threads, "count, Ceres threads");
+             "covariance scaled by max(1, points / this): shared errors do not average down (0 = off)", NonNegative());
+  r.Optional("num_threads", &num_threads, "count, Ceres threads", AtLeast(1));
 }
 
-bool CrossSiteBaOptions::Check(std::string* error) const {
-  if (max_independent_points < 0) return Fail(error, "max_independent_points must be >= 0 (0 = off)");
-  if (min_tie_points < 3) return Fail(error, "min_tie_points must be at least 3");
-  if (!(huber_sigmas > 0)) return Fail(error, "huber_sigmas must be positive");
-  if (!(outlier_sigmas > 0)) return Fail(error, "outlier_sigmas must be positive");
-  if (rejection_rounds < 0) return Fail(error, "rejection_rounds must be >= 0");
-  if (max_iterations < 1) return Fail(error, "max_iterations must be >= 1");
-  if (!(function_tolerance > 0)) return Fail(error, "function_tolerance must be positive");
-  if (!(max_condition_number > 1)) return Fail(error, "max_condition_number must be > 1");
-  if (!(max_final_rms_sigmas > 0)) return Fail(error, "max_final_rms_sigmas must be positive");
-  if (!(max_correction_m > 0)) return Fail(error, "max_correction_m must be positive");
-  if (!(min_intersection_parallax_rad > 0)) return Fail(error, "min_intersection_parallax_rad must be positive");
-  if (num_threads < 1) return Fail(error, "num_threads must be >= 1");
-  return true;
-}
+bool CrossSiteBaOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 const char* ToString(CrossSiteBaStatus status) {
   switch (status) {

@@ -21,60 +21,42 @@ constexpr size_t kMaxBufferedSamples = 20'000;
 }  // namespace
 
 void DeadReckoningOptions::Visit(OptionsReader& r) {
-  r.Optional("gravity_mps2", &gravity_mps2, "m/s^2, local gravity");
-  r.Optional("publish_period_s", &publish_period_s, "s, message time between DR_POSE");
-  r.Optional("initial_position", &initial_position, "m, start position in world");
+  r.Optional("gravity_mps2", &gravity_mps2, "m/s^2, local gravity", Positive());
+  r.Optional("publish_period_s", &publish_period_s, "s, message time between DR_POSE", Positive());
+  r.Optional("initial_position", &initial_position, "m, start position in world", Each(Finite()));
   r.Optional("initial_yaw_rad", &initial_yaw_rad, "rad, start heading");
-  r.Optional("initial_position_sigma_m", &initial_position_sigma_m, "m, start position 1-sigma");
-  r.Optional("initial_yaw_sigma_rad", &initial_yaw_sigma_rad, "rad, start heading 1-sigma");
-  r.Optional("tilt_sigma_rad", &tilt_sigma_rad, "rad, gravity roll/pitch 1-sigma");
-  r.Optional("odometry_scale", &odometry_scale, "distance per odometer metre");
-  r.Optional("along_track_sigma_per_m", &along_track_sigma_per_m, "along-track sigma per metre");
-  r.Optional("cross_track_sigma_per_m", &cross_track_sigma_per_m, "cross-track sigma per metre");
-  r.Optional("distance_noise_m_per_sqrt_m", &distance_noise_m_per_sqrt_m, "m/sqrt(m), random position noise");
-  r.Optional("gyro_noise_density", &gyro_noise_density, "rad/s/sqrt(Hz)");
-  r.Optional("gyro_bias_sigma", &gyro_bias_sigma, "rad/s, constant gyro bias 1-sigma");
-  r.Optional("gyro_bias_walk", &gyro_bias_walk, "rad/s^2/sqrt(Hz)");
-  r.Optional("still_gyro_threshold", &still_gyro_threshold, "rad/s");
-  r.Optional("still_accel_tolerance", &still_accel_tolerance, "m/s^2");
-  r.Optional("still_speed_threshold", &still_speed_threshold, "m/s");
-  r.Optional("still_settle_s", &still_settle_s, "s of stillness ignored before averaging");
-  r.Optional("still_duration_s", &still_duration_s, "s averaged per gravity update");
-  r.Optional("max_imu_gap_s", &max_imu_gap_s, "s, longer IMU gaps are bridged");
-  r.Optional("gap_attitude_sigma_rate", &gap_attitude_sigma_rate, "rad/s added over a bridged gap");
-  r.Optional("max_speed_mps", &max_speed_mps, "m/s, faster odometer increments dropped");
-  r.Optional("wheel_wait_s", &wheel_wait_s, "s, wheel samples wait this long for the IMU");
-  r.Optional("reset_backward_jump_s", &reset_backward_jump_s, "s, larger backward jumps restart");
-  r.Optional("max_forward_jump_s", &max_forward_jump_s, "s, larger forward jumps wait for the next sample to confirm");
+  r.Optional("initial_position_sigma_m", &initial_position_sigma_m, "m, start position 1-sigma", Positive());
+  r.Optional("initial_yaw_sigma_rad", &initial_yaw_sigma_rad, "rad, start heading 1-sigma", Positive());
+  r.Optional("tilt_sigma_rad", &tilt_sigma_rad, "rad, gravity roll/pitch 1-sigma", Positive());
+  r.Optional("odometry_scale", &odometry_scale, "distance per odometer metre", Positive());
+  r.Optional("along_track_sigma_per_m", &along_track_sigma_per_m, "along-track sigma per metre", NonNegative());
+  r.Optional("cross_track_sigma_per_m", &cross_track_sigma_per_m, "cross-track sigma per metre", NonNegative());
+  r.Optional("distance_noise_m_per_sqrt_m", &distance_noise_m_per_sqrt_m, "m/sqrt(m), random position noise",
+             NonNegative());
+  r.Optional("gyro_noise_density", &gyro_noise_density, "rad/s/sqrt(Hz)", NonNegative());
+  r.Optional("gyro_bias_sigma", &gyro_bias_sigma, "rad/s, constant gyro bias 1-sigma", NonNegative());
+  r.Optional("gyro_bias_walk", &gyro_bias_walk, "rad/s^2/sqrt(Hz)", NonNegative());
+  r.Optional("still_gyro_threshold", &still_gyro_threshold, "rad/s", Positive());
+  r.Optional("still_accel_tolerance", &still_accel_tolerance, "m/s^2", Positive());
+  r.Optional("still_speed_threshold", &still_speed_threshold, "m/s", Positive());
+  r.Optional("still_settle_s", &still_settle_s, "s of stillness ignored before averaging", NonNegative());
+  r.Optional("still_duration_s", &still_duration_s, "s averaged per gravity update", Positive());
+  r.Optional("max_imu_gap_s", &max_imu_gap_s, "s, longer IMU gaps are bridged", Positive());
+  r.Optional("gap_attitude_sigma_rate", &gap_attitude_sigma_rate, "rad/s added over a bridged gap", NonNegative());
+  r.Optional("max_speed_mps", &max_speed_mps, "m/s, faster odometer increments dropped", Positive());
+  r.Optional("wheel_wait_s", &wheel_wait_s, "s, wheel samples wait this long for the IMU", NonNegative());
+  r.Optional("reset_backward_jump_s", &reset_backward_jump_s, "s, larger backward jumps restart", Positive());
+  r.Optional("max_forward_jump_s", &max_forward_jump_s, "s, larger forward jumps wait for the next sample to confirm",
+             Below(1e9));
   r.Optional("max_gyro_rate_rps", &max_gyro_rate_rps, "rad/s, faster rates are rejected as not physical");
   r.Optional("max_accel_mps2", &max_accel_mps2, "m/s^2, larger specific forces are rejected");
-  r.Optional("site_window", &site_window, "site arrivals remembered (newest ids) to drop repeats");
+  r.Optional("site_window", &site_window, "site arrivals remembered (newest ids) to drop repeats", AtLeast(1));
+  r.Relation("max_forward_jump_s", max_forward_jump_s > max_imu_gap_s, "must be above max_imu_gap_s");
+  r.Relation("max_gyro_rate_rps", max_gyro_rate_rps > still_gyro_threshold, "must exceed still_gyro_threshold");
+  r.Relation("max_accel_mps2", max_accel_mps2 > gravity_mps2, "must exceed gravity_mps2");
 }
 
-bool DeadReckoningOptions::Check(std::string* error) const {
-  if (!(gravity_mps2 > 0)) return Fail(error, "gravity_mps2 must be positive (1.62 Moon, 3.71 Mars, 9.81 Earth)");
-  if (!(publish_period_s > 0)) return Fail(error, "publish_period_s must be positive");
-  if (!initial_position.allFinite()) return Fail(error, "initial_position must be finite");
-  if (!(initial_position_sigma_m > 0) || !(initial_yaw_sigma_rad > 0) || !(tilt_sigma_rad > 0))
-    return Fail(error, "initial_position_sigma_m, initial_yaw_sigma_rad and tilt_sigma_rad must be positive");
-  if (!(odometry_scale > 0)) return Fail(error, "odometry_scale must be positive");
-  if (along_track_sigma_per_m < 0 || cross_track_sigma_per_m < 0 || distance_noise_m_per_sqrt_m < 0 ||
-      gyro_noise_density < 0 || gyro_bias_sigma < 0 || gyro_bias_walk < 0 || gap_attitude_sigma_rate < 0)
-    return Fail(error, "noise and drift sigmas must be >= 0");
-  if (!(still_gyro_threshold > 0) || !(still_accel_tolerance > 0) || !(still_speed_threshold > 0))
-    return Fail(error, "still_* thresholds must be positive");
-  if (!(still_duration_s > 0) || still_settle_s < 0)
-    return Fail(error, "still_duration_s must be positive and still_settle_s >= 0");
-  if (!(max_imu_gap_s > 0) || !(max_speed_mps > 0) || !(wheel_wait_s >= 0) || !(reset_backward_jump_s > 0))
-    return Fail(error, "max_imu_gap_s, max_speed_mps, reset_backward_jump_s must be positive, wheel_wait_s >= 0");
-  if (!(max_forward_jump_s > max_imu_gap_s) || !(max_forward_jump_s < 1e9))
-    return Fail(error, "max_forward_jump_s must be above max_imu_gap_s and below 1e9 s, is " +
-                           std::to_string(max_forward_jump_s));
-  if (!(max_gyro_rate_rps > still_gyro_threshold) || !(max_accel_mps2 > gravity_mps2))
-    return Fail(error, "max_gyro_rate_rps must exceed still_gyro_threshold and max_accel_mps2 gravity_mps2");
-  if (site_window < 1) return Fail(error, "site_window must be >= 1");
-  return true;
-}
+bool DeadReckoningOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 DeadReckoning::DeadReckoning(const DeadReckoningOptions& options) : options_(options) {}
 

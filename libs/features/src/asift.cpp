@@ -138,7 +138,8 @@ FeatureSet DetectAsift(const cv::Mat& image, const cv::Mat& mask, const std::vec
 void GatedMatchOptions::Visit(OptionsReader& r) {
   r.Optional("gate_radius", &gate_radius, "px, search radius around the predicted position", Positive());
   r.Optional("ratio", &ratio, "Lowe ratio test threshold", InLeftOpen(0, 1));
-  r.Optional("distinct_radius", &distinct_radius, "px, candidates this close to the best are the same point", NonNegative());
+  r.Optional("distinct_radius", &distinct_radius, "px, candidates this close to the best are the same point",
+             NonNegative());
   r.Optional("max_descriptor_distance", &max_descriptor_distance, "L2 descriptor distance limit (0 = none)");
   r.Optional("num_threads", &num_threads, "OpenMP threads over the query features", AtLeast(1));
 }

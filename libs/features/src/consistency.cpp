@@ -22,7 +22,8 @@ Eigen::Matrix3d StereoPointCovariance(const Eigen::Vector3d& ray, double range, 
 void ConsistencyOptions::Visit(OptionsReader& r) {
   r.Optional("k_sigma", &k_sigma, "threshold e_L in standard deviations of the distance residual", Positive());
   r.Optional("min_threshold", &min_threshold, "m, added to every pair's threshold", NonNegative());
-  r.Optional("min_weight_fraction", &min_weight_fraction, "weight threshold as a fraction of the median weight", InLeftOpen(0, 1));
+  r.Optional("min_weight_fraction", &min_weight_fraction, "weight threshold as a fraction of the median weight",
+             InLeftOpen(0, 1));
   r.Optional("min_weight", &min_weight, "votes, lowest weight threshold", AtLeast(1));
   r.Optional("max_passes", &max_passes, "voting passes among the survivors", AtLeast(1));
 }
@@ -87,7 +88,8 @@ ConsistencyResult DistanceConsistencyCheck(const std::vector<Eigen::Vector3d>& p
 }
 
 void MotionConsistencyOptions::Visit(OptionsReader& r) {
-  r.Optional("max_mahalanobis_sq", &max_mahalanobis_sq, "squared Mahalanobis residual of an inlier (chi-square, 3 DoF)", Positive());
+  r.Optional("max_mahalanobis_sq", &max_mahalanobis_sq, "squared Mahalanobis residual of an inlier (chi-square, 3 DoF)",
+             Positive());
   r.Optional("ransac_iterations", &ransac_iterations, "3-point RANSAC samples", AtLeast(1));
   r.Optional("seed", &seed, "sample generator seed");
 }

@@ -31,7 +31,8 @@ void DenseStereoOptions::Visit(OptionsReader& r) {
   r.Optional("median_stride", &median_stride, "grid cells, neighbour sampling step", AtLeast(1));
   r.Optional("median_min_neighbours", &median_min_neighbours, "fewer valid neighbours: dropped", NonNegative());
   r.Optional("median_abs_tolerance", &median_abs_tolerance, "px, allowed deviation from the median", NonNegative());
-  r.Optional("median_rel_tolerance", &median_rel_tolerance, "fraction of the median added to the tolerance", NonNegative());
+  r.Optional("median_rel_tolerance", &median_rel_tolerance, "fraction of the median added to the tolerance",
+             NonNegative());
   r.Optional("lsm_enabled", &lsm_enabled, "refine by row least-squares matching");
   r.Optional("lsm_half_window", &lsm_half_window, "px, LSM window half width", InRange(2, 20));
   r.Optional("lsm_half_height", &lsm_half_height, "px, LSM window half height", InRange(0, 20));

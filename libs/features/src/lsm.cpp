@@ -14,7 +14,8 @@ namespace vloc {
 
 void LsmOptions::Visit(OptionsReader& r) {
   r.Optional("half_window", &half_window, "px, template half size", InRange(2, 30));
-  r.Optional("half_height", &half_height, "px, template half height (0 = half_window: square)", Is(0) || InRange(2, 30));
+  r.Optional("half_height", &half_height, "px, template half height (0 = half_window: square)",
+             Is(0) || InRange(2, 30));
   r.Optional("max_iterations", &max_iterations, "Gauss-Newton iterations", AtLeast(1));
   r.Optional("convergence_px", &convergence_px, "px, shift update that ends the iteration", Positive());
   r.Optional("max_shift_px", &max_shift_px, "px, largest accepted move from the initial position", Positive());

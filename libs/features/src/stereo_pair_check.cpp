@@ -18,9 +18,11 @@ void StereoPairCheckOptions::Visit(OptionsReader& r) {
   r.Optional("ratio", &ratio, "Lowe's ratio test", InLeftOpen(0, 1));
   r.Optional("ransac_px", &ransac_px, "px, fundamental-matrix RANSAC threshold", Positive());
   r.Optional("min_matches", &min_matches, "fewer inliers: no verdict", AtLeast(8));
-  r.Optional("max_median_dy_px", &max_median_dy_px, "px, largest median row difference of a rectified pair, offset removed", Positive());
+  r.Optional("max_median_dy_px", &max_median_dy_px, "px, largest median row difference of a rectified pair, offset removed",
+             Positive());
   r.Optional("max_row_offset_px", &max_row_offset_px, "px, largest common row offset absorbed", NonNegative());
-  r.Optional("range_percentile", &range_percentile, "%, disparity range from this percentile to 100 minus it", InRightOpen(0, 50));
+  r.Optional("range_percentile", &range_percentile, "%, disparity range from this percentile to 100 minus it",
+             InRightOpen(0, 50));
   r.Optional("range_margin_px", &range_margin_px, "px, margin added to both ends of the range", NonNegative());
 }
 

@@ -11,7 +11,8 @@ namespace vloc {
 void TileRegistrationOptions::Visit(OptionsReader& r) {
   r.Optional("reduction", &reduction, "both images are reduced by this factor before correlation", AtLeast(1));
   r.Optional("tile_px", &tile_px, "px (reduced), width of a correlated tile", AtLeast(8));
-  r.Optional("tile_height_px", &tile_height_px, "px (reduced), height of a correlated tile (0 = tile_px)", Is(0) || AtLeast(3));
+  r.Optional("tile_height_px", &tile_height_px, "px (reduced), height of a correlated tile (0 = tile_px)",
+             Is(0) || AtLeast(3));
   r.Optional("min_coverage", &min_coverage, "fraction of a tile that must be valid", InLeftOpen(0, 1));
   r.Optional("min_tile_std", &min_tile_std, "grey level, flatter tiles are not searched");
   r.Optional("min_ncc", &min_ncc, "correlation peak needed", InRange(-1, 1));

@@ -22,37 +22,26 @@ namespace vloc::posegraph {
 
 void SolverOptions::Visit(OptionsReader& r) {
   r.Optional("chordal_initialisation", &chordal_initialisation, "rotation averaging + linear translations first");
-  r.Optional("max_iterations", &max_iterations, "Levenberg-Marquardt iterations");
-  r.Optional("relative_cost_tolerance", &relative_cost_tolerance, "stop when the cost drops by less than this fraction");
-  r.Optional("gradient_tolerance", &gradient_tolerance, "stop when the weighted gradient inf-norm is below");
-  r.Optional("initial_lambda", &initial_lambda, "initial damping relative to the Hessian diagonal");
-  r.Optional("robust_kernel", &robust_kernel, "none | cauchy | dcs, on loop-closure and absolute-fix edges");
-  r.Optional("robust_width", &robust_width, "kernel width in chi2 units");
-  r.Optional("linear_solver", &linear_solver, "cholmod | eigen");
-  r.Optional("rotation_residual", &rotation_residual, "geodesic | chordal (SE-Sync's objective)");
-  r.Optional("reuse_factorisation", &reuse_factorisation, "CG iterations preconditioned by the last factor before refactorising; 0 = none");
-  r.Optional("cg_relative_residual", &cg_relative_residual, "CG stops at this relative residual");
-  r.Optional("num_threads", &num_threads, "OpenMP threads linearising the edges");
+  r.Optional("max_iterations", &max_iterations, "Levenberg-Marquardt iterations", AtLeast(1));
+  r.Optional("relative_cost_tolerance", &relative_cost_tolerance, "stop when the cost drops by less than this fraction",
+             NonNegative());
+  r.Optional("gradient_tolerance", &gradient_tolerance, "stop when the weighted gradient inf-norm is below",
+             NonNegative());
+  r.Optional("initial_lambda", &initial_lambda, "initial damping relative to the Hessian diagonal", Positive());
+  r.Optional("robust_kernel", &robust_kernel, "on loop-closure and absolute-fix edges",
+             OneOf({"none", "cauchy", "dcs"}));
+  r.Optional("robust_width", &robust_width, "kernel width in chi2 units", Positive() && Finite());
+  r.Optional("linear_solver", &linear_solver, "sparse Cholesky backend", OneOf({"cholmod", "eigen"}));
+  r.Optional("rotation_residual", &rotation_residual, "rotation error (chordal: SE-Sync's objective)",
+             OneOf({"geodesic", "chordal"}));
+  r.Optional("reuse_factorisation", &reuse_factorisation, "CG iterations preconditioned by the last factor before refactorising; 0 = none",
+             NonNegative());
+  r.Optional("cg_relative_residual", &cg_relative_residual, "CG stops at this relative residual", InOpen(0, 1));
+  r.Optional("num_threads", &num_threads, "OpenMP threads linearising the edges", AtLeast(1));
   r.Optional("verbose", &verbose, "print every iteration");
 }
 
-bool SolverOptions::Check(std::string* error) const {
-  if (max_iterations < 1) return Fail(error, "max_iterations must be >= 1");
-  if (!(relative_cost_tolerance >= 0.0)) return Fail(error, "relative_cost_tolerance must be >= 0");
-  if (!(gradient_tolerance >= 0.0)) return Fail(error, "gradient_tolerance must be >= 0");
-  if (!(initial_lambda > 0.0)) return Fail(error, "initial_lambda must be > 0");
-  if (robust_kernel != "none" && robust_kernel != "cauchy" && robust_kernel != "dcs")
-    return Fail(error, "robust_kernel must be none, cauchy or dcs, got '" + robust_kernel + "'");
-  if (!(robust_width > 0.0) || !std::isfinite(robust_width)) return Fail(error, "robust_width must be > 0");
-  if (linear_solver != "cholmod" && linear_solver != "eigen")
-    return Fail(error, "linear_solver must be cholmod or eigen, got '" + linear_solver + "'");
-  if (rotation_residual != "geodesic" && rotation_residual != "chordal")
-    return Fail(error, "rotation_residual must be geodesic or chordal, got '" + rotation_residual + "'");
-  if (num_threads < 1) return Fail(error, "num_threads must be >= 1");
-  if (reuse_factorisation < 0) return Fail(error, "reuse_factorisation must be >= 0");
-  if (!(cg_relative_residual > 0.0 && cg_relative_residual < 1.0)) return Fail(error, "cg_relative_residual must be in (0, 1)");
-  return true;
-}
+bool SolverOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 std::string SolverSummary::BriefReport() const {
   std::ostringstream os;

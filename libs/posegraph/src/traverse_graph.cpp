@@ -74,49 +74,35 @@ const char* EdgeKindName(EdgeKind kind) {
 
 void PoseGraphOptions::Visit(OptionsReader& r) {
   r.Child("solver", [this](OptionsReader& c) { solver.Visit(c); });
-  r.Optional("dr_covariance", &dr_covariance, "difference | per_metre: how DR edge covariances are made");
-  r.Optional("dr_position_sigma_per_metre", &dr_position_sigma_per_metre, "m/m, horizontal DR 1-sigma");
-  r.Optional("dr_vertical_sigma_per_metre", &dr_vertical_sigma_per_metre, "m/m, vertical DR 1-sigma");
-  r.Optional("dr_heading_sigma_per_metre", &dr_heading_sigma_per_metre, "rad/m, DR heading 1-sigma");
-  r.Optional("dr_tilt_sigma", &dr_tilt_sigma, "rad, DR roll/pitch 1-sigma per edge");
-  r.Optional("visual_covariance_scale", &visual_covariance_scale, "multiplies BA covariances");
-  r.Optional("visual_default_position_sigma", &visual_default_position_sigma, "m, BA result without covariance");
-  r.Optional("visual_default_rotation_sigma", &visual_default_rotation_sigma, "rad, BA result without covariance");
-  r.Optional("fix_default_position_sigma", &fix_default_position_sigma, "m, absolute fix without covariance");
-  r.Optional("fix_default_rotation_sigma", &fix_default_rotation_sigma, "rad, absolute fix without covariance");
-  r.Optional("min_position_sigma", &min_position_sigma, "m, floor added to every edge");
-  r.Optional("min_rotation_sigma", &min_rotation_sigma, "rad, floor added to every edge");
+  r.Optional("dr_covariance", &dr_covariance, "how DR edge covariances are made", OneOf({"difference", "per_metre"}));
+  r.Optional("dr_position_sigma_per_metre", &dr_position_sigma_per_metre, "m/m, horizontal DR 1-sigma",
+             Positive() && Finite());
+  r.Optional("dr_vertical_sigma_per_metre", &dr_vertical_sigma_per_metre, "m/m, vertical DR 1-sigma",
+             Positive() && Finite());
+  r.Optional("dr_heading_sigma_per_metre", &dr_heading_sigma_per_metre, "rad/m, DR heading 1-sigma",
+             Positive() && Finite());
+  r.Optional("dr_tilt_sigma", &dr_tilt_sigma, "rad, DR roll/pitch 1-sigma per edge", Positive() && Finite());
+  r.Optional("visual_covariance_scale", &visual_covariance_scale, "multiplies BA covariances", Positive() && Finite());
+  r.Optional("visual_default_position_sigma", &visual_default_position_sigma, "m, BA result without covariance",
+             Positive() && Finite());
+  r.Optional("visual_default_rotation_sigma", &visual_default_rotation_sigma, "rad, BA result without covariance",
+             Positive() && Finite());
+  r.Optional("fix_default_position_sigma", &fix_default_position_sigma, "m, absolute fix without covariance",
+             Positive() && Finite());
+  r.Optional("fix_default_rotation_sigma", &fix_default_rotation_sigma, "rad, absolute fix without covariance",
+             Positive() && Finite());
+  r.Optional("min_position_sigma", &min_position_sigma, "m, floor added to every edge", Positive() && Finite());
+  r.Optional("min_rotation_sigma", &min_rotation_sigma, "rad, floor added to every edge", Positive() && Finite());
   r.Optional("compute_marginals", &compute_marginals, "marginal covariances after each update");
   r.Optional("root_uncertainty", &root_uncertainty, "site marginals include the root's DR covariance, carried to the site");
-  r.Optional("loop_gate_chi2", &loop_gate_chi2, "loop/fix edges beyond this chi2 against the predicted covariance are switched off");
-  r.Optional("max_site_id_jump", &max_site_id_jump, "site ids further beyond the newest are rejected as corrupt");
-  r.Optional("max_pending", &max_pending, "measurements waiting for their sites; beyond, the oldest goes");
+  r.Optional("loop_gate_chi2", &loop_gate_chi2, "loop/fix edges beyond this chi2 against the predicted covariance are switched off",
+             Positive());
+  r.Optional("max_site_id_jump", &max_site_id_jump, "site ids further beyond the newest are rejected as corrupt",
+             AtLeast(1));
+  r.Optional("max_pending", &max_pending, "measurements waiting for their sites; beyond, the oldest goes", AtLeast(1));
 }
 
-bool PoseGraphOptions::Check(std::string* error) const {
-  std::string sub;
-  if (!solver.Check(&sub)) return Fail(error, "solver." + sub);
-  if (dr_covariance != "difference" && dr_covariance != "per_metre")
-    return Fail(error, "dr_covariance must be 'difference' or 'per_metre', got '" + dr_covariance + "'");
-  const std::pair<const char*, double> positive[] = {
-      {"dr_position_sigma_per_metre", dr_position_sigma_per_metre},
-      {"dr_vertical_sigma_per_metre", dr_vertical_sigma_per_metre},
-      {"dr_heading_sigma_per_metre", dr_heading_sigma_per_metre},
-      {"dr_tilt_sigma", dr_tilt_sigma},
-      {"visual_covariance_scale", visual_covariance_scale},
-      {"visual_default_position_sigma", visual_default_position_sigma},
-      {"visual_default_rotation_sigma", visual_default_rotation_sigma},
-      {"fix_default_position_sigma", fix_default_position_sigma},
-      {"fix_default_rotation_sigma", fix_default_rotation_sigma},
-      {"min_position_sigma", min_position_sigma},
-      {"min_rotation_sigma", min_rotation_sigma}};
-  for (const auto& [name, value] : positive)
-    if (!(value > 0.0) || !std::isfinite(value)) return Fail(error, std::string(name) + " must be > 0");
-  if (!(loop_gate_chi2 > 0.0)) return Fail(error, "loop_gate_chi2 must be > 0");
-  if (max_site_id_jump < 1) return Fail(error, "max_site_id_jump must be >= 1, is " + std::to_string(max_site_id_jump));
-  if (max_pending < 1) return Fail(error, "max_pending must be >= 1, is " + std::to_string(max_pending));
-  return true;
-}
+bool PoseGraphOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 std::string PoseGraphSummary::BriefReport() const {
   std::ostringstream os;
