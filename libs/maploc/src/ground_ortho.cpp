@@ -20,24 +20,16 @@ GroundOrthoOptions::GroundOrthoOptions() {
 }
 
 void GroundOrthoOptions::Visit(OptionsReader& r) {
-  r.Optional("m_per_px", &m_per_px, "m, orthophoto cell size (the localizer uses the map's)");
-  r.Optional("max_range_m", &max_range_m, "m, horizontal range kept around the rover");
-  r.Optional("min_range_m", &min_range_m, "m, nearer points are dropped");
-  r.Optional("downsample", &downsample, "image reduction before stereo (1 = full size)");
-  r.Optional("max_rectification_error", &max_rectification_error, "rig rectification tolerance");
+  r.Optional("m_per_px", &m_per_px, "m, orthophoto cell size (the localizer uses the map's)", InLeftOpen(0.001, 5));
+  r.Optional("max_range_m", &max_range_m, "m, horizontal range kept around the rover", AtMost(100));
+  r.Optional("min_range_m", &min_range_m, "m, nearer points are dropped", NonNegative());
+  r.Optional("downsample", &downsample, "image reduction before stereo (1 = full size)", InRange(1, 8));
+  r.Optional("max_rectification_error", &max_rectification_error, "rig rectification tolerance", Positive());
   r.Child("stereo", [this](OptionsReader& c) { stereo.Visit(c); });
+  r.Relation("max_range_m", max_range_m > min_range_m, "must exceed min_range_m");
 }
 
-bool GroundOrthoOptions::Check(std::string* error) const {
-  if (!(m_per_px > 0.001 && m_per_px <= 5)) return Fail(error, "m_per_px must be in (0.001, 5]");
-  if (!(min_range_m >= 0 && max_range_m > min_range_m && max_range_m <= 100))
-    return Fail(error, "need 0 <= min_range_m < max_range_m <= 100");
-  if (downsample < 1 || downsample > 8) return Fail(error, "downsample must be in 1..8");
-  if (!(max_rectification_error > 0)) return Fail(error, "max_rectification_error must be > 0");
-  std::string sub;
-  if (!stereo.Check(&sub)) return Fail(error, "stereo." + sub);
-  return true;
-}
+bool GroundOrthoOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 std::string GroundOrthoSummary::BriefReport() const {
   std::ostringstream s;

@@ -25,64 +25,49 @@ constexpr double kDeg = M_PI / 180.0;
 }
 
 void RegistrationOptions::Visit(OptionsReader& r) {
-  r.Optional("sigma_multiple", &sigma_multiple, "search window in prior sigmas");
-  r.Optional("min_search_radius_m", &min_search_radius_m, "m, smallest search radius");
-  r.Optional("max_search_radius_m", &max_search_radius_m, "m, largest search radius");
-  r.Optional("min_heading_range_deg", &min_heading_range_deg, "deg, smallest heading half range");
-  r.Optional("max_heading_range_deg", &max_heading_range_deg, "deg, largest heading half range");
-  r.Optional("heading_step_deg", &heading_step_deg, "deg, coarse heading step");
-  r.Optional("fine_steps", &fine_steps, "fine heading steps per coarse step");
-  r.Optional("heading_fit_half_width", &heading_fit_half_width, "fine steps each side in the heading parabola");
-  r.Optional("highpass_sigma_m", &highpass_sigma_m, "m, Gaussian removed (high pass)");
-  r.Optional("lowpass_sigma_px", &lowpass_sigma_px, "px, anti-alias Gaussian");
-  r.Optional("gray_weight", &gray_weight, "weight of the grey ZNCC");
-  r.Optional("height_weight", &height_weight, "weight of the height ZNCC");
-  r.Optional("min_valid_cells", &min_valid_cells, "orthophoto cells needed at map resolution");
-  r.Optional("min_overlap", &min_overlap, "fraction of the orthophoto on valid map cells");
-  r.Optional("min_gray_texture", &min_gray_texture, "grey levels, high-passed std needed");
-  r.Optional("min_height_texture_m", &min_height_texture_m, "m, high-passed height std needed");
-  r.Optional("min_peak_score", &min_peak_score, "combined ZNCC needed at the peak");
-  r.Optional("max_peak_ratio", &max_peak_ratio, "second / best peak above this: ambiguous");
-  r.Optional("exclusion_radius_m", &exclusion_radius_m, "m, second peak sought beyond this from the best");
-  r.Optional("covariance_scale", &covariance_scale, "k in cov = k (1 - rho) H^-1 / N (calibrated)");
-  r.Optional("heading_covariance_scale", &heading_covariance_scale, "k of the heading variance (calibrated)");
-  r.Optional("min_position_sigma_m", &min_position_sigma_m, "m, floor of the position sigma");
-  r.Optional("min_heading_sigma_deg", &min_heading_sigma_deg, "deg, floor of the heading sigma");
-  r.Optional("map_position_sigma_m", &map_position_sigma_m, "m, the map's georeferencing error per axis (added)");
-  r.Optional("map_heading_sigma_deg", &map_heading_sigma_deg, "deg, the map's orientation error (added)");
-  r.Optional("tilt_sigma_rad", &tilt_sigma_rad, "rad, roll/pitch sigma of the published fix");
-  r.Optional("vertical_sigma_m", &vertical_sigma_m, "m, z sigma added to the prior's (map without heights)");
-  r.Optional("min_vertical_sigma_m", &min_vertical_sigma_m, "m, floor of the z sigma from the map's heights");
-  r.Optional("vertical_correlation_cells", &vertical_correlation_cells, "cells per independent height difference");
+  r.Optional("sigma_multiple", &sigma_multiple, "search window in prior sigmas", Positive());
+  r.Optional("min_search_radius_m", &min_search_radius_m, "m, smallest search radius", Positive());
+  r.Optional("max_search_radius_m", &max_search_radius_m, "m, largest search radius", AtMost(500));
+  r.Optional("min_heading_range_deg", &min_heading_range_deg, "deg, smallest heading half range", NonNegative());
+  r.Optional("max_heading_range_deg", &max_heading_range_deg, "deg, largest heading half range", AtMost(180));
+  r.Optional("heading_step_deg", &heading_step_deg, "deg, coarse heading step", InLeftOpen(0.01, 10));
+  r.Optional("fine_steps", &fine_steps, "fine heading steps per coarse step", InRange(1, 20));
+  r.Optional("heading_fit_half_width", &heading_fit_half_width, "fine steps each side in the heading parabola",
+             AtLeast(1));
+  r.Optional("highpass_sigma_m", &highpass_sigma_m, "m, Gaussian removed (high pass)", Positive());
+  r.Optional("lowpass_sigma_px", &lowpass_sigma_px, "px, anti-alias Gaussian", NonNegative());
+  r.Optional("gray_weight", &gray_weight, "weight of the grey ZNCC", NonNegative());
+  r.Optional("height_weight", &height_weight, "weight of the height ZNCC", NonNegative());
+  r.Optional("min_valid_cells", &min_valid_cells, "orthophoto cells needed at map resolution", AtLeast(10));
+  r.Optional("min_overlap", &min_overlap, "fraction of the orthophoto on valid map cells", InLeftOpen(0, 1));
+  r.Optional("min_gray_texture", &min_gray_texture, "grey levels, high-passed std needed", NonNegative());
+  r.Optional("min_height_texture_m", &min_height_texture_m, "m, high-passed height std needed", NonNegative());
+  r.Optional("min_peak_score", &min_peak_score, "combined ZNCC needed at the peak", InOpen(0, 1));
+  r.Optional("max_peak_ratio", &max_peak_ratio, "second / best peak above this: ambiguous", InLeftOpen(0, 1));
+  r.Optional("exclusion_radius_m", &exclusion_radius_m, "m, second peak sought beyond this from the best", Positive());
+  r.Optional("covariance_scale", &covariance_scale, "k in cov = k (1 - rho) H^-1 / N (calibrated)", Positive());
+  r.Optional("heading_covariance_scale", &heading_covariance_scale, "k of the heading variance (calibrated)",
+             Positive());
+  r.Optional("min_position_sigma_m", &min_position_sigma_m, "m, floor of the position sigma", Positive());
+  r.Optional("min_heading_sigma_deg", &min_heading_sigma_deg, "deg, floor of the heading sigma", Positive());
+  r.Optional("map_position_sigma_m", &map_position_sigma_m, "m, the map's georeferencing error per axis (added)",
+             NonNegative());
+  r.Optional("map_heading_sigma_deg", &map_heading_sigma_deg, "deg, the map's orientation error (added)",
+             NonNegative());
+  r.Optional("tilt_sigma_rad", &tilt_sigma_rad, "rad, roll/pitch sigma of the published fix", Positive());
+  r.Optional("vertical_sigma_m", &vertical_sigma_m, "m, z sigma added to the prior's (map without heights)",
+             Positive());
+  r.Optional("min_vertical_sigma_m", &min_vertical_sigma_m, "m, floor of the z sigma from the map's heights",
+             Positive());
+  r.Optional("vertical_correlation_cells", &vertical_correlation_cells, "cells per independent height difference",
+             AtLeast(1));
+  r.Relation("max_search_radius_m", max_search_radius_m >= min_search_radius_m, "must be >= min_search_radius_m");
+  r.Relation("max_heading_range_deg", max_heading_range_deg >= min_heading_range_deg,
+             "must be >= min_heading_range_deg");
+  r.Relation("height_weight", gray_weight + height_weight > 0, "must be > 0 when gray_weight is 0");
 }
 
-bool RegistrationOptions::Check(std::string* error) const {
-  if (!(sigma_multiple > 0)) return Fail(error, "sigma_multiple must be > 0");
-  if (!(min_search_radius_m > 0 && max_search_radius_m >= min_search_radius_m && max_search_radius_m <= 500))
-    return Fail(error, "need 0 < min_search_radius_m <= max_search_radius_m <= 500");
-  if (!(min_heading_range_deg >= 0 && max_heading_range_deg >= min_heading_range_deg && max_heading_range_deg <= 180))
-    return Fail(error, "need 0 <= min_heading_range_deg <= max_heading_range_deg <= 180");
-  if (!(heading_step_deg > 0.01 && heading_step_deg <= 10)) return Fail(error, "heading_step_deg must be in (0.01, 10]");
-  if (fine_steps < 1 || fine_steps > 20) return Fail(error, "fine_steps must be in 1..20");
-  if (heading_fit_half_width < 1) return Fail(error, "heading_fit_half_width must be >= 1");
-  if (!(highpass_sigma_m > 0) || !(lowpass_sigma_px >= 0)) return Fail(error, "highpass_sigma_m > 0, lowpass_sigma_px >= 0");
-  if (!(gray_weight >= 0 && height_weight >= 0 && gray_weight + height_weight > 0))
-    return Fail(error, "gray_weight and height_weight must be >= 0, not both 0");
-  if (min_valid_cells < 10) return Fail(error, "min_valid_cells must be >= 10");
-  if (!(min_overlap > 0 && min_overlap <= 1)) return Fail(error, "min_overlap must be in (0, 1]");
-  if (!(min_peak_score > 0 && min_peak_score < 1)) return Fail(error, "min_peak_score must be in (0, 1)");
-  if (!(max_peak_ratio > 0 && max_peak_ratio <= 1)) return Fail(error, "max_peak_ratio must be in (0, 1]");
-  if (!(exclusion_radius_m > 0)) return Fail(error, "exclusion_radius_m must be > 0");
-  if (!(covariance_scale > 0 && heading_covariance_scale > 0)) return Fail(error, "covariance scales must be > 0");
-  if (!(min_position_sigma_m > 0 && min_heading_sigma_deg > 0 && tilt_sigma_rad > 0 && vertical_sigma_m > 0))
-    return Fail(error, "sigma floors and fix sigmas must be > 0");
-  if (!(min_vertical_sigma_m > 0 && vertical_correlation_cells >= 1))
-    return Fail(error, "min_vertical_sigma_m must be > 0, vertical_correlation_cells >= 1");
-  if (!(min_gray_texture >= 0 && min_height_texture_m >= 0)) return Fail(error, "texture thresholds must be >= 0");
-  if (!(map_position_sigma_m >= 0 && map_heading_sigma_deg >= 0))
-    return Fail(error, "map_position_sigma_m and map_heading_sigma_deg must be >= 0");
-  return true;
-}
+bool RegistrationOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 SitePrior SitePriorFromPose(const PoseWithCovariance& p) {
   SitePrior prior;

@@ -23,61 +23,56 @@ std::vector<std::regex> Compile(const std::vector<std::string>& patterns) {
   return out;
 }
 
+using Patterns = std::vector<std::string>;
+
+bool AllRegexes(const Patterns& patterns) {
+  for (const auto& p : patterns) {
+    try {
+      std::regex re(p);
+    } catch (const std::regex_error&) {
+      return false;
+    }
+  }
+  return true;
+}
+
+bool ValidName(const std::string& name) { return !name.empty() && name.size() <= kMaxNameBytes; }
+
 }  // namespace
 
 void TunnelOptions::Visit(OptionsReader& r) {
-  r.Optional("name", &name, "this end's name in status and logs");
+  const Bound<Patterns> regexes = Rule<Patterns>(AllRegexes, "regular expressions");
+  r.Optional("name", &name, "this end's name in status and logs", Rule<std::string>(ValidName, "1-64 characters long"));
   r.Optional("bind", &bind, "ZeroMQ endpoint to listen on, e.g. tcp://*:7720 (this or connect)");
   r.Optional("connect", &connect, "ZeroMQ endpoint of the peer, e.g. tcp://10.0.0.1:7720");
-  r.Optional("send_channels", &send_channels, "regexes: channels of this bus sent to the peer");
-  r.Optional("receive_channels", &receive_channels, "regexes: channels from the peer republished here");
-  r.Optional("urgent_channels", &urgent_channels, "regexes: sent first (poses, status, orders)");
-  r.Optional("bulk_channels", &bulk_channels, "regexes: sent last (images)");
-  r.Optional("urgent_queue_messages", &urgent_queue_messages, "per urgent channel, messages waiting");
-  r.Optional("normal_queue_messages", &normal_queue_messages, "per normal channel, messages waiting");
-  r.Optional("bulk_queue_messages", &bulk_queue_messages, "per bulk channel, messages waiting");
-  r.Optional("queue_mb", &queue_mb, "MB per channel waiting, then the oldest is dropped");
-  r.Optional("max_message_mb", &max_message_mb, "MB, larger messages are dropped");
-  r.Optional("max_channels", &max_channels, "channels tracked; messages of more are dropped");
-  r.Optional("chunk_bytes", &chunk_bytes, "bytes per frame");
-  r.Optional("window_mb", &window_mb, "MB sent and not yet acknowledged");
-  r.Optional("bandwidth_cap_mbps", &bandwidth_cap_mbps, "Mbit/s sent at most, 0: no cap");
-  r.Optional("reassembly_mb", &reassembly_mb, "MB of partly received messages held");
-  r.Optional("echo_window_s", &echo_window_s, "s a republished message is remembered");
-  r.Optional("heartbeat_s", &heartbeat_s, "s between heartbeats");
+  r.Optional("send_channels", &send_channels, "regexes: channels of this bus sent to the peer", regexes);
+  r.Optional("receive_channels", &receive_channels, "regexes: channels from the peer republished here", regexes);
+  r.Optional("urgent_channels", &urgent_channels, "regexes: sent first (poses, status, orders)", regexes);
+  r.Optional("bulk_channels", &bulk_channels, "regexes: sent last (images)", regexes);
+  r.Optional("urgent_queue_messages", &urgent_queue_messages, "per urgent channel, messages waiting", AtLeast(1));
+  r.Optional("normal_queue_messages", &normal_queue_messages, "per normal channel, messages waiting", AtLeast(1));
+  r.Optional("bulk_queue_messages", &bulk_queue_messages, "per bulk channel, messages waiting", AtLeast(1));
+  r.Optional("queue_mb", &queue_mb, "MB per channel waiting, then the oldest is dropped", Positive());
+  r.Optional("max_message_mb", &max_message_mb, "MB, larger messages are dropped", InLeftOpen(0, 1024));
+  r.Optional("max_channels", &max_channels, "channels tracked; messages of more are dropped", InRange(1, 100000));
+  r.Optional("chunk_bytes", &chunk_bytes, "bytes per frame", InRange(512, 1 << 20));
+  r.Optional("window_mb", &window_mb, "MB sent and not yet acknowledged", Positive());
+  r.Optional("bandwidth_cap_mbps", &bandwidth_cap_mbps, "Mbit/s sent at most, 0: no cap", NonNegative() && Finite());
+  r.Optional("reassembly_mb", &reassembly_mb, "MB of partly received messages held", Positive());
+  r.Optional("echo_window_s", &echo_window_s, "s a republished message is remembered", Positive());
+  r.Optional("heartbeat_s", &heartbeat_s, "s between heartbeats", Positive());
   r.Optional("heartbeat_timeout_s", &heartbeat_timeout_s, "s of silence before the link is down");
-  r.Optional("status_period_s", &status_period_s, "s between status reports");
-  r.Optional("status_channel", &status_channel, "channel of the status reports");
+  r.Optional("status_period_s", &status_period_s, "s between status reports", Positive());
+  r.Optional("status_channel", &status_channel, "channel of the status reports",
+             Rule<std::string>(ValidChannelName, "a valid LCM channel name"));
+  r.Relation("connect", bind.empty() || connect.empty(),
+             "must be empty when bind is given (one end listens, the other connects)");
+  r.Relation("reassembly_mb", reassembly_mb >= max_message_mb, "must be >= max_message_mb");
+  r.Relation("window_mb", window_mb * kMb >= chunk_bytes, "must hold at least one chunk (chunk_bytes)");
+  r.Relation("heartbeat_timeout_s", heartbeat_timeout_s > heartbeat_s, "must exceed heartbeat_s");
 }
 
-bool TunnelOptions::Check(std::string* error) const {
-  if (!bind.empty() && !connect.empty())
-    return Fail(error, "give one of bind (listen, e.g. tcp://*:7720) and connect (e.g. tcp://10.0.0.1:7720), not both");
-  if (name.empty() || name.size() > kMaxNameBytes) return Fail(error, "name must have 1-64 characters");
-  for (const auto* list : {&send_channels, &receive_channels, &urgent_channels, &bulk_channels})
-    for (const auto& p : *list) {
-      try {
-        std::regex re(p);
-      } catch (const std::regex_error& e) {
-        return Fail(error, "channel pattern '" + p + "' is not a regular expression: " + e.what());
-      }
-    }
-  if (urgent_queue_messages < 1 || normal_queue_messages < 1 || bulk_queue_messages < 1)
-    return Fail(error, "*_queue_messages must be >= 1");
-  if (!(queue_mb > 0) || !(max_message_mb > 0) || !(window_mb > 0) || !(reassembly_mb > 0))
-    return Fail(error, "queue_mb, max_message_mb, window_mb and reassembly_mb must be positive");
-  if (max_message_mb > 1024) return Fail(error, "max_message_mb must be <= 1024 (LCM messages are far smaller)");
-  if (reassembly_mb < max_message_mb) return Fail(error, "reassembly_mb must be >= max_message_mb");
-  if (max_channels < 1 || max_channels > 100000) return Fail(error, "max_channels must be in [1, 100000]");
-  if (chunk_bytes < 512 || chunk_bytes > (1 << 20)) return Fail(error, "chunk_bytes must be in [512, 1048576]");
-  if (window_mb * kMb < chunk_bytes) return Fail(error, "window_mb must hold at least one chunk");
-  if (!(bandwidth_cap_mbps >= 0) || !std::isfinite(bandwidth_cap_mbps)) return Fail(error, "bandwidth_cap_mbps must be >= 0");
-  if (!(echo_window_s > 0) || !(heartbeat_s > 0) || !(status_period_s > 0))
-    return Fail(error, "echo_window_s, heartbeat_s and status_period_s must be positive");
-  if (!(heartbeat_timeout_s > heartbeat_s)) return Fail(error, "heartbeat_timeout_s must exceed heartbeat_s");
-  if (!ValidChannelName(status_channel)) return Fail(error, "status_channel must be a valid LCM channel name");
-  return true;
-}
+bool TunnelOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 TunnelCore::TunnelCore(const TunnelOptions& options, uint64_t session)
     : options_(options),
