@@ -15,49 +15,34 @@
 namespace vloc::sim {
 
 void NavcamRenderOptions::Visit(OptionsReader& r) {
-  r.Optional("exposure_gain_dn", &exposure_gain_dn, "DN per unit radiance");
-  r.Optional("black_level_dn", &black_level_dn, "DN with no light");
-  r.Optional("read_noise_dn", &read_noise_dn, "DN, 1-sigma read noise");
-  r.Optional("shot_noise_dn2_per_dn", &shot_noise_dn2_per_dn, "DN^2 shot-noise variance per DN");
+  r.Optional("exposure_gain_dn", &exposure_gain_dn, "DN per unit radiance", Positive());
+  r.Optional("black_level_dn", &black_level_dn, "DN with no light", InRightOpen(0, 255));
+  r.Optional("read_noise_dn", &read_noise_dn, "DN, 1-sigma read noise", NonNegative());
+  r.Optional("shot_noise_dn2_per_dn", &shot_noise_dn2_per_dn, "DN^2 shot-noise variance per DN", NonNegative());
   r.Optional("add_noise", &add_noise, "false: noise-free images");
   r.Optional("apply_distortion", &apply_distortion, "render through the lens distortion");
-  r.Optional("max_range_m", &max_range_m, "m, rays beyond see sky");
-  r.Optional("max_footprint_samples", &max_footprint_samples, "shading samples along a grazing pixel's footprint");
-  r.Optional("photometric", &photometric, "lambert | lunar_lambert");
-  r.Optional("lunar_lambert_l", &lunar_lambert_l, "L of the lunar-Lambert model");
-  r.Optional("opposition_b0", &opposition_b0, "opposition surge amplitude");
-  r.Optional("opposition_h", &opposition_h, "opposition surge width (rad)");
-  r.Optional("sky_dn", &sky_dn, "DN of sky pixels");
-  r.Optional("vignetting", &vignetting, "fraction of light lost at the corner");
-  r.Optional("adc_bits", &adc_bits, "8 or 12 (12: square-root companded to 8)");
-  r.Optional("hot_pixel_fraction", &hot_pixel_fraction, "fraction of pixels stuck at 255");
+  r.Optional("max_range_m", &max_range_m, "m, rays beyond see sky", Positive());
+  r.Optional("max_footprint_samples", &max_footprint_samples, "shading samples along a grazing pixel's footprint",
+             AtLeast(1));
+  r.Optional("photometric", &photometric, "lambert | lunar_lambert", OneOf({"lambert", "lunar_lambert"}));
+  r.Optional("lunar_lambert_l", &lunar_lambert_l, "L of the lunar-Lambert model", InRange(0, 1));
+  r.Optional("opposition_b0", &opposition_b0, "opposition surge amplitude", NonNegative());
+  r.Optional("opposition_h", &opposition_h, "opposition surge width (rad)", Positive());
+  r.Optional("sky_dn", &sky_dn, "DN of sky pixels", InRange(0, 255));
+  r.Optional("vignetting", &vignetting, "fraction of light lost at the corner", InRightOpen(0, 1));
+  r.Optional("adc_bits", &adc_bits, "8 or 12 (12: square-root companded to 8)", Is(8) || Is(12));
+  r.Optional("hot_pixel_fraction", &hot_pixel_fraction, "fraction of pixels stuck at 255", InRightOpen(0, 0.01));
   r.Optional("deck", &deck, "draw the rover's deck (side and low views see it)");
   r.Optional("deck_top_m", &deck_top_m, "m, deck height above the body origin");
   r.Optional("deck_front_m", &deck_front_m, "m, deck front edge along body x");
   r.Optional("deck_rear_m", &deck_rear_m, "m, deck rear edge along body x");
   r.Optional("deck_half_width_m", &deck_half_width_m, "m, deck half width across");
-  r.Optional("num_threads", &num_threads, "OpenMP threads");
+  r.Optional("num_threads", &num_threads, "OpenMP threads", AtLeast(1));
+  r.Relation("deck", !deck || (deck_top_m > 0 && deck_front_m > deck_rear_m && deck_half_width_m > 0),
+             "needs deck_top_m > 0, deck_front_m > deck_rear_m and deck_half_width_m > 0");
 }
 
-bool NavcamRenderOptions::Check(std::string* error) const {
-  if (!(exposure_gain_dn > 0)) return Fail(error, "render exposure_gain_dn must be > 0");
-  if (max_footprint_samples < 1) return Fail(error, "render max_footprint_samples must be >= 1");
-  if (!(black_level_dn >= 0 && black_level_dn < 255)) return Fail(error, "render black_level_dn must be in [0, 255)");
-  if (!(read_noise_dn >= 0 && shot_noise_dn2_per_dn >= 0)) return Fail(error, "render noise levels must be >= 0");
-  if (!(max_range_m > 0)) return Fail(error, "render max_range_m must be > 0");
-  if (photometric != "lambert" && photometric != "lunar_lambert")
-    return Fail(error, "render photometric must be 'lambert' or 'lunar_lambert'");
-  if (!(lunar_lambert_l >= 0 && lunar_lambert_l <= 1)) return Fail(error, "render lunar_lambert_l must be in [0, 1]");
-  if (!(opposition_b0 >= 0 && opposition_h > 0)) return Fail(error, "render opposition_b0 must be >= 0, opposition_h > 0");
-  if (!(sky_dn >= 0 && sky_dn <= 255)) return Fail(error, "render sky_dn must be in [0, 255]");
-  if (!(vignetting >= 0 && vignetting < 1)) return Fail(error, "render vignetting must be in [0, 1)");
-  if (adc_bits != 8 && adc_bits != 12) return Fail(error, "render adc_bits must be 8 or 12");
-  if (!(hot_pixel_fraction >= 0 && hot_pixel_fraction < 0.01)) return Fail(error, "render hot_pixel_fraction must be in [0, 0.01)");
-  if (deck && !(deck_top_m > 0 && deck_front_m > deck_rear_m && deck_half_width_m > 0))
-    return Fail(error, "render deck needs deck_top_m > 0, deck_front_m > deck_rear_m and deck_half_width_m > 0");
-  if (num_threads < 1) return Fail(error, "render num_threads must be >= 1");
-  return true;
-}
+bool NavcamRenderOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 bool SameCamera(const PinholeCamera& a, const PinholeCamera& b) {
   return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy && a.cx == b.cx &&

@@ -353,23 +353,18 @@ class Simulator {
 }  // namespace
 
 void PanoramaOptions::Visit(OptionsReader& r) {
-  r.Optional("num_pairs", &num_pairs, "pairs across the forward direction");
-  r.Optional("pan_step_deg", &pan_step_deg, "deg between adjacent pairs");
-  r.Optional("tilt_deg", &tilt_deg, "deg, mast tilt, positive down");
+  r.Optional("num_pairs", &num_pairs, "pairs across the forward direction", InRange(1, 36));
+  r.Optional("pan_step_deg", &pan_step_deg, "deg between adjacent pairs", NonNegative());
+  r.Optional("tilt_deg", &tilt_deg, "deg, mast tilt, positive down", InOpen(-60, 89));
   r.Optional("backward_pair", &backward_pair, "add one pair looking backward");
-  r.Optional("backward_tilt_deg", &backward_tilt_deg, "deg, tilt of the backward pair");
-  r.Optional("settle_s", &settle_s, "s the suspension settles after the stop, before arrival and imaging");
-  r.Optional("pair_interval_s", &pair_interval_s, "s between exposures");
+  r.Optional("backward_tilt_deg", &backward_tilt_deg, "deg, tilt of the backward pair", InOpen(-60, 89));
+  r.Optional("settle_s", &settle_s, "s the suspension settles after the stop, before arrival and imaging",
+             NonNegative());
+  r.Optional("pair_interval_s", &pair_interval_s, "s between exposures", Positive());
+  r.Relation("pan_step_deg", pan_step_deg * (num_pairs - 1) <= 360, "must span at most 360 deg over num_pairs");
 }
 
-bool PanoramaOptions::Check(std::string* error) const {
-  if (num_pairs < 1 || num_pairs > 36) return Fail(error, "panorama num_pairs must be in [1, 36]");
-  if (!(pan_step_deg >= 0 && pan_step_deg * (num_pairs - 1) <= 360)) return Fail(error, "panorama pan_step_deg must be >= 0 and span <= 360 deg");
-  if (!(tilt_deg > -60 && tilt_deg < 89 && backward_tilt_deg > -60 && backward_tilt_deg < 89))
-    return Fail(error, "panorama tilt_deg and backward_tilt_deg must be in (-60, 89)");
-  if (!(settle_s >= 0 && pair_interval_s > 0)) return Fail(error, "panorama settle_s must be >= 0 and pair_interval_s > 0");
-  return true;
-}
+bool PanoramaOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 std::vector<MastPointing> PanoramaOptions::Pointings() const {
   std::vector<MastPointing> out;
@@ -379,86 +374,66 @@ std::vector<MastPointing> PanoramaOptions::Pointings() const {
   return out;
 }
 
+namespace {
+
+bool EvenCount(const std::vector<double>& xy) { return xy.size() % 2 == 0; }
+
+}  // namespace
+
 void TraversePlanOptions::Visit(OptionsReader& r) {
   r.Optional("num_sites", &num_sites, "sites including the start");
-  r.Optional("spacing_min_m", &spacing_min_m, "m, shortest leg");
+  r.Optional("spacing_min_m", &spacing_min_m, "m, shortest leg", Positive());
   r.Optional("spacing_max_m", &spacing_max_m, "m, longest leg");
   r.Optional("initial_heading_deg", &initial_heading_deg, "deg, heading at site 0, ccw from east");
-  r.Optional("max_turn_deg", &max_turn_deg, "deg, largest heading change between legs");
-  r.Optional("margin_m", &margin_m, "m, sites stay this far inside the terrain");
+  r.Optional("max_turn_deg", &max_turn_deg, "deg, largest heading change between legs", InRange(0, 180));
+  r.Optional("margin_m", &margin_m, "m, sites stay this far inside the terrain", AtLeast(3));
   r.Optional("revisit_site", &revisit_site, ">= 0: extra final site back at that site");
-  r.Optional("sites_xy", &sites_xy, "m, explicit site positions x0,y0,x1,y1,...");
+  r.Optional("sites_xy", &sites_xy, "m, explicit site positions x0,y0,x1,y1,...",
+             Rule<std::vector<double>>(EvenCount, "x,y pairs (an even count)"));
+  r.Relation("num_sites", !sites_xy.empty() || num_sites >= 1, "must be >= 1 (or sites_xy given)");
+  r.Relation("spacing_max_m", spacing_max_m >= spacing_min_m, "must be >= spacing_min_m");
+  r.Relation("revisit_site", revisit_site < num_sites, "must be < num_sites (or -1 for none)");
 }
 
-bool TraversePlanOptions::Check(std::string* error) const {
-  if (sites_xy.empty() && num_sites < 1) return Fail(error, "plan num_sites must be >= 1");
-  if (sites_xy.size() % 2 != 0) return Fail(error, "plan sites_xy must hold x,y pairs (even count)");
-  if (!(spacing_min_m > 0 && spacing_max_m >= spacing_min_m)) return Fail(error, "plan spacing must satisfy 0 < min <= max");
-  if (!(max_turn_deg >= 0 && max_turn_deg <= 180)) return Fail(error, "plan max_turn_deg must be in [0, 180]");
-  if (!(margin_m >= 3)) return Fail(error, "plan margin_m must be >= 3");
-  if (revisit_site >= num_sites) return Fail(error, "plan revisit_site must be < num_sites (or -1 for none)");
-  return true;
-}
+bool TraversePlanOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 void MotionOptions::Visit(OptionsReader& r) {
-  r.Optional("speed_mps", &speed_mps, "m/s, driving speed");
-  r.Optional("ramp_s", &ramp_s, "s, speed and turn-rate ramps");
-  r.Optional("turn_rate_deg_s", &turn_rate_deg_s, "deg/s, point-turn rate");
-  r.Optional("attitude_time_constant_s", &attitude_time_constant_s, "s, roll/pitch smoothing");
-  r.Optional("wheel_base_m", &wheel_base_m, "m, front to rear contacts");
-  r.Optional("track_width_m", &track_width_m, "m, left to right contacts");
-  r.Optional("start_utime", &start_utime, "us, time of the first sample");
-  r.Optional("stop_pause_s", &stop_pause_s, "s, pause between events");
+  r.Optional("speed_mps", &speed_mps, "m/s, driving speed", InLeftOpen(0, 2));
+  r.Optional("ramp_s", &ramp_s, "s, speed and turn-rate ramps", Positive());
+  r.Optional("turn_rate_deg_s", &turn_rate_deg_s, "deg/s, point-turn rate", Positive());
+  r.Optional("attitude_time_constant_s", &attitude_time_constant_s, "s, roll/pitch smoothing", AtLeast(0.05));
+  r.Optional("wheel_base_m", &wheel_base_m, "m, front to rear contacts", Positive());
+  r.Optional("track_width_m", &track_width_m, "m, left to right contacts", Positive());
+  r.Optional("start_utime", &start_utime, "us, time of the first sample", NonNegative());
+  r.Optional("stop_pause_s", &stop_pause_s, "s, pause between events", NonNegative());
 }
 
-bool MotionOptions::Check(std::string* error) const {
-  if (!(speed_mps > 0 && speed_mps <= 2)) return Fail(error, "motion speed_mps must be in (0, 2]");
-  if (!(ramp_s > 0 && turn_rate_deg_s > 0)) return Fail(error, "motion ramp_s and turn_rate_deg_s must be > 0");
-  if (!(attitude_time_constant_s >= 0.05)) return Fail(error, "motion attitude_time_constant_s must be >= 0.05");
-  if (!(wheel_base_m > 0 && track_width_m > 0)) return Fail(error, "motion wheel_base_m and track_width_m must be > 0");
-  if (!(start_utime >= 0 && stop_pause_s >= 0)) return Fail(error, "motion start_utime and stop_pause_s must be >= 0");
-  return true;
-}
+bool MotionOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 void ImuOptions::Visit(OptionsReader& r) {
-  r.Optional("rate_hz", &rate_hz, "Hz");
-  r.Optional("gravity_mps2", &gravity_mps2, "m/s^2 (1.62 lunar)");
-  r.Optional("gyro_noise_density", &gyro_noise_density, "rad/s/sqrt(Hz)");
-  r.Optional("gyro_bias_sigma", &gyro_bias_sigma, "rad/s, constant bias 1-sigma");
-  r.Optional("gyro_bias_walk", &gyro_bias_walk, "rad/s^2/sqrt(Hz)");
-  r.Optional("accel_noise_density", &accel_noise_density, "m/s^2/sqrt(Hz)");
-  r.Optional("accel_bias_sigma", &accel_bias_sigma, "m/s^2, constant bias 1-sigma");
+  r.Optional("rate_hz", &rate_hz, "Hz", InRange(10, 2000));
+  r.Optional("gravity_mps2", &gravity_mps2, "m/s^2 (1.62 lunar)", Positive());
+  r.Optional("gyro_noise_density", &gyro_noise_density, "rad/s/sqrt(Hz)", NonNegative());
+  r.Optional("gyro_bias_sigma", &gyro_bias_sigma, "rad/s, constant bias 1-sigma", NonNegative());
+  r.Optional("gyro_bias_walk", &gyro_bias_walk, "rad/s^2/sqrt(Hz)", NonNegative());
+  r.Optional("accel_noise_density", &accel_noise_density, "m/s^2/sqrt(Hz)", NonNegative());
+  r.Optional("accel_bias_sigma", &accel_bias_sigma, "m/s^2, constant bias 1-sigma", NonNegative());
 }
 
-bool ImuOptions::Check(std::string* error) const {
-  if (!(rate_hz >= 10 && rate_hz <= 2000)) return Fail(error, "imu rate_hz must be in [10, 2000]");
-  if (!(gravity_mps2 > 0)) return Fail(error, "imu gravity_mps2 must be > 0");
-  if (!(gyro_noise_density >= 0 && gyro_bias_sigma >= 0 && gyro_bias_walk >= 0 && accel_noise_density >= 0 &&
-        accel_bias_sigma >= 0))
-    return Fail(error, "imu noise and bias levels must be >= 0");
-  return true;
-}
+bool ImuOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 void WheelOptions::Visit(OptionsReader& r) {
-  r.Optional("rate_hz", &rate_hz, "Hz");
-  r.Optional("slip_flat", &slip_flat, "slip ratio on level ground");
-  r.Optional("soil_variation", &soil_variation, "relative spread of the soil factor");
-  r.Optional("soil_wavelength_m", &soil_wavelength_m, "m, soil patch size");
-  r.Optional("slip_per_rad_uphill", &slip_per_rad_uphill, "slip added per rad uphill");
-  r.Optional("skid_per_rad_downhill", &skid_per_rad_downhill, "slip removed per rad downhill");
-  r.Optional("sideslip_per_rad_roll", &sideslip_per_rad_roll, "side velocity / speed per rad of roll");
-  r.Optional("distance_noise_m", &distance_noise_m, "m, 1-sigma per sample");
+  r.Optional("rate_hz", &rate_hz, "Hz", Positive());
+  r.Optional("slip_flat", &slip_flat, "slip ratio on level ground", InRightOpen(0, 0.5));
+  r.Optional("soil_variation", &soil_variation, "relative spread of the soil factor", InRightOpen(0, 1));
+  r.Optional("soil_wavelength_m", &soil_wavelength_m, "m, soil patch size", Positive());
+  r.Optional("slip_per_rad_uphill", &slip_per_rad_uphill, "slip added per rad uphill", NonNegative());
+  r.Optional("skid_per_rad_downhill", &skid_per_rad_downhill, "slip removed per rad downhill", NonNegative());
+  r.Optional("sideslip_per_rad_roll", &sideslip_per_rad_roll, "side velocity / speed per rad of roll", NonNegative());
+  r.Optional("distance_noise_m", &distance_noise_m, "m, 1-sigma per sample", NonNegative());
 }
 
-bool WheelOptions::Check(std::string* error) const {
-  if (!(rate_hz > 0)) return Fail(error, "wheels rate_hz must be > 0");
-  if (!(slip_flat >= 0 && slip_flat < 0.5)) return Fail(error, "wheels slip_flat must be in [0, 0.5)");
-  if (!(soil_variation >= 0 && soil_variation < 1 && soil_wavelength_m > 0))
-    return Fail(error, "wheels soil_variation must be in [0, 1) and soil_wavelength_m > 0");
-  if (!(slip_per_rad_uphill >= 0 && skid_per_rad_downhill >= 0 && sideslip_per_rad_roll >= 0 && distance_noise_m >= 0))
-    return Fail(error, "wheels slip coefficients and distance_noise_m must be >= 0");
-  return true;
-}
+bool WheelOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 void TraverseOptions::Visit(OptionsReader& r) {
   r.Optional("seed", &seed, "plan randomness and sensor noise");
@@ -468,14 +443,10 @@ void TraverseOptions::Visit(OptionsReader& r) {
   r.Child("motion", [&](OptionsReader& c) { motion.Visit(c); });
   r.Child("imu", [&](OptionsReader& c) { imu.Visit(c); });
   r.Child("wheels", [&](OptionsReader& c) { wheels.Visit(c); });
+  r.Relation("wheels.rate_hz", wheels.rate_hz <= imu.rate_hz, "must not exceed imu.rate_hz");
 }
 
-bool TraverseOptions::Check(std::string* error) const {
-  if (!(plan.Check(error) && panorama.Check(error) && motion.Check(error) && imu.Check(error) && wheels.Check(error)))
-    return false;
-  if (wheels.rate_hz > imu.rate_hz) return Fail(error, "wheels rate_hz must not exceed imu rate_hz");
-  return true;
-}
+bool TraverseOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 SimulatedTraverse SimulateTraverse(const Terrain& terrain, const TraverseOptions& options) {
   std::string error;

@@ -10,19 +10,13 @@
 namespace vloc::sim {
 
 void LightingOptions::Visit(OptionsReader& r) {
-  r.Optional("azimuth_step_deg", &azimuth_step_deg, "deg the sun's azimuth moves per site");
-  r.Optional("elevation_step_deg", &elevation_step_deg, "deg the sun's elevation moves per site");
-  r.Optional("min_elevation_deg", &min_elevation_deg, "deg, lowest sun");
-  r.Optional("exposure_jitter", &exposure_jitter, "site gain varies by +-this fraction");
+  r.Optional("azimuth_step_deg", &azimuth_step_deg, "deg the sun's azimuth moves per site", Finite());
+  r.Optional("elevation_step_deg", &elevation_step_deg, "deg the sun's elevation moves per site", Finite());
+  r.Optional("min_elevation_deg", &min_elevation_deg, "deg, lowest sun", InRange(1, 89));
+  r.Optional("exposure_jitter", &exposure_jitter, "site gain varies by +-this fraction", InRightOpen(0, 0.9));
 }
 
-bool LightingOptions::Check(std::string* error) const {
-  if (!(std::isfinite(azimuth_step_deg) && std::isfinite(elevation_step_deg)))
-    return Fail(error, "lighting steps must be finite");
-  if (!(min_elevation_deg >= 1 && min_elevation_deg <= 89)) return Fail(error, "lighting min_elevation_deg must be in [1, 89]");
-  if (!(exposure_jitter >= 0 && exposure_jitter < 0.9)) return Fail(error, "lighting exposure_jitter must be in [0, 0.9)");
-  return true;
-}
+bool LightingOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 void RoverWorldOptions::Visit(OptionsReader& r) {
   r.Child("navcam", [&](OptionsReader& c) { navcam.Visit(c); });
@@ -32,10 +26,7 @@ void RoverWorldOptions::Visit(OptionsReader& r) {
   r.Child("lighting", [&](OptionsReader& c) { lighting.Visit(c); });
 }
 
-bool RoverWorldOptions::Check(std::string* error) const {
-  return navcam.Check(error) && terrain.Check(error) && render.Check(error) && traverse.Check(error) &&
-         lighting.Check(error);
-}
+bool RoverWorldOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 RoverWorld::RoverWorld(const RoverWorldOptions& options) : options_(options) {
   std::string error;

@@ -38,62 +38,47 @@ double PowerLawSample(double u, double d_min, double d_max, double exponent) {
 void TerrainOptions::Visit(OptionsReader& r) {
   r.Optional("seed", &seed, "selects the terrain; same seed, same terrain");
   r.Optional("size_m", &size_m, "m, side of the square height field");
-  r.Optional("resolution_m", &resolution_m, "m, grid spacing");
+  r.Optional("resolution_m", &resolution_m, "m, grid spacing", InRange(0.005, 1));
   r.Optional("origin_x_m", &origin_x_m, "m, world x of the west edge");
   r.Optional("origin_y_m", &origin_y_m, "m, world y of the south edge");
   r.Optional("zero_at_origin", &zero_at_origin, "shift heights so Height(0,0) = 0");
-  r.Optional("relief_amplitude_m", &relief_amplitude_m, "m, amplitude of the largest relief octave");
-  r.Optional("relief_wavelength_m", &relief_wavelength_m, "m, largest relief wavelength");
-  r.Optional("relief_persistence", &relief_persistence, "amplitude ratio between octaves");
-  r.Optional("crater_density", &crater_density, "craters wider than 1 m per 100 m^2");
-  r.Optional("crater_min_diameter_m", &crater_min_diameter_m, "m");
+  r.Optional("relief_amplitude_m", &relief_amplitude_m, "m, amplitude of the largest relief octave", NonNegative());
+  r.Optional("relief_wavelength_m", &relief_wavelength_m, "m, largest relief wavelength", Positive());
+  r.Optional("relief_persistence", &relief_persistence, "amplitude ratio between octaves", InOpen(0, 1));
+  r.Optional("crater_density", &crater_density, "craters wider than 1 m per 100 m^2", NonNegative());
+  r.Optional("crater_min_diameter_m", &crater_min_diameter_m, "m", Positive());
   r.Optional("crater_max_diameter_m", &crater_max_diameter_m, "m");
-  r.Optional("crater_depth_ratio_min", &crater_depth_ratio_min, "depth/diameter, degraded craters");
-  r.Optional("crater_depth_ratio_max", &crater_depth_ratio_max, "depth/diameter, fresh craters");
+  r.Optional("crater_depth_ratio_min", &crater_depth_ratio_min, "depth/diameter, degraded craters", Positive());
+  r.Optional("crater_depth_ratio_max", &crater_depth_ratio_max, "depth/diameter, fresh craters", AtMost(0.5));
   r.Optional("crater_rim_ratio", &crater_rim_ratio, "rim height/diameter, fresh craters");
-  r.Optional("rock_density", &rock_density, "rocks wider than 0.1 m per 100 m^2");
-  r.Optional("rock_min_diameter_m", &rock_min_diameter_m, "m");
+  r.Optional("rock_density", &rock_density, "rocks wider than 0.1 m per 100 m^2", NonNegative());
+  r.Optional("rock_min_diameter_m", &rock_min_diameter_m, "m", Positive());
   r.Optional("rock_max_diameter_m", &rock_max_diameter_m, "m");
   r.Optional("clear_radius_m", &clear_radius_m, "m, no large crater or rock this close to the origin");
-  r.Optional("albedo_mean", &albedo_mean, "mean regolith albedo");
-  r.Optional("albedo_contrast", &albedo_contrast, "relative std of the albedo texture");
+  r.Optional("albedo_mean", &albedo_mean, "mean regolith albedo", InOpen(0, 1));
+  r.Optional("albedo_contrast", &albedo_contrast, "relative std of the albedo texture", InRightOpen(0, 1));
   r.Optional("albedo_wavelength_m", &albedo_wavelength_m, "m, largest albedo wavelength");
-  r.Optional("albedo_finest_m", &albedo_finest_m, "m, finest albedo wavelength");
-  r.Optional("albedo_persistence", &albedo_persistence, "amplitude ratio between albedo octaves");
-  r.Optional("micro_slope", &micro_slope, "rms slope per octave of the sub-grid micro-relief");
+  r.Optional("albedo_finest_m", &albedo_finest_m, "m, finest albedo wavelength", Positive());
+  r.Optional("albedo_persistence", &albedo_persistence, "amplitude ratio between albedo octaves", InOpen(0, 1));
+  r.Optional("micro_slope", &micro_slope, "rms slope per octave of the sub-grid micro-relief", InRightOpen(0, 1));
   r.Optional("micro_wavelength_m", &micro_wavelength_m, "m, largest micro-relief wavelength");
-  r.Optional("micro_finest_m", &micro_finest_m, "m, finest micro-relief wavelength");
+  r.Optional("micro_finest_m", &micro_finest_m, "m, finest micro-relief wavelength", Positive());
   r.Optional("sun_azimuth_deg", &sun_azimuth_deg, "deg, toward the sun, counter-clockwise from east");
-  r.Optional("sun_elevation_deg", &sun_elevation_deg, "deg above the horizon");
-  r.Optional("ambient", &ambient, "radiance in shadow relative to full sun");
-  r.Optional("num_threads", &num_threads, "OpenMP threads");
+  r.Optional("sun_elevation_deg", &sun_elevation_deg, "deg above the horizon", InLeftOpen(0.5, 90));
+  r.Optional("ambient", &ambient, "radiance in shadow relative to full sun", InRange(0, 1));
+  r.Optional("num_threads", &num_threads, "OpenMP threads", AtLeast(1));
+  r.Relation("size_m", size_m >= 4 * resolution_m && size_m / resolution_m <= 20000,
+             "must be 4 to 20000 cells of resolution_m");
+  r.Relation("crater_max_diameter_m", crater_max_diameter_m >= crater_min_diameter_m,
+             "must be >= crater_min_diameter_m");
+  r.Relation("rock_max_diameter_m", rock_max_diameter_m >= rock_min_diameter_m, "must be >= rock_min_diameter_m");
+  r.Relation("crater_depth_ratio_max", crater_depth_ratio_max >= crater_depth_ratio_min,
+             "must be >= crater_depth_ratio_min");
+  r.Relation("albedo_wavelength_m", albedo_wavelength_m > albedo_finest_m, "must exceed albedo_finest_m");
+  r.Relation("micro_wavelength_m", micro_wavelength_m >= micro_finest_m, "must be >= micro_finest_m");
 }
 
-bool TerrainOptions::Check(std::string* error) const {
-  if (!(resolution_m >= 0.005 && resolution_m <= 1.0)) return Fail(error, "terrain resolution_m must be in [0.005, 1] m");
-  if (!(size_m >= 4 * resolution_m && size_m / resolution_m <= 20000))
-    return Fail(error, "terrain size_m must be at least 4 cells and at most 20000 cells (size_m / resolution_m)");
-  if (!(relief_amplitude_m >= 0 && relief_wavelength_m > 0)) return Fail(error, "terrain relief amplitude/wavelength must be >= 0 / > 0");
-  if (!(relief_persistence > 0 && relief_persistence < 1)) return Fail(error, "terrain relief_persistence must be in (0, 1)");
-  if (!(crater_density >= 0 && rock_density >= 0)) return Fail(error, "terrain crater_density and rock_density must be >= 0");
-  if (!(crater_min_diameter_m > 0 && crater_max_diameter_m >= crater_min_diameter_m))
-    return Fail(error, "terrain crater diameters must satisfy 0 < min <= max");
-  if (!(rock_min_diameter_m > 0 && rock_max_diameter_m >= rock_min_diameter_m))
-    return Fail(error, "terrain rock diameters must satisfy 0 < min <= max");
-  if (!(crater_depth_ratio_min > 0 && crater_depth_ratio_max >= crater_depth_ratio_min && crater_depth_ratio_max <= 0.5))
-    return Fail(error, "terrain crater depth ratios must satisfy 0 < min <= max <= 0.5");
-  if (!(albedo_mean > 0 && albedo_mean < 1 && albedo_contrast >= 0 && albedo_contrast < 1))
-    return Fail(error, "terrain albedo_mean must be in (0,1) and albedo_contrast in [0,1)");
-  if (!(albedo_persistence > 0 && albedo_persistence < 1)) return Fail(error, "terrain albedo_persistence must be in (0, 1)");
-  if (!(albedo_finest_m > 0 && albedo_wavelength_m > albedo_finest_m))
-    return Fail(error, "terrain albedo wavelengths must satisfy 0 < finest < largest");
-  if (!(micro_slope >= 0 && micro_slope < 1 && micro_finest_m > 0 && micro_wavelength_m >= micro_finest_m))
-    return Fail(error, "terrain micro_slope must be in [0, 1) and 0 < micro_finest_m <= micro_wavelength_m");
-  if (!(sun_elevation_deg > 0.5 && sun_elevation_deg <= 90)) return Fail(error, "terrain sun_elevation_deg must be in (0.5, 90]");
-  if (!(ambient >= 0 && ambient <= 1)) return Fail(error, "terrain ambient must be in [0, 1]");
-  if (num_threads < 1) return Fail(error, "terrain num_threads must be >= 1");
-  return true;
-}
+bool TerrainOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 Terrain::Terrain(const TerrainOptions& options) : options_(options) {
   std::string error;

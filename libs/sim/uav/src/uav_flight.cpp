@@ -9,33 +9,32 @@
 
 namespace vloc {
 
+namespace {
+
+bool HeightTriples(const std::vector<double>& waypoints) {
+  if (waypoints.empty() || waypoints.size() % 3 != 0) return false;
+  for (size_t i = 2; i < waypoints.size(); i += 3)
+    if (!(waypoints[i] > 0.5)) return false;
+  return true;
+}
+
+}  // namespace
+
 void UavFlightOptions::Visit(OptionsReader& r) {
   r.Optional("takeoff", &takeoff, "m, x east / y north of the take-off hover (marker below)");
-  r.Optional("calibration_height", &calibration_height, "m above ground, hover height over the marker");
-  r.Optional("calibration_hover", &calibration_hover, "s, hover time before the route");
-  r.Optional("waypoints", &waypoints, "m, x y height triples of the route");
-  r.Optional("speed", &speed, "m/s, cruise speed");
-  r.Optional("acceleration", &acceleration, "m/s^2, speed ramps");
-  r.Optional("final_hover", &final_hover, "s, hover at the last waypoint");
-  r.Optional("wobble_amplitude", &wobble_amplitude, "rad, roll/pitch wobble amplitude");
-  r.Optional("wobble_period", &wobble_period, "s, wobble period");
+  r.Optional("calibration_height", &calibration_height, "m above ground, hover height over the marker", Above(0.5));
+  r.Optional("calibration_hover", &calibration_hover, "s, hover time before the route", NonNegative());
+  r.Optional("waypoints", &waypoints, "m, x y height triples of the route",
+             Rule<std::vector<double>>(HeightTriples, "x y height triples, at least one, each height > 0.5 m"));
+  r.Optional("speed", &speed, "m/s, cruise speed", Positive());
+  r.Optional("acceleration", &acceleration, "m/s^2, speed ramps", Positive());
+  r.Optional("final_hover", &final_hover, "s, hover at the last waypoint", NonNegative());
+  r.Optional("wobble_amplitude", &wobble_amplitude, "rad, roll/pitch wobble amplitude", InRange(0, 0.3));
+  r.Optional("wobble_period", &wobble_period, "s, wobble period", Positive());
   r.Optional("seed", &seed, "wobble phase seed");
 }
 
-bool UavFlightOptions::Check(std::string* error) const {
-  if (!(calibration_height > 0.5)) return Fail(error, "flight.calibration_height must be > 0.5 m");
-  if (calibration_hover < 0 || final_hover < 0) return Fail(error, "flight hover times must be >= 0 s");
-  if (waypoints.size() % 3 != 0 || waypoints.empty())
-    return Fail(error, "flight.waypoints must be a non-empty list of x y height triples");
-  for (size_t i = 2; i < waypoints.size(); i += 3)
-    if (!(waypoints[i] > 0.5))
-      return Fail(error, "flight.waypoints: height of waypoint " + std::to_string(i / 3) + " must be > 0.5 m");
-  if (!(speed > 0) || !(acceleration > 0)) return Fail(error, "flight.speed and flight.acceleration must be > 0");
-  if (wobble_amplitude < 0 || wobble_amplitude > 0.3)
-    return Fail(error, "flight.wobble_amplitude must be in [0, 0.3] rad (the camera is nadir)");
-  if (!(wobble_period > 0)) return Fail(error, "flight.wobble_period must be > 0 s");
-  return true;
-}
+bool UavFlightOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 Eigen::Matrix3d UavBodyFromCameraRotation() {
   Eigen::Matrix3d R;

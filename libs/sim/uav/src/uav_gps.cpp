@@ -11,34 +11,33 @@
 
 namespace vloc {
 
+namespace {
+
+bool StartEndPairs(const std::vector<double>& dropouts) {
+  if (dropouts.size() % 2 != 0) return false;
+  for (size_t i = 0; i < dropouts.size(); i += 2)
+    if (!(dropouts[i + 1] > dropouts[i])) return false;
+  return true;
+}
+
+}  // namespace
+
 void UavGpsOptions::Visit(OptionsReader& r) {
-  r.Optional("rate", &rate, "Hz, fix rate");
-  r.Optional("origin_latitude", &origin_latitude, "deg, WGS84 latitude of the world origin");
-  r.Optional("origin_longitude", &origin_longitude, "deg, WGS84 longitude of the world origin");
+  r.Optional("rate", &rate, "Hz, fix rate", InLeftOpen(0, 100));
+  r.Optional("origin_latitude", &origin_latitude, "deg, WGS84 latitude of the world origin", InOpen(-85, 85));
+  r.Optional("origin_longitude", &origin_longitude, "deg, WGS84 longitude of the world origin", InRange(-180, 180));
   r.Optional("origin_altitude", &origin_altitude, "m above the ellipsoid, ground at the origin");
-  r.Optional("horizontal_sigma", &horizontal_sigma, "m, 1-sigma horizontal error per axis");
-  r.Optional("vertical_sigma", &vertical_sigma, "m, 1-sigma altitude error");
-  r.Optional("correlation_time", &correlation_time, "s, GPS error time constant");
-  r.Optional("baro_sigma", &baro_sigma, "m, 1-sigma height_above_ground error");
-  r.Optional("baro_correlation_time", &baro_correlation_time, "s, baro error time constant");
-  r.Optional("dropouts", &dropouts, "s, start/end pairs without a fix");
+  r.Optional("horizontal_sigma", &horizontal_sigma, "m, 1-sigma horizontal error per axis", NonNegative());
+  r.Optional("vertical_sigma", &vertical_sigma, "m, 1-sigma altitude error", NonNegative());
+  r.Optional("correlation_time", &correlation_time, "s, GPS error time constant", Positive());
+  r.Optional("baro_sigma", &baro_sigma, "m, 1-sigma height_above_ground error", NonNegative());
+  r.Optional("baro_correlation_time", &baro_correlation_time, "s, baro error time constant", Positive());
+  r.Optional("dropouts", &dropouts, "s, start/end pairs without a fix",
+             Rule<std::vector<double>>(StartEndPairs, "start/end pairs, each end after its start"));
   r.Optional("seed", &seed, "noise seed");
 }
 
-bool UavGpsOptions::Check(std::string* error) const {
-  if (!(rate > 0 && rate <= 100)) return Fail(error, "gps.rate must be in (0, 100] Hz");
-  if (!(std::abs(origin_latitude) < 85)) return Fail(error, "gps.origin_latitude must be within +-85 deg");
-  if (!(std::abs(origin_longitude) <= 180)) return Fail(error, "gps.origin_longitude must be within +-180 deg");
-  if (horizontal_sigma < 0 || vertical_sigma < 0 || baro_sigma < 0)
-    return Fail(error, "gps sigmas must be >= 0 m");
-  if (!(correlation_time > 0) || !(baro_correlation_time > 0))
-    return Fail(error, "gps correlation times must be > 0 s");
-  if (dropouts.size() % 2 != 0) return Fail(error, "gps.dropouts must hold start/end pairs (seconds)");
-  for (size_t i = 0; i < dropouts.size(); i += 2)
-    if (!(dropouts[i + 1] > dropouts[i]))
-      return Fail(error, "gps.dropouts: each end must be after its start");
-  return true;
-}
+bool UavGpsOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 namespace {
 // One step of a first-order Gauss-Markov process with stationary sigma.

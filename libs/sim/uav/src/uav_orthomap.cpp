@@ -12,38 +12,33 @@
 
 namespace vloc {
 
+namespace {
+
+bool PowerOfTwo(const int& n) { return n > 0 && (n & (n - 1)) == 0; }
+
+}  // namespace
+
 void OrthomapOptions::Visit(OptionsReader& r) {
   r.Optional("seed", &seed, "procedural map seed");
   r.Optional("size", &size, "m, side of the square procedural map");
-  r.Optional("metres_per_pixel", &metres_per_pixel, "m/px of the procedural map or of `image`");
+  r.Optional("metres_per_pixel", &metres_per_pixel, "m/px of the procedural map or of `image`", InOpen(0.001, 10));
   r.Optional("centre", &centre, "m, world x/y of the map centre");
   r.Optional("image", &image, "path of a user orthomap (north up); empty = procedural");
-  r.Optional("field_size", &field_size, "m, typical field side");
-  r.Optional("num_roads", &num_roads, "roads crossing the map");
-  r.Optional("num_buildings", &num_buildings, "rectangular roofs");
-  r.Optional("tree_density", &tree_density, "trees per m^2 outside forests");
-  r.Optional("detail_amplitude", &detail_amplitude, "grey levels, 1-sigma of the fine detail texture; 0 = off");
-  r.Optional("detail_metres_per_pixel", &detail_metres_per_pixel, "m/px of the detail texture");
-  r.Optional("detail_tile", &detail_tile, "px, side of the periodic detail tile (power of two)");
+  r.Optional("field_size", &field_size, "m, typical field side", Above(2));
+  r.Optional("num_roads", &num_roads, "roads crossing the map", NonNegative());
+  r.Optional("num_buildings", &num_buildings, "rectangular roofs", NonNegative());
+  r.Optional("tree_density", &tree_density, "trees per m^2 outside forests", NonNegative());
+  r.Optional("detail_amplitude", &detail_amplitude, "grey levels, 1-sigma of the fine detail texture; 0 = off",
+             InRange(0, 80));
+  r.Optional("detail_metres_per_pixel", &detail_metres_per_pixel, "m/px of the detail texture", Positive());
+  r.Optional("detail_tile", &detail_tile, "px, side of the periodic detail tile (power of two)",
+             InRange(64, 8192) && Rule<int>(PowerOfTwo, "a power of two"));
+  r.Relation("size", !image.empty() || size > 10, "must be > 10 m (a procedural map)");
+  r.Relation("size", !image.empty() || size / metres_per_pixel <= 20000,
+             "must be <= 20000 px of metres_per_pixel (raise metres_per_pixel)");
 }
 
-bool OrthomapOptions::Check(std::string* error) const {
-  if (!(metres_per_pixel > 0.001 && metres_per_pixel < 10))
-    return Fail(error, "orthomap.metres_per_pixel must be in (0.001, 10) m/px");
-  if (image.empty()) {
-    if (!(size > 10)) return Fail(error, "orthomap.size must be > 10 m");
-    if (size / metres_per_pixel > 20000)
-      return Fail(error, "orthomap.size / metres_per_pixel must be <= 20000 px (raise metres_per_pixel)");
-  }
-  if (!(field_size > 2)) return Fail(error, "orthomap.field_size must be > 2 m");
-  if (num_roads < 0 || num_buildings < 0 || tree_density < 0)
-    return Fail(error, "orthomap.num_roads, num_buildings and tree_density must be >= 0");
-  if (detail_amplitude < 0 || detail_amplitude > 80) return Fail(error, "orthomap.detail_amplitude must be in [0, 80]");
-  if (!(detail_metres_per_pixel > 0)) return Fail(error, "orthomap.detail_metres_per_pixel must be > 0");
-  if (detail_tile < 64 || detail_tile > 8192 || (detail_tile & (detail_tile - 1)) != 0)
-    return Fail(error, "orthomap.detail_tile must be a power of two in [64, 8192]");
-  return true;
-}
+bool OrthomapOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 namespace {
 

@@ -14,15 +14,6 @@ namespace vloc {
 
 // ---------------------------------------------------------------- options
 
-void UavMarkerOptions::Visit(OptionsReader& r) {
-  r.Optional("enabled", &enabled, "draw the calibration marker");
-  r.Optional("dictionary", &dictionary, "cv::aruco predefined dictionary, e.g. DICT_4X4_50");
-  r.Optional("id", &id, "marker id");
-  r.Optional("size", &size, "m, side of the marker's black square");
-  r.Optional("position", &position, "m, world x/y of the marker centre");
-  r.Optional("yaw", &yaw, "rad, marker rotation about z (0: marker top to north)");
-}
-
 namespace {
 const std::vector<std::pair<std::string, int>>& ArucoDictionaries() {
   static const std::vector<std::pair<std::string, int>> names = {
@@ -37,42 +28,39 @@ int ArucoDictionaryId(const std::string& name) {
     if (n == name) return id;
   return -1;
 }
+bool KnownDictionary(const std::string& name) { return ArucoDictionaryId(name) >= 0; }
 }  // namespace
 
-bool UavMarkerOptions::Check(std::string* error) const {
-  if (ArucoDictionaryId(dictionary) < 0)
-    return Fail(error, "marker.dictionary '" + dictionary + "' unknown (use DICT_4X4_50, DICT_5X5_100, DICT_6X6_250, ...)");
-  if (id < 0 || id >= 50) return Fail(error, "marker.id must be in [0, 50)");
-  if (!(size > 0.05 && size < 50)) return Fail(error, "marker.size must be in (0.05, 50) m");
-  return true;
+void UavMarkerOptions::Visit(OptionsReader& r) {
+  r.Optional("enabled", &enabled, "draw the calibration marker");
+  r.Optional("dictionary", &dictionary, "cv::aruco predefined dictionary, e.g. DICT_4X4_50",
+             Rule<std::string>(KnownDictionary, "a cv::aruco dictionary (DICT_4X4_50, DICT_5X5_100, DICT_6X6_250, ...)"));
+  r.Optional("id", &id, "marker id", InRightOpen(0, 50));
+  r.Optional("size", &size, "m, side of the marker's black square", InOpen(0.05, 50));
+  r.Optional("position", &position, "m, world x/y of the marker centre");
+  r.Optional("yaw", &yaw, "rad, marker rotation about z (0: marker top to north)");
 }
 
+bool UavMarkerOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
+
 void UavObjectsOptions::Visit(OptionsReader& r) {
-  r.Optional("num_cars", &num_cars, "cars");
-  r.Optional("num_people", &num_people, "people");
-  r.Optional("car_speed", &car_speed, "m/s, mean car speed");
-  r.Optional("person_speed", &person_speed, "m/s, mean walking speed");
-  r.Optional("area_radius", &area_radius, "m, objects stay this close to the take-off point");
+  r.Optional("num_cars", &num_cars, "cars", NonNegative());
+  r.Optional("num_people", &num_people, "people", NonNegative());
+  r.Optional("car_speed", &car_speed, "m/s, mean car speed", NonNegative());
+  r.Optional("person_speed", &person_speed, "m/s, mean walking speed", NonNegative());
+  r.Optional("area_radius", &area_radius, "m, objects stay this close to the take-off point", Positive());
   r.Optional("seed", &seed, "placement seed");
 }
 
-bool UavObjectsOptions::Check(std::string* error) const {
-  if (num_cars < 0 || num_people < 0) return Fail(error, "objects.num_cars and num_people must be >= 0");
-  if (car_speed < 0 || person_speed < 0) return Fail(error, "objects speeds must be >= 0 m/s");
-  if (!(area_radius > 0)) return Fail(error, "objects.area_radius must be > 0 m");
-  return true;
-}
+bool UavObjectsOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 void UavRenderOptions::Visit(OptionsReader& r) {
-  r.Optional("noise_sigma", &noise_sigma, "grey levels, 1-sigma sensor noise");
+  r.Optional("noise_sigma", &noise_sigma, "grey levels, 1-sigma sensor noise", InRange(0, 40));
   r.Optional("moving_objects", &moving_objects, "draw cars and people");
   r.Optional("seed", &seed, "sensor noise seed");
 }
 
-bool UavRenderOptions::Check(std::string* error) const {
-  if (noise_sigma < 0 || noise_sigma > 40) return Fail(error, "render.noise_sigma must be in [0, 40] grey levels");
-  return true;
-}
+bool UavRenderOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 PinholeCamera UavWorldOptions::DefaultUavCamera() {
   PinholeCamera c;
@@ -85,27 +73,23 @@ PinholeCamera UavWorldOptions::DefaultUavCamera() {
 }
 
 void UavTreesOptions::Visit(OptionsReader& r) {
-  r.Optional("num_trees", &num_trees, "crowns in the wooded area (0 = none)");
+  r.Optional("num_trees", &num_trees, "crowns in the wooded area (0 = none)", InRange(0, 100000));
   r.Optional("centre", &centre, "m, world x/y of the wooded area's centre");
-  r.Optional("area_radius", &area_radius, "m, crowns within this distance of the centre");
-  r.Optional("min_height", &min_height, "m, lowest crown top");
+  r.Optional("area_radius", &area_radius, "m, crowns within this distance of the centre", Positive());
+  r.Optional("min_height", &min_height, "m, lowest crown top", Positive());
   r.Optional("max_height", &max_height, "m, highest crown top");
-  r.Optional("min_radius", &min_radius, "m, smallest crown radius");
+  r.Optional("min_radius", &min_radius, "m, smallest crown radius", Positive());
   r.Optional("max_radius", &max_radius, "m, largest crown radius");
   r.Optional("seed", &seed, "placement and texture seed");
+  r.Relation("max_height", max_height >= min_height, "must be >= min_height");
+  r.Relation("max_radius", max_radius >= min_radius, "must be >= min_radius");
 }
 
-bool UavTreesOptions::Check(std::string* error) const {
-  if (num_trees < 0 || num_trees > 100000) return Fail(error, "trees.num_trees must be in [0, 100000]");
-  if (!(area_radius > 0)) return Fail(error, "trees.area_radius must be > 0 m");
-  if (!(min_height > 0 && max_height >= min_height)) return Fail(error, "trees: need 0 < min_height <= max_height");
-  if (!(min_radius > 0 && max_radius >= min_radius)) return Fail(error, "trees: need 0 < min_radius <= max_radius");
-  return true;
-}
+bool UavTreesOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 void UavWorldOptions::Visit(OptionsReader& r) {
   r.Child("camera", [&](OptionsReader& c) { camera.Visit(c); });
-  r.Optional("fps", &fps, "frames/s");
+  r.Optional("fps", &fps, "frames/s", InLeftOpen(0, 240));
   r.Child("orthomap", [&](OptionsReader& c) { orthomap.Visit(c); });
   r.Child("marker", [&](OptionsReader& c) { marker.Visit(c); });
   r.Child("objects", [&](OptionsReader& c) { objects.Visit(c); });
@@ -115,12 +99,7 @@ void UavWorldOptions::Visit(OptionsReader& r) {
   r.Child("render", [&](OptionsReader& c) { render.Visit(c); });
 }
 
-bool UavWorldOptions::Check(std::string* error) const {
-  if (!camera.Check(error)) return false;
-  if (!(fps > 0 && fps <= 240)) return Fail(error, "fps must be in (0, 240]");
-  return orthomap.Check(error) && marker.Check(error) && objects.Check(error) && trees.Check(error) && flight.Check(error) &&
-         gps.Check(error) && render.Check(error);
-}
+bool UavWorldOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 // ---------------------------------------------------------------- world
 
