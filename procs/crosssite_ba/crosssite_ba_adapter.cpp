@@ -12,25 +12,18 @@
 namespace vloc {
 
 void CrossSiteBaProcOptions::Visit(OptionsReader& r) {
-  r.Optional("navcam_config", &navcam_config, "Navcam calibration YAML");
-  r.Optional("tie_points_channel", &tie_points_channel, "tie_points_t in");
-  r.Optional("dr_channel", &dr_channel, "site_pose_t in (dead reckoning)");
-  r.Optional("visual_channel", &visual_channel, "localization_t out");
+  r.Optional("navcam_config", &navcam_config, "Navcam calibration YAML", NonEmpty());
+  r.Optional("tie_points_channel", &tie_points_channel, "tie_points_t in", NonEmpty());
+  r.Optional("dr_channel", &dr_channel, "site_pose_t in (dead reckoning)", NonEmpty());
+  r.Optional("visual_channel", &visual_channel, "localization_t out", NonEmpty());
   r.Optional("chain_previous", &chain_previous, "hold the previous site at our own estimate");
-  r.Optional("queue_capacity", &queue_capacity, "messages per subscription queue");
+  r.Optional("queue_capacity", &queue_capacity, "messages per subscription queue", AtLeast(1));
   r.Optional("state_path", &state_path, "site estimates kept across restarts (relative: in --state-dir)");
-  r.Optional("site_window", &site_window, "sites whose DR pose and estimate are kept (newest ids)");
+  r.Optional("site_window", &site_window, "sites whose DR pose and estimate are kept (newest ids)", AtLeast(2));
   r.Child("ba", [&](OptionsReader& c) { ba.Visit(c); });
 }
 
-bool CrossSiteBaProcOptions::Check(std::string* error) const {
-  if (navcam_config.empty()) return Fail(error, "navcam_config must name the Navcam calibration file");
-  if (tie_points_channel.empty() || dr_channel.empty() || visual_channel.empty())
-    return Fail(error, "channel names must not be empty");
-  if (queue_capacity < 1) return Fail(error, "queue_capacity must be >= 1");
-  if (site_window < 2) return Fail(error, "site_window must be >= 2 (the previous and the current site)");
-  return ba.Check(error);
-}
+bool CrossSiteBaProcOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 localization_t LocalizationToMessage(const CrossSiteBaSummary& s, int64_t utime) {
   localization_t msg;

@@ -9,23 +9,17 @@
 namespace vloc {
 
 void DeadReckoningProcOptions::Visit(OptionsReader& r) {
-  r.Optional("imu_channel", &imu_channel, "imu_t in");
-  r.Optional("wheel_channel", &wheel_channel, "wheel_odometry_t in");
-  r.Optional("site_channel", &site_channel, "site_event_t in");
-  r.Optional("pose_channel", &pose_channel, "pose_t out, periodic");
-  r.Optional("site_pose_channel", &site_pose_channel, "site_pose_t out, per site");
+  r.Optional("imu_channel", &imu_channel, "imu_t in", NonEmpty());
+  r.Optional("wheel_channel", &wheel_channel, "wheel_odometry_t in", NonEmpty());
+  r.Optional("site_channel", &site_channel, "site_event_t in", NonEmpty());
+  r.Optional("pose_channel", &pose_channel, "pose_t out, periodic", NonEmpty());
+  r.Optional("site_pose_channel", &site_pose_channel, "site_pose_t out, per site", NonEmpty());
   r.Optional("start_pose_channel", &start_pose_channel, "site_pose_t in: site 0 sets the start; empty = off");
-  r.Optional("queue_capacity", &queue_capacity, "messages per subscription queue");
+  r.Optional("queue_capacity", &queue_capacity, "messages per subscription queue", AtLeast(1));
   r.Child("dead_reckoning", [&](OptionsReader& c) { dead_reckoning.Visit(c); });
 }
 
-bool DeadReckoningProcOptions::Check(std::string* error) const {
-  if (imu_channel.empty() || wheel_channel.empty() || site_channel.empty() || pose_channel.empty() ||
-      site_pose_channel.empty())
-    return Fail(error, "channel names must not be empty");
-  if (queue_capacity < 1) return Fail(error, "queue_capacity must be >= 1");
-  return dead_reckoning.Check(error);
-}
+bool DeadReckoningProcOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 DeadReckoningAdapter::DeadReckoningAdapter(Transport& transport, const DeadReckoningProcOptions& options)
     : transport_(transport), options_(options), estimator_(options.dead_reckoning) {

@@ -11,18 +11,15 @@ void ImuOdometryDriverOptions::Visit(OptionsReader& r) {
   r.Optional("wheel_csv", &wheel_csv, "path of the wheel CSV; empty = none");
   r.Optional("imu_channel", &imu_channel, "imu_t channel");
   r.Optional("wheel_channel", &wheel_channel, "wheel_odometry_t channel");
-  r.Optional("speed", &speed, "real-time factor, 0 = as fast as possible");
-  r.Optional("max_angular_velocity", &limits.max_angular_velocity, "rad/s, larger gyro values are rejected");
-  r.Optional("max_acceleration", &limits.max_acceleration, "m/s^2, larger accelerometer values are rejected");
-  r.Optional("max_speed", &limits.max_speed, "m/s, larger wheel speeds are rejected");
+  r.Optional("speed", &speed, "real-time factor, 0 = as fast as possible", NonNegative());
+  r.Optional("max_angular_velocity", &limits.max_angular_velocity, "rad/s, larger gyro values are rejected",
+             Positive());
+  r.Optional("max_acceleration", &limits.max_acceleration, "m/s^2, larger accelerometer values are rejected",
+             Positive());
+  r.Optional("max_speed", &limits.max_speed, "m/s, larger wheel speeds are rejected", Positive());
 }
 
-bool ImuOdometryDriverOptions::Check(std::string* error) const {
-  if (speed < 0) return Fail(error, "speed must be >= 0 (0 = as fast as possible)");
-  if (!(limits.max_angular_velocity > 0) || !(limits.max_acceleration > 0) || !(limits.max_speed > 0))
-    return Fail(error, "max_angular_velocity, max_acceleration and max_speed must be > 0");
-  return true;
-}
+bool ImuOdometryDriverOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 ImuOdometryReplaySummary ReplayImuOdometry(const ImuOdometryDriverOptions& options, const ImuCsv& imu,
                                            const WheelCsv& wheel, Transport& transport, ReplayPacer& pacer) {

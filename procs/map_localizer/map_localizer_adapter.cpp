@@ -12,50 +12,44 @@
 
 namespace vloc {
 
+namespace {
+
+bool IsXy(const std::vector<double>& xy) { return xy.size() == 2; }
+
+bool IsLatLonOrEmpty(const std::vector<double>& o) {
+  return o.empty() || (o.size() == 2 && std::abs(o[0]) <= 90 && std::abs(o[1]) <= 180);
+}
+
+}  // namespace
+
 void MapLocalizerProcOptions::Visit(OptionsReader& r) {
   r.Optional("navcam_config", &navcam_config, "Navcam calibration file");
-  r.Optional("map_path", &map_path, "GeoTIFF or PNG + world file of the aerial map");
-  r.Optional("map_offset_xy", &map_offset_xy, "m, subtracted from the map coordinates");
+  r.Optional("map_path", &map_path, "GeoTIFF or PNG + world file of the aerial map", NonEmpty());
+  r.Optional("map_offset_xy", &map_offset_xy, "m, subtracted from the map coordinates",
+             Rule<std::vector<double>>(IsXy, "two numbers [x, y]"));
   r.Optional("map_geographic_origin", &map_geographic_origin,
-             "[lat, lon] deg: the map is in WGS84 degrees and this is the world origin ([] = metres)");
-  r.Optional("map_m_per_px", &map_m_per_px, "m, resample the map to this cell size (0 = the file's)");
+             "[lat, lon] deg: the map is in WGS84 degrees and this is the world origin ([] = metres)", Rule<std::vector<double>>(IsLatLonOrEmpty, "[] or [latitude, longitude] in degrees"));
+  r.Optional("map_m_per_px", &map_m_per_px, "m, resample the map to this cell size (0 = the file's)",
+             NonNegative() && Finite());
   r.Optional("reload_map_on_change", &reload_map_on_change, "re-read the map file when it changes");
-  r.Optional("wait_for_map_s", &wait_for_map_s, "s, wait at start for the map file to appear");
-  r.Optional("stereo_channel", &stereo_channel, "stereo_image_t in");
-  r.Optional("traverse_channel", &traverse_channel, "traverse_t in");
+  r.Optional("wait_for_map_s", &wait_for_map_s, "s, wait at start for the map file to appear", NonNegative());
+  r.Optional("stereo_channel", &stereo_channel, "stereo_image_t in", NonEmpty());
+  r.Optional("traverse_channel", &traverse_channel, "traverse_t in", NonEmpty());
   r.Optional("dr_channel", &dr_channel, "site_pose_t in (prior before the graph has the site)");
-  r.Optional("fix_channel", &fix_channel, "site_pose_t out");
-  r.Optional("fix_every", &fix_every, "attempt a fix at every n-th site");
-  r.Optional("queue_capacity", &queue_capacity, "messages per subscription queue");
-  r.Optional("max_pairs_per_site", &max_pairs_per_site, "a site's num_pairs above this is refused");
-  r.Optional("max_sites_waiting", &max_sites_waiting, "sites collecting pairs or waiting for a prior at once");
+  r.Optional("fix_channel", &fix_channel, "site_pose_t out", NonEmpty());
+  r.Optional("fix_every", &fix_every, "attempt a fix at every n-th site", AtLeast(1));
+  r.Optional("queue_capacity", &queue_capacity, "messages per subscription queue", AtLeast(1));
+  r.Optional("max_pairs_per_site", &max_pairs_per_site, "a site's num_pairs above this is refused",
+             InRange(1, kMaxPairsPerSite));
+  r.Optional("max_sites_waiting", &max_sites_waiting, "sites collecting pairs or waiting for a prior at once",
+             AtLeast(1));
   r.Optional("site_window", &site_window, "newest sites whose graph / DR poses are remembered");
   r.Child("ortho", [this](OptionsReader& c) { ortho.Visit(c); });
   r.Child("registration", [this](OptionsReader& c) { registration.Visit(c); });
+  r.Relation("site_window", site_window >= max_sites_waiting, "must be >= max_sites_waiting");
 }
 
-bool MapLocalizerProcOptions::Check(std::string* error) const {
-  if (map_path.empty()) return Fail(error, "map_path must name the map file (GeoTIFF, or PNG + world file)");
-  if (map_offset_xy.size() != 2) return Fail(error, "map_offset_xy must hold two numbers [x, y]");
-  if (!map_geographic_origin.empty() &&
-      (map_geographic_origin.size() != 2 || !(std::abs(map_geographic_origin[0]) <= 90) ||
-       !(std::abs(map_geographic_origin[1]) <= 180)))
-    return Fail(error, "map_geographic_origin must be [] or [latitude, longitude] in degrees");
-  if (!(map_m_per_px >= 0) || !std::isfinite(map_m_per_px)) return Fail(error, "map_m_per_px must be >= 0 (0 = the file's)");
-  if (stereo_channel.empty() || traverse_channel.empty() || fix_channel.empty())
-    return Fail(error, "stereo_channel, traverse_channel and fix_channel must not be empty");
-  if (fix_every < 1) return Fail(error, "fix_every must be >= 1");
-  if (!(wait_for_map_s >= 0)) return Fail(error, "wait_for_map_s must be >= 0");
-  if (queue_capacity < 1) return Fail(error, "queue_capacity must be >= 1");
-  if (max_pairs_per_site < 1 || max_pairs_per_site > kMaxPairsPerSite)
-    return Fail(error, "max_pairs_per_site must lie in [1, " + std::to_string(kMaxPairsPerSite) + "]");
-  if (max_sites_waiting < 1) return Fail(error, "max_sites_waiting must be >= 1");
-  if (site_window < max_sites_waiting) return Fail(error, "site_window must be >= max_sites_waiting");
-  std::string sub;
-  if (!ortho.Check(&sub)) return Fail(error, "ortho." + sub);
-  if (!registration.Check(&sub)) return Fail(error, "registration." + sub);
-  return true;
-}
+bool MapLocalizerProcOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 maploc::MapGeoreference MapLocalizerProcOptions::Georeference() const {
   maploc::MapGeoreference g;

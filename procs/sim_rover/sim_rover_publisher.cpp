@@ -29,33 +29,22 @@ std::vector<uint8_t> Encode(const Msg& msg) {
 }  // namespace
 
 void SimRoverOptions::Visit(OptionsReader& r) {
-  r.Optional("stereo_channel", &stereo_channel, "stereo_image_t channel");
-  r.Optional("site_channel", &site_channel, "site_event_t channel");
-  r.Optional("imu_channel", &imu_channel, "imu_t channel");
-  r.Optional("wheel_channel", &wheel_channel, "wheel_odometry_t channel");
-  r.Optional("gt_channel", &gt_channel, "pose_t channel, ground-truth world_from_body");
-  r.Optional("site_pose_channel", &site_pose_channel, "site_pose_t channel, ground truth at arrival");
-  r.Optional("image_encoding", &image_encoding, "png, jpeg or gray8");
-  r.Optional("jpeg_quality", &jpeg_quality, "1..100");
-  r.Optional("speed", &speed, "real-time factor; 0 = as fast as possible");
-  r.Optional("gt_rate_hz", &gt_rate_hz, "Hz, GT_POSE rate");
+  r.Optional("stereo_channel", &stereo_channel, "stereo_image_t channel", NonEmpty());
+  r.Optional("site_channel", &site_channel, "site_event_t channel", NonEmpty());
+  r.Optional("imu_channel", &imu_channel, "imu_t channel", NonEmpty());
+  r.Optional("wheel_channel", &wheel_channel, "wheel_odometry_t channel", NonEmpty());
+  r.Optional("gt_channel", &gt_channel, "pose_t channel, ground-truth world_from_body", NonEmpty());
+  r.Optional("site_pose_channel", &site_pose_channel, "site_pose_t channel, ground truth at arrival", NonEmpty());
+  r.Optional("image_encoding", &image_encoding, "stereo image encoding (rgb8 does not fit the grey Navcam)",
+             OneOf({"png", "jpeg", "jpg", "gray8"}));
+  r.Optional("jpeg_quality", &jpeg_quality, "JPEG quality", InRange(1, 100));
+  r.Optional("speed", &speed, "real-time factor; 0 = as fast as possible", NonNegative());
+  r.Optional("gt_rate_hz", &gt_rate_hz, "Hz, GT_POSE rate", Positive());
   world.Visit(r);
+  r.Relation("gt_rate_hz", gt_rate_hz <= world.traverse.imu.rate_hz, "must be <= the IMU rate (traverse.imu.rate_hz)");
 }
 
-bool SimRoverOptions::Check(std::string* error) const {
-  try {
-    const ImageEncoding e = ParseImageEncoding(image_encoding);
-    if (e == ImageEncoding::kRgb8) return Fail(error, "image_encoding rgb8 does not fit gray Navcam images; use png, jpeg or gray8");
-  } catch (const std::exception& ex) {
-    return Fail(error, std::string("image_encoding: ") + ex.what());
-  }
-  if (jpeg_quality < 1 || jpeg_quality > 100) return Fail(error, "jpeg_quality must be in [1, 100]");
-  if (!(speed >= 0)) return Fail(error, "speed must be >= 0 (0 = as fast as possible)");
-  if (!(gt_rate_hz > 0 && gt_rate_hz <= world.traverse.imu.rate_hz)) return Fail(error, "gt_rate_hz must be in (0, imu rate]");
-  for (const std::string* c : {&stereo_channel, &site_channel, &imu_channel, &wheel_channel, &gt_channel, &site_pose_channel})
-    if (c->empty()) return Fail(error, "channel names must not be empty");
-  return world.Check(error);
-}
+bool SimRoverOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 SimRoverPublisher::SimRoverPublisher(const SimRoverOptions& options, const sim::RoverWorld& world)
     : options_(options), world_(world), traverse_(world.traverse()) {

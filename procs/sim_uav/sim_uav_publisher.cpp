@@ -17,31 +17,19 @@
 namespace vloc {
 
 void SimUavOptions::Visit(OptionsReader& r) {
-  r.Optional("camera_channel", &camera_channel, "image_t channel");
-  r.Optional("gps_channel", &gps_channel, "uav_gps_t channel");
-  r.Optional("gt_channel", &gt_channel, "pose_t channel, world_from_body ground truth");
+  r.Optional("camera_channel", &camera_channel, "image_t channel", NonEmpty());
+  r.Optional("gps_channel", &gps_channel, "uav_gps_t channel", NonEmpty());
+  r.Optional("gt_channel", &gt_channel, "pose_t channel, world_from_body ground truth", NonEmpty());
   r.Optional("frame_id", &frame_id, "image_t.frame_id");
-  r.Optional("encoding", &encoding, "jpeg, png, rgb8 or gray8");
-  r.Optional("jpeg_quality", &jpeg_quality, "1..100");
-  r.Optional("speed", &speed, "real-time factor, 0 = as fast as possible");
-  r.Optional("duration", &duration, "s, 0 = whole flight plan");
+  r.Optional("encoding", &encoding, "image_t encoding", OneOf({"jpeg", "jpg", "png", "rgb8", "gray8"}));
+  r.Optional("jpeg_quality", &jpeg_quality, "JPEG quality", InRange(1, 100));
+  r.Optional("speed", &speed, "real-time factor, 0 = as fast as possible", NonNegative());
+  r.Optional("duration", &duration, "s, 0 = whole flight plan", NonNegative());
   r.Optional("start_utime", &start_utime, "microseconds added to every message time");
   r.Child("world", [&](OptionsReader& c) { world.Visit(c); });
 }
 
-bool SimUavOptions::Check(std::string* error) const {
-  try {
-    ParseImageEncoding(encoding);
-  } catch (const std::invalid_argument& e) {
-    return Fail(error, std::string("encoding: ") + e.what());
-  }
-  if (jpeg_quality < 1 || jpeg_quality > 100) return Fail(error, "jpeg_quality must be in [1, 100]");
-  if (speed < 0) return Fail(error, "speed must be >= 0 (0 = as fast as possible)");
-  if (duration < 0) return Fail(error, "duration must be >= 0 s (0 = whole flight)");
-  if (camera_channel.empty() || gps_channel.empty() || gt_channel.empty())
-    return Fail(error, "channel names must not be empty");
-  return world.Check(error);
-}
+bool SimUavOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 namespace {
 template <class Msg>

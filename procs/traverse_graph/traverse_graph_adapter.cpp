@@ -9,24 +9,17 @@
 namespace vloc {
 
 void TraverseGraphProcOptions::Visit(OptionsReader& r) {
-  r.Optional("dr_channel", &dr_channel, "site_pose_t in: dead reckoning per site");
-  r.Optional("visual_channel", &visual_channel, "localization_t in: BA results");
+  r.Optional("dr_channel", &dr_channel, "site_pose_t in: dead reckoning per site", NonEmpty());
+  r.Optional("visual_channel", &visual_channel, "localization_t in: BA results", NonEmpty());
   r.Optional("fix_channel", &fix_channel, "site_pose_t in: absolute fixes, empty = none");
-  r.Optional("traverse_channel", &traverse_channel, "traverse_t out");
+  r.Optional("traverse_channel", &traverse_channel, "traverse_t out", NonEmpty());
   r.Optional("graph_path", &graph_path, "graph file saved after each update, reloaded on start");
   r.Optional("load_on_start", &load_on_start, "reload graph_path when it exists");
-  r.Optional("queue_capacity", &queue_capacity, "messages per subscription queue");
+  r.Optional("queue_capacity", &queue_capacity, "messages per subscription queue", AtLeast(1));
   r.Child("graph", [this](OptionsReader& c) { graph.Visit(c); });
 }
 
-bool TraverseGraphProcOptions::Check(std::string* error) const {
-  if (dr_channel.empty() || visual_channel.empty() || traverse_channel.empty())
-    return Fail(error, "dr_channel, visual_channel and traverse_channel must not be empty");
-  if (queue_capacity < 1) return Fail(error, "queue_capacity must be >= 1");
-  std::string sub;
-  if (!graph.Check(&sub)) return Fail(error, "graph." + sub);
-  return true;
-}
+bool TraverseGraphProcOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 traverse_t TraverseToMessage(const posegraph::TraverseGraph& graph, const posegraph::PoseGraphSummary& summary) {
   traverse_t msg;

@@ -14,31 +14,20 @@ namespace vloc {
 void UavVideoDriverOptions::Visit(OptionsReader& r) {
   r.Optional("video", &video, "video file, image pattern (frames/%05d.png) or folder of images");
   r.Optional("telemetry_csv", &telemetry_csv, "optional telemetry CSV");
-  r.Optional("fps", &fps, "frames/s, 0 = from the video (30 for folders)");
+  r.Optional("fps", &fps, "frames/s, 0 = from the video (30 for folders)", NonNegative());
   r.Optional("telemetry_time_offset", &telemetry_time_offset, "s added to telemetry times");
   r.Optional("start_utime", &start_utime, "microseconds of the first frame");
   r.Optional("camera_channel", &camera_channel, "image_t channel");
   r.Optional("gps_channel", &gps_channel, "uav_gps_t channel");
   r.Optional("frame_id", &frame_id, "image_t.frame_id");
-  r.Optional("encoding", &encoding, "jpeg, png, rgb8 or gray8");
-  r.Optional("jpeg_quality", &jpeg_quality, "1..100");
-  r.Optional("speed", &speed, "real-time factor, 0 = as fast as possible");
+  r.Optional("encoding", &encoding, "image_t encoding", OneOf({"jpeg", "jpg", "png", "rgb8", "gray8"}));
+  r.Optional("jpeg_quality", &jpeg_quality, "JPEG quality", InRange(1, 100));
+  r.Optional("speed", &speed, "real-time factor, 0 = as fast as possible", NonNegative());
   r.Optional("geotags", &geotags, "publish the EXIF GPS of a folder of photos (no telemetry CSV)");
-  r.Optional("geotag_horizontal_sigma", &geotag_horizontal_sigma, "m, sigma of geotag fixes");
+  r.Optional("geotag_horizontal_sigma", &geotag_horizontal_sigma, "m, sigma of geotag fixes", Positive());
 }
 
-bool UavVideoDriverOptions::Check(std::string* error) const {
-  try {
-    ParseImageEncoding(encoding);
-  } catch (const std::invalid_argument& e) {
-    return Fail(error, std::string("encoding: ") + e.what());
-  }
-  if (fps < 0) return Fail(error, "fps must be >= 0 (0 = from the video)");
-  if (jpeg_quality < 1 || jpeg_quality > 100) return Fail(error, "jpeg_quality must be in [1, 100]");
-  if (speed < 0) return Fail(error, "speed must be >= 0 (0 = as fast as possible)");
-  if (!(geotag_horizontal_sigma > 0)) return Fail(error, "geotag_horizontal_sigma must be > 0 m");
-  return true;
-}
+bool UavVideoDriverOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 UavVideoReplaySummary ReplayUavVideo(const UavVideoDriverOptions& options, UavVideoSource& video,
                                      const TelemetryCsv& telemetry, Transport& transport, ReplayPacer& pacer) {

@@ -53,55 +53,41 @@ json Refused(const std::string& why) { return {{"ok", false}, {"error", why}}; }
 
 void OrthoimageOptions::Visit(OptionsReader& r) {
   r.Optional("path", &path, "PNG / JPEG orthoimage under the map (\"\" = none)");
-  r.Optional("x_min_m", &x_min_m, "m, world x of its west edge");
-  r.Optional("y_max_m", &y_max_m, "m, world y of its north edge");
-  r.Optional("m_per_px", &m_per_px, "m per pixel");
+  r.Optional("x_min_m", &x_min_m, "m, world x of its west edge", Finite());
+  r.Optional("y_max_m", &y_max_m, "m, world y of its north edge", Finite());
+  r.Optional("m_per_px", &m_per_px, "m per pixel", InOpen(0, 1e4));
 }
 
-bool OrthoimageOptions::Check(std::string* error) const {
-  if (!std::isfinite(x_min_m) || !std::isfinite(y_max_m) || !(m_per_px > 0 && m_per_px < 1e4))
-    return Fail(error, "orthoimage: x_min_m and y_max_m must be finite and m_per_px in (0, 1e4)");
-  return true;
-}
+bool OrthoimageOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 void ConsoleProcOptions::Visit(OptionsReader& r) {
   r.Child("server", [&](OptionsReader& c) { server.Visit(c); });
-  r.Optional("traverse_channel", &traverse_channel, "traverse_t in");
-  r.Optional("dr_channel", &dr_channel, "site_pose_t in (dead reckoning)");
-  r.Optional("visual_channel", &visual_channel, "localization_t in (BA results)");
-  r.Optional("frontend_status_channel", &frontend_status_channel, "frontend_status_t in");
-  r.Optional("tie_points_channel", &tie_points_channel, "tie_points_t in");
+  r.Optional("traverse_channel", &traverse_channel, "traverse_t in", NonEmpty());
+  r.Optional("dr_channel", &dr_channel, "site_pose_t in (dead reckoning)", NonEmpty());
+  r.Optional("visual_channel", &visual_channel, "localization_t in (BA results)", NonEmpty());
+  r.Optional("frontend_status_channel", &frontend_status_channel, "frontend_status_t in", NonEmpty());
+  r.Optional("tie_points_channel", &tie_points_channel, "tie_points_t in", NonEmpty());
   r.Optional("stereo_channel", &stereo_channel, "stereo_image_t in (\"\" = no images)");
-  r.Optional("procman_status_channel", &procman_status_channel, "procman_status_t in");
+  r.Optional("procman_status_channel", &procman_status_channel, "procman_status_t in", NonEmpty());
   r.Optional("tunnel_status_channel", &tunnel_status_channel, "tunnel_status_t in (\"\" = none)");
-  r.Optional("uav_state_channel", &uav_state_channel, "uav_state_t in");
-  r.Optional("uav_mosaic_channel", &uav_mosaic_channel, "image_t in (JPEG mosaic preview)");
-  r.Optional("orders_channel", &orders_channel, "procman_order_t out");
-  r.Optional("manual_ties_channel", &manual_ties_channel, "manual_tie_points_t out");
-  r.Optional("max_sites", &max_sites, "sites whose poses and statuses are kept");
-  r.Optional("image_sites_kept", &image_sites_kept, "newest sites whose left images are kept");
-  r.Optional("max_uav_states", &max_uav_states, "UAV states kept for the plots");
-  r.Optional("max_manual_points", &max_manual_points, "picks in one manual tie-point command");
-  r.Optional("tie_point_sites_kept", &tie_point_sites_kept, "newest sites whose tie points are kept");
-  r.Optional("max_launchers", &max_launchers, "launchers whose process tables are kept");
-  r.Optional("welcome_max_bytes", &welcome_max_bytes, "bytes a newly opened page is sent, newest sites first");
+  r.Optional("uav_state_channel", &uav_state_channel, "uav_state_t in", NonEmpty());
+  r.Optional("uav_mosaic_channel", &uav_mosaic_channel, "image_t in (JPEG mosaic preview)", NonEmpty());
+  r.Optional("orders_channel", &orders_channel, "procman_order_t out", NonEmpty());
+  r.Optional("manual_ties_channel", &manual_ties_channel, "manual_tie_points_t out", NonEmpty());
+  r.Optional("max_sites", &max_sites, "sites whose poses and statuses are kept", AtLeast(1));
+  r.Optional("image_sites_kept", &image_sites_kept, "newest sites whose left images are kept", AtLeast(2));
+  r.Optional("max_uav_states", &max_uav_states, "UAV states kept for the plots", AtLeast(1));
+  r.Optional("max_manual_points", &max_manual_points, "picks in one manual tie-point command", AtLeast(1));
+  r.Optional("tie_point_sites_kept", &tie_point_sites_kept, "newest sites whose tie points are kept", AtLeast(1));
+  r.Optional("max_launchers", &max_launchers, "launchers whose process tables are kept", AtLeast(1));
+  r.Optional("welcome_max_bytes", &welcome_max_bytes, "bytes a newly opened page is sent, newest sites first",
+             AtLeast(65536));
   r.Child("orthoimage", [&](OptionsReader& c) { orthoimage.Visit(c); });
+  r.Relation("welcome_max_bytes", welcome_max_bytes <= server.max_client_buffer_bytes / 2,
+             "must be <= server.max_client_buffer_bytes / 2");
 }
 
-bool ConsoleProcOptions::Check(std::string* error) const {
-  for (const std::string* c :
-       {&traverse_channel, &dr_channel, &visual_channel, &frontend_status_channel, &tie_points_channel,
-        &procman_status_channel, &uav_state_channel, &uav_mosaic_channel, &orders_channel, &manual_ties_channel})
-    if (c->empty()) return Fail(error, "channel names must not be empty (only stereo_channel may be)");
-  if (max_sites < 1 || image_sites_kept < 2 || max_uav_states < 1 || max_manual_points < 1 ||
-      tie_point_sites_kept < 1 || max_launchers < 1)
-    return Fail(error,
-                "max_sites, max_uav_states, max_manual_points, tie_point_sites_kept and max_launchers must be >= 1 "
-                "and image_sites_kept >= 2");
-  if (welcome_max_bytes < 65536 || welcome_max_bytes > server.max_client_buffer_bytes / 2)
-    return Fail(error, "welcome_max_bytes must be in [65536, server.max_client_buffer_bytes / 2]");
-  return server.Check(error) && orthoimage.Check(error);
-}
+bool ConsoleProcOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 ConsoleAdapter::ConsoleAdapter(Transport& transport, ConsoleServer& server, const ConsoleProcOptions& options)
     : transport_(transport), server_(server), options_(options) {

@@ -21,41 +21,51 @@ namespace vloc {
 using WsServer = websocketpp::server<websocketpp::config::asio>;
 using Hdl = websocketpp::connection_hdl;
 
-void ConsoleServerOptions::Visit(OptionsReader& r) {
-  r.Optional("bind_address", &bind_address, "address to listen on (127.0.0.1: this machine only)");
-  r.Optional("port", &port, "TCP port (0: any free port)");
-  r.Optional("web_root", &web_root, "folder whose files are served");
-  r.Optional("max_client_buffer_bytes", &max_client_buffer_bytes, "bytes unsent per client before it is dropped");
-  r.Optional("max_message_bytes", &max_message_bytes, "bytes, largest WebSocket message accepted");
-  r.Optional("max_file_bytes", &max_file_bytes, "bytes, largest file served");
-  r.Optional("max_connections", &max_connections, "open TCP connections before requests are refused (503)");
-  r.Optional("max_json_depth", &max_json_depth, "nesting of a client's JSON message");
-  r.Optional("allowed_hosts", &allowed_hosts, "Host names served besides IP addresses and localhost");
-  r.Optional("allowed_origins", &allowed_origins, "page origins allowed to open the WebSocket besides our own");
-  r.Optional("auth_free_failures", &auth_free_failures, "wrong tokens from one address before it is locked out");
-  r.Optional("auth_max_lockout_s", &auth_max_lockout_s, "s, longest lockout after wrong tokens");
+namespace {
+
+using Names = std::vector<std::string>;
+
+bool IsIpAddress(const std::string& host) {
+  boost::system::error_code ec;
+  boost::asio::ip::make_address(host, ec);
+  return !ec;
 }
 
-bool ConsoleServerOptions::Check(std::string* error) const {
-  boost::system::error_code ec;
-  boost::asio::ip::make_address(bind_address, ec);
-  if (ec) return Fail(error, "bind_address '" + bind_address + "' is not an IP address");
-  if (port < 0 || port > 65535) return Fail(error, "port must be in [0, 65535]");
-  if (web_root.empty()) return Fail(error, "web_root must name the console's web folder");
-  if (max_client_buffer_bytes < 1024 || max_message_bytes < 1024 || max_file_bytes < 1024)
-    return Fail(error, "max_client_buffer_bytes, max_message_bytes and max_file_bytes must be >= 1024");
-  if (max_connections < 2) return Fail(error, "max_connections must be >= 2");
-  if (max_json_depth < 3 || max_json_depth > 256) return Fail(error, "max_json_depth must be in [3, 256]");
-  if (auth_free_failures < 0 || !(auth_max_lockout_s >= 1 && auth_max_lockout_s <= 86400))
-    return Fail(error, "auth_free_failures must be >= 0 and auth_max_lockout_s in [1, 86400]");
-  for (const std::string& h : allowed_hosts)
-    if (h.empty() || h.find_first_of(":/ ") != std::string::npos)
-      return Fail(error, "allowed_hosts: '" + h + "' is not a host name (no port, no scheme)");
-  for (const std::string& o : allowed_origins)
-    if (o.rfind("http://", 0) != 0 && o.rfind("https://", 0) != 0)
-      return Fail(error, "allowed_origins: '" + o + "' is not an origin (http[s]://host[:port])");
+bool AreHostNames(const Names& hosts) {
+  for (const std::string& h : hosts)
+    if (h.empty() || h.find_first_of(":/ ") != std::string::npos) return false;
   return true;
 }
+
+bool AreOrigins(const Names& origins) {
+  for (const std::string& o : origins)
+    if (o.rfind("http://", 0) != 0 && o.rfind("https://", 0) != 0) return false;
+  return true;
+}
+
+}  // namespace
+
+void ConsoleServerOptions::Visit(OptionsReader& r) {
+  r.Optional("bind_address", &bind_address, "address to listen on (127.0.0.1: this machine only)",
+             Rule<std::string>(IsIpAddress, "an IP address"));
+  r.Optional("port", &port, "TCP port (0: any free port)", InRange(0, 65535));
+  r.Optional("web_root", &web_root, "folder whose files are served", NonEmpty());
+  r.Optional("max_client_buffer_bytes", &max_client_buffer_bytes, "bytes unsent per client before it is dropped",
+             AtLeast(1024));
+  r.Optional("max_message_bytes", &max_message_bytes, "bytes, largest WebSocket message accepted", AtLeast(1024));
+  r.Optional("max_file_bytes", &max_file_bytes, "bytes, largest file served", AtLeast(1024));
+  r.Optional("max_connections", &max_connections, "open TCP connections before requests are refused (503)", AtLeast(2));
+  r.Optional("max_json_depth", &max_json_depth, "nesting of a client's JSON message", InRange(3, 256));
+  r.Optional("allowed_hosts", &allowed_hosts, "Host names served besides IP addresses and localhost",
+             Rule<Names>(AreHostNames, "host names (no port, no scheme)"));
+  r.Optional("allowed_origins", &allowed_origins, "page origins allowed to open the WebSocket besides our own",
+             Rule<Names>(AreOrigins, "origins (http[s]://host[:port])"));
+  r.Optional("auth_free_failures", &auth_free_failures, "wrong tokens from one address before it is locked out",
+             NonNegative());
+  r.Optional("auth_max_lockout_s", &auth_max_lockout_s, "s, longest lockout after wrong tokens", InRange(1, 86400));
+}
+
+bool ConsoleServerOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 std::map<std::string, std::string> ParseQuery(const std::string& query) {
   std::map<std::string, std::string> out;
@@ -105,12 +115,6 @@ std::string HostOfAuthority(const std::string& authority) {
 }
 
 namespace {
-
-bool IsIpAddress(const std::string& host) {
-  boost::system::error_code ec;
-  boost::asio::ip::make_address(host, ec);
-  return !ec;
-}
 
 bool SameText(std::string a, std::string b) {
   std::transform(a.begin(), a.end(), a.begin(), [](unsigned char c) { return std::tolower(c); });
