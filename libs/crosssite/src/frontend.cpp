@@ -54,6 +54,8 @@ void FrontendOptions::Visit(OptionsReader& r) {
   r.Optional("gate_margin_px", &gate_margin_px, "px, added to the predicted growth for the match gate");
   r.Optional("fundamental_threshold_px", &fundamental_threshold_px, "px, RANSAC threshold (0 = off)");
   r.Optional("max_motion_sigmas", &max_motion_sigmas, "tie-point motion vs DR gate in sigmas (0 = off)");
+  r.Optional("dr_check_translation", &dr_check_translation,
+             "the DR check compares the tie points' translation too (false: yaw only, for far-terrain tie points)");
   r.Optional("keep_unrefined_cross", &keep_unrefined_cross, "keep matches whose cross-site LSM failed");
   r.Optional("sigma_unrefined_px", &sigma_unrefined_px, "px, sigma of an unrefined cross-site position");
   r.Optional("warp_current", &warp_current, "match on the current image warped by the ground homography");
@@ -247,9 +249,11 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous, const SiteImag
       return static_cast<int>(2 * (s.previous.pairs.size() + s.current.pairs.size()));
     });
     stages.Step("ground_planes", [&] { return FitGroundPlanes(navcam, tps, o, &s); });
+    if (o.regions.far_max_range > 0) stages.Step("far_stereo", [&] { return MeasureFarTerrain(navcam, tps, o, &s); });
     stages.Step("region_prediction", [&] {
       s.prediction = PredictRegions(navcam, s.previous.world_from_body, s.current.world_from_body,
-                                    tps.previous_pointing, tps.current_pointing, o.regions, s.ground_planes);
+                                    tps.previous_pointing, tps.current_pointing, o.regions, s.ground_planes,
+                                    s.current_far);
       return static_cast<int>(s.prediction.overlaps.size());
     });
     stages.Step("ground_alignment", [&] { return AlignToPreviousGround(navcam, tps, o, &s); });

@@ -174,7 +174,7 @@ int AlignToPreviousGround(const NavcamModel& navcam, const TiePointSet& tps, con
   PoseWithCovariance current = s->current.world_from_body;
   current.pose = s->previous.world_from_body.pose * corrected;
   s->prediction = PredictRegions(navcam, s->previous.world_from_body, current, tps.previous_pointing,
-                                 tps.current_pointing, o.regions, s->ground_planes);
+                                 tps.current_pointing, o.regions, s->ground_planes, s->current_far);
   return a.points;
 }
 

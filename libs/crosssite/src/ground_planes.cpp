@@ -12,26 +12,41 @@
 
 namespace vloc::frontend_internal {
 
+namespace {
+
+// The stereo point (body frame) of a left pixel, its right match searched by
+// ZNCC along the epipolar segment of depths [z0, z1]; nullopt without one.
+std::optional<Eigen::Vector3d> StereoPoint(const StereoRig& rig, const Pose3& body_from_left, const cv::Mat& left,
+                                           const cv::Mat& right, const Eigen::Vector2d& px, double z0, double z1,
+                                           const ZnccOptions& zncc) {
+  Eigen::Vector2d a, b;
+  if (!EpipolarSegment(rig, px, z0, z1, &a, &b)) return std::nullopt;
+  const ZnccMatch z = ZnccAlongSegment(left, right, px, a, b, zncc);
+  if (!z.ok) return std::nullopt;
+  const Pose3 body_from_right = body_from_left * rig.left_from_right;
+  Eigen::Vector3d p;
+  if (!Triangulate(body_from_left.translation(), body_from_left.linear() * rig.left.Ray(px),
+                   body_from_right.translation(), body_from_right.linear() * rig.right.Ray(z.right), &p))
+    return std::nullopt;
+  return p;
+}
+
+}  // namespace
+
 GroundPointSet GroundStereoPoints(const NavcamModel& navcam, const MastPointing& pointing, const cv::Mat& left,
                                   const cv::Mat& right, const FrontendOptions& o) {
   const Pose3 bl = navcam.mast.BodyFromLeft(pointing.pan, pointing.tilt, navcam.rig);
-  const Pose3 br = bl * navcam.rig.left_from_right;
   const PinholeCamera& cam = navcam.rig.left;
   GroundPointSet out;
   out.camera = bl.translation();
   const int step = std::max(kGroundMinGridPx, o.ground_grid_px);
   for (int v = step / 2; v < cam.height; v += step) {
     for (int u = step / 2; u < cam.width; u += step) {
-      const Eigen::Vector2d px(u, v);
-      Eigen::Vector2d a, b;
-      if (!EpipolarSegment(navcam.rig, px, 0.5 * o.regions.min_range_current, 1.5 * o.regions.max_range_current, &a, &b))
-        continue;
-      const ZnccMatch z = ZnccAlongSegment(left, right, px, a, b, o.zncc);
-      if (!z.ok) continue;
-      Eigen::Vector3d p;
-      if (!Triangulate(bl.translation(), bl.linear() * cam.Ray(px), br.translation(),
-                       br.linear() * navcam.rig.right.Ray(z.right), &p))
-        continue;
+      const std::optional<Eigen::Vector3d> sp = StereoPoint(navcam.rig, bl, left, right, Eigen::Vector2d(u, v),
+                                                            0.5 * o.regions.min_range_current,
+                                                            1.5 * o.regions.max_range_current, o.zncc);
+      if (!sp) continue;
+      const Eigen::Vector3d& p = *sp;
       const double range = (p - bl.translation()).norm();
       if (range < 0.5 * o.regions.min_range_current || range > o.regions.max_range_current) continue;
       out.points.push_back(p);
@@ -112,6 +127,35 @@ int FitGroundPlanes(const NavcamModel& navcam, const TiePointSet& tps, const Fro
     num_planes += s->ground_planes[i].head<3>().norm() > kMinPlaneNormal ? 1 : 0;
   }
   return num_planes;
+}
+
+int MeasureFarTerrain(const NavcamModel& navcam, const TiePointSet& tps, const FrontendOptions& o, SitePairState* s) {
+  const int nc = static_cast<int>(s->current.pairs.size());
+  s->current_far.assign(nc, {});
+  const RegionOptions& r = o.regions;
+  const PinholeCamera& cam = navcam.rig.left;
+  int total = 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads) reduction(+ : total)
+  for (int i = 0; i < nc; ++i) {
+    const Pose3 bl = navcam.mast.BodyFromLeft(tps.current_pointing[i].pan, tps.current_pointing[i].tilt, navcam.rig);
+    const cv::Mat& left = s->current_left[i].lsm.gray;
+    const cv::Mat& right = s->current_right[i].lsm.gray;
+    for (double v = r.image_margin; v < cam.height - r.image_margin; v += r.grid_step) {
+      for (double u = r.image_margin; u < cam.width - r.image_margin; u += r.grid_step) {
+        const Eigen::Vector2d px(u, v);
+        const std::optional<Eigen::Vector3d> sp =
+            StereoPoint(navcam.rig, bl, left, right, px, 0.5 * r.far_min_range, 2 * r.far_max_range, o.zncc);
+        if (!sp) continue;
+        const Eigen::Vector3d& p = *sp;
+        const double range = (p - bl.translation()).norm();
+        if (range < r.far_min_range || range > r.far_max_range) continue;
+        s->current_far[i].push_back(
+            {px, p, RangeSigma(range, navcam.rig.Baseline(), cam.fx, r.far_disparity_sigma_px)});
+      }
+    }
+    total += static_cast<int>(s->current_far[i].size());
+  }
+  return total;
 }
 
 }  // namespace vloc::frontend_internal

@@ -29,6 +29,9 @@ void RegionOptions::Visit(OptionsReader& r) {
   r.Optional("min_samples", &min_samples, "ground samples an overlap needs");
   r.Optional("backward_angle_deg", &backward_angle_deg, "deg, viewing directions further apart: backward pair");
   r.Optional("image_margin", &image_margin, "px, samples closer to the border are dropped");
+  r.Optional("far_min_range", &far_min_range, "m, nearest far-terrain stereo point from the current camera");
+  r.Optional("far_max_range", &far_max_range, "m, farthest far-terrain stereo point (0 = no far-terrain overlaps)");
+  r.Optional("far_disparity_sigma_px", &far_disparity_sigma_px, "px, disparity sigma of a far-terrain stereo point");
 }
 
 bool RegionOptions::Check(std::string* error) const {
@@ -40,6 +43,9 @@ bool RegionOptions::Check(std::string* error) const {
     return Fail(error, "regions position sigma fractions must be >= 0 (max > 0)");
   if (min_samples < 4) return Fail(error, "regions.min_samples must be >= 4");
   if (backward_angle_deg <= 0 || backward_angle_deg > 180) return Fail(error, "regions.backward_angle_deg must be in (0, 180]");
+  if (!(far_max_range == 0 || (far_min_range > 0 && far_max_range > far_min_range)))
+    return Fail(error, "regions.far_max_range must be 0 (off) or > far_min_range > 0");
+  if (!(far_disparity_sigma_px > 0)) return Fail(error, "regions.far_disparity_sigma_px must be > 0");
   return true;
 }
 
@@ -65,6 +71,7 @@ namespace {
 struct Sample {
   Eigen::Vector2d px;          // current left ideal px
   Eigen::Vector3d p_current;   // ground point, current body
+  Eigen::Vector3d range_step = Eigen::Vector3d::Zero();  // m, far points: sigma_scale range sigmas along the ray
 };
 
 cv::Rect ClipRect(double x0, double y0, double x1, double y1, const PinholeCamera& cam) {
@@ -143,13 +150,126 @@ void SetViewpointChange(const std::vector<cv::Point2d>& cur_px, PairOverlap* ov)
   ov->tilt_longitude = lon;
 }
 
+// What one (current pair, previous pair) overlap is made from.
+struct OverlapGeometry {
+  const RegionPrediction& prediction;
+  const std::vector<Pose3>& perturbed;  // relative poses: nominal, then +-sigma_scale sigma per axis
+  const PinholeCamera& cam;             // left camera (both sites)
+  const Pose3& prev_cam_from_body;      // previous left camera from the previous body
+  int current_pair, previous_pair;
+  bool backward;
+};
+
+// The overlap the samples make in the previous image, or nullopt with fewer
+// than min_samples members. Ground samples lie within max_range_previous;
+// far samples (far) also grow by their range step, and their homography's
+// fit residual (90th percentile) is added to the gate.
+std::optional<PairOverlap> MakeOverlap(const OverlapGeometry& g, const std::vector<Sample>& samples, bool far,
+                                       const RegionOptions& o) {
+  const PinholeCamera& cam_l = g.cam;
+  const std::vector<Pose3>& perturbed = g.perturbed;
+  PairOverlap ov;
+  ov.far = far;
+  ov.current_pair = g.current_pair;
+  ov.previous_pair = g.previous_pair;
+  ov.backward = g.backward;
+  std::vector<cv::Point2d> cur_px, prev_px;
+  double cx0 = 1e9, cy0 = 1e9, cx1 = -1e9, cy1 = -1e9;
+  double px0 = 1e9, py0 = 1e9, px1 = -1e9, py1 = -1e9;
+  double gx0 = 1e9, gy0 = 1e9, gx1 = -1e9, gy1 = -1e9;
+  std::vector<double> growths;
+  for (const auto& s : samples) {
+    // A sample belongs to the overlap when the ground point lies within
+    // the previous camera's range and projects into the previous image
+    // under the nominal or any perturbed relative pose.
+    const Eigen::Vector3d p_prev = g.prediction.previous_from_current * s.p_current;
+    const Eigen::Vector3d p_cam = g.prev_cam_from_body * p_prev;
+    const auto q = cam_l.ProjectIdeal(p_cam);
+    if (!q || (!far && p_cam.norm() > o.max_range_previous)) continue;
+    // Linearised box of where the point can project: per axis the
+    // larger of the +/- displacements, summed over the 6 axes (so
+    // errors on several axes at once stay inside).
+    Eigen::Vector2d ext(0, 0);
+    for (size_t k = 1; k + 1 < perturbed.size(); k += 2) {
+      Eigen::Vector2d e(0, 0);
+      for (size_t m = k; m <= k + 1; ++m) {
+        const Eigen::Vector3d pk = g.prev_cam_from_body * (perturbed[m] * s.p_current);
+        const auto qk = pk.z() > 0.3 * p_cam.z() ? cam_l.ProjectIdeal(pk) : std::nullopt;
+        if (!qk) {
+          e = Eigen::Vector2d::Constant(o.max_growth_px);
+          break;
+        }
+        e = e.cwiseMax((*qk - *q).cwiseAbs());
+      }
+      ext += e;
+    }
+    if (far) {  // the stereo range's uncertainty, as one more axis
+      Eigen::Vector2d e(0, 0);
+      for (const double sign : {-1.0, 1.0}) {
+        const Eigen::Vector3d pk = g.prev_cam_from_body * (g.prediction.previous_from_current * (s.p_current + sign * s.range_step));
+        const auto qk = pk.z() > 0.3 * p_cam.z() ? cam_l.ProjectIdeal(pk) : std::nullopt;
+        e = qk ? Eigen::Vector2d(e.cwiseMax((*qk - *q).cwiseAbs())) : Eigen::Vector2d::Constant(o.max_growth_px);
+        if (!qk) break;
+      }
+      ext += e;
+    }
+    ext = ext.cwiseMin(o.max_growth_px);
+    const double local_growth = ext.norm();
+    const Eigen::Vector2d lo = *q - ext, hi = *q + ext;
+    const bool member = hi.x() >= o.image_margin && hi.y() >= o.image_margin &&
+                        lo.x() <= cam_l.width - 1 - o.image_margin && lo.y() <= cam_l.height - 1 - o.image_margin;
+    std::vector<Eigen::Vector2d> inside{lo, hi};
+    if (!member) continue;
+    growths.push_back(local_growth);
+    cur_px.emplace_back(s.px.x(), s.px.y());
+    prev_px.emplace_back(q->x(), q->y());
+    cx0 = std::min(cx0, s.px.x()), cy0 = std::min(cy0, s.px.y());
+    cx1 = std::max(cx1, s.px.x()), cy1 = std::max(cy1, s.px.y());
+    gx0 = std::min(gx0, p_prev.x()), gy0 = std::min(gy0, p_prev.y());
+    gx1 = std::max(gx1, p_prev.x()), gy1 = std::max(gy1, p_prev.y());
+    for (const auto& qi : inside) {
+      px0 = std::min(px0, qi.x()), py0 = std::min(py0, qi.y());
+      px1 = std::max(px1, qi.x()), py1 = std::max(py1, qi.y());
+    }
+  }
+  ov.num_samples = static_cast<int>(cur_px.size());
+  if (ov.num_samples < o.min_samples) return std::nullopt;
+  const double half = 0.5 * o.grid_step;
+  // The current region reaches a full grid step past the samples (to the
+  // image border where the grid ends near it).
+  ov.current_region = ClipRect(cx0 - o.grid_step, cy0 - o.grid_step, cx1 + o.grid_step, cy1 + o.grid_step, cam_l);
+  ov.previous_region = ClipRect(px0 - half, py0 - half, px1 + half, py1 + half, cam_l);
+  if (ov.current_region.area() == 0 || ov.previous_region.area() == 0) return std::nullopt;
+  const double gs = o.sigma_scale * std::max(g.prediction.relative_sigma(0), g.prediction.relative_sigma(1));
+  ov.ground_min = {gx0 - gs, gy0 - gs};
+  ov.ground_max = {gx1 + gs, gy1 + gs};
+  // Gate: the 90th percentile of the samples' growth (a few grazing
+  // samples near the horizon would otherwise open it to the whole image).
+  std::sort(growths.begin(), growths.end());
+  ov.growth_px = growths[static_cast<size_t>(0.9 * (growths.size() - 1))];
+  cv::Mat H = cv::findHomography(cur_px, prev_px, 0);
+  if (H.empty()) return std::nullopt;
+  ov.previous_from_current = cv::Matx33d(H);
+  if (far) {  // far terrain is no plane: the homography's own miss widens the gate
+    std::vector<double> miss;
+    for (size_t k = 0; k < cur_px.size(); ++k)
+      miss.push_back((ApplyHomography(ov.previous_from_current, Eigen::Vector2d(cur_px[k].x, cur_px[k].y)) -
+                      Eigen::Vector2d(prev_px[k].x, prev_px[k].y)).norm());
+    std::sort(miss.begin(), miss.end());
+    ov.growth_px = std::min(ov.growth_px + miss[static_cast<size_t>(0.9 * (miss.size() - 1))], o.max_growth_px);
+  }
+  SetViewpointChange(cur_px, &ov);
+  return ov;
+}
+
 }  // namespace
 
 RegionPrediction PredictRegions(const NavcamModel& navcam, const PoseWithCovariance& world_from_previous,
                                 const PoseWithCovariance& world_from_current,
                                 const std::vector<MastPointing>& previous_pointing,
                                 const std::vector<MastPointing>& current_pointing, const RegionOptions& o,
-                                const std::vector<Eigen::Vector4d>& current_ground_planes) {
+                                const std::vector<Eigen::Vector4d>& current_ground_planes,
+                                const std::vector<std::vector<ScenePoint>>& current_far_points) {
   RegionPrediction out;
   const Pose3 previous_from_world = world_from_previous.pose.inverse();
   out.previous_from_current = previous_from_world * world_from_current.pose;
@@ -168,84 +288,22 @@ RegionPrediction PredictRegions(const NavcamModel& navcam, const PoseWithCovaria
     if (i < current_ground_planes.size() && current_ground_planes[i].head<3>().norm() > 0.5)
       plane = current_ground_planes[i];
     const std::vector<Sample> samples = GroundSamples(body_from_cur, plane, cam_l, o);
-    if (samples.empty()) continue;
+    if (samples.empty() && (i >= current_far_points.size() || current_far_points[i].empty())) continue;
     const Eigen::Vector3d cur_axis = out.previous_from_current.linear() * body_from_cur.linear().col(2);
+    std::vector<Sample> far_samples;
+    if (i < current_far_points.size())
+      for (const ScenePoint& sp : current_far_points[i]) {
+        const Eigen::Vector3d ray = (sp.p_body - body_from_cur.translation()).normalized();
+        far_samples.push_back({sp.px, sp.p_body, o.sigma_scale * sp.range_sigma * ray});
+      }
     for (size_t j = 0; j < prev_cams.size(); ++j) {
-      PairOverlap ov;
-      ov.current_pair = static_cast<int>(i);
-      ov.previous_pair = static_cast<int>(j);
       const Eigen::Vector3d prev_axis = prev_cams[j].linear().col(2);
       const Eigen::Vector2d a(cur_axis.x(), cur_axis.y()), b(prev_axis.x(), prev_axis.y());
-      ov.backward = a.norm() > 1e-6 && b.norm() > 1e-6 && a.normalized().dot(b.normalized()) < cos_backward;
-      std::vector<cv::Point2d> cur_px, prev_px;
-      double cx0 = 1e9, cy0 = 1e9, cx1 = -1e9, cy1 = -1e9;
-      double px0 = 1e9, py0 = 1e9, px1 = -1e9, py1 = -1e9;
-      double gx0 = 1e9, gy0 = 1e9, gx1 = -1e9, gy1 = -1e9;
-      std::vector<double> growths;
-      for (const auto& s : samples) {
-        // A sample belongs to the overlap when the ground point lies within
-        // the previous camera's range and projects into the previous image
-        // under the nominal or any perturbed relative pose.
-        const Eigen::Vector3d p_prev = out.previous_from_current * s.p_current;
-        const Eigen::Vector3d p_cam = prev_cams_inv[j] * p_prev;
-        const auto q = cam_l.ProjectIdeal(p_cam);
-        if (!q || p_cam.norm() > o.max_range_previous) continue;
-        // Linearised box of where the point can project: per axis the
-        // larger of the +/- displacements, summed over the 6 axes (so
-        // errors on several axes at once stay inside).
-        Eigen::Vector2d ext(0, 0);
-        for (size_t k = 1; k + 1 < perturbed.size(); k += 2) {
-          Eigen::Vector2d e(0, 0);
-          for (size_t m = k; m <= k + 1; ++m) {
-            const Eigen::Vector3d pk = prev_cams_inv[j] * (perturbed[m] * s.p_current);
-            const auto qk = pk.z() > 0.3 * p_cam.z() ? cam_l.ProjectIdeal(pk) : std::nullopt;
-            if (!qk) {
-              e = Eigen::Vector2d::Constant(o.max_growth_px);
-              break;
-            }
-            e = e.cwiseMax((*qk - *q).cwiseAbs());
-          }
-          ext += e;
-        }
-        ext = ext.cwiseMin(o.max_growth_px);
-        const double local_growth = ext.norm();
-        const Eigen::Vector2d lo = *q - ext, hi = *q + ext;
-        const bool member = hi.x() >= o.image_margin && hi.y() >= o.image_margin &&
-                            lo.x() <= cam_l.width - 1 - o.image_margin && lo.y() <= cam_l.height - 1 - o.image_margin;
-        std::vector<Eigen::Vector2d> inside{lo, hi};
-        if (!member) continue;
-        growths.push_back(local_growth);
-        cur_px.emplace_back(s.px.x(), s.px.y());
-        prev_px.emplace_back(q->x(), q->y());
-        cx0 = std::min(cx0, s.px.x()), cy0 = std::min(cy0, s.px.y());
-        cx1 = std::max(cx1, s.px.x()), cy1 = std::max(cy1, s.px.y());
-        gx0 = std::min(gx0, p_prev.x()), gy0 = std::min(gy0, p_prev.y());
-        gx1 = std::max(gx1, p_prev.x()), gy1 = std::max(gy1, p_prev.y());
-        for (const auto& qi : inside) {
-          px0 = std::min(px0, qi.x()), py0 = std::min(py0, qi.y());
-          px1 = std::max(px1, qi.x()), py1 = std::max(py1, qi.y());
-        }
-      }
-      ov.num_samples = static_cast<int>(cur_px.size());
-      if (ov.num_samples < o.min_samples) continue;
-      const double half = 0.5 * o.grid_step;
-      // The current region reaches a full grid step past the samples (to the
-      // image border where the grid ends near it).
-      ov.current_region = ClipRect(cx0 - o.grid_step, cy0 - o.grid_step, cx1 + o.grid_step, cy1 + o.grid_step, cam_l);
-      ov.previous_region = ClipRect(px0 - half, py0 - half, px1 + half, py1 + half, cam_l);
-      if (ov.current_region.area() == 0 || ov.previous_region.area() == 0) continue;
-      const double gs = o.sigma_scale * std::max(out.relative_sigma(0), out.relative_sigma(1));
-      ov.ground_min = {gx0 - gs, gy0 - gs};
-      ov.ground_max = {gx1 + gs, gy1 + gs};
-      // Gate: the 90th percentile of the samples' growth (a few grazing
-      // samples near the horizon would otherwise open it to the whole image).
-      std::sort(growths.begin(), growths.end());
-      ov.growth_px = growths[static_cast<size_t>(0.9 * (growths.size() - 1))];
-      cv::Mat H = cv::findHomography(cur_px, prev_px, 0);
-      if (H.empty()) continue;
-      ov.previous_from_current = cv::Matx33d(H);
-      SetViewpointChange(cur_px, &ov);
-      out.overlaps.push_back(ov);
+      const bool backward = a.norm() > 1e-6 && b.norm() > 1e-6 && a.normalized().dot(b.normalized()) < cos_backward;
+      const OverlapGeometry g{out, perturbed, cam_l, prev_cams_inv[j], static_cast<int>(i), static_cast<int>(j), backward};
+      if (std::optional<PairOverlap> ov = MakeOverlap(g, samples, false, o)) out.overlaps.push_back(*ov);
+      if (!backward && far_samples.size() >= static_cast<size_t>(o.min_samples))
+        if (std::optional<PairOverlap> ov = MakeOverlap(g, far_samples, true, o)) out.overlaps.push_back(*ov);
     }
   }
   return out;

@@ -90,7 +90,8 @@ std::optional<std::string> CheckAgainstDeadReckoning(const RegionPrediction& pre
                                                     pred.previous_from_current.linear()(0, 0))));
   const double sp = std::max(std::hypot(pred.relative_sigma(0), pred.relative_sigma(1)), 0.05);
   const double sy = std::max(pred.relative_sigma(5), 1e-3);
-  if (!(dt.head<2>().norm() > o.max_motion_sigmas * sp || dyaw > o.max_motion_sigmas * sy)) return std::nullopt;
+  const bool translation_off = o.dr_check_translation && dt.head<2>().norm() > o.max_motion_sigmas * sp;
+  if (!(translation_off || dyaw > o.max_motion_sigmas * sy)) return std::nullopt;
   std::ostringstream os;
   os << "the " << tps->points.size() << " consistent tie points imply a motion " << dt.head<2>().norm() << " m / "
      << dyaw * 180 / M_PI << " deg from dead reckoning (beyond " << o.max_motion_sigmas

@@ -16,17 +16,26 @@
 // covariance of 15 % of the distance per axis, 3 deg of yaw, 1 deg of
 // roll and pitch (a wheel-odometry + IMU DR of the paper's class). The
 // front end uses it to predict its regions and gate its matches; the BA
-// starts from a resection and has no prior term, so its answer must not
-// depend on the perturbation (asserted).
+// starts from a resection and has no prior term, but the tie points the
+// front end finds depend on the regions, so the answers under the four
+// priors must agree within the BA's stated covariance (chi^2, 6 DoF, 99 %:
+// asserted).
 //
 // What the pair turned out to be: 33-34 m apart (both estimates), not "a
 // few metres"; the common scene is the mesa and hills 40-200 m from pair 2,
-// the shared ground at ~1 deg grazing. The automatic front end (Run: regions
-// from the ground plane) finds 0 tie points under every prior; the
-// operator's path (RunManual) on AKAZE "clicks" (another detector than the
-// peer's SIFT; refined by vloc's cross-site LSM and stereo at both sites)
-// feeds the BA. The two agree per axis within 3 combined sigma (asserted),
-// not jointly (Mahalanobis^2 printed; see the assertion's comment).
+// the shared ground at ~1 deg grazing. With ground-plane regions alone the
+// automatic front end found 0 tie points under every prior; with far-terrain
+// regions (config: regions.far_min_range / far_max_range, the current pair's
+// stereo points 40-400 m away, grown by their range sigma; see regions.h) it
+// finds 46-51 under each of the four priors (asserted: all four usable;
+// the DR check compares yaw only, frontend.dr_check_translation: the 3D-3D
+// translation of 40-400 m stereo points is not determined within the DR's
+// sigma). Kept as a fallback, the operator's path (RunManual) on AKAZE
+// "clicks" (another detector than the peer's SIFT; refined by vloc's
+// cross-site LSM and stereo at both sites) feeds the BA where the automatic
+// path finds too few. vloc and OpenCV agree
+// per axis within 3 combined sigma (asserted), not always jointly
+// (Mahalanobis^2 printed; see the assertion's comment).
 //
 // VLOC_TEST_DEVON_PICTURE=<file.jpg> writes the tie points over the two
 // left images (the README's picture).
@@ -524,7 +533,8 @@ TEST(RealRover, DevonPair2To3BesideOpenCv) {
   std::cout << "vloc - OpenCV: dt (" << d.head<3>().transpose() << ") m, drot (" << d.tail<3>().transpose() / kDeg
             << ") deg; Mahalanobis^2 " << chi2 << " (6 DoF: 99 % below 16.8)\n";
   // Each axis agrees within 3 combined sigma (the peer's covariance with its
-  // stated SGBM error model). Jointly they do not (Mahalanobis^2 ~77): each
+  // stated SGBM error model). Jointly they do not (Mahalanobis^2 ~26 with the
+  // automatic tie points, ~77 with the manual clicks): each
   // estimate trades lateral translation against rotation along its own line
   // (the common scene is 40-200 m away: 0.9 m sideways looks like 0.4 deg),
   // and the difference lies across both lines. Printed, not asserted.
@@ -533,11 +543,18 @@ TEST(RealRover, DevonPair2To3BesideOpenCv) {
     std::cout << "  " << kAxis[a] << ": " << d(a) / std::sqrt(c(a, a)) << " combined sigma\n";
     EXPECT_LT(std::abs(d(a)) / std::sqrt(c(a, a)), 3.0) << kAxis[a];
   }
-  // The answer does not depend on the prior's perturbation (the BA has no prior term).
+  // The automatic front end finds the tie points under every prior.
+  int automatic = 0;
+  for (const VlocRun& r : runs) automatic += r.automatic.summary.IsUsable() ? 1 : 0;
+  std::cout << "automatic front end usable under " << automatic << " of " << runs.size() << " priors\n";
+  EXPECT_EQ(automatic, static_cast<int>(runs.size()));
+  // The answers under the four priors agree within the BA's covariance (their tie points differ with the regions).
   for (size_t k = 1; k < runs.size(); ++k) {
     const Vector6d e = Difference(runs[k].relative.left2_from_left3, v.relative.left2_from_left3);
-    std::cout << "prior " << k << " vs prior 0: " << e.head<3>().norm() << " m, " << e.tail<3>().norm() / kDeg << " deg\n";
-    EXPECT_LT(e.dot(v.relative.covariance.ldlt().solve(e)), 1.0) << "prior " << k;
+    const double chi2 = e.dot(v.relative.covariance.ldlt().solve(e));
+    std::cout << "prior " << k << " vs prior 0: " << e.head<3>().norm() << " m, " << e.tail<3>().norm() / kDeg
+              << " deg, Mahalanobis^2 " << chi2 << "\n";
+    EXPECT_LT(chi2, 16.8) << "prior " << k;  // 6 DoF, 99 %
   }
   if (const char* path = std::getenv("VLOC_TEST_DEVON_PICTURE")) WritePicture(s.p2, s.p3, v.frontend.tie_points, path);
 }

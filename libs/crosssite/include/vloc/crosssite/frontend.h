@@ -132,6 +132,9 @@ struct FrontendOptions {
   double max_motion_sigmas = 5.0;      // the motion implied by the tie points must agree with DR within this (0 = off);
                                        // a gross-error gate: DR understates wheel slip (hard seed 3, pair 18 -> 19:
                                        // 221 consistent, right tie points 3.0 sigma from DR)
+  bool dr_check_translation = true;    // the DR check compares the translation too (false: yaw only; where the
+                                       // tie points are far terrain, 40-400 m, their 3D-3D translation is not
+                                       // determined within the DR's sigma: Devon 2 -> 3 gave 37 m off)
   bool keep_unrefined_cross = false;   // keep a match whose cross-site LSM failed, at its feature position ...
   double sigma_unrefined_px = 1.0;     // px, ... with this sigma (backward matches kept that way, their features
                                        // on the 2 cm ground grid: 11.6 % > 2 px off; dropped: 0.5 %)

@@ -6,6 +6,13 @@
 // with the relative pose perturbed by k sigma along each of its 6 axes.
 // Pairs looking in opposite directions are flagged "backward": they are
 // matched on the ground plane (GroundOrthoImage) instead.
+// Far terrain (regions.far_max_range > 0): where sites are tens of metres
+// apart the shared scene is not the ground in front of the rover but hills
+// beyond it. The current pair's stereo points between far_min_range and
+// far_max_range (ScenePoint) are projected like the ground samples, each
+// grown by its stereo range uncertainty as well as the pose's, into one more
+// overlap per previous image (PairOverlap::far) whose homography is fitted
+// to them (its fit residual widens the gate).
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -35,6 +42,9 @@ struct RegionOptions {
   int min_samples = 8;                 // ground samples an overlap needs
   double backward_angle_deg = 100.0;   // viewing directions further apart than this: backward pair
   double image_margin = 8.0;           // px, samples this close to an image border are dropped
+  double far_min_range = 0.0;          // m, nearest far-terrain stereo point from the current camera
+  double far_max_range = 0.0;          // m, farthest one; 0 = no far-terrain overlaps
+  double far_disparity_sigma_px = 0.5; // px, stereo disparity sigma of a far point (its range sigma)
 
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
@@ -42,6 +52,7 @@ struct RegionOptions {
 
 // What region prediction says about one (current pair, previous pair).
 struct PairOverlap {
+  bool far = false;           // from far-terrain stereo points (else the ground plane)
   int current_pair = 0;
   int previous_pair = 0;
   bool backward = false;
@@ -70,15 +81,25 @@ struct RegionPrediction {
 Vector6d RelativePoseSigma(const PoseWithCovariance& world_from_previous, const PoseWithCovariance& world_from_current,
                            const RegionOptions& options);
 
+// A far-terrain point the current pair's stereo measured.
+struct ScenePoint {
+  Eigen::Vector2d px = Eigen::Vector2d::Zero();      // px, current left ideal image
+  Eigen::Vector3d p_body = Eigen::Vector3d::Zero();  // m, current body frame
+  double range_sigma = 0;                            // m, along the left camera's ray
+};
+
 // `current_ground_planes` (optional, one per current pair): the ground seen
 // by that pair as a plane n . p + e = 0 (n up, unit) in the current body
 // frame, e.g. fitted to the pair's stereo points; an empty vector or a zero
-// plane uses z = ground_height.
+// plane uses z = ground_height. `current_far_points` (optional, one list per
+// current pair): far-terrain stereo points, each list making one far
+// overlap per previous pair (with at least min_samples members).
 RegionPrediction PredictRegions(const NavcamModel& navcam, const PoseWithCovariance& world_from_previous,
                                 const PoseWithCovariance& world_from_current,
                                 const std::vector<MastPointing>& previous_pointing,
                                 const std::vector<MastPointing>& current_pointing, const RegionOptions& options,
-                                const std::vector<Eigen::Vector4d>& current_ground_planes = {});
+                                const std::vector<Eigen::Vector4d>& current_ground_planes = {},
+                                const std::vector<std::vector<ScenePoint>>& current_far_points = {});
 
 // Ground-plane projection: the homography from an ortho image to the ideal
 // pixels of a camera. The ortho pixel (u, v) is the ground point

@@ -6,6 +6,7 @@
 //   step                          file                        paper
 //   PrepareImages                 prepare_images.cpp          (undistortion)
 //   FitGroundPlanes               ground_planes.cpp           2.1, the ground the regions are projected on
+//   MeasureFarTerrain             ground_planes.cpp           (far-terrain stereo points, regions.far_*)
 //   PredictRegions                regions.cpp                 2.1, initial matching regions
 //   AlignToPreviousGround         ground_alignment.cpp        (DR relative height on the stereo ground)
 //   MakeWorkRegions               work_regions.cpp            2.2, Wallis filter and zoom of the regions
@@ -153,6 +154,7 @@ struct SitePairState {
   std::vector<PreparedImage> previous_left, previous_right, current_left, current_right;
   std::vector<Eigen::Vector4d> ground_planes;  // per current pair, body frame; zero = none
   std::vector<GroundPointSet> current_ground;  // per current pair: the plane's stereo points
+  std::vector<std::vector<ScenePoint>> current_far;  // per current pair: far-terrain stereo points (regions.far_*)
   Pose3 dr_previous_from_current = Pose3::Identity();  // the DR's relative pose (the prediction may be ground-aligned)
   RegionPrediction prediction;
   std::vector<WorkRegion> previous_regions, current_regions;
@@ -210,6 +212,12 @@ GroundPointSet GroundStereoPoints(const NavcamModel& navcam, const MastPointing&
 // Every current pair's ground plane (fit_ground_planes); returns how many.
 int FitGroundPlanes(const NavcamModel& navcam, const TiePointSet& tie_points, const FrontendOptions& options,
                     SitePairState* state);
+
+// Every current pair's far-terrain stereo points (regions.far_min_range to
+// far_max_range, on the regions' grid, range sigma from
+// far_disparity_sigma_px); returns how many.
+int MeasureFarTerrain(const NavcamModel& navcam, const TiePointSet& tie_points, const FrontendOptions& options,
+                      SitePairState* state);
 
 // ---- the DR's relative height on the ground both sites measured (ground_alignment.cpp)
 // DR knows the height gained between two sites worst (wheel slip on a
