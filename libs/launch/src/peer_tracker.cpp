@@ -3,6 +3,8 @@
 #include <cmath>
 #include <sstream>
 
+#include "vloc/common/options.h"
+
 namespace vloc {
 
 namespace {
@@ -18,13 +20,12 @@ std::string Fmt(double seconds) {
 
 }  // namespace
 
-bool PeerTrackerOptions::Check(std::string* error) const {
-  if (!(lost_after_s > 0 && std::isfinite(lost_after_s))) {
-    if (error) *error = "lost_after_s must be > 0 s (a launcher reports at 1 Hz; 3 s is three missed reports)";
-    return false;
-  }
-  return true;
+void PeerTrackerOptions::Visit(OptionsReader& r) {
+  r.Optional("lost_after_s", &lost_after_s, "s without a status report before a launcher is LOST (reports come at 1 Hz)",
+             Positive() && Finite());
 }
+
+bool PeerTrackerOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 PeerTracker::PeerTracker(std::string own_host, int own_pid, PeerTrackerOptions options)
     : own_host_(std::move(own_host)), own_pid_(own_pid), options_(options) {}

@@ -73,26 +73,20 @@ const char* EdgeKindName(EdgeKind kind) {
 }
 
 void PoseGraphOptions::Visit(OptionsReader& r) {
+  const NumberBound sigma = Positive() && Finite();
   r.Child("solver", [this](OptionsReader& c) { solver.Visit(c); });
   r.Optional("dr_covariance", &dr_covariance, "how DR edge covariances are made", OneOf({"difference", "per_metre"}));
-  r.Optional("dr_position_sigma_per_metre", &dr_position_sigma_per_metre, "m/m, horizontal DR 1-sigma",
-             Positive() && Finite());
-  r.Optional("dr_vertical_sigma_per_metre", &dr_vertical_sigma_per_metre, "m/m, vertical DR 1-sigma",
-             Positive() && Finite());
-  r.Optional("dr_heading_sigma_per_metre", &dr_heading_sigma_per_metre, "rad/m, DR heading 1-sigma",
-             Positive() && Finite());
-  r.Optional("dr_tilt_sigma", &dr_tilt_sigma, "rad, DR roll/pitch 1-sigma per edge", Positive() && Finite());
-  r.Optional("visual_covariance_scale", &visual_covariance_scale, "multiplies BA covariances", Positive() && Finite());
-  r.Optional("visual_default_position_sigma", &visual_default_position_sigma, "m, BA result without covariance",
-             Positive() && Finite());
-  r.Optional("visual_default_rotation_sigma", &visual_default_rotation_sigma, "rad, BA result without covariance",
-             Positive() && Finite());
-  r.Optional("fix_default_position_sigma", &fix_default_position_sigma, "m, absolute fix without covariance",
-             Positive() && Finite());
-  r.Optional("fix_default_rotation_sigma", &fix_default_rotation_sigma, "rad, absolute fix without covariance",
-             Positive() && Finite());
-  r.Optional("min_position_sigma", &min_position_sigma, "m, floor added to every edge", Positive() && Finite());
-  r.Optional("min_rotation_sigma", &min_rotation_sigma, "rad, floor added to every edge", Positive() && Finite());
+  r.Optional("dr_position_sigma_per_metre", &dr_position_sigma_per_metre, "m/m, horizontal DR 1-sigma", sigma);
+  r.Optional("dr_vertical_sigma_per_metre", &dr_vertical_sigma_per_metre, "m/m, vertical DR 1-sigma", sigma);
+  r.Optional("dr_heading_sigma_per_metre", &dr_heading_sigma_per_metre, "rad/m, DR heading 1-sigma", sigma);
+  r.Optional("dr_tilt_sigma", &dr_tilt_sigma, "rad, DR roll/pitch 1-sigma per edge", sigma);
+  r.Optional("visual_covariance_scale", &visual_covariance_scale, "multiplies BA covariances", sigma);
+  r.Optional("visual_default_position_sigma", &visual_default_position_sigma, "m, BA result without covariance", sigma);
+  r.Optional("visual_default_rotation_sigma", &visual_default_rotation_sigma, "rad, BA result without covariance", sigma);
+  r.Optional("fix_default_position_sigma", &fix_default_position_sigma, "m, absolute fix without covariance", sigma);
+  r.Optional("fix_default_rotation_sigma", &fix_default_rotation_sigma, "rad, absolute fix without covariance", sigma);
+  r.Optional("min_position_sigma", &min_position_sigma, "m, floor added to every edge", sigma);
+  r.Optional("min_rotation_sigma", &min_rotation_sigma, "rad, floor added to every edge", sigma);
   r.Optional("compute_marginals", &compute_marginals, "marginal covariances after each update");
   r.Optional("root_uncertainty", &root_uncertainty, "site marginals include the root's DR covariance, carried to the site");
   r.Optional("loop_gate_chi2", &loop_gate_chi2, "loop/fix edges beyond this chi2 against the predicted covariance are switched off",

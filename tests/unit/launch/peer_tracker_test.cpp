@@ -98,7 +98,7 @@ TEST(PeerTracker, OptionsCheckRejectsNonPositive) {
   std::string error;
   options.lost_after_s = 0.0;
   EXPECT_FALSE(options.Check(&error));
-  EXPECT_NE(error.find("lost_after_s must be > 0 s"), std::string::npos);
+  EXPECT_EQ(error, "lost_after_s = 0: must be > 0 and finite");
 }
 
 }  // namespace

@@ -21,9 +21,12 @@
 
 namespace vloc {
 
+class OptionsReader;
+
 struct PeerTrackerOptions {
   double lost_after_s = 3.0;  // s without a status report before a launcher is LOST (3 missed 1 Hz reports)
 
+  void Visit(OptionsReader& r);
   // Returns false with one line in *error for a bad value.
   bool Check(std::string* error) const;
 };
