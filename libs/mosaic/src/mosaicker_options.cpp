@@ -46,6 +46,7 @@ void MosaickerOptions::Visit(OptionsReader& r) {
   r.Optional("fallback_downscale", &fallback_downscale, "finer feature level tried against the keyframe (0 = off)");
   r.Optional("fallback_frames", &fallback_frames, "last registered frames also tried at the finer level");
   r.Optional("reseat_by_gps", &reseat_by_gps, "place an unregistered frame on new ground at its GPS position");
+  r.Optional("reseat_after_gap_s", &reseat_after_gap_s, "s, likewise for a frame this long after the last registered one");
   r.Optional("num_threads", &num_threads, "OpenCV threads");
   r.Optional("async_mosaic", &async_mosaic, "blend on a worker thread");
   r.Optional("async_mosaic_queue", &async_mosaic_queue, "frames waiting for the worker, none dropped (0 = one, replaced)");
@@ -54,6 +55,7 @@ void MosaickerOptions::Visit(OptionsReader& r) {
 bool MosaickerOptions::Check(std::string* error) const {
   if (neighbour_frames < 0 || neighbour_frames > 1000) return Fail(error, "neighbour_frames must be in [0, 1000]");
   if (neighbour_tries < 1) return Fail(error, "neighbour_tries must be >= 1");
+  if (!(reseat_after_gap_s >= 0)) return Fail(error, "reseat_after_gap_s must be >= 0 s (0 = off)");
   if (fallback_downscale != 0 && !(fallback_downscale > matcher.downscale && fallback_downscale <= 1))
     return Fail(error, "fallback_downscale must be 0 (off) or in (matcher.downscale, 1]");
   if (fallback_frames < 0 || fallback_frames > 16) return Fail(error, "fallback_frames must be in [0, 16]");

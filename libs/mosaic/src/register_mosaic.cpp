@@ -66,7 +66,7 @@ Registration RegisterToMosaic(const cv::Mat& frame, const FrameFeatures& feature
 }
 
 Registration RegisterToMosaicAfterLoss(const RegistrationInput& in, const MosaickerOptions& options) {
-  if (!in.lost || !in.mosaic || !in.mosaic->started()) return {};
+  if (!(in.lost || NewFlight(in, options)) || !in.mosaic || !in.mosaic->started()) return {};
   // Search where the GPS says the frame is, else around the last registered pose.
   const std::optional<Prediction>& prediction = *in.prediction;
   const Similarity2 search = prediction && prediction->from_gps ? prediction->mosaic_from_frame : in.last_good;

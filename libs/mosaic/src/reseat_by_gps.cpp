@@ -7,8 +7,13 @@
 
 namespace vloc::mosaic {
 
+bool NewFlight(const RegistrationInput& in, const MosaickerOptions& options) {
+  return options.reseat_after_gap_s > 0 && in.seconds_since_registered >= options.reseat_after_gap_s;
+}
+
 std::optional<Similarity2> PlaceByGps(const RegistrationInput& in, const MosaickerOptions& options, std::string* why) {
-  if (!options.reseat_by_gps) return std::nullopt;
+  const bool new_flight = NewFlight(in, options);
+  if (!options.reseat_by_gps && !new_flight) return std::nullopt;
   const std::optional<Prediction>& prediction = *in.prediction;
   if (!prediction || !prediction->from_gps) return std::nullopt;
   // New ground: the mosaic covers less than recovery_min_painted of the view at the GPS position.
@@ -23,6 +28,9 @@ std::optional<Similarity2> PlaceByGps(const RegistrationInput& in, const Mosaick
                 : 0.0;
   if (painted >= options.recovery_min_painted) return std::nullopt;  // mapped ground: keep searching the mosaic
   *why = "placed at its GPS position, tracking restarts from this frame";
+  if (new_flight && !options.reseat_by_gps)
+    *why = "a new flight (" + std::to_string(static_cast<int>(in.seconds_since_registered)) +
+           " s after the last registered photo): " + *why;
   return prediction->mosaic_from_frame;
 }
 

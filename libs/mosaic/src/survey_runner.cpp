@@ -54,7 +54,7 @@ int SurveyRunner::registered() const {
 
 bool SurveyRunner::LoadPhotos(const std::vector<std::string>& paths) {
   // Every header before any photo is decoded: limits, and one size for the survey.
-  const SurveyPhotos checked = CheckSurveyPhotos(paths, options_.limits);
+  const SurveyPhotos checked = CheckSurveyPhotos(paths, options_.limits, /*one_size=*/false);
   for (const auto& line : checked.refused) Err() << "uav_mosaic_files: " << line << "\n";
   refusals_ += static_cast<int>(checked.refused.size());
   if (checked.accepted.size() < 2) {
@@ -63,15 +63,8 @@ bool SurveyRunner::LoadPhotos(const std::vector<std::string>& paths) {
     return false;
   }
   paths_ = checked.accepted;
+  sizes_ = checked.sizes;
   size_ = checked.size;
-  // Images are read one at a time (a survey can hold thousands).
-  std::string error;
-  first_ = LoadCheckedPhoto(paths_[0], options_.limits, size_, &error);
-  if (first_.empty()) {
-    Err() << "uav_mosaic_files: " << error << "\n";
-    return false;
-  }
-  size_ = first_.size();
   frames_.assign(paths_.size(), SurveyFrame());
   for (size_t i = 0; i < paths_.size(); ++i) frames_[i].name = paths_[i];
   ReadGeotags();
@@ -87,9 +80,12 @@ void SurveyRunner::LoadViews(const std::vector<std::string>& names, const std::v
   use_gps_ = false;
 }
 
+// Images are read one at a time (a survey can hold thousands), each brought to the survey's camera.
 cv::Mat SurveyRunner::Load(size_t i, std::string* error) const {
   if (!views_.empty()) return views_[i];
-  return i == 0 ? first_ : LoadCheckedPhoto(paths_[i], options_.limits, size_, error);
+  if (i == 0 && !first_.empty()) return first_;
+  const cv::Mat photo = LoadCheckedPhoto(paths_[i], options_.limits, sizes_[i], error);
+  return i < fits_.size() ? ApplyCameraFit(photo, fits_[i], size_) : photo;
 }
 
 void SurveyRunner::ReadGeotags() {
@@ -154,7 +150,8 @@ bool SurveyRunner::ChooseCamera() {
     camera.cx = (size.width - 1) / 2.0;
     camera.cy = (size.height - 1) / 2.0;
     std::string how;
-    const double exif_focal = frames_.empty() ? std::nan("") : FocalPixelsFromExif(frames_[0].tag, size.width, &how);
+    const size_t ref = ReferencePhoto();
+    const double exif_focal = ref < frames_.size() ? FocalPixelsFromExif(frames_[ref].tag, size.width, &how) : std::nan("");
     double f = size.width;
     if (options_.focal_px) {
       f = *options_.focal_px;
@@ -173,6 +170,56 @@ bool SurveyRunner::ChooseCamera() {
     camera.fx = camera.fy = f;
   }
   Out() << "focal length " << camera.fx << " px from " << focal_source << "\n";
+  return FitCameras();
+}
+
+size_t SurveyRunner::ReferencePhoto() const {
+  for (size_t i = 0; i < sizes_.size(); ++i)
+    if (sizes_[i] == size_) return i;
+  return 0;
+}
+
+// Photos of another camera (size, focal length: a second flight) are
+// resampled to the survey camera's focal and cropped to its size; those
+// that would not cover its frame are refused by name.
+bool SurveyRunner::FitCameras() {
+  if (!views_.empty()) return true;
+  const double f = options_.mosaicker.camera.fx;
+  const size_t ref = ReferencePhoto();
+  const double ref_exif = ref < frames_.size() ? FocalPixelsFromExif(frames_[ref].tag, size_.width, nullptr) : std::nan("");
+  std::vector<SurveyFrame> frames;
+  std::vector<std::string> paths;
+  std::vector<cv::Size> sizes;
+  for (size_t i = 0; i < sizes_.size(); ++i) {
+    const double exif = FocalPixelsFromExif(frames_[i].tag, sizes_[i].width, nullptr);
+    const double focal = std::isfinite(exif) && std::isfinite(ref_exif) ? f * exif / ref_exif
+                                                                        : f * sizes_[i].width / size_.width;
+    CameraFit fit;
+    std::string why;
+    if (!FitCamera(sizes_[i], focal, size_, f, &fit, &why)) {
+      Err() << "uav_mosaic_files: " << paths_[i] << ": " << why << "; skipped\n";
+      ++refusals_;
+      tagged_ -= frames_[i].tag.has_gps ? 1 : 0;
+      continue;
+    }
+    if (!fit.identity()) ++refitted_;
+    frames.push_back(frames_[i]), paths.push_back(paths_[i]), sizes.push_back(sizes_[i]), fits_.push_back(fit);
+  }
+  frames_.swap(frames), paths_.swap(paths), sizes_.swap(sizes);
+  use_gps_ = use_gps_ && tagged_ >= 2;
+  if (refitted_ > 0)
+    Out() << refitted_ << " photos of another camera resampled to the survey's " << size_.width << " x " << size_.height
+          << " px at " << f << " px focal length\n";
+  if (frames_.size() < 2) {
+    Err() << "uav_mosaic_files: " << frames_.size() << " photos usable: at least two are needed\n";
+    return false;
+  }
+  std::string error;
+  first_ = Load(0, &error);
+  if (first_.empty()) {
+    Err() << "uav_mosaic_files: " << error << "\n";
+    return false;
+  }
   return true;
 }
 
@@ -224,6 +271,13 @@ void SurveyRunner::ChooseTimes() {
       origin_ = &f.tag;
       break;
     }
+  const double gap = options_.mosaicker.reseat_after_gap_s;
+  for (size_t i = 1; i < frames_.size() && times_ok_ && gap > 0; ++i) {
+    const double seconds = (frames_[i].tag.utime - frames_[i - 1].tag.utime) * 1e-6;
+    if (seconds >= gap)
+      Out() << frames_[i].name << ": taken " << seconds << " s after the previous photo: a new flight (a photo that "
+            << "matches nothing is placed by its GPS)\n";
+  }
   if (use_gps_) {
     const int a = options_.drop_gps_first, b = options_.drop_gps_last;
     Out() << tagged_ << " of " << frames_.size() << " photos geotagged; "

@@ -222,6 +222,7 @@ RegistrationInput UavMosaicker::InputFor(const FrameWork& w) const {
   in.prediction = &w.prediction;
   in.last_good = last_.last_good;
   in.lost = lost_;
+  in.seconds_since_registered = last_good_index_ >= 0 ? (w.utime - last_good_utime_) * 1e-6 : 0.0;
   in.keyframe = keyframe_ ? &*keyframe_ : nullptr;
   in.neighbours = &neighbours_;
   in.recent = &recent_;
@@ -272,6 +273,7 @@ void UavMosaicker::MarkLost(FrameWork* w) {
     KeepImageForFinerLevel(w->frame);
     last_ = LastPoses{*P, std::nullopt, gps_.GpsEnuAt(w->utime)};
     last_good_index_ = state.frame_index;
+    last_good_utime_ = w->utime;
     state.reseated = true;
     ++summary_.reseats;
     w->why += "; " + placed;
@@ -387,6 +389,7 @@ void UavMosaicker::EstimateHeight(FrameWork* w) {
   last_.last_good = S;
   last_scale_ = s;
   last_good_index_ = state.frame_index;
+  last_good_utime_ = w->utime;
   last_.last_good_enu = gps_.GpsEnuAt(w->utime);
   gps_.UpdateYawOffset(S, w->utime);
 }

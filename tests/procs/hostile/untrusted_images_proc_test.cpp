@@ -200,7 +200,7 @@ TEST(UntrustedImages, UavMosaicFilesRefusesBombsAndAnOddSizedPhotoByNameTheRestR
   WriteSurvey(photos, 4);
   WriteFile(photos + "/photo_2a_bomb.png", PngBomb(32000, 32000, 8, 2));
   WriteFile(photos + "/photo_2b_bomb.jpg", JpegBomb(20000, 16000));
-  cv::Mat odd(300, 400, CV_8UC3, cv::Scalar(90, 120, 150));
+  cv::Mat odd(200, 400, CV_8UC3, cv::Scalar(90, 120, 150));  // no EXIF: the survey's view assumed, too short
   ASSERT_TRUE(cv::imwrite(photos + "/photo_2c_odd.png", odd));
   Subprocess p({BinPath("uav_mosaic_files"), "--config", "config/procs/uav_mosaic_files.yaml", "--out",
                 s.dir + "/mosaic.png", "--geojson", s.dir + "/route.geojson", photos});
@@ -213,9 +213,9 @@ TEST(UntrustedImages, UavMosaicFilesRefusesBombsAndAnOddSizedPhotoByNameTheRestR
             std::string::npos)
       << out;
   EXPECT_NE(out.find("photo_2b_bomb.jpg: JPEG 20000 x 16000"), std::string::npos) << out;
-  EXPECT_NE(out.find("photo_2c_odd.png: PNG 400 x 300 (0.1 MP), 3 channel(s) of 8 bit differs from the survey's "
-                     "480 x 360 (4 of 5 photos); skipped"),
-            std::string::npos)
+  EXPECT_NE(out.find("photo_2c_odd.png: 400 x 200 at a focal length of 291.7"), std::string::npos) << out;
+  EXPECT_NE(out.find("px covers 480 x 240 px of the survey's 480 x 360 at its 350.08"), std::string::npos) << out;
+  EXPECT_NE(out.find("(a narrower view than the survey's camera); skipped"), std::string::npos)
       << out;
   EXPECT_EQ(out.find("OpenCV error"), std::string::npos) << out;
   EXPECT_TRUE(fs::exists(s.dir + "/mosaic.png")) << out;

@@ -12,6 +12,14 @@
 #include <filesystem>
 #include <iostream>
 
+#include <exiv2/exiv2.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <cstdlib>
+#include <iomanip>
+#include <sstream>
+
 #include "vloc/common/options.h"
 #include "vloc/mosaic/survey_eval.h"
 #include "vloc/mosaic/survey_runner.h"
@@ -132,6 +140,90 @@ TEST(RealSurvey, SenecaNinetyPercentRegisteredTheRestLostWithAReason) {
   EXPECT_LT(fig.height.rms_percent, 7.0);
   EXPECT_LT(fig.fused_height.rms_percent, 0.7 * fig.height.rms_percent);
   EXPECT_LT(fig.fused_height.rms_percent, 100 * 3.0 / 65);
+}
+
+
+// The photo at `from` written to `to` at `size`, its EXIF kept but for the
+// capture time and (when > 0) the focal length.
+void WritePhoto(const std::string& from, const std::string& to, cv::Size size, const std::string& time, int focal_10mm) {
+  cv::Mat image = cv::imread(from, cv::IMREAD_COLOR);
+  cv::resize(image, image, size, 0, 0, cv::INTER_AREA);
+  ASSERT_TRUE(cv::imwrite(to, image, {cv::IMWRITE_JPEG_QUALITY, 92}));
+  auto original = Exiv2::ImageFactory::open(from);
+  original->readMetadata();
+  auto copy = Exiv2::ImageFactory::open(to);
+  copy->setExifData(original->exifData());
+  copy->exifData()["Exif.Photo.DateTimeOriginal"] = time;
+  if (focal_10mm > 0) copy->exifData()["Exif.Photo.FocalLength"] = Exiv2::URational(focal_10mm, 10);
+  copy->writeMetadata();
+}
+
+// A folder holding two flights over one site (made from uav_caliterra): the
+// first 30 photos as taken, then, 15 minutes later, a second flight of 29 photos by
+// another camera (800 x 600 px: 583 px focal length against the survey's
+// 729) flying the last 29 photos' places backwards from the far end, and
+// one photo of a camera whose view is narrower than the survey's (a 9 mm
+// lens at 800 px: it cannot cover the survey's frame). Every photo of both
+// flights registers into one mosaic, the narrow one is refused by name.
+TEST(RealSurvey, TwoFlightsByTwoCamerasRegisterIntoOneMosaic) {
+  if (!std::filesystem::is_directory(kCaliterra))
+    GTEST_SKIP() << kCaliterra << " absent (real data lives beside the repo, see ../shared/data/README.md): skipped";
+  std::vector<std::string> originals;
+  for (const auto& e : std::filesystem::directory_iterator(kCaliterra)) originals.push_back(e.path().string());
+  std::sort(originals.begin(), originals.end());
+  ASSERT_EQ(originals.size(), 75u);
+  const char* tmp = std::getenv("TMPDIR");
+  const std::filesystem::path folder = std::filesystem::path(tmp ? tmp : "/tmp") / "two_flights";
+  std::filesystem::remove_all(folder);
+  std::filesystem::create_directories(folder);
+  std::vector<std::string> files;
+  for (int i = 0; i < 30; ++i) {
+    files.push_back((folder / std::filesystem::path(originals[i]).filename()).string());
+    std::filesystem::copy_file(originals[i], files.back());
+  }
+  for (int k = 0; k < 29; ++k) {  // the second flight: 13:40:00 on, 2 s apart (the first ended near 13:22)
+    std::ostringstream name, time;
+    name << "flight2_" << std::setw(3) << std::setfill('0') << k << ".jpg";
+    time << "2014:10:19 13:" << 40 + (2 * k) / 60 << ":" << std::setw(2) << std::setfill('0') << (2 * k) % 60;
+    files.push_back((folder / name.str()).string());
+    WritePhoto(originals[74 - k], files.back(), cv::Size(800, 600), time.str(), 0);
+  }
+  const std::string narrow = (folder / "flight2_narrow.jpg").string();
+  WritePhoto(originals[50], narrow, cv::Size(800, 600), "2014:10:19 13:41:01", 90);
+  files.push_back(narrow);
+  std::sort(files.begin(), files.end());
+
+  SurveyOptions options = LoadSurveyOptions("config/procs/uav_mosaic_files.yaml");
+  std::ostringstream out, err;
+  SurveyRunner runner(options, &out, &err);
+  ASSERT_TRUE(runner.LoadPhotos(files) && runner.ChooseCamera() && runner.ChooseFirstHeight()) << err.str();
+  EXPECT_NE(err.str().find("flight2_narrow.jpg: 800 x 600 at a focal length of"), std::string::npos) << err.str();
+  EXPECT_NE(err.str().find("narrower view than the survey's camera"), std::string::npos) << err.str();
+  EXPECT_NE(out.str().find("29 photos of another camera resampled to the survey's 1000 x 750 px"), std::string::npos)
+      << out.str();
+  runner.RegisterAll();
+  EXPECT_NE(out.str().find("flight2_000.jpg: taken"), std::string::npos) << "the second flight not announced\n" << out.str().substr(0, 3000);
+  ASSERT_EQ(runner.frames().size(), 59u);
+  int first = 0, second = 0;
+  for (size_t i = 0; i < 59; ++i) {
+    const SurveyFrame& f = runner.frames()[i];
+    (i < 30 ? first : second) += f.registered ? 1 : 0;
+    if (!f.registered || i == 30)
+      std::cout << f.name << ": " << ToString(f.state.status) << " " << f.state.message << "\n";
+  }
+  std::cout << "two flights: " << first << " of 30 and " << second << " of 29 registered\n";
+  EXPECT_EQ(first, 30);
+  // The second flight's first photo may be placed by its GPS (new ground) rather than registered.
+  EXPECT_GE(second, 28);
+  runner.Evaluate();
+  const RouteComparison& route = runner.figures().route;
+  ASSERT_TRUE(route.ok) << route.why;
+  std::cout << "two flights: route RMS " << route.rms_m << " m = " << route.rms_percent() << " % of " << route.path_m
+            << " m\n";
+  // One survey's figure (2.3 %, the camera GPS's own error): both flights in one frame, no worse than 3.5 %.
+  EXPECT_LT(route.rms_percent(), 3.5);
+  EXPECT_TRUE(runner.WriteMosaic((folder / "mosaic.png").string())) << err.str();
+  std::filesystem::remove_all(folder);
 }
 
 }  // namespace

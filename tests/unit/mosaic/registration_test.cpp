@@ -219,6 +219,49 @@ TEST_F(RegistrationCandidates, PlaceByGpsOnlyOnNewGroundAndOnlyWhenAsked) {
   EXPECT_FALSE(PlaceByGps(in, o, &why).has_value());
 }
 
+// reseat_after_gap_s: a frame long after the last registered one (a folder's
+// next flight) is searched for in the mosaic at its GPS position without a
+// loss before it, and placed there on new ground even with reseat_by_gps off.
+TEST_F(RegistrationCandidates, ANewFlightIsSearchedInTheMosaicAndPlacedByGps) {
+  MosaickerOptions o = Options();
+  MosaicBlender blender(o.canvas, false);
+  blender.Start();
+  for (int i = 0; i < 5; ++i) {
+    const View v = Shoot(-10 + 5 * i, 0, 0, 70 + i);
+    ASSERT_TRUE(blender.Blend(v.image, v.mosaic_from_frame).done);
+  }
+  const View b = Shoot(2, 1, 0.1, 80);
+  RegistrationInput in = Input(b, nullptr);
+  in.mosaic = &blender;
+  in.last_good = Similarity2{1, 0, 40000, 0} * b.mosaic_from_frame;
+  Prediction p;
+  p.from_gps = true;
+  p.mosaic_from_frame = Similarity2{1, 0, 15, -10} * b.mosaic_from_frame;
+  p.gps_px = p.mosaic_from_frame.Apply(Centre());
+  p.gps_tolerance_px = 200;
+  prediction_ = p;
+  in.seconds_since_registered = 900;  // 15 minutes later, not lost
+  EXPECT_FALSE(NewFlight(in, o));     // off by default
+  EXPECT_FALSE(RegisterToMosaicAfterLoss(in, o).tried);
+  o.reseat_after_gap_s = 60;
+  ASSERT_TRUE(NewFlight(in, o));
+  const Registration r = RegisterToMosaicAfterLoss(in, o);
+  ASSERT_TRUE(r.ok) << r.why;
+  EXPECT_LT(CentreError(r.mosaic_from_frame, b.mosaic_from_frame), 2.0);
+  in.seconds_since_registered = 59;  // the same flight: no search without a loss
+  EXPECT_FALSE(RegisterToMosaicAfterLoss(in, o).tried);
+
+  in.seconds_since_registered = 900;
+  prediction_->mosaic_from_frame = Similarity2{1, 0, 30000, 0} * b.mosaic_from_frame;  // new ground
+  std::string why;
+  ASSERT_FALSE(o.reseat_by_gps);
+  const std::optional<Similarity2> placed = PlaceByGps(in, o, &why);
+  ASSERT_TRUE(placed.has_value());
+  EXPECT_EQ(why.rfind("a new flight (900 s after the last registered photo): placed at its GPS position", 0), 0u) << why;
+  in.seconds_since_registered = 59;
+  EXPECT_FALSE(PlaceByGps(in, o, &why).has_value());
+}
+
 TEST_F(RegistrationCandidates, FinerLevelTriesTheKeyframeThenTheRecentFramesWithFinerFeatures) {
   const View a = Shoot(0, 0, 0.0, 60), last = Shoot(4, 0, 0.0, 61), b = Shoot(8, 1, 0.05, 62);
   MosaickerOptions o = Options();

@@ -50,6 +50,7 @@ struct RegistrationInput {
   const std::optional<Prediction>* prediction = nullptr;  // where the frame is expected (GPS or motion)
   Similarity2 last_good;                          // mosaic_from_frame of the last registered frame
   bool lost = false;                              // the previous frame was not registered
+  double seconds_since_registered = 0;            // s since the last registered (or placed) frame; 0 before any
   const Keyframe* keyframe = nullptr;
   const std::deque<Keyframe>* neighbours = nullptr;  // kept registered frames (neighbour_frames)
   const std::deque<Keyframe>* recent = nullptr;      // the last registered frames with their images (fallback_frames)
@@ -78,6 +79,11 @@ bool Evidence(const MotionEstimate& motion, const Similarity2& mosaic_from_frame
               const std::optional<Prediction>& prediction, const cv::Point2d& principal_point,
               const MosaickerOptions& options, std::string* why, int* gps_rejections);
 
+// The frame was taken reseat_after_gap_s or more after the last registered
+// one (a survey folder's next flight): it is searched for in the mosaic
+// around its GPS position, and placed there on new ground, as after a loss.
+bool NewFlight(const RegistrationInput& in, const MosaickerOptions& options);
+
 // The candidates, in rank order.
 Registration RegisterToKeyframe(const RegistrationInput& in, const MosaickerOptions& options);
 Registration RegisterGuided(const RegistrationInput& in, const MosaickerOptions& options);
@@ -97,7 +103,8 @@ std::optional<Similarity2> RefineAgainstMosaic(const cv::Mat& frame, const Frame
                                                const MosaicBlender& mosaic, const Similarity2& chain,
                                                const cv::Point2d& principal_point, const MosaickerOptions& options);
 
-// reseat_by_gps: a frame no candidate registers is placed at its GPS
+// reseat_by_gps (or reseat_after_gap_s, for a frame that long after the
+// last registered one): a frame no candidate registers is placed at its GPS
 // position when the mosaic holds nothing there (new ground: nothing to
 // re-acquire against). The pose, or nullopt with *why.
 std::optional<Similarity2> PlaceByGps(const RegistrationInput& in, const MosaickerOptions& options, std::string* why);

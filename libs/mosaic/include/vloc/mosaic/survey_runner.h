@@ -18,6 +18,12 @@
 // length and sensor width, or the 35 mm equivalent), else the image width.
 // First height: an ArUco marker in the first photo, else the DJI relative
 // altitude, else height_m, else 100 m (heights then relative).
+// Several flights in one folder: photos of another camera are resampled to
+// the survey's (ChooseCamera: the most common size, its focal length) or
+// refused by name; a photo taken reseat_after_gap_s after the last
+// registered one is searched for in the mosaic around its GPS position.
+// Heights: vision only, and fused with the altitude tags when they agree
+// (altitude_fusion.h).
 
 #include <opencv2/core.hpp>
 
@@ -34,6 +40,7 @@
 #include "vloc/mosaic/altitude_fusion.h"
 #include "vloc/mosaic/geotag.h"
 #include "vloc/mosaic/survey_eval.h"
+#include "vloc/mosaic/survey_photos.h"
 #include "vloc/mosaic/uav_mosaicker.h"
 
 namespace vloc::mosaic {
@@ -96,11 +103,12 @@ class SurveyRunner {
   SurveyRunner(const SurveyOptions& options, std::ostream* out, std::ostream* err);
   ~SurveyRunner();
 
-  // The photos' headers (limits, one size), then their geotags. False (with
-  // a line on err) when fewer than two photos are usable.
+  // The photos' headers (limits), then their geotags. False (with a line on
+  // err) when fewer than two photos are usable.
   bool LoadPhotos(const std::vector<std::string>& paths);
   // Decoded views instead of photos (no geotags, one second apart).
   void LoadViews(const std::vector<std::string>& names, const std::vector<cv::Mat>& views);
+  // The focal length, then every photo fitted to the survey's camera (refused by name when it cannot be).
   bool ChooseCamera();
   bool ChooseFirstHeight();
   // Every photo through the mosaicker with its fix.
@@ -131,6 +139,8 @@ class SurveyRunner {
  private:
   cv::Mat Load(size_t i, std::string* error) const;
   void ReadGeotags();
+  size_t ReferencePhoto() const;       // the first photo of the survey's size: its EXIF gives the focal length
+  bool FitCameras();
   void MarkRepeatedFixes();
   void ChooseTimes();
   struct Loaded;
@@ -149,9 +159,11 @@ class SurveyRunner {
   std::vector<std::string> paths_;
   std::vector<cv::Mat> views_;         // LoadViews
   cv::Mat first_;
-  cv::Size size_;
+  cv::Size size_;                      // the survey's photo size: the most common one
+  std::vector<cv::Size> sizes_;        // each photo's own size
+  std::vector<CameraFit> fits_;        // each photo brought to the survey's camera
   std::vector<SurveyFrame> frames_;
-  int tagged_ = 0, refusals_ = 0, failures_ = 0;
+  int tagged_ = 0, refusals_ = 0, failures_ = 0, refitted_ = 0;
   bool use_gps_ = false, times_ok_ = false, used_oblique_ = false;
   const ImageGeotag* origin_ = nullptr;  // the first tagged photo's tag
   std::unique_ptr<UavMosaicker> mosaicker_;

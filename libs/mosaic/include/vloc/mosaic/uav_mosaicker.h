@@ -91,6 +91,9 @@ struct MosaickerOptions {
   bool reseat_by_gps = false;           // a frame no image registers, where the mosaic holds nothing at its GPS
                                         // position (new ground), is placed there and becomes the keyframe (reported
                                         // LOST, not registered), so the next frame re-acquires
+  double reseat_after_gap_s = 0;        // s: likewise for a frame taken this long after the last registered one (the
+                                        // next flight of a survey folder: new ground, another start point), even
+                                        // with reseat_by_gps false; 0 = off
   int neighbour_frames = 0;             // registered frames whose features are kept (most recent first): a frame the
                                         // keyframe does not register is matched against the nearest of them (the
                                         // neighbour on the adjacent strip of a survey, the frame before a bad one)
@@ -290,6 +293,7 @@ class UavMosaicker {
   double last_scale_ = 0;                  // the last registered frame's similarity scale
   cv::Vec3d ground_normal_{0, 0, 1};       // ground-plane normal in the last registered frame's camera frame
   int last_good_index_ = -1;               // frame index of last_.last_good
+  int64_t last_good_utime_ = 0;            // us, its time
   bool lost_ = false;
   int frames_since_blend_ = 0;
   int frames_since_reregister_ = 0;
