@@ -179,6 +179,7 @@ bool RectifyPdsPair(const CahvModel& left_model, const CahvModel& right_model, c
     return Fail(error, "the two images differ in size: " + std::to_string(left.cols) + " x " + std::to_string(left.rows) +
                            " and " + std::to_string(right.cols) + " x " + std::to_string(right.rows));
   const cv::Size size = left.size();
+  out->raw_kind[0] = left_model.kind, out->raw_kind[1] = right_model.kind;
   out->max_raw_row_error_px = MaxRowError(left_model, right_model, size, range_m);
   if (SameCahv(left_model, right_model)) {
     out->models = {left_model, right_model, size};
@@ -213,6 +214,7 @@ bool ReadPdsStereoPair(const std::string& left_path, const std::string& right_pa
   if (!rectify) {
     *out = RectifiedPdsPair();
     out->models = {products[0].label.camera, products[1].label.camera, products[0].image.size()};
+    out->raw_kind[0] = products[0].label.camera.kind, out->raw_kind[1] = products[1].label.camera.kind;
     out->left = products[0].image, out->right = products[1].image;
     return true;
   }
@@ -233,8 +235,8 @@ std::string DescribeRectification(const RectifiedPdsPair& pair) {
   std::ostringstream os;
   os << "rectification: {linearised: " << (pair.linearised ? "true" : "false")
      << ", raw_row_error_max_px: " << pair.max_raw_row_error_px
-     << ", model_row_error_max_px: " << pair.max_model_row_error_px << ", models: [" << CahvKindName(pair.models.left.kind)
-     << ", " << CahvKindName(pair.models.right.kind) << "]}  # row errors: points both models see, from the models\n";
+     << ", model_row_error_max_px: " << pair.max_model_row_error_px << ", raw_models: [" << CahvKindName(pair.raw_kind[0])
+     << ", " << CahvKindName(pair.raw_kind[1]) << "]}  # row errors: points both models see, from the models\n";
   return os.str();
 }
 

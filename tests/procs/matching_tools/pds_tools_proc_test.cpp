@@ -70,7 +70,12 @@ CahvModel ParseModel(const char* const text[6]) {
   return m;
 }
 
-std::vector<std::string> Components(const CahvModel& m) { return {Vec(m.c), Vec(m.a), Vec(m.h), Vec(m.v), Vec(m.o), Vec(m.r)}; }
+// MODEL_COMPONENT_1.. of a CAHVOR, or of a CAHVORE (E, type 3 = general, linearity).
+std::vector<std::string> Components(const CahvModel& m) {
+  std::vector<std::string> c = {Vec(m.c), Vec(m.a), Vec(m.h), Vec(m.v), Vec(m.o), Vec(m.r)};
+  if (m.kind == CahvKind::kCahvore) c.insert(c.end(), {Vec(m.e), "3", std::to_string(m.linearity)});
+  return c;
+}
 
 // The scene plane n.(p - c) = d, in the left model's reference frame.
 struct Plane {
@@ -94,7 +99,8 @@ struct RawPair {
   std::string left_path, right_path;  // left: .IMG (attached label); right: .LBL + browse .png
 };
 
-RawPair MakeRawPair(const std::string& dir) {
+// right_cahvore: the right camera is a CAHVORE (general, linearity 0.95, a moving pupil).
+RawPair MakeRawPair(const std::string& dir, bool right_cahvore = false) {
   RawPair p;
   p.left = ParseModel(testing::kPdsFixtureModel);  // sol60 NLA_402815759
   p.left_image = cv::imread(std::string(VLOC_SOURCE_DIR) +
@@ -117,6 +123,11 @@ RawPair MakeRawPair(const std::string& dir) {
   p.right.a = rot * p.left.a, p.right.h = rot * p.left.h, p.right.v = rot * p.left.v, p.right.o = rot * p.left.o;
   p.right.h += 6.0 * p.right.a;  // principal point 6 px right
   p.right.r = Eigen::Vector3d(0.0005, -0.008, 0.03);
+  if (right_cahvore) {
+    p.right.kind = CahvKind::kCahvore;
+    p.right.e = Eigen::Vector3d(0.002, 0.001, 0.0);
+    p.right.linearity = 0.95;
+  }
   // The plane: 10 m along A, its normal tilted 20 deg about H'.
   p.plane.c = p.left.c;
   p.plane.n = Eigen::AngleAxisd(20 * M_PI / 180, hp) * p.left.a;
@@ -137,6 +148,7 @@ RawPair MakeRawPair(const std::string& dir) {
   f.model = Components(p.left);
   testing::WriteAttachedImg(dir + "/LEFT.IMG", f, p.left_image);
   f.frame_id = "RIGHT", f.instrument_id = "NAV_RIGHT_A", f.model = Components(p.right);
+  f.model_type = right_cahvore ? "CAHVORE" : "CAHVOR";
   testing::WriteBrowse(dir, "RIGHT", "RIGHT.png", f, p.right_image);
   p.left_path = dir + "/LEFT.IMG";
   p.right_path = dir + "/RIGHT.LBL";
@@ -187,6 +199,26 @@ TEST(PdsTools, VlocStereoRectifiesARawCahvorPairBeforeMatching) {
   std::filesystem::remove_all(dir);
 }
 
+// The same with a CAHVORE right camera (rays taken at the plane's range, 10 m).
+TEST(PdsTools, VlocStereoRectifiesARawCahvorCahvorePair) {
+  const std::string dir = TempDir();
+  const RawPair p = MakeRawPair(dir, true);
+  const std::pair<double, double> expected = PlaneDisparities(p);
+  const ToolRun r = RunTool({testing::BinPath("vloc_stereo"), p.left_path, p.right_path, "--auto-range",
+                             "--rectify-range", "10", "--out", dir + "/disp.pfm"});
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::cout << r.output;
+  EXPECT_NE(r.output.find("raw_models: [CAHVOR, CAHVORE]"), std::string::npos) << r.output;
+  EXPECT_GT(Number(r.output, "raw_row_error_max_px"), 5.0) << r.output;
+  EXPECT_LT(Number(r.output, "model_row_error_max_px"), 1e-6) << r.output;
+  EXPECT_LT(Number(r.output, "median"), kRowNoisePx) << r.output;
+  EXPECT_LT(Number(r.output, "p90"), 3 * kRowNoisePx) << r.output;
+  const double disparity = Number(r.output, "disparity_median_px");
+  EXPECT_GT(disparity, expected.first - 1) << r.output;
+  EXPECT_LT(disparity, expected.second + 1) << r.output;
+  std::filesystem::remove_all(dir);
+}
+
 TEST(PdsTools, VlocMatchRectifiesAndReportsTheRowErrorOfItsInliers) {
   const std::string dir = TempDir();
   const RawPair p = MakeRawPair(dir);
@@ -198,6 +230,21 @@ TEST(PdsTools, VlocMatchRectifiesAndReportsTheRowErrorOfItsInliers) {
   EXPECT_LT(Number(r.output, "median"), kRowNoisePx) << r.output;
   EXPECT_LT(Number(r.output, "p95"), 3 * kRowNoisePx) << r.output;
   std::filesystem::remove_all(dir);
+}
+
+// The shared Curiosity products as the galleries serve them (a browse .jpg
+// and its ...M1.LBL): two adjacent frames of the sol60 panorama, one named
+// by its image, one by its label, matched by vloc_match (a mast rotation: a
+// homography up to the lenses' distortion).
+TEST(PdsTools, VlocMatchReadsTheSharedCuriosityProducts) {
+  const std::string dir = std::string(VLOC_SOURCE_DIR) + "/../shared/data/real/mars_navcam_pano/sol60/";
+  if (!std::filesystem::exists(dir + "NLA_402815759EDR_F0050104NCAM00451M1.LBL"))
+    GTEST_SKIP() << "../shared/data/real/mars_navcam_pano absent (real data beside the repo, see ../shared/data/README.md)";
+  const ToolRun r = RunTool({testing::BinPath("vloc_match"), dir + "NLA_402815759EDR_F0050104NCAM00451M_.jpg",
+                             dir + "NLA_402815839EDR_F0050104NCAM00451M1.LBL"});
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::cout << r.output;
+  EXPECT_GT(Number(r.output, "inliers"), 30) << r.output;
 }
 
 TEST(PdsTools, UnusableLabelsAndPairsAreOneLineNamingFileAndKeyword) {

@@ -42,6 +42,7 @@ bool ReadPdsProduct(const std::string& path, PdsProduct* out, std::string* error
 // A stereo pair after epipolar rectification.
 struct RectifiedPdsPair {
   bool linearised = false;       // false: the models were already a common CAHV pair, images kept as they are
+  CahvKind raw_kind[2] = {CahvKind::kCahv, CahvKind::kCahv};  // the input models' kinds (left, right)
   RectifiedStereoPair models;    // the common CAHV pair (the input models when !linearised)
   cv::Mat left, right;           // CV_8UC1, rectified (0 where no raw pixel)
   double max_model_row_error_px = 0;  // px, largest row difference the rectified models give a point seen by
@@ -65,7 +66,7 @@ bool ReadPdsStereoPair(const std::string& left_path, const std::string& right_pa
                        RectifiedPdsPair* out, std::string* error);
 
 // The pair's rectification as YAML lines (the tools print it):
-// rectification: {linearised: ..., raw_row_error_max_px: ..., model_row_error_max_px: ...}
+// rectification: {linearised: ..., raw_row_error_max_px: ..., model_row_error_max_px: ..., raw_models: [...]}
 std::string DescribeRectification(const RectifiedPdsPair& pair);
 
 // Writes PREFIX_left.png and PREFIX_right.png; false with one line in *error.
