@@ -12,30 +12,22 @@
 namespace vloc {
 
 void UavMosaickerProcOptions::Visit(OptionsReader& r) {
-  r.Optional("camera_channel", &camera_channel, "image_t in");
+  r.Optional("camera_channel", &camera_channel, "image_t in", NonEmpty());
   r.Optional("gps_channel", &gps_channel, "uav_gps_t in");
-  r.Optional("state_channel", &state_channel, "uav_state_t out");
+  r.Optional("state_channel", &state_channel, "uav_state_t out", NonEmpty());
   r.Optional("mosaic_channel", &mosaic_channel, "image_t out, JPEG preview");
-  r.Optional("preview_period", &preview_period, "s between previews, 0 = none");
-  r.Optional("preview_max_side", &preview_max_side, "px");
-  r.Optional("preview_jpeg_quality", &preview_jpeg_quality, "1..100");
+  r.Optional("preview_period", &preview_period, "s between previews, 0 = none", NonNegative());
+  r.Optional("preview_max_side", &preview_max_side, "px", AtLeast(64));
+  r.Optional("preview_jpeg_quality", &preview_jpeg_quality, "1..100", InRange(1, 100));
   r.Optional("output", &output, "full mosaic PNG path, written on SIGUSR1 and at exit");
-  r.Optional("write_every_s", &write_every_s, "s of message time between periodic writes once tied to GPS (0 = none)");
-  r.Optional("camera_queue", &camera_queue, "frames queued before the oldest is dropped");
-  r.Optional("report_every_n_frames", &report_every_n_frames, "summary log period");
+  r.Optional("write_every_s", &write_every_s, "s of message time between periodic writes once tied to GPS (0 = none)",
+             NonNegative());
+  r.Optional("camera_queue", &camera_queue, "frames queued before the oldest is dropped", AtLeast(1));
+  r.Optional("report_every_n_frames", &report_every_n_frames, "summary log period", AtLeast(1));
   r.Child("mosaicker", [&](OptionsReader& c) { mosaicker.Visit(c); });
 }
 
-bool UavMosaickerProcOptions::Check(std::string* error) const {
-  if (camera_channel.empty() || state_channel.empty()) return Fail(error, "channel names must not be empty");
-  if (!(preview_period >= 0)) return Fail(error, "preview_period must be >= 0 s");
-  if (preview_max_side < 64) return Fail(error, "preview_max_side must be >= 64 px");
-  if (preview_jpeg_quality < 1 || preview_jpeg_quality > 100) return Fail(error, "preview_jpeg_quality must be in 1..100");
-  if (!(write_every_s >= 0)) return Fail(error, "write_every_s must be >= 0 s (0 = no periodic writes)");
-  if (camera_queue < 1) return Fail(error, "camera_queue must be >= 1");
-  if (report_every_n_frames < 1) return Fail(error, "report_every_n_frames must be >= 1");
-  return mosaicker.Check(error);
-}
+bool UavMosaickerProcOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 uav_state_t StateToMessage(const mosaic::FrameState& s) {
   uav_state_t m;

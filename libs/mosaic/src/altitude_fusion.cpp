@@ -12,23 +12,16 @@ namespace vloc::mosaic {
 
 void AltitudeFusionOptions::Visit(OptionsReader& r) {
   r.Optional("enabled", &enabled, "false: vision heights only");
-  r.Optional("gps_altitude_sigma", &gps_altitude_sigma, "m, 1-sigma of an EXIF GPS altitude");
-  r.Optional("relative_altitude_sigma", &relative_altitude_sigma, "m, 1-sigma of a DJI relative altitude");
-  r.Optional("vision_survey_sigma", &vision_survey_sigma, "relative 1-sigma of a vision height over a survey");
-  r.Optional("max_normalised_rms", &max_normalised_rms, "fuse when the normalised residual RMS is at most this");
+  r.Optional("gps_altitude_sigma", &gps_altitude_sigma, "m, 1-sigma of an EXIF GPS altitude", Positive());
+  r.Optional("relative_altitude_sigma", &relative_altitude_sigma, "m, 1-sigma of a DJI relative altitude", Positive());
+  r.Optional("vision_survey_sigma", &vision_survey_sigma, "relative 1-sigma of a vision height over a survey",
+             InOpen(0.0, 1.0));
+  r.Optional("max_normalised_rms", &max_normalised_rms, "fuse when the normalised residual RMS is at most this",
+             Positive());
   r.Child("filter", [this](OptionsReader& c) { filter.Visit(c); });
 }
 
-bool AltitudeFusionOptions::Check(std::string* error) const {
-  if (!(gps_altitude_sigma > 0)) return Fail(error, "altitude_fusion.gps_altitude_sigma must be > 0 m");
-  if (!(relative_altitude_sigma > 0)) return Fail(error, "altitude_fusion.relative_altitude_sigma must be > 0 m");
-  if (!(vision_survey_sigma > 0 && vision_survey_sigma < 1))
-    return Fail(error, "altitude_fusion.vision_survey_sigma must be in (0, 1)");
-  if (!(max_normalised_rms > 0)) return Fail(error, "altitude_fusion.max_normalised_rms must be > 0");
-  std::string e;
-  if (!filter.Check(&e)) return Fail(error, "altitude_fusion.filter: " + e);
-  return true;
-}
+bool AltitudeFusionOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 const char* ToString(HeightSource source) {
   switch (source) {

@@ -27,33 +27,24 @@ bool DictionaryId(const std::string& name, int* id) {
 }  // namespace
 
 void CalibrationOptions::Visit(OptionsReader& r) {
-  r.Optional("source", &source, "marker | config | gps");
-  r.Optional("dictionary", &dictionary, "ArUco dictionary, e.g. DICT_4X4_50");
+  r.Optional("source", &source, "marker | config | gps", OneOf({"marker", "config", "gps"}));
+  r.Optional("dictionary", &dictionary, "ArUco dictionary, e.g. DICT_4X4_50",
+             Rule<std::string>([](const std::string& d) { int id; return DictionaryId(d, &id); },
+                               "an ArUco dictionary, e.g. DICT_4X4_50"));
   r.Optional("marker_id", &marker_id, "marker id, -1 = any");
-  r.Optional("marker_size", &marker_size, "m, marker side");
-  r.Optional("height", &height, "m, known calibration height; 0 = from GPS");
+  r.Optional("marker_size", &marker_size, "m, marker side", Positive());
+  r.Optional("height", &height, "m, known calibration height; 0 = from GPS", NonNegative());
   r.Optional("focal_known", &focal_known, "false = estimate f by equation 1");
-  r.Optional("max_frames", &max_frames, "frames to search for the marker before warning");
-  r.Optional("frames_to_average", &frames_to_average, "marker sightings averaged");
+  r.Optional("max_frames", &max_frames, "frames to search for the marker before warning", AtLeast(1));
+  r.Optional("frames_to_average", &frames_to_average, "marker sightings averaged", AtLeast(1));
   r.Optional("use_gps_height", &use_gps_height, "marker: height from GPS (true) or from the known focal (false)");
+  r.Relation("height", source != "config" || height > 0, "must be > 0 with source 'config'");
+  r.Relation("focal_known", focal_known || source == "marker", "false needs source 'marker'");
+  r.Relation("height", focal_known || use_gps_height || height > 0,
+             "must be > 0 (or use_gps_height true) when focal_known is false");
 }
 
-bool CalibrationOptions::Check(std::string* error) const {
-  if (source != "marker" && source != "config" && source != "gps")
-    return Fail(error, "calibration.source must be 'marker', 'config' or 'gps'");
-  int id;
-  if (!DictionaryId(dictionary, &id))
-    return Fail(error, "calibration.dictionary '" + dictionary + "' unknown; use e.g. DICT_4X4_50");
-  if (!(marker_size > 0)) return Fail(error, "calibration.marker_size must be > 0 m");
-  if (!(height >= 0)) return Fail(error, "calibration.height must be >= 0 m (0 = from GPS)");
-  if (source == "config" && !(height > 0)) return Fail(error, "calibration.source 'config' needs calibration.height > 0");
-  if (!focal_known && source != "marker") return Fail(error, "calibration.focal_known: false needs source 'marker'");
-  if (max_frames < 1) return Fail(error, "calibration.max_frames must be >= 1");
-  if (frames_to_average < 1) return Fail(error, "calibration.frames_to_average must be >= 1");
-  if (!focal_known && !use_gps_height && !(height > 0))
-    return Fail(error, "calibration.focal_known: false needs a height: use_gps_height: true or calibration.height > 0");
-  return true;
-}
+bool CalibrationOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 std::string Calibration::Describe() const {
   std::ostringstream s;

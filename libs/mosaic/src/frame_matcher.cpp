@@ -13,54 +13,32 @@
 namespace vloc::mosaic {
 
 void MatcherOptions::Visit(OptionsReader& r) {
-  r.Optional("detector", &detector, "akaze | sift");
-  r.Optional("downscale", &downscale, "the detector runs on the frame resized by this factor");
-  r.Optional("detect_width", &detect_width, "px, widest frame the detector runs on (0 = downscale alone)");
-  r.Optional("akaze_threshold", &akaze_threshold, "A-KAZE detector response threshold");
-  r.Optional("akaze_octaves", &akaze_octaves, "A-KAZE octaves");
-  r.Optional("akaze_sublevels", &akaze_sublevels, "A-KAZE sublevels per octave");
-  r.Optional("max_features", &max_features, "strongest keypoints kept per frame");
-  r.Optional("min_features", &min_features, "lower the A-KAZE threshold until this many keypoints (0 = off)");
-  r.Optional("sift_contrast", &sift_contrast, "SIFT contrast threshold");
-  r.Optional("grid_cells", &grid_cells, "grid cells per side for spreading keypoints");
-  r.Optional("ratio", &ratio, "Lowe ratio test");
-  r.Optional("ransac_threshold", &ransac_threshold, "px, RANSAC reprojection threshold");
-  r.Optional("foreground_rho", &foreground_rho, "px, rho of equation 2");
-  r.Optional("foreground_rule", &foreground_rule, "eq2 | reprojection");
-  r.Optional("scale_model", &scale_model, "similarity | axis_scale | affine");
-  r.Optional("min_inliers", &min_inliers, "background matches needed");
-  r.Optional("max_scale_change", &max_scale_change, "largest believable scale change between frames");
-  r.Optional("loose_ratio", &loose_ratio, "second try: looser ratio test + MAGSAC++ (0 = off)");
-  r.Optional("guided_ratio", &guided_ratio, "ratio test inside the gate of guided matching");
-  r.Optional("num_threads", &num_threads, "OpenCV threads");
+  r.Optional("detector", &detector, "akaze | sift", OneOf({"akaze", "sift"}));
+  r.Optional("downscale", &downscale, "the detector runs on the frame resized by this factor", InRange(0.1, 1.0));
+  r.Optional("detect_width", &detect_width, "px, widest frame the detector runs on (0 = downscale alone)",
+             Is(0) || InRange(64, 100000));
+  r.Optional("akaze_threshold", &akaze_threshold, "A-KAZE detector response threshold", Positive());
+  r.Optional("akaze_octaves", &akaze_octaves, "A-KAZE octaves", InRange(1, 8));
+  r.Optional("akaze_sublevels", &akaze_sublevels, "A-KAZE sublevels per octave", InRange(1, 8));
+  r.Optional("max_features", &max_features, "strongest keypoints kept per frame", AtLeast(20));
+  r.Optional("min_features", &min_features, "lower the A-KAZE threshold until this many keypoints (0 = off)",
+             NonNegative());
+  r.Optional("sift_contrast", &sift_contrast, "SIFT contrast threshold", InOpen(0.0, 1.0));
+  r.Optional("grid_cells", &grid_cells, "grid cells per side for spreading keypoints", InRange(1, 64));
+  r.Optional("ratio", &ratio, "Lowe ratio test", InLeftOpen(0.0, 1.0));
+  r.Optional("ransac_threshold", &ransac_threshold, "px, RANSAC reprojection threshold", Positive());
+  r.Optional("foreground_rho", &foreground_rho, "px, rho of equation 2", Positive());
+  r.Optional("foreground_rule", &foreground_rule, "eq2 | reprojection", OneOf({"eq2", "reprojection"}));
+  r.Optional("scale_model", &scale_model, "similarity | axis_scale | affine",
+             OneOf({"similarity", "axis_scale", "affine"}));
+  r.Optional("min_inliers", &min_inliers, "background matches needed", AtLeast(4));
+  r.Optional("max_scale_change", &max_scale_change, "largest believable scale change between frames", Above(1.0));
+  r.Optional("loose_ratio", &loose_ratio, "second try: looser ratio test + MAGSAC++ (0 = off)", InRange(0.0, 1.0));
+  r.Optional("guided_ratio", &guided_ratio, "ratio test inside the gate of guided matching", InLeftOpen(0.0, 1.0));
+  r.Optional("num_threads", &num_threads, "OpenCV threads", AtLeast(1));
 }
 
-bool MatcherOptions::Check(std::string* error) const {
-  if (detector != "akaze" && detector != "sift") return Fail(error, "matcher.detector must be 'akaze' or 'sift'");
-  if (!(sift_contrast > 0 && sift_contrast < 1)) return Fail(error, "matcher.sift_contrast must be in (0, 1)");
-  if (!(downscale >= 0.1 && downscale <= 1.0)) return Fail(error, "matcher.downscale must be in [0.1, 1]");
-  if (detect_width != 0 && (detect_width < 64 || detect_width > 100000))
-    return Fail(error, "matcher.detect_width must be 0 (off) or in [64, 100000] px");
-  if (!(akaze_threshold > 0)) return Fail(error, "matcher.akaze_threshold must be > 0");
-  if (akaze_octaves < 1 || akaze_octaves > 8) return Fail(error, "matcher.akaze_octaves must be in [1, 8]");
-  if (akaze_sublevels < 1 || akaze_sublevels > 8) return Fail(error, "matcher.akaze_sublevels must be in [1, 8]");
-  if (max_features < 20) return Fail(error, "matcher.max_features must be >= 20");
-  if (min_features < 0) return Fail(error, "matcher.min_features must be >= 0 (0 = off)");
-  if (grid_cells < 1 || grid_cells > 64) return Fail(error, "matcher.grid_cells must be in [1, 64]");
-  if (!(ratio > 0 && ratio <= 1)) return Fail(error, "matcher.ratio must be in (0, 1]");
-  if (!(ransac_threshold > 0)) return Fail(error, "matcher.ransac_threshold must be > 0");
-  if (!(foreground_rho > 0)) return Fail(error, "matcher.foreground_rho must be > 0");
-  if (foreground_rule != "eq2" && foreground_rule != "reprojection")
-    return Fail(error, "matcher.foreground_rule must be 'eq2' or 'reprojection'");
-  if (scale_model != "similarity" && scale_model != "axis_scale" && scale_model != "affine")
-    return Fail(error, "matcher.scale_model must be 'similarity', 'axis_scale' or 'affine'");
-  if (min_inliers < 4) return Fail(error, "matcher.min_inliers must be >= 4");
-  if (!(max_scale_change > 1)) return Fail(error, "matcher.max_scale_change must be > 1");
-  if (!(loose_ratio >= 0 && loose_ratio <= 1)) return Fail(error, "matcher.loose_ratio must be in [0, 1] (0 = off)");
-  if (!(guided_ratio > 0 && guided_ratio <= 1)) return Fail(error, "matcher.guided_ratio must be in (0, 1]");
-  if (num_threads < 1) return Fail(error, "matcher.num_threads must be >= 1");
-  return true;
-}
+bool MatcherOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 namespace {
 double Seconds(std::chrono::steady_clock::time_point t0) {

@@ -23,22 +23,16 @@ void EnuToLatLon(const cv::Point2d& enu, double lat0, double lon0, double* lat, 
 }
 
 void GeoOptions::Visit(OptionsReader& r) {
-  r.Optional("min_fixes", &min_fixes, "fixes before the mosaic is tied to GPS");
-  r.Optional("min_spread", &min_spread, "m, RMS spread of tied fixes");
+  r.Optional("min_fixes", &min_fixes, "fixes before the mosaic is tied to GPS", AtLeast(2));
+  r.Optional("min_spread", &min_spread, "m, RMS spread of tied fixes", NonNegative());
   r.Optional("window_fixes", &window_fixes, "most recent pairs used in the tie");
-  r.Optional("max_time_gap", &max_time_gap, "s, fix-to-frame pairing gap");
-  r.Optional("gps_timeout", &gps_timeout, "s, after this without a fix the route is vision only");
-  r.Optional("predict_window", &predict_window, "pairs of the local tie used for predictions (0 = the tie)");
+  r.Optional("max_time_gap", &max_time_gap, "s, fix-to-frame pairing gap", Positive());
+  r.Optional("gps_timeout", &gps_timeout, "s, after this without a fix the route is vision only", Positive());
+  r.Optional("predict_window", &predict_window, "pairs of the local tie used for predictions (0 = the tie)",
+             Is(0) || AtLeast(3));
+  r.Relation("window_fixes", window_fixes >= min_fixes, "must be >= min_fixes");
 }
-bool GeoOptions::Check(std::string* error) const {
-  if (min_fixes < 2) return Fail(error, "geo.min_fixes must be >= 2");
-  if (!(min_spread >= 0)) return Fail(error, "geo.min_spread must be >= 0 m");
-  if (window_fixes < min_fixes) return Fail(error, "geo.window_fixes must be >= geo.min_fixes");
-  if (!(max_time_gap > 0)) return Fail(error, "geo.max_time_gap must be > 0 s");
-  if (!(gps_timeout > 0)) return Fail(error, "geo.gps_timeout must be > 0 s");
-  if (predict_window != 0 && predict_window < 3) return Fail(error, "geo.predict_window must be 0 (off) or >= 3");
-  return true;
-}
+bool GeoOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 bool GpsTie::AddFix(const GpsFix& fix) {
   if (!fix.valid || !std::isfinite(fix.latitude) || !std::isfinite(fix.longitude)) return false;

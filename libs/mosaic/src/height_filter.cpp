@@ -8,24 +8,16 @@
 namespace vloc::mosaic {
 
 void HeightFilterOptions::Visit(OptionsReader& r) {
-  r.Optional("gps_use", &gps_use, "calibration | fused");
-  r.Optional("vision_sigma", &vision_sigma, "relative 1-sigma of one frame's vision height");
-  r.Optional("rate_noise", &rate_noise, "1/s^1.5, random walk of the log climb rate");
-  r.Optional("gps_height_sigma", &gps_height_sigma, "m, 1-sigma of GPS height above ground (fused)");
-  r.Optional("bias_sigma", &bias_sigma, "relative, initial sigma of the vision height bias (fused)");
-  r.Optional("bias_drift", &bias_drift, "1/s^0.5, random walk of the vision height bias (fused)");
+  r.Optional("gps_use", &gps_use, "calibration | fused", OneOf({"calibration", "fused"}));
+  r.Optional("vision_sigma", &vision_sigma, "relative 1-sigma of one frame's vision height", Positive());
+  r.Optional("rate_noise", &rate_noise, "1/s^1.5, random walk of the log climb rate", Positive());
+  r.Optional("gps_height_sigma", &gps_height_sigma, "m, 1-sigma of GPS height above ground (fused)", Positive());
+  r.Optional("bias_sigma", &bias_sigma, "relative, initial sigma of the vision height bias (fused)", NonNegative());
+  r.Optional("bias_drift", &bias_drift, "1/s^0.5, random walk of the vision height bias (fused)", NonNegative());
   r.Optional("enabled", &enabled, "false = raw vision height");
 }
 
-bool HeightFilterOptions::Check(std::string* error) const {
-  if (gps_use != "calibration" && gps_use != "fused")
-    return Fail(error, "height_filter.gps_use must be 'calibration' or 'fused'");
-  if (!(vision_sigma > 0)) return Fail(error, "height_filter.vision_sigma must be > 0");
-  if (!(rate_noise > 0)) return Fail(error, "height_filter.rate_noise must be > 0");
-  if (!(gps_height_sigma > 0)) return Fail(error, "height_filter.gps_height_sigma must be > 0 m");
-  if (!(bias_sigma >= 0) || !(bias_drift >= 0)) return Fail(error, "height_filter.bias_sigma and bias_drift must be >= 0");
-  return true;
-}
+bool HeightFilterOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 void HeightFilter::Reset(double height, int64_t utime) {
   initialized_ = true;

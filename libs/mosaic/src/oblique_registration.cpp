@@ -22,29 +22,19 @@
 namespace vloc::mosaic {
 
 void ObliqueOptions::Visit(OptionsReader& r) {
-  r.Optional("max_tilt", &max_tilt, "largest simulated ASIFT tilt");
-  r.Optional("sift_features", &sift_features, "SIFT keypoints per simulated view (0 = all)");
-  r.Optional("max_side", &max_side, "px, longer images are downscaled for matching");
-  r.Optional("ratio", &ratio, "ratio test against the best candidate at another place");
-  r.Optional("distinct_radius", &distinct_radius, "px, candidates this close are the same point");
-  r.Optional("ransac_threshold", &ransac_threshold, "px, MAGSAC++ threshold");
-  r.Optional("min_inliers", &min_inliers, "distinct inliers needed");
-  r.Optional("min_ncc_gain", &min_ncc_gain, "NCC gain of the registered overlap over the unregistered images");
-  r.Optional("num_threads", &num_threads, "OpenCV threads");
+  r.Optional("max_tilt", &max_tilt, "largest simulated ASIFT tilt", InRange(1.0, 8.0));
+  r.Optional("sift_features", &sift_features, "SIFT keypoints per simulated view (0 = all)", NonNegative());
+  r.Optional("max_side", &max_side, "px, longer images are downscaled for matching", AtLeast(100));
+  r.Optional("ratio", &ratio, "ratio test against the best candidate at another place", InLeftOpen(0.0, 1.0));
+  r.Optional("distinct_radius", &distinct_radius, "px, candidates this close are the same point", NonNegative());
+  r.Optional("ransac_threshold", &ransac_threshold, "px, MAGSAC++ threshold", Positive());
+  r.Optional("min_inliers", &min_inliers, "distinct inliers needed", AtLeast(4));
+  r.Optional("min_ncc_gain", &min_ncc_gain, "NCC gain of the registered overlap over the unregistered images",
+             InRange(0.0, 2.0));
+  r.Optional("num_threads", &num_threads, "OpenCV threads", AtLeast(1));
 }
 
-bool ObliqueOptions::Check(std::string* error) const {
-  if (!(max_tilt >= 1 && max_tilt <= 8)) return Fail(error, "oblique.max_tilt must be in [1, 8]");
-  if (sift_features < 0) return Fail(error, "oblique.sift_features must be >= 0");
-  if (!(max_side >= 100)) return Fail(error, "oblique.max_side must be >= 100");
-  if (!(ratio > 0 && ratio <= 1)) return Fail(error, "oblique.ratio must be in (0, 1]");
-  if (!(distinct_radius >= 0)) return Fail(error, "oblique.distinct_radius must be >= 0");
-  if (!(ransac_threshold > 0)) return Fail(error, "oblique.ransac_threshold must be > 0");
-  if (min_inliers < 4) return Fail(error, "oblique.min_inliers must be >= 4");
-  if (!(min_ncc_gain >= 0 && min_ncc_gain <= 2)) return Fail(error, "oblique.min_ncc_gain must be in [0, 2]");
-  if (num_threads < 1) return Fail(error, "oblique.num_threads must be >= 1");
-  return true;
-}
+bool ObliqueOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 std::string PairRegistration::BriefReport() const {
   std::ostringstream s;

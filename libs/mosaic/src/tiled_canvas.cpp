@@ -17,27 +17,18 @@
 namespace vloc::mosaic {
 
 void CanvasOptions::Visit(OptionsReader& r) {
-  r.Optional("metres_per_pixel", &metres_per_pixel, "m/px of the mosaic; 0 = auto");
-  r.Optional("resolution_factor", &resolution_factor, "auto: mosaic px per first-frame ground px");
-  r.Optional("tile_size", &tile_size, "px, tile side");
-  r.Optional("max_tiles_in_memory", &max_tiles_in_memory, "full tiles held in RAM");
+  r.Optional("metres_per_pixel", &metres_per_pixel, "m/px of the mosaic; 0 = auto", NonNegative());
+  r.Optional("resolution_factor", &resolution_factor, "auto: mosaic px per first-frame ground px", InRange(0.25, 32.0));
+  r.Optional("tile_size", &tile_size, "px, tile side", InRange(64, 4096));
+  r.Optional("max_tiles_in_memory", &max_tiles_in_memory, "full tiles held in RAM", AtLeast(16));
   r.Optional("spill_dir", &spill_dir, "folder for spilled tiles; empty = temporary");
-  r.Optional("num_bands", &num_bands, "multi-band blending bands, 0 = paste");
-  r.Optional("preview_reduction", &preview_reduction, "thumbnail = 1/x of a tile");
-  r.Optional("max_export_pixels", &max_export_pixels, "px, larger exports are downscaled");
+  r.Optional("num_bands", &num_bands, "multi-band blending bands, 0 = paste", InRange(0, 10));
+  r.Optional("preview_reduction", &preview_reduction, "thumbnail = 1/x of a tile", AtLeast(1));
+  r.Optional("max_export_pixels", &max_export_pixels, "px, larger exports are downscaled", AtLeast(1000000));
+  r.Relation("preview_reduction", preview_reduction >= 1 && tile_size % preview_reduction == 0, "must divide tile_size");
 }
 
-bool CanvasOptions::Check(std::string* error) const {
-  if (!(metres_per_pixel >= 0)) return Fail(error, "canvas.metres_per_pixel must be >= 0 (0 = auto)");
-  if (!(resolution_factor >= 0.25 && resolution_factor <= 32)) return Fail(error, "canvas.resolution_factor must be in [0.25, 32]");
-  if (tile_size < 64 || tile_size > 4096) return Fail(error, "canvas.tile_size must be in [64, 4096]");
-  if (max_tiles_in_memory < 16) return Fail(error, "canvas.max_tiles_in_memory must be >= 16");
-  if (num_bands < 0 || num_bands > 10) return Fail(error, "canvas.num_bands must be in [0, 10]");
-  if (preview_reduction < 1 || tile_size % preview_reduction != 0)
-    return Fail(error, "canvas.preview_reduction must be >= 1 and divide tile_size");
-  if (max_export_pixels < 1000000) return Fail(error, "canvas.max_export_pixels must be >= 1e6");
-  return true;
-}
+bool CanvasOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 TiledCanvas::TiledCanvas(const CanvasOptions& options) : options_(options) {
   if (options_.spill_dir.empty()) {

@@ -118,7 +118,7 @@ TEST(AltitudeFusion, OptionsChecked) {
   o = AltitudeFusionOptions();
   o.filter.vision_sigma = -1;
   EXPECT_FALSE(o.Check(&error));
-  EXPECT_NE(error.find("altitude_fusion.filter"), std::string::npos) << error;
+  EXPECT_EQ(error, "filter.vision_sigma = -1: must be > 0");
 }
 
 }  // namespace
