@@ -302,7 +302,7 @@ RegionPrediction PredictRegions(const NavcamModel& navcam, const PoseWithCovaria
       const bool backward = a.norm() > 1e-6 && b.norm() > 1e-6 && a.normalized().dot(b.normalized()) < cos_backward;
       const OverlapGeometry g{out, perturbed, cam_l, prev_cams_inv[j], static_cast<int>(i), static_cast<int>(j), backward};
       if (std::optional<PairOverlap> ov = MakeOverlap(g, samples, false, o)) out.overlaps.push_back(*ov);
-      if (!backward && far_samples.size() >= static_cast<size_t>(o.min_samples))
+      if (!backward && o.far_max_range > 0 && far_samples.size() >= static_cast<size_t>(o.min_samples))
         if (std::optional<PairOverlap> ov = MakeOverlap(g, far_samples, true, o)) out.overlaps.push_back(*ov);
     }
   }

@@ -1,6 +1,9 @@
 // Region prediction and the front end's failure paths on synthetic geometry.
 #include <gtest/gtest.h>
 
+#include <iostream>
+
+#include "vloc/common/homography.h"
 #include "vloc/common/options.h"
 #include "vloc/crosssite/frontend.h"
 #include "vloc/crosssite/regions.h"
@@ -106,6 +109,60 @@ TEST(Regions, OppositeViewsAreBackward) {
   EXPECT_TRUE(pred.overlaps[0].backward);
   EXPECT_GT(pred.overlaps[0].ground_max.x(), 3.0);
   EXPECT_LT(pred.overlaps[0].ground_min.x(), 7.0);
+}
+
+// Far terrain (a hill 80-120 m ahead, sites 30 m apart, the DR 15 % and
+// 3 deg off): its stereo points make a far overlap whose previous region
+// holds the points' true projections and whose homography predicts them
+// within its gate (growth_px, the 90th percentile of the samples' growth).
+TEST(Regions, FarTerrainPointsMakeAFarOverlapCoveringTheTruth) {
+  const NavcamModel navcam = Navcam();
+  const std::vector<MastPointing> pointing = {{0.0, 5.0 * M_PI / 180}};
+  const Pose3 cur_true = MakePose(30.0, 2.0, 0.0, 0, 0, 0.05);
+  PoseWithCovariance prev, cur_dr;
+  prev.covariance = Matrix6d::Identity() * 1e-8;
+  cur_dr.pose = MakePose(34.5, 2.0, 0.0, 0, 0, 0.05 + 3 * M_PI / 180);
+  Vector6d sigma;
+  sigma << 4.5, 4.5, 4.5, M_PI / 180, M_PI / 180, 3 * M_PI / 180;
+  cur_dr.covariance = Matrix6d(sigma.cwiseAbs2().asDiagonal()) + prev.covariance;
+  RegionOptions o;
+  o.far_min_range = 40, o.far_max_range = 400;
+  std::string error;
+  ASSERT_TRUE(o.Check(&error)) << error;
+  const auto& cam = navcam.rig.left;
+  const Pose3 body_from_cur = navcam.mast.BodyFromLeft(0, pointing[0].tilt, navcam.rig);
+  std::vector<ScenePoint> far;
+  for (int v = 16; v < cam.height / 2; v += 24)
+    for (int u = 16; u < cam.width; u += 24) {
+      const double range = 80 + 40.0 * u / cam.width;  // m, a hill slanted across the view
+      const double range_sigma = range * range / (navcam.rig.Baseline() * cam.fx) * 0.5;
+      const Eigen::Vector3d ray = body_from_cur.linear() * cam.Ray({double(u), double(v)});
+      far.push_back({Eigen::Vector2d(u, v), body_from_cur.translation() + range * ray, range_sigma});
+    }
+  const RegionPrediction pred = PredictRegions(navcam, prev, cur_dr, pointing, pointing, o, {}, {far});
+  const PairOverlap* ov = nullptr;
+  for (const auto& x : pred.overlaps)
+    if (x.far) ov = &x;
+  ASSERT_NE(ov, nullptr);
+  const Pose3 prev_cam_from_body = navcam.mast.BodyFromLeft(0, pointing[0].tilt, navcam.rig).inverse();
+  int seen = 0, in_region = 0, in_gate = 0;
+  for (const ScenePoint& sp : far) {
+    const auto q = cam.ProjectIdeal(prev_cam_from_body * (cur_true * sp.p_body));
+    if (!q || q->x() < 0 || q->y() < 0 || q->x() >= cam.width || q->y() >= cam.height) continue;
+    ++seen;
+    in_region += ov->previous_region.contains(cv::Point(static_cast<int>(q->x()), static_cast<int>(q->y())));
+    in_gate += (ApplyHomography(ov->previous_from_current, sp.px) - *q).norm() <= ov->growth_px;
+  }
+  std::cout << seen << " far points seen from the previous site: " << in_region << " in its region, " << in_gate
+            << " within the gate (" << ov->growth_px << " px)\n";
+  ASSERT_GT(seen, 100);
+  EXPECT_EQ(in_region, seen);
+  EXPECT_GE(in_gate, 0.9 * seen);
+  // Without far points (or with far_max_range 0) there is no far overlap.
+  for (const auto& x : PredictRegions(navcam, prev, cur_dr, pointing, pointing, RegionOptions(), {}, {far}).overlaps)
+    EXPECT_FALSE(x.far);
+  o.far_min_range = 500;
+  EXPECT_FALSE(o.Check(&error));
 }
 
 TEST(Regions, OrthoHomographyProjectsGroundPoints) {
