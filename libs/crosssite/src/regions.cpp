@@ -29,9 +29,14 @@ void RegionOptions::Visit(OptionsReader& r) {
   r.Optional("min_samples", &min_samples, "ground samples an overlap needs");
   r.Optional("backward_angle_deg", &backward_angle_deg, "deg, viewing directions further apart: backward pair");
   r.Optional("image_margin", &image_margin, "px, samples closer to the border are dropped");
-  r.Optional("far_min_range", &far_min_range, "m, nearest far-terrain stereo point from the current camera");
-  r.Optional("far_max_range", &far_max_range, "m, farthest far-terrain stereo point (0 = no far-terrain overlaps)");
-  r.Optional("far_disparity_sigma_px", &far_disparity_sigma_px, "px, disparity sigma of a far-terrain stereo point");
+  r.Optional("far_min_range", &far_min_range, "m, nearest far-terrain stereo point from the current camera",
+             NonNegative());
+  r.Optional("far_max_range", &far_max_range, "m, farthest far-terrain stereo point (0 = no far-terrain overlaps)",
+             NonNegative());
+  r.Optional("far_disparity_sigma_px", &far_disparity_sigma_px, "px, disparity sigma of a far-terrain stereo point",
+             Positive());
+  r.Relation("far_max_range", far_max_range == 0 || (far_min_range > 0 && far_max_range > far_min_range),
+             "must be 0 (off) or > far_min_range > 0");
 }
 
 bool RegionOptions::Check(std::string* error) const {
@@ -43,10 +48,8 @@ bool RegionOptions::Check(std::string* error) const {
     return Fail(error, "regions position sigma fractions must be >= 0 (max > 0)");
   if (min_samples < 4) return Fail(error, "regions.min_samples must be >= 4");
   if (backward_angle_deg <= 0 || backward_angle_deg > 180) return Fail(error, "regions.backward_angle_deg must be in (0, 180]");
-  if (!(far_max_range == 0 || (far_min_range > 0 && far_max_range > far_min_range)))
-    return Fail(error, "regions.far_max_range must be 0 (off) or > far_min_range > 0");
-  if (!(far_disparity_sigma_px > 0)) return Fail(error, "regions.far_disparity_sigma_px must be > 0");
-  return true;
+  // The keys declared with a bound on their Visit line (the far-terrain ones so far).
+  return CheckOptions(*this, error);
 }
 
 Vector6d RelativePoseSigma(const PoseWithCovariance& prev, const PoseWithCovariance& cur, const RegionOptions& o) {

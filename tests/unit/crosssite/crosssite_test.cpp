@@ -163,6 +163,7 @@ TEST(Regions, FarTerrainPointsMakeAFarOverlapCoveringTheTruth) {
     EXPECT_FALSE(x.far);
   o.far_min_range = 500;
   EXPECT_FALSE(o.Check(&error));
+  EXPECT_NE(error.find("far_max_range = 400: must be 0 (off) or > far_min_range > 0"), std::string::npos) << error;
 }
 
 TEST(Regions, OrthoHomographyProjectsGroundPoints) {
