@@ -1,19 +1,23 @@
 #pragma once
 // Options: each option is declared once, on one line of its struct's Visit:
 //
-//   struct WallisOptions {
-//     int window = 41;  // px, side of the local statistics window (odd)
+//   struct XOptions {
+//     int window = 41;       // px, side of the local statistics window
 //     double contrast = 0.8;
+//     double min_x = 0, max_x = 10;
+//     LsmOptions lsm;
 //     void Visit(OptionsReader& r);
 //     bool Check(std::string* error) const;  // bounds (from Visit) and relations
 //   };
-//   void WallisOptions::Visit(OptionsReader& r) {
+//   void XOptions::Visit(OptionsReader& r) {
 //     r.Optional("window", &window, "px, side of the local statistics window", Odd() && AtLeast(3));
 //     r.Optional("contrast", &contrast, "contrast expansion constant", InLeftOpen(0, 1));
+//     r.Optional("min_x", &min_x, "m, ...", NonNegative());
+//     r.Optional("max_x", &max_x, "m, ...");
 //     r.Child("lsm", [&](OptionsReader& c) { lsm.Visit(c); });   // a nested struct, checked through
-//     r.Relation("max_x", max_x >= min_x, "must be >= min_x");   // cross-field rules, after the reads
+//     r.Relation("max_x", max_x >= min_x, "must be >= min_x");   // between fields: after the reads
 //   }
-//   bool WallisOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
+//   bool XOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 //
 // The default is the member's initializer; key, doc and bound are the Visit
 // line. From it follow: loading (LoadOptions: read the YAML map, refuse keys
@@ -30,11 +34,20 @@
 //   Is(v) == v   Odd()   Finite()   NonNegative() = AtLeast(0)   Positive() = Above(0)
 //   OneOf({"a", "b"}) a string among these   NonEmpty() a string or list with something in it
 //   Each(bound) every element of a list (or Eigen vector)
-//   Rule(predicate, "must be ...") any test of the one value
+//   Rule<T>(predicate, "a power of two") any test of the one value ("must be a power of two")
 //   b1 && b2 both ("must be odd and >= 3"), b1 || b2 either ("must be 0 or >= 3")
-// A rule between fields is r.Relation(key, holds, "must ..."): checked after
-// the bounds, it names `key` and its value.
+// A rule between fields is r.Relation(key, holds, "must ..."), written after
+// the lines it reads; it names `key` and its value. The first failure in
+// Visit's order is the one reported.
 //
+// Converting a struct that still has a hand-written Check:
+//   1. each `if (bad) return Fail(error, "x must be ...")` becomes the bound
+//      argument of x's Visit line (the doc no longer repeats the bound);
+//   2. a test between fields becomes r.Relation(key, holds, "must ...") at
+//      the end of Visit; a test of one value no helper says is Rule<T>(f, "...");
+//   3. a child's `sub.Check(&e)` goes: r.Child(...) already checks it, and
+//      its keys come with their path ("stereo.zncc_window = 8: ...");
+//   4. Check's body becomes `return CheckOptions(*this, error);`.
 // A struct not converted yet may still write Check by hand (Fail below);
 // LoadOptions calls Check() either way.
 
