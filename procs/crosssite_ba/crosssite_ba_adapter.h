@@ -44,9 +44,6 @@ struct CrossSiteBaProcOptions {
   bool Check(std::string* error) const;
 };
 
-// The message for a summary (the conversion lives here: one adapter layer).
-localization_t LocalizationToMessage(const CrossSiteBaSummary& summary, int64_t utime);
-
 class CrossSiteBaAdapter {
  public:
   CrossSiteBaAdapter(Transport& transport, const CrossSiteBaProcOptions& options, const NavcamModel& navcam);

@@ -20,7 +20,6 @@
 #include "vloc/common/image_header.h"
 #include "vloc/crosssite/frontend.h"
 #include "vloc/crosssite/site_archive.h"
-#include "vloc/frontend_status_t.hpp"
 #include "vloc/lcm_io/transport.h"
 #include "vloc/lcm_io/typed.h"
 
@@ -60,9 +59,6 @@ struct FeatureFrontendProcOptions {
 
 // The revisit options of the process options.
 RevisitOptions RevisitOptionsOf(const FeatureFrontendProcOptions& options);
-
-frontend_status_t FrontendStatusToMessage(const FrontendSummary& summary, int64_t utime, int previous_site_id,
-                                          int current_site_id);
 
 class FeatureFrontendAdapter {
  public:

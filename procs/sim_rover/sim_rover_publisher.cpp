@@ -15,19 +15,9 @@
 #include "vloc/lcm_io/convert.h"
 #include "vloc/lcm_io/convert_rover.h"
 #include "vloc/lcm_io/process.h"
+#include "vloc/lcm_io/typed.h"
 
 namespace vloc {
-namespace {
-
-template <class Msg>
-std::vector<uint8_t> Encode(const Msg& msg) {
-  std::vector<uint8_t> bytes(static_cast<size_t>(msg.getEncodedSize()));
-  msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
-  return bytes;
-}
-
-}  // namespace
-
 void SimRoverOptions::Visit(OptionsReader& r) {
   r.Optional("stereo_channel", &stereo_channel, "stereo_image_t channel", NonEmpty());
   r.Optional("site_channel", &site_channel, "site_event_t channel", NonEmpty());
@@ -56,21 +46,21 @@ void SimRoverPublisher::EmitNext(const Sink& sink) {
   const int64_t t = traverse_.imu[step_].utime;
   while (event_ < traverse_.events.size() && traverse_.events[event_].utime <= t) {
     const SiteEvent& event = traverse_.events[event_++];
-    sink(options_.site_channel, Encode(SiteEventToMessage(event)), event.utime);
+    sink(options_.site_channel, EncodeOrThrow(SiteEventToMessage(event)), event.utime);
     ++summary_.site_events;
     if (event.event == SiteEventType::kArrived) {
       PoseWithCovariance pose;
       pose.utime = event.utime;
       pose.pose = traverse_.sites.at(event.site_id).world_from_body;
       sink(options_.site_pose_channel,
-           Encode(SitePoseToMessage(event.site_id, site_pose_t::SOURCE_GROUND_TRUTH, pose)), event.utime);
+           EncodeOrThrow(SitePoseToMessage(event.site_id, site_pose_t::SOURCE_GROUND_TRUTH, pose)), event.utime);
       ++summary_.site_poses;
     }
   }
-  sink(options_.imu_channel, Encode(ImuToMessage(traverse_.imu[step_])), t);
+  sink(options_.imu_channel, EncodeOrThrow(ImuToMessage(traverse_.imu[step_])), t);
   ++summary_.imu_samples;
   while (wheel_ < traverse_.wheel.size() && traverse_.wheel[wheel_].utime <= t) {
-    sink(options_.wheel_channel, Encode(WheelOdometryToMessage(traverse_.wheel[wheel_])), traverse_.wheel[wheel_].utime);
+    sink(options_.wheel_channel, EncodeOrThrow(WheelOdometryToMessage(traverse_.wheel[wheel_])), traverse_.wheel[wheel_].utime);
     ++wheel_;
     ++summary_.wheel_samples;
   }
@@ -78,7 +68,7 @@ void SimRoverPublisher::EmitNext(const Sink& sink) {
     PoseWithCovariance pose;
     pose.utime = t;
     pose.pose = traverse_.ground_truth[step_].world_from_body;
-    sink(options_.gt_channel, Encode(PoseToMessage(pose, "world", "body")), t);
+    sink(options_.gt_channel, EncodeOrThrow(PoseToMessage(pose, "world", "body")), t);
     ++summary_.gt_poses;
   }
   while (exposure_ < traverse_.exposures.size() && traverse_.exposures[exposure_].utime <= t) {
@@ -87,7 +77,7 @@ void SimRoverPublisher::EmitNext(const Sink& sink) {
     const StereoPair pair = world_.RenderExposure(e);
     summary_.render_seconds_total += SecondsSince(start);
     stereo_image_t msg = StereoPairToMessage(pair, ParseImageEncoding(options_.image_encoding));
-    sink(options_.stereo_channel, Encode(msg), e.utime);
+    sink(options_.stereo_channel, EncodeOrThrow(msg), e.utime);
     ++summary_.stereo_pairs;
     LOG(INFO) << "site " << e.site_id << " pair " << e.pair_index + 1 << "/" << e.num_pairs << " published";
   }

@@ -12,6 +12,7 @@
 
 #include "vloc/common/options.h"
 #include "vloc/lcm_io/process.h"
+#include "vloc/lcm_io/typed.h"
 #include "vloc/uav_gps_t.hpp"
 
 namespace vloc {
@@ -30,15 +31,6 @@ void SimUavOptions::Visit(OptionsReader& r) {
 }
 
 bool SimUavOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
-
-namespace {
-template <class Msg>
-std::vector<uint8_t> Encode(const Msg& msg) {
-  std::vector<uint8_t> bytes(static_cast<size_t>(msg.getEncodedSize()));
-  msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
-  return bytes;
-}
-}  // namespace
 
 SimUavPublisher::SimUavPublisher(const SimUavOptions& options, const UavWorld& world)
     : options_(options), world_(world), encoding_(ParseImageEncoding(options.encoding)) {
@@ -66,8 +58,8 @@ std::future<SimUavPublisher::PreparedFrame> SimUavPublisher::PrepareFrame(int in
     PoseWithCovariance truth;
     truth.utime = out.utime;
     truth.pose = world_.flight().WorldFromBody(t);
-    out.truth = Encode(PoseToMessage(truth, "world", "uav_body"));
-    out.image = Encode(ImageToMessage(frame, encoding_, out.utime, options_.frame_id, options_.jpeg_quality));
+    out.truth = EncodeOrThrow(PoseToMessage(truth, "world", "uav_body"));
+    out.image = EncodeOrThrow(ImageToMessage(frame, encoding_, out.utime, options_.frame_id, options_.jpeg_quality));
     return out;
   });
 }
@@ -88,7 +80,7 @@ void SimUavPublisher::EmitNext(const Sink& sink) {
     msg.vertical_sigma = s.vertical_sigma;
     ++summary_.gps_fixes;
     if (!s.has_fix) ++summary_.gps_dropouts;
-    sink(options_.gps_channel, Encode(msg), msg.utime);
+    sink(options_.gps_channel, EncodeOrThrow(msg), msg.utime);
     return;
   }
   // Frame i was rendered and encoded while frame i-1 was being published;

@@ -35,9 +35,6 @@ struct TraverseGraphProcOptions {
   bool Check(std::string* error) const;
 };
 
-// The message for the graph's current state.
-traverse_t TraverseToMessage(const posegraph::TraverseGraph& graph, const posegraph::PoseGraphSummary& summary);
-
 class TraverseGraphAdapter {
  public:
   TraverseGraphAdapter(Transport& transport, const TraverseGraphProcOptions& options);

@@ -41,9 +41,6 @@ struct UavMosaickerProcOptions {
   bool Check(std::string* error) const;
 };
 
-uav_state_t StateToMessage(const mosaic::FrameState& state);
-mosaic::GpsFix GpsFromMessage(const uav_gps_t& msg);
-
 class UavMosaickerAdapter {
  public:
   UavMosaickerAdapter(const UavMosaickerProcOptions& options, Transport& transport);

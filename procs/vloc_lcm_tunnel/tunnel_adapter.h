@@ -13,13 +13,8 @@
 #include "vloc/lcm_io/transport.h"
 #include "vloc/tunnel/tunnel_core.h"
 #include "vloc/tunnel/zmq_link.h"
-#include "vloc/tunnel_status_t.hpp"
 
 namespace vloc {
-
-// The LCM message of a report.
-tunnel_status_t ToMessage(const tunnel::TunnelReport& report, const tunnel::TunnelOptions& options,
-                          const std::string& endpoint, int64_t utime);
 
 class TunnelAdapter {
  public:

@@ -13,6 +13,7 @@
 #include <exception>
 #include <functional>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -48,6 +49,17 @@ bool Encode(const Msg& msg, std::vector<uint8_t>* bytes, std::string* error) {
     return false;
   }
   return true;
+}
+
+// Encode for a publisher whose messages come from its own code (the
+// simulators): the bytes, or std::runtime_error with Encode's error (a NaN
+// there is a bug, not a message to skip).
+template <class Msg>
+std::vector<uint8_t> EncodeOrThrow(const Msg& msg) {
+  std::vector<uint8_t> bytes;
+  std::string error;
+  if (!Encode(msg, &bytes, &error)) throw std::runtime_error(error);
+  return bytes;
 }
 
 template <class Msg>
