@@ -20,44 +20,36 @@
 namespace vloc {
 
 void FeatureFrontendProcOptions::Visit(OptionsReader& r) {
-  r.Optional("stereo_channel", &stereo_channel, "subscribed stereo_image_t channel");
-  r.Optional("site_channel", &site_channel, "subscribed site_event_t channel");
-  r.Optional("dr_channel", &dr_channel, "subscribed dead-reckoning site_pose_t channel");
-  r.Optional("tie_points_channel", &tie_points_channel, "published tie_points_t channel");
-  r.Optional("status_channel", &status_channel, "published frontend_status_t channel");
-  r.Optional("queue_capacity", &queue_capacity, "messages queued per subscription");
+  r.Optional("stereo_channel", &stereo_channel, "subscribed stereo_image_t channel", NonEmpty());
+  r.Optional("site_channel", &site_channel, "subscribed site_event_t channel", NonEmpty());
+  r.Optional("dr_channel", &dr_channel, "subscribed dead-reckoning site_pose_t channel", NonEmpty());
+  r.Optional("tie_points_channel", &tie_points_channel, "published tie_points_t channel", NonEmpty());
+  r.Optional("status_channel", &status_channel, "published frontend_status_t channel", NonEmpty());
+  r.Optional("queue_capacity", &queue_capacity, "messages queued per subscription", AtLeast(1));
   r.Optional("publish_unusable", &publish_unusable, "publish tie points also when the status is not OK");
   r.Child("navcam", [&](OptionsReader& c) { navcam.Visit(c); });
   r.Child("frontend", [&](OptionsReader& c) { frontend.Visit(c); });
   r.Optional("traverse_channel", &traverse_channel, "subscribed traverse_t channel (optimised poses), empty = none");
   r.Optional("loop_max_distance_m", &loop_max_distance_m,
-             "m, also match a new site against an earlier site this close (0 = off)");
-  r.Optional("loop_min_site_gap", &loop_min_site_gap, "revisited site at least this many ids back");
-  r.Optional("loop_max_matches", &loop_max_matches, "earlier sites matched per new site, nearest first");
+             "m, also match a new site against an earlier site this close (0 = off)", NonNegative());
+  r.Optional("loop_min_site_gap", &loop_min_site_gap,
+             "revisited site at least this many ids back (adjacent sites are matched anyway)", AtLeast(2));
+  r.Optional("loop_max_matches", &loop_max_matches, "earlier sites matched per new site, nearest first", AtLeast(1));
   r.Optional("loop_max_position_sigma_fraction", &loop_max_position_sigma_fraction,
-             "regions.max_position_sigma_fraction of the revisit front end");
-  r.Optional("max_sites_in_memory", &max_sites_in_memory, "earlier sites whose images stay in memory");
+             "regions.max_position_sigma_fraction of the revisit front end", Positive());
+  r.Optional("max_sites_in_memory", &max_sites_in_memory, "earlier sites whose images stay in memory", NonNegative());
   r.Optional("site_cache_dir", &site_cache_dir, "older sites' images are written here (PNG); empty = dropped");
   r.Optional("manual_ties_channel", &manual_ties_channel, "subscribed manual_tie_points_t channel (\"\" = off)");
-  r.Optional("max_pairs_per_site", &max_pairs_per_site, "a site's num_pairs above this is refused");
-  r.Optional("max_sites_collecting", &max_sites_collecting, "sites collecting images at once; beyond, the oldest goes");
+  r.Optional("max_pairs_per_site", &max_pairs_per_site, "a site's num_pairs above this is refused",
+             InRange(1, kMaxPairsPerSite));
+  r.Optional("max_sites_collecting", &max_sites_collecting, "sites collecting images at once; beyond, the oldest goes",
+             AtLeast(1));
   r.Child("stereo_image_limits", [&](OptionsReader& c) { stereo_image_limits.Visit(c); });
 }
 
+// frontend: its Check until FrontendOptions' bounds are on its Visit lines.
 bool FeatureFrontendProcOptions::Check(std::string* error) const {
-  if (stereo_channel.empty() || site_channel.empty() || dr_channel.empty() || tie_points_channel.empty() ||
-      status_channel.empty())
-    return Fail(error, "channel names must not be empty");
-  if (queue_capacity < 1) return Fail(error, "queue_capacity must be >= 1");
-  if (!(loop_max_distance_m >= 0)) return Fail(error, "loop_max_distance_m must be >= 0 (0 = no revisits)");
-  if (loop_min_site_gap < 2) return Fail(error, "loop_min_site_gap must be >= 2 (adjacent sites are matched anyway)");
-  if (loop_max_matches < 1) return Fail(error, "loop_max_matches must be >= 1");
-  if (!(loop_max_position_sigma_fraction > 0)) return Fail(error, "loop_max_position_sigma_fraction must be > 0");
-  if (max_sites_in_memory < 0) return Fail(error, "max_sites_in_memory must be >= 0");
-  if (max_pairs_per_site < 1 || max_pairs_per_site > kMaxPairsPerSite)
-    return Fail(error, "max_pairs_per_site must lie in [1, " + std::to_string(kMaxPairsPerSite) + "]");
-  if (max_sites_collecting < 1) return Fail(error, "max_sites_collecting must be >= 1");
-  return stereo_image_limits.Check(error) && navcam.Check(error) && frontend.Check(error);
+  return CheckOptions(*this, error) && frontend.Check(error);
 }
 
 namespace {

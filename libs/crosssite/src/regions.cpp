@@ -14,20 +14,21 @@ namespace vloc {
 
 void RegionOptions::Visit(OptionsReader& r) {
   r.Optional("ground_height", &ground_height, "m, ground plane z in the body frame");
-  r.Optional("max_range_previous", &max_range_previous, "m, farthest ground point from the previous camera");
-  r.Optional("max_range_current", &max_range_current, "m, farthest ground point from the current camera");
+  r.Optional("max_range_previous", &max_range_previous, "m, farthest ground point from the previous camera", Positive());
+  r.Optional("max_range_current", &max_range_current, "m, farthest ground point from the current camera", Positive());
   r.Optional("min_range_current", &min_range_current, "m, nearest ground point from the current camera");
-  r.Optional("grid_step", &grid_step, "px, footprint sampling step");
-  r.Optional("sigma_scale", &sigma_scale, "regions cover the pose perturbed by this many sigma");
-  r.Optional("max_growth_px", &max_growth_px, "px, cap of one sample's growth");
+  r.Optional("grid_step", &grid_step, "px, footprint sampling step", AtLeast(2));
+  r.Optional("sigma_scale", &sigma_scale, "regions cover the pose perturbed by this many sigma", NonNegative());
+  r.Optional("max_growth_px", &max_growth_px, "px, cap of one sample's growth", Positive());
   r.Optional("default_position_sigma_fraction", &default_position_sigma_fraction,
-             "relative position sigma as a fraction of the distance when no covariance");
+             "relative position sigma as a fraction of the distance when no covariance", NonNegative());
   r.Optional("default_yaw_sigma_deg", &default_yaw_sigma_deg, "deg, relative yaw sigma when no covariance");
   r.Optional("default_tilt_sigma_deg", &default_tilt_sigma_deg, "deg, relative roll/pitch sigma when no covariance");
   r.Optional("max_position_sigma_fraction", &max_position_sigma_fraction,
-             "cap of the relative position sigma, fraction of the distance");
-  r.Optional("min_samples", &min_samples, "ground samples an overlap needs");
-  r.Optional("backward_angle_deg", &backward_angle_deg, "deg, viewing directions further apart: backward pair");
+             "cap of the relative position sigma, fraction of the distance", Positive());
+  r.Optional("min_samples", &min_samples, "ground samples an overlap needs", AtLeast(4));
+  r.Optional("backward_angle_deg", &backward_angle_deg, "deg, viewing directions further apart: backward pair",
+             InLeftOpen(0, 180));
   r.Optional("image_margin", &image_margin, "px, samples closer to the border are dropped");
   r.Optional("far_min_range", &far_min_range, "m, nearest far-terrain stereo point from the current camera",
              NonNegative());
@@ -39,18 +40,7 @@ void RegionOptions::Visit(OptionsReader& r) {
              "must be 0 (off) or > far_min_range > 0");
 }
 
-bool RegionOptions::Check(std::string* error) const {
-  if (max_range_previous <= 0 || max_range_current <= 0) return Fail(error, "regions.max_range_* must be > 0");
-  if (max_growth_px <= 0) return Fail(error, "regions.max_growth_px must be > 0");
-  if (grid_step < 2) return Fail(error, "regions.grid_step must be >= 2");
-  if (sigma_scale < 0) return Fail(error, "regions.sigma_scale must be >= 0");
-  if (default_position_sigma_fraction < 0 || max_position_sigma_fraction <= 0)
-    return Fail(error, "regions position sigma fractions must be >= 0 (max > 0)");
-  if (min_samples < 4) return Fail(error, "regions.min_samples must be >= 4");
-  if (backward_angle_deg <= 0 || backward_angle_deg > 180) return Fail(error, "regions.backward_angle_deg must be in (0, 180]");
-  // The keys declared with a bound on their Visit line (the far-terrain ones so far).
-  return CheckOptions(*this, error);
-}
+bool RegionOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 Vector6d RelativePoseSigma(const PoseWithCovariance& prev, const PoseWithCovariance& cur, const RegionOptions& o) {
   const double distance = (cur.pose.translation() - prev.pose.translation()).norm();
