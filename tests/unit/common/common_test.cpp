@@ -335,6 +335,17 @@ TEST(Options, IncludeWithKeysLaysThemOverTheFile) {
   EXPECT_THROW(LoadOptionsFile<NavcamModel>(dir + "/typo.yaml"), ConfigError);
 }
 
+TEST(Options, CameraDefaultsPassTheirBounds) {
+  std::string error;
+  EXPECT_TRUE(NavcamModel{}.Check(&error)) << error;
+  EXPECT_TRUE(PinholeCamera{}.Check(&error)) << error;
+  NavcamModel model;
+  model.rig.right.cx = model.rig.right.width + 1.0;
+  EXPECT_FALSE(model.Check(&error));
+  EXPECT_EQ(error, "rig.right.cx = " + std::to_string(model.rig.right.width + 1) + ": must be in [0, " +
+                       std::to_string(model.rig.right.width) + "]");
+}
+
 TEST(Options, RepoNavcamCalibrationLoads) {
   const auto model = LoadOptionsFile<NavcamModel>("config/navcam.yaml");
   EXPECT_DOUBLE_EQ(model.rig.left.fx, 1189.0);

@@ -10,6 +10,7 @@
 
 #include "vloc/sim/reference_dead_reckoning.h"
 #include "vloc/sim/rover_traverse.h"
+#include "vloc/sim/rover_world.h"
 #include "vloc/sim/terrain.h"
 
 namespace vloc::sim {
@@ -32,6 +33,22 @@ double FinalDrift(const SimulatedTraverse& traverse) {
   const Eigen::Vector3d error =
       dr.back().world_from_body.translation() - traverse.ground_truth.back().world_from_body.translation();
   return error.norm() / traverse.path_length_m;
+}
+
+// The whole simulated world's defaults pass their bounds (Navcam, terrain,
+// render, traverse plan/panorama/motion/IMU/wheels, lighting), and a broken
+// one is named with its path.
+TEST(SimTraverse, WorldDefaultsPassTheirBounds) {
+  RoverWorldOptions options;
+  std::string error;
+  EXPECT_TRUE(options.Check(&error)) << error;
+  options.traverse.wheels.rate_hz = options.traverse.imu.rate_hz + 1;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_EQ(error, "traverse.wheels.rate_hz: must not exceed imu.rate_hz");
+  options = RoverWorldOptions();
+  options.traverse.plan.margin_m = 1;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_EQ(error, "traverse.plan.margin_m = 1: must be >= 3");
 }
 
 TEST(SimTraverse, IdealSensorsReproduceGroundTruth) {
