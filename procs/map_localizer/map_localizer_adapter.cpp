@@ -28,7 +28,8 @@ void MapLocalizerProcOptions::Visit(OptionsReader& r) {
   r.Optional("map_offset_xy", &map_offset_xy, "m, subtracted from the map coordinates",
              Rule<std::vector<double>>(IsXy, "two numbers [x, y]"));
   r.Optional("map_geographic_origin", &map_geographic_origin,
-             "[lat, lon] deg: the map is in WGS84 degrees and this is the world origin ([] = metres)", Rule<std::vector<double>>(IsLatLonOrEmpty, "[] or [latitude, longitude] in degrees"));
+             "[lat, lon] deg: the map is in WGS84 degrees and this is the world origin ([] = metres)",
+             Rule<std::vector<double>>(IsLatLonOrEmpty, "[] or [latitude, longitude] in degrees"));
   r.Optional("map_m_per_px", &map_m_per_px, "m, resample the map to this cell size (0 = the file's)",
              NonNegative() && Finite());
   r.Optional("reload_map_on_change", &reload_map_on_change, "re-read the map file when it changes");

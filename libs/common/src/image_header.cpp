@@ -267,7 +267,8 @@ std::string ImageHeader::Describe() const {
 void ImageLimits::Visit(OptionsReader& r) {
   r.Optional("max_width", &max_width, "px, wider encoded images are refused before decoding", AtLeast(1));
   r.Optional("max_height", &max_height, "px, taller encoded images are refused before decoding", AtLeast(1));
-  r.Optional("max_pixels", &max_pixels, "px, width x height above this is refused before decoding", InRange(1, double(int64_t(1) << 30)));
+  r.Optional("max_pixels", &max_pixels, "px, width x height above this is refused before decoding",
+             InRange(1, double(int64_t(1) << 30)));
   r.Optional("max_jpeg_scans", &max_jpeg_scans, "scans of one JPEG (progressive JPEGs have about 10)", AtLeast(1));
 }
 

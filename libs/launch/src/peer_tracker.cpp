@@ -21,7 +21,7 @@ std::string Fmt(double seconds) {
 }  // namespace
 
 void PeerTrackerOptions::Visit(OptionsReader& r) {
-  r.Optional("lost_after_s", &lost_after_s, "s without a status report before a launcher is LOST (reports come at 1 Hz)",
+  r.Optional("lost_after_s", &lost_after_s, "s without a status report before a launcher is LOST (1 Hz reports)",
              Positive() && Finite());
 }
 

@@ -24,13 +24,13 @@ void NavcamRenderOptions::Visit(OptionsReader& r) {
   r.Optional("max_range_m", &max_range_m, "m, rays beyond see sky", Positive());
   r.Optional("max_footprint_samples", &max_footprint_samples, "shading samples along a grazing pixel's footprint",
              AtLeast(1));
-  r.Optional("photometric", &photometric, "lambert | lunar_lambert", OneOf({"lambert", "lunar_lambert"}));
+  r.Optional("photometric", &photometric, "reflectance model", OneOf({"lambert", "lunar_lambert"}));
   r.Optional("lunar_lambert_l", &lunar_lambert_l, "L of the lunar-Lambert model", InRange(0, 1));
   r.Optional("opposition_b0", &opposition_b0, "opposition surge amplitude", NonNegative());
   r.Optional("opposition_h", &opposition_h, "opposition surge width (rad)", Positive());
   r.Optional("sky_dn", &sky_dn, "DN of sky pixels", InRange(0, 255));
   r.Optional("vignetting", &vignetting, "fraction of light lost at the corner", InRightOpen(0, 1));
-  r.Optional("adc_bits", &adc_bits, "8 or 12 (12: square-root companded to 8)", Is(8) || Is(12));
+  r.Optional("adc_bits", &adc_bits, "bits per sample (12: square-root companded to 8)", Is(8) || Is(12));
   r.Optional("hot_pixel_fraction", &hot_pixel_fraction, "fraction of pixels stuck at 255", InRightOpen(0, 0.01));
   r.Optional("deck", &deck, "draw the rover's deck (side and low views see it)");
   r.Optional("deck_top_m", &deck_top_m, "m, deck height above the body origin");
