@@ -18,17 +18,13 @@ namespace vloc {
 namespace fs = std::filesystem;
 
 void NavcamPdsOptions::Visit(OptionsReader& r) {
-  r.Optional("pds_pair_max_dt", &pair_max_dt, "s, most start-time difference of the LEFT and RIGHT frame of a pair");
-  r.Optional("pds_max_files", &max_files, "files looked at under the PDS folder");
-  r.Optional("pds_max_image_side", &max_image_side, "px, largest image width / height read");
+  r.Optional("pds_pair_max_dt", &pair_max_dt, "s, most start-time difference of the LEFT and RIGHT frame of a pair",
+             InRange(0.0, 3600.0));
+  r.Optional("pds_max_files", &max_files, "files looked at under the PDS folder", AtLeast(1));
+  r.Optional("pds_max_image_side", &max_image_side, "px, largest image width / height read", InRange(16, 65536));
 }
 
-bool NavcamPdsOptions::Check(std::string* error) const {
-  if (!(pair_max_dt >= 0 && pair_max_dt <= 3600)) return Fail(error, "pds_pair_max_dt must be in [0, 3600] s");
-  if (max_files < 1) return Fail(error, "pds_max_files must be >= 1");
-  if (max_image_side < 16 || max_image_side > 65536) return Fail(error, "pds_max_image_side must be in [16, 65536]");
-  return true;
-}
+bool NavcamPdsOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 std::string NavcamPdsSite::Describe() const {
   std::ostringstream os;

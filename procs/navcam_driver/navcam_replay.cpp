@@ -16,18 +16,12 @@ void NavcamDriverOptions::Visit(OptionsReader& r) {
   pds_options.Visit(r);
   r.Optional("stereo_channel", &stereo_channel, "stereo_image_t channel");
   r.Optional("site_channel", &site_channel, "site_event_t channel");
-  r.Optional("encoding", &encoding, "png, jpeg or gray8");
-  r.Optional("speed", &speed, "real-time factor, 0 = as fast as possible");
+  r.Optional("encoding", &encoding, "png, jpeg or gray8", OneOf({"png", "jpeg", "gray8"}));
+  r.Optional("speed", &speed, "real-time factor, 0 = as fast as possible", NonNegative());
+  r.Relation("pds", manifest.empty() || pds.empty(), "must be empty when a manifest is given (one or the other)");
 }
 
-bool NavcamDriverOptions::Check(std::string* error) const {
-  if (encoding != "png" && encoding != "jpeg" && encoding != "gray8")
-    return Fail(error, "encoding '" + encoding + "' unknown (use png, jpeg or gray8)");
-  if (speed < 0) return Fail(error, "speed must be >= 0 (0 = as fast as possible)");
-  if (!manifest.empty() && !pds.empty()) return Fail(error, "give a manifest or a PDS folder (pds), not both");
-  if (!pds_options.Check(error)) return false;
-  return true;
-}
+bool NavcamDriverOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 NavcamReplaySummary ReplayNavcam(const NavcamDriverOptions& options, const NavcamManifest& manifest,
                                  Transport& transport, ReplayPacer& pacer) {
