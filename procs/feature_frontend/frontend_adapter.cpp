@@ -47,10 +47,7 @@ void FeatureFrontendProcOptions::Visit(OptionsReader& r) {
   r.Child("stereo_image_limits", [&](OptionsReader& c) { stereo_image_limits.Visit(c); });
 }
 
-// frontend: its Check until FrontendOptions' bounds are on its Visit lines.
-bool FeatureFrontendProcOptions::Check(std::string* error) const {
-  return CheckOptions(*this, error) && frontend.Check(error);
-}
+bool FeatureFrontendProcOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
 namespace {
 

@@ -11,7 +11,9 @@
 namespace vloc::frontend_internal {
 
 std::vector<Candidate> MatchBackwardOverlap(int k, const NavcamModel& navcam, const TiePointSet& tps,
-                                            const SitePairState& s, const FrontendOptions& o) {
+                                            const SitePairState& s, const RegionOptions& regions,
+                                            const WallisOptions& wallis, const AsiftOptions& asift,
+                                            const GatedMatchOptions& matching, const GateOptions& gate) {
   std::vector<Candidate> out;
   const PairOverlap& ov = s.prediction.overlaps[k];
   const double res = kOrthoResolutionM;
@@ -25,16 +27,16 @@ std::vector<Candidate> MatchBackwardOverlap(int k, const NavcamModel& navcam, co
   const Pose3 prev_cam = navcam.mast.BodyFromLeft(pp.pan, pp.tilt, navcam.rig);
   const Pose3 cur_cam_in_prev = s.prediction.previous_from_current * navcam.mast.BodyFromLeft(pc.pan, pc.tilt, navcam.rig);
   const PinholeCamera& cam = navcam.rig.left;
-  const cv::Matx33d Hp = ImageFromOrtho(cam, prev_cam, origin, res, o.regions.ground_height);
-  const cv::Matx33d Hc = ImageFromOrtho(cam, cur_cam_in_prev, origin, res, o.regions.ground_height);
+  const cv::Matx33d Hp = ImageFromOrtho(cam, prev_cam, origin, res, regions.ground_height);
+  const cv::Matx33d Hc = ImageFromOrtho(cam, cur_cam_in_prev, origin, res, regions.ground_height);
   const cv::Mat op = WallisFilter(GroundOrthoImage(s.previous_left[ov.previous_pair].gray, Hp, size), s.previous_wallis);
-  const cv::Mat oc = WallisFilter(GroundOrthoImage(s.current_left[ov.current_pair].gray, Hc, size), o.wallis);
-  const FeatureSet sp = DetectAsift(op, op > 0, {{1.0, 0.0}}, o.asift);
-  const FeatureSet sc = DetectAsift(oc, oc > 0, {{1.0, 0.0}}, o.asift);
-  GatedMatchOptions g = o.matching;
+  const cv::Mat oc = WallisFilter(GroundOrthoImage(s.current_left[ov.current_pair].gray, Hc, size), wallis);
+  const FeatureSet sp = DetectAsift(op, op > 0, {{1.0, 0.0}}, asift);
+  const FeatureSet sc = DetectAsift(oc, oc > 0, {{1.0, 0.0}}, asift);
+  GatedMatchOptions g = matching;
   g.num_threads = 1;
   const Vector6d& sigma = s.prediction.relative_sigma;
-  g.gate_radius = o.regions.sigma_scale * std::max(sigma(0), sigma(1)) / res + o.gate_margin_px;
+  g.gate_radius = regions.sigma_scale * std::max(sigma(0), sigma(1)) / res + gate.gate_margin_px;
   const cv::Matx33d current_from_previous = Hc * Hp.inv();
   for (const auto& m : GatedMatch(sp, sp.points, sc, g)) {
     Candidate c;

@@ -16,16 +16,16 @@
 
 namespace vloc::frontend_internal {
 
-int RefineCrossSite(const FrontendOptions& o, SitePairState* s) {
+int RefineCrossSite(const CrossSiteLsmOptions& o, bool grid_refined_only, int num_threads, SitePairState* s) {
   std::vector<Candidate>& cands = s->candidates;
   const auto& overlaps = s->prediction.overlaps;
   const int n0 = static_cast<int>(cands.size());
-#pragma omp parallel for schedule(dynamic, 16) num_threads(o.num_threads)
+#pragma omp parallel for schedule(dynamic, 16) num_threads(num_threads)
   for (int k = 0; k < n0; ++k) {
     Candidate& c = cands[k];
     if (c.grid_refined) continue;
     const PairOverlap& ov = overlaps[c.overlap];
-    if (o.grid_lsm_enabled && o.warp_current && !ov.backward && !o.keep_grid_unrefined) {
+    if (grid_refined_only && !ov.backward) {
       c.ok = false;
       c.why = "grid LSM failed";
       continue;

@@ -50,7 +50,7 @@ bool ZnccPeakNear(const cv::Mat& templ, const Eigen::Vector2d& templ_px, const c
   return true;
 }
 
-bool RefineOnGrid(const OverlapWork& work, const LsmImage& lt, const LsmImage& lw, const FrontendOptions& o,
+bool RefineOnGrid(const OverlapWork& work, const LsmImage& lt, const LsmImage& lw, const GridLsmStepOptions& o,
                   const LsmOptions& lsm, Candidate* c) {
   const Eigen::Vector2d pt = ApplyHomography(work.train_from_previous, c->prev_left);
   Eigen::Vector2d wt = ApplyHomography(work.current_from_train.inv(), c->cur_left);
@@ -88,8 +88,8 @@ bool RefineOnGrid(const OverlapWork& work, const LsmImage& lt, const LsmImage& l
   return true;
 }
 
-int RefineOverlapOnGrid(const FrontendOptions& o, OverlapWork* work) {
-  if (!o.grid_lsm_enabled || !o.warp_current || work->warped.empty() || work->previous_crop.empty() ||
+int RefineOverlapOnGrid(const GridLsmStepOptions& o, bool warp_current, OverlapWork* work) {
+  if (!o.grid_lsm_enabled || !warp_current || work->warped.empty() || work->previous_crop.empty() ||
       work->candidates.empty())
     return 0;
   const LsmImage lt = MakeLsmImage(work->previous_crop, o.grid_lsm.bspline),

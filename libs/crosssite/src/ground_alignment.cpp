@@ -72,11 +72,11 @@ struct HeightNormalEquations {
 
 HeightNormalEquations HeightStep(const std::vector<AlignPoint>& moved, const std::vector<Eigen::Vector3d>& ground,
                                  const Eigen::Vector3d& up, double dz, double prior_sigma_m, const NavcamModel& navcam,
-                                 const FrontendOptions& o) {
+                                 const GroundAlignOptions& o, int num_threads) {
   // Planes under the points where the current offset puts them.
   std::vector<LocalPlane> planes(moved.size());
   std::vector<char> has(moved.size(), 0);
-#pragma omp parallel for schedule(dynamic, 64) num_threads(o.num_threads)
+#pragma omp parallel for schedule(dynamic, 64) num_threads(num_threads)
   for (int i = 0; i < static_cast<int>(moved.size()); ++i)
     has[i] = PlaneUnder(ground, moved[i].p + dz * up, o.ground_align_radius_m, &planes[i]) ? 1 : 0;
   HeightNormalEquations e;
@@ -101,7 +101,7 @@ HeightNormalEquations HeightStep(const std::vector<AlignPoint>& moved, const std
 
 GroundAlignment AlignGround(const std::vector<GroundPointSet>& previous, const std::vector<GroundPointSet>& current,
                             const Pose3& previous_from_current, const Eigen::Vector3d& up, double prior_sigma_m,
-                            const NavcamModel& navcam, const FrontendOptions& o) {
+                            const NavcamModel& navcam, const GroundAlignOptions& o, int num_threads) {
   GroundAlignment out;
   std::vector<Eigen::Vector3d> ground;
   for (const GroundPointSet& set : previous) ground.insert(ground.end(), set.points.begin(), set.points.end());
@@ -118,7 +118,7 @@ GroundAlignment AlignGround(const std::vector<GroundPointSet>& previous, const s
   }
   double dz = 0;  // m, along `up`
   for (int it = 0; it < kAlignIterations; ++it) {
-    const HeightNormalEquations e = HeightStep(moved, ground, up, dz, prior_sigma_m, navcam, o);
+    const HeightNormalEquations e = HeightStep(moved, ground, up, dz, prior_sigma_m, navcam, o, num_threads);
     if (e.points < o.ground_align_min_points) {
       out.why = "only " + std::to_string(e.points) + " current points over the previous site's ground";
       return out;
@@ -140,16 +140,17 @@ GroundAlignment AlignGround(const std::vector<GroundPointSet>& previous, const s
   return out;
 }
 
-int AlignToPreviousGround(const NavcamModel& navcam, const TiePointSet& tps, const FrontendOptions& o,
-                          SitePairState* s) {
+int AlignToPreviousGround(const NavcamModel& navcam, const TiePointSet& tps, const GroundAlignOptions& o,
+                          const GroundPlaneOptions& ground, const RegionOptions& regions, const ZnccOptions& zncc,
+                          int num_threads, SitePairState* s) {
   s->dr_previous_from_current = s->prediction.previous_from_current;
-  if (!o.ground_align || !o.fit_ground_planes) return 0;
+  if (!o.ground_align || !ground.fit_ground_planes) return 0;
   const int np = static_cast<int>(s->previous.pairs.size());
   std::vector<GroundPointSet> previous(np);
-#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(num_threads)
   for (int j = 0; j < np; ++j)
     previous[j] = GroundStereoPoints(navcam, tps.previous_pointing[j], s->previous_left[j].lsm.gray,
-                                     s->previous_right[j].lsm.gray, o);
+                                     s->previous_right[j].lsm.gray, ground, regions, zncc);
   // In the previous body frame turned level (world axes, origin at the previous body): neighbourhoods are
   // horizontal and "up" is z, on a rolled or pitched rover too.
   Pose3 level_from_previous = Pose3::Identity();
@@ -162,7 +163,7 @@ int AlignToPreviousGround(const NavcamModel& navcam, const TiePointSet& tps, con
   const double prior_sigma = std::max(s->prediction.relative_sigma(2), kAlignMinPriorSigmaM);
   const GroundAlignment a = AlignGround(previous, s->current_ground,
                                         level_from_previous * s->prediction.previous_from_current, up, prior_sigma,
-                                        navcam, o);
+                                        navcam, o, num_threads);
   if (!a.ok) {
     VLOG(1) << "ground alignment: none (" << a.why << ")";
     return 0;
@@ -174,7 +175,7 @@ int AlignToPreviousGround(const NavcamModel& navcam, const TiePointSet& tps, con
   PoseWithCovariance current = s->current.world_from_body;
   current.pose = s->previous.world_from_body.pose * corrected;
   s->prediction = PredictRegions(navcam, s->previous.world_from_body, current, tps.previous_pointing,
-                                 tps.current_pointing, o.regions, s->ground_planes, s->current_far);
+                                 tps.current_pointing, regions, s->ground_planes, s->current_far);
   return a.points;
 }
 

@@ -34,7 +34,8 @@ std::optional<Eigen::Vector3d> StereoPoint(const StereoRig& rig, const Pose3& bo
 }  // namespace
 
 GroundPointSet GroundStereoPoints(const NavcamModel& navcam, const MastPointing& pointing, const cv::Mat& left,
-                                  const cv::Mat& right, const FrontendOptions& o) {
+                                  const cv::Mat& right, const GroundPlaneOptions& o, const RegionOptions& regions,
+                                  const ZnccOptions& zncc) {
   const Pose3 bl = navcam.mast.BodyFromLeft(pointing.pan, pointing.tilt, navcam.rig);
   const PinholeCamera& cam = navcam.rig.left;
   GroundPointSet out;
@@ -43,12 +44,12 @@ GroundPointSet GroundStereoPoints(const NavcamModel& navcam, const MastPointing&
   for (int v = step / 2; v < cam.height; v += step) {
     for (int u = step / 2; u < cam.width; u += step) {
       const std::optional<Eigen::Vector3d> sp = StereoPoint(navcam.rig, bl, left, right, Eigen::Vector2d(u, v),
-                                                            0.5 * o.regions.min_range_current,
-                                                            1.5 * o.regions.max_range_current, o.zncc);
+                                                            0.5 * regions.min_range_current,
+                                                            1.5 * regions.max_range_current, zncc);
       if (!sp) continue;
       const Eigen::Vector3d& p = *sp;
       const double range = (p - bl.translation()).norm();
-      if (range < 0.5 * o.regions.min_range_current || range > o.regions.max_range_current) continue;
+      if (range < 0.5 * regions.min_range_current || range > regions.max_range_current) continue;
       out.points.push_back(p);
     }
   }
@@ -58,7 +59,7 @@ GroundPointSet GroundStereoPoints(const NavcamModel& navcam, const MastPointing&
 namespace {
 
 // RANSAC, then least squares on the inliers; zero when implausible.
-Eigen::Vector4d FitPlaneToPoints(const GroundPointSet& set, const NavcamModel& navcam, const FrontendOptions& o) {
+Eigen::Vector4d FitPlaneToPoints(const GroundPointSet& set, const NavcamModel& navcam, const GroundPlaneOptions& o) {
   const std::vector<Eigen::Vector3d>& pts = set.points;
   const int n = static_cast<int>(pts.size());
   if (n < o.ground_min_points) return Eigen::Vector4d::Zero();
@@ -106,36 +107,39 @@ Eigen::Vector4d FitPlaneToPoints(const GroundPointSet& set, const NavcamModel& n
 }  // namespace
 
 Eigen::Vector4d FitGroundPlane(const NavcamModel& navcam, const MastPointing& pointing, const cv::Mat& left,
-                               const cv::Mat& right, const FrontendOptions& o, GroundPointSet* points) {
-  GroundPointSet set = GroundStereoPoints(navcam, pointing, left, right, o);
+                               const cv::Mat& right, const GroundPlaneOptions& o, const RegionOptions& regions,
+                               const ZnccOptions& zncc, GroundPointSet* points) {
+  GroundPointSet set = GroundStereoPoints(navcam, pointing, left, right, o, regions, zncc);
   const Eigen::Vector4d plane = FitPlaneToPoints(set, navcam, o);
   if (points) *points = std::move(set);
   return plane;
 }
 
-int FitGroundPlanes(const NavcamModel& navcam, const TiePointSet& tps, const FrontendOptions& o, SitePairState* s) {
+int FitGroundPlanes(const NavcamModel& navcam, const TiePointSet& tps, const GroundPlaneOptions& o,
+                    const RegionOptions& regions, const ZnccOptions& zncc, int num_threads, SitePairState* s) {
   const int nc = static_cast<int>(s->current.pairs.size());
   s->ground_planes.assign(nc, Eigen::Vector4d::Zero());
   s->current_ground.assign(nc, GroundPointSet());
   if (!o.fit_ground_planes) return 0;
   int num_planes = 0;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads) reduction(+ : num_planes)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(num_threads) reduction(+ : num_planes)
   for (int i = 0; i < nc; ++i) {
     s->ground_planes[i] =
-        FitGroundPlane(navcam, tps.current_pointing[i], s->current_left[i].lsm.gray, s->current_right[i].lsm.gray, o,
+        FitGroundPlane(navcam, tps.current_pointing[i], s->current_left[i].lsm.gray, s->current_right[i].lsm.gray, o, regions, zncc,
                        &s->current_ground[i]);
     num_planes += s->ground_planes[i].head<3>().norm() > kMinPlaneNormal ? 1 : 0;
   }
   return num_planes;
 }
 
-int MeasureFarTerrain(const NavcamModel& navcam, const TiePointSet& tps, const FrontendOptions& o, SitePairState* s) {
+int MeasureFarTerrain(const NavcamModel& navcam, const TiePointSet& tps, const RegionOptions& regions,
+                      const ZnccOptions& zncc, int num_threads, SitePairState* s) {
   const int nc = static_cast<int>(s->current.pairs.size());
   s->current_far.assign(nc, {});
-  const RegionOptions& r = o.regions;
+  const RegionOptions& r = regions;
   const PinholeCamera& cam = navcam.rig.left;
   int total = 0;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads) reduction(+ : total)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(num_threads) reduction(+ : total)
   for (int i = 0; i < nc; ++i) {
     const Pose3 bl = navcam.mast.BodyFromLeft(tps.current_pointing[i].pan, tps.current_pointing[i].tilt, navcam.rig);
     const cv::Mat& left = s->current_left[i].lsm.gray;
@@ -144,7 +148,7 @@ int MeasureFarTerrain(const NavcamModel& navcam, const TiePointSet& tps, const F
       for (double u = r.image_margin; u < cam.width - r.image_margin; u += r.grid_step) {
         const Eigen::Vector2d px(u, v);
         const std::optional<Eigen::Vector3d> sp =
-            StereoPoint(navcam.rig, bl, left, right, px, 0.5 * r.far_min_range, 2 * r.far_max_range, o.zncc);
+            StereoPoint(navcam.rig, bl, left, right, px, 0.5 * r.far_min_range, 2 * r.far_max_range, zncc);
         if (!sp) continue;
         const Eigen::Vector3d& p = *sp;
         const double range = (p - bl.translation()).norm();

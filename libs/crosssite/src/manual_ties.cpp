@@ -38,7 +38,7 @@ std::vector<Candidate> ClickCandidates(const NavcamModel& navcam, const SitePair
 
 // Cross-site LSM of each current click from the previous one; returns how
 // many it refined (the others keep the click at sigma_unrefined_px).
-int RefineClicks(const FrontendOptions& o, SitePairState* s) {
+int RefineClicks(const CrossSiteLsmOptions& o, SitePairState* s) {
   int refined = 0;
   for (Candidate& c : s->candidates) {
     const LsmResult r =
@@ -67,20 +67,20 @@ FrontendResult CrossSiteFrontend::RunManual(const SiteImages& previous, const Si
       return stages.Finish(FrontendStatus::kTooFewPoints, "manual: none of the " + std::to_string(ties.size()) +
                                                        " clicks names a pair of both sites inside its image");
     stages.Step("prepare_images", [&] {
-      PrepareImages(navcam_, options_, &s);
+      PrepareImages(navcam_, options_.vehicle, UsesBspline(options_), options_.num_threads, &s);
       return static_cast<int>(s.candidates.size());
     });
-    const int refined = stages.Step("manual_cross_lsm", [&] { return RefineClicks(options_, &s); });
-    stages.Step("stereo_zncc", [&] { return CorrelateStereo(navcam_, options_, &s); });
+    const int refined = stages.Step("manual_cross_lsm", [&] { return RefineClicks(options_.cross_site, &s); });
+    stages.Step("stereo_zncc", [&] { return CorrelateStereo(navcam_, options_.stereo, options_.num_threads, &s); });
     const int kept =
-        stages.Step("stereo_lsm", [&] { return RefineStereoAndIntersect(navcam_, result.tie_points, options_, &s); });
+        stages.Step("stereo_lsm", [&] { return RefineStereoAndIntersect(navcam_, result.tie_points, options_.stereo, options_.num_threads, &s); });
     Verification all;
     all.keep.assign(s.candidates.size(), true);
     all.weights.assign(s.candidates.size(), 1);
     all.num_kept = kept;
     s.prediction.overlaps.assign(1, PairOverlap());  // scale 1: the click's error is shared by both images
     for (Candidate& c : s.candidates) c.overlap = 0;
-    MakeTiePoints(s.candidates, all, s.prediction, options_, &result.tie_points);
+    MakeTiePoints(s.candidates, all, s.prediction, options_.verification, &result.tie_points);
     std::ostringstream os;
     os << "manual: " << ties.size() << " clicks, " << refined << " refined by cross-site LSM, " << kept
        << " through stereo at both sites";

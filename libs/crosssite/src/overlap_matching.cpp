@@ -22,7 +22,7 @@ namespace {
 // The previous features' predicted positions in the train image (NaN: the
 // feature is outside the overlap, or its ground is not in the warped image).
 std::vector<Eigen::Vector2d> PredictInTrain(const PairOverlap& ov, const FeatureSet& fp, const OverlapWork& work,
-                                            const FrontendOptions& o) {
+                                            bool warp_current) {
   std::vector<Eigen::Vector2d> predicted(fp.size(), Eigen::Vector2d::Constant(NAN));
   for (size_t q = 0; q < fp.size(); ++q) {
     const auto& p = fp.points[q];
@@ -31,7 +31,7 @@ std::vector<Eigen::Vector2d> PredictInTrain(const PairOverlap& ov, const Feature
     // A previous feature whose ground the current image does not see has no
     // true match: left in, it pairs with whatever lies at the gate's edge
     // nearest the covered part (one common, wrong, offset).
-    if (o.warp_current && !work.coverage.empty()) {
+    if (warp_current && !work.coverage.empty()) {
       const int x = static_cast<int>(std::lround(predicted[q].x())), y = static_cast<int>(std::lround(predicted[q].y()));
       if (x < 0 || y < 0 || x >= work.coverage.cols || y >= work.coverage.rows || !work.coverage.at<uchar>(y, x))
         predicted[q] = Eigen::Vector2d::Constant(NAN);
@@ -62,7 +62,7 @@ struct Stage2 {
 // gate; epipolar RANSAC on the (now mostly right) matches.
 Stage2 MatchStage2(const cv::Matx33d& H, const FeatureSet& fp, const FeatureSet& fc, const OverlapWork& work,
                    std::vector<Eigen::Vector2d> predicted, GatedMatchOptions g, double train_per_cur,
-                   const FrontendOptions& o) {
+                   const OverlapMatchOptions& o) {
   Stage2 st;
   st.refined = work.current_from_train * H;
   for (size_t q = 0; q < fp.size(); ++q)
@@ -82,7 +82,7 @@ Stage2 MatchStage2(const cv::Matx33d& H, const FeatureSet& fp, const FeatureSet&
 
 // The stage-2 matches within 2 fundamental_threshold_px of their epipolar line.
 std::vector<Candidate> EpipolarCandidates(int k, const PairOverlap& ov, const Stage2& st, const FeatureSet& fp,
-                                          const FeatureSet& fc, const OverlapWork& work, const FrontendOptions& o) {
+                                          const FeatureSet& fc, const OverlapWork& work, const OverlapMatchOptions& o) {
   std::vector<Candidate> cands;
   const cv::Matx33d Fm = st.F.empty() ? cv::Matx33d::zeros() : cv::Matx33d(st.F);
   for (const auto& m : st.matches) {
@@ -151,22 +151,23 @@ std::vector<int> SpreadSelect(const std::vector<Candidate>& c, const std::vector
   return first;
 }
 
-void MatchOverlap(int k, const PairOverlap& ov, const SitePairState& s, const FrontendOptions& o, OverlapWork* work) {
+void MatchOverlap(int k, const PairOverlap& ov, const SitePairState& s, const OverlapMatchOptions& o,
+                  const GateOptions& gate, bool warp_current, OverlapWork* work) {
   if (work->skipped) return;
   const WorkRegion& prev = s.previous_regions[ov.previous_pair];
   const FeatureSet& fp = prev.features;
-  const FeatureSet& fc = o.warp_current ? work->warped_features : s.current_regions[ov.current_pair].features;
+  const FeatureSet& fc = warp_current ? work->warped_features : s.current_regions[ov.current_pair].features;
   if (fp.size() == 0 || fc.size() == 0) return;
-  const std::vector<Eigen::Vector2d> predicted = PredictInTrain(ov, fp, *work, o);
+  const std::vector<Eigen::Vector2d> predicted = PredictInTrain(ov, fp, *work, warp_current);
   // Gate scale: train px per current px.
-  const double train_per_cur = o.warp_current ? ov.scale * prev.zoom : 1.0;
+  const double train_per_cur = warp_current ? ov.scale * prev.zoom : 1.0;
   // Stage 1: the DR prediction with a gate as wide as its uncertainty.
   GatedMatchOptions g = o.matching;
   g.num_threads = 1;
   // ASIFT views of one point land a few (view) px apart: in full-image px
   // that is distinct_radius / zoom.
-  if (!o.warp_current) g.distinct_radius = o.matching.distinct_radius / std::min(s.current_regions[ov.current_pair].zoom, 1.0);
-  g.gate_radius = std::min(ov.growth_px / std::max(ov.scale, 1e-3) + o.gate_margin_px, o.max_gate_px) * train_per_cur;
+  if (!warp_current) g.distinct_radius = o.matching.distinct_radius / std::min(s.current_regions[ov.current_pair].zoom, 1.0);
+  g.gate_radius = std::min(ov.growth_px / std::max(ov.scale, 1e-3) + gate.gate_margin_px, gate.max_gate_px) * train_per_cur;
   const std::vector<FeatureMatch> stage1 = GatedMatch(fp, predicted, fc, g);
   Stage2 st{ov.previous_from_current.inv(), stage1, cv::Mat()};
   size_t stage1_inliers = 0;

@@ -35,7 +35,7 @@ cv::Mat AntiAliased(const cv::Mat& filtered, const PairOverlap& ov, double z) {
 
 // Warps `source` onto the grid of `size` by work->current_from_train, and its coverage.
 void Warp(const cv::Mat& source, const cv::Size& current_size, const cv::Size& size, double z,
-          const FrontendOptions& o, OverlapWork* work) {
+          const WarpOptions& o, OverlapWork* work) {
   cv::warpPerspective(source, work->warped, cv::Mat(work->current_from_train), size,
                       cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT, 0);
   cv::warpPerspective(cv::Mat(current_size, CV_8UC1, cv::Scalar(255)), work->coverage,
@@ -56,7 +56,7 @@ void Warp(const cv::Mat& source, const cv::Size& current_size, const cv::Size& s
 
 // One registration pass: the similarity/homography the tiles agree on
 // (true grid -> predicted grid), empty when fewer than min_tile_inliers agree.
-cv::Mat RegisterPass(const PairOverlap& ov, int pass, double radius, const FrontendOptions& o, OverlapWork* work,
+cv::Mat RegisterPass(const PairOverlap& ov, int pass, double radius, const WarpOptions& o, OverlapWork* work,
                      int* inliers) {
   const auto tiles = RegisterTiles(work->warped, work->coverage, work->previous_crop, radius, o.tiles);
   std::vector<cv::Point2f> from, to;
@@ -80,7 +80,7 @@ cv::Mat RegisterPass(const PairOverlap& ov, int pass, double radius, const Front
 
 }  // namespace
 
-OverlapWork WarpOverlap(const PairOverlap& ov, const SitePairState& s, const FrontendOptions& o) {
+OverlapWork WarpOverlap(const PairOverlap& ov, const SitePairState& s, const WarpOptions& o, const GateOptions& gate) {
   OverlapWork work;
   const cv::Matx33d cur_from_prev = ov.previous_from_current.inv();
   work.train_from_previous = cur_from_prev;
@@ -112,7 +112,7 @@ OverlapWork WarpOverlap(const PairOverlap& ov, const SitePairState& s, const Fro
     // a few px of the correction.
     const double train_per_cur0 = ov.scale * z;
     double radius =
-        std::min(ov.growth_px / std::max(ov.scale, 1e-3) + o.gate_margin_px, o.max_gate_px) * train_per_cur0;
+        std::min(ov.growth_px / std::max(ov.scale, 1e-3) + gate.gate_margin_px, gate.max_gate_px) * train_per_cur0;
     for (int pass = 0; pass < kTileRegistrationPasses; ++pass) {
       int inliers = 0;
       const cv::Mat A = RegisterPass(ov, pass, radius, o, &work, &inliers);
@@ -133,8 +133,8 @@ OverlapWork WarpOverlap(const PairOverlap& ov, const SitePairState& s, const Fro
   return work;
 }
 
-void DetectWarpedFeatures(const FrontendOptions& o, OverlapWork* work) {
-  if (!o.warp_current || work->skipped) return;
+void DetectWarpedFeatures(const FeatureOptions& o, bool warp_current, OverlapWork* work) {
+  if (!warp_current || work->skipped) return;
   std::vector<AffineView> views{{1.0, 0.0}};
   for (double t : o.asift.tilts)
     if (t > 1 + 1e-6 && t <= o.warp_max_tilt) views.push_back({t, 0.0}), views.push_back({t, M_PI / 2});

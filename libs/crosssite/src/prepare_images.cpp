@@ -68,25 +68,26 @@ void Prepare(const cv::Mat& raw, const PinholeCamera& cam, bool bspline, Prepare
 
 }  // namespace
 
-void PrepareImages(const NavcamModel& navcam, const FrontendOptions& o, SitePairState* s) {
+bool UsesBspline(const FrontendOptions& o) { return o.stereo.lsm.bspline || o.cross_site.cross_lsm.bspline; }
+
+void PrepareImages(const NavcamModel& navcam, const VehicleOptions& vehicle, bool bspline, int num_threads,
+                   SitePairState* s) {
   const int np = static_cast<int>(s->previous.pairs.size()), nc = static_cast<int>(s->current.pairs.size());
   s->previous_left.assign(np, {});
   s->previous_right.assign(np, {});
   s->current_left.assign(nc, {});
   s->current_right.assign(nc, {});
-  // B-spline coefficients only when an LSM on these images resamples with them.
-  const bool bs = o.lsm.bspline || o.cross_lsm.bspline;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(num_threads)
   for (int k = 0; k < np + nc; ++k) {
-    if (k < np) s->previous_left[k].vehicle = VehicleMask(navcam, {s->previous.pairs[k].mast_pan, s->previous.pairs[k].mast_tilt}, o);
-    else s->current_left[k - np].vehicle = VehicleMask(navcam, {s->current.pairs[k - np].mast_pan, s->current.pairs[k - np].mast_tilt}, o);
+    if (k < np) s->previous_left[k].vehicle = VehicleMask(navcam, {s->previous.pairs[k].mast_pan, s->previous.pairs[k].mast_tilt}, vehicle);
+    else s->current_left[k - np].vehicle = VehicleMask(navcam, {s->current.pairs[k - np].mast_pan, s->current.pairs[k - np].mast_tilt}, vehicle);
   }
-#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(num_threads)
   for (int k = 0; k < 2 * (np + nc); ++k) {
-    if (k < np) Prepare(s->previous.pairs[k].left, navcam.rig.left, bs, &s->previous_left[k]);
-    else if (k < 2 * np) Prepare(s->previous.pairs[k - np].right, navcam.rig.right, bs, &s->previous_right[k - np]);
-    else if (k < 2 * np + nc) Prepare(s->current.pairs[k - 2 * np].left, navcam.rig.left, bs, &s->current_left[k - 2 * np]);
-    else Prepare(s->current.pairs[k - 2 * np - nc].right, navcam.rig.right, bs, &s->current_right[k - 2 * np - nc]);
+    if (k < np) Prepare(s->previous.pairs[k].left, navcam.rig.left, bspline, &s->previous_left[k]);
+    else if (k < 2 * np) Prepare(s->previous.pairs[k - np].right, navcam.rig.right, bspline, &s->previous_right[k - np]);
+    else if (k < 2 * np + nc) Prepare(s->current.pairs[k - 2 * np].left, navcam.rig.left, bspline, &s->current_left[k - 2 * np]);
+    else Prepare(s->current.pairs[k - 2 * np - nc].right, navcam.rig.right, bspline, &s->current_right[k - 2 * np - nc]);
   }
 }
 

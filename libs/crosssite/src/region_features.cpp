@@ -24,7 +24,7 @@ struct Job {
 };
 
 // The restricted views of one current region.
-std::vector<AffineView> CurrentViews(const WorkRegion& w, const FrontendOptions& o) {
+std::vector<AffineView> CurrentViews(const WorkRegion& w, const FeatureOptions& o) {
   std::vector<AffineView> views{{1.0, 0.0}};
   const double lon_margin = o.longitude_margin_deg * M_PI / 180;
   for (double t : o.asift.tilts) {
@@ -56,11 +56,11 @@ void AddViewFeatures(const AffineView& view, const FeatureSet& s, WorkRegion* w)
 
 }  // namespace
 
-int DetectRegionFeatures(const FrontendOptions& o, SitePairState* s) {
+int DetectRegionFeatures(const FeatureOptions& o, bool warp_current, int num_threads, SitePairState* s) {
   std::vector<Job> jobs;
   for (int i = 0; i < static_cast<int>(s->current_regions.size()); ++i) {
     WorkRegion& w = s->current_regions[i];
-    if (w.image.empty() || o.warp_current) continue;
+    if (w.image.empty() || warp_current) continue;
     w.views = CurrentViews(w, o);
     for (const auto& v : w.views) jobs.push_back({true, i, v});
   }
@@ -94,7 +94,7 @@ int DetectRegionFeatures(const FrontendOptions& o, SitePairState* s) {
   std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
     return image_of(jobs[a]).total() / jobs[a].view.tilt > image_of(jobs[b]).total() / jobs[b].view.tilt;
   });
-#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(num_threads)
   for (int i = 0; i < static_cast<int>(jobs.size()); ++i) {
     const int k = order[i];
     const Job& jb = jobs[k];

@@ -20,10 +20,10 @@ void DropRejected(std::vector<Candidate>* cands) {
 
 }  // namespace
 
-int CorrelateStereo(const NavcamModel& navcam, const FrontendOptions& o, SitePairState* s) {
+int CorrelateStereo(const NavcamModel& navcam, const StereoStepOptions& o, int num_threads, SitePairState* s) {
   std::vector<Candidate>& cands = s->candidates;
   const int n = static_cast<int>(cands.size());
-#pragma omp parallel for schedule(dynamic, 16) num_threads(o.num_threads)
+#pragma omp parallel for schedule(dynamic, 16) num_threads(num_threads)
   for (int k = 0; k < n; ++k) {
     Candidate& c = cands[k];
     Eigen::Vector2d a, b;
@@ -44,7 +44,7 @@ int CorrelateStereo(const NavcamModel& navcam, const FrontendOptions& o, SitePai
   return static_cast<int>(cands.size());
 }
 
-int MedianFilterDisparities(const FrontendOptions& o, SitePairState* s) {
+int MedianFilterDisparities(const StereoStepOptions& o, SitePairState* s) {
   std::vector<Candidate>& cands = s->candidates;
   for (int site = 0; site < 2; ++site) {
     std::map<int, std::vector<int>> by_image;
@@ -72,7 +72,7 @@ namespace {
 // One site's point of candidate c (site 0: previous) in that site's body
 // frame, with its covariance; false when the rays do not intersect.
 bool Intersect(const NavcamModel& navcam, const MastPointing& mp, const Eigen::Vector2d& ul, const Eigen::Vector2d& ur,
-               double sigma_parallax, double sigma_cross, const FrontendOptions& o, Eigen::Vector3d* p,
+               double sigma_parallax, double sigma_cross, const StereoStepOptions& o, Eigen::Vector3d* p,
                Eigen::Matrix3d* cov) {
   const double baseline = navcam.rig.Baseline(), focal = navcam.rig.left.fx;
   const Pose3 bl = navcam.mast.BodyFromLeft(mp.pan, mp.tilt, navcam.rig);
@@ -89,11 +89,11 @@ bool Intersect(const NavcamModel& navcam, const MastPointing& mp, const Eigen::V
 
 }  // namespace
 
-int RefineStereoAndIntersect(const NavcamModel& navcam, const TiePointSet& tps, const FrontendOptions& o,
-                             SitePairState* s) {
+int RefineStereoAndIntersect(const NavcamModel& navcam, const TiePointSet& tps, const StereoStepOptions& o,
+                             int num_threads, SitePairState* s) {
   std::vector<Candidate>& cands = s->candidates;
   const int n = static_cast<int>(cands.size());
-#pragma omp parallel for schedule(dynamic, 16) num_threads(o.num_threads)
+#pragma omp parallel for schedule(dynamic, 16) num_threads(num_threads)
   for (int k = 0; k < n; ++k) {
     Candidate& c = cands[k];
     c.ok = false;

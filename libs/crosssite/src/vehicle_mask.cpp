@@ -36,7 +36,7 @@ bool RayMeetsBox(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, cons
 
 }  // namespace
 
-cv::Mat VehicleMask(const NavcamModel& navcam, const MastPointing& pointing, const FrontendOptions& o) {
+cv::Mat VehicleMask(const NavcamModel& navcam, const MastPointing& pointing, const VehicleOptions& o) {
   if (o.vehicle_boxes_m.empty()) return cv::Mat();
   const PinholeCamera& cam = navcam.rig.left;
   const Pose3 body_from_left = navcam.mast.BodyFromLeft(pointing.pan, pointing.tilt, navcam.rig);

@@ -14,7 +14,7 @@
 
 namespace vloc::frontend_internal {
 
-Verification CheckConsistency(const std::vector<Candidate>& cands, const FrontendOptions& o) {
+Verification CheckConsistency(const std::vector<Candidate>& cands, const VerificationOptions& o) {
   std::vector<Eigen::Vector3d> p1, p2;
   std::vector<Eigen::Matrix3d> c1, c2;
   for (const auto& c : cands) {
@@ -28,7 +28,7 @@ Verification CheckConsistency(const std::vector<Candidate>& cands, const Fronten
   return Verification{cons.inlier, cons.weights, cons.num_inliers, cons.inlier, cons.num_inliers};
 }
 
-void CheckMotion(const std::vector<Candidate>& cands, const FrontendOptions& o, Verification* v) {
+void CheckMotion(const std::vector<Candidate>& cands, const VerificationOptions& o, Verification* v) {
   if (!o.motion_consistency) return;
   std::vector<Eigen::Vector3d> q1, q2;
   std::vector<Eigen::Matrix3d> d1, d2;
@@ -46,7 +46,7 @@ void CheckMotion(const std::vector<Candidate>& cands, const FrontendOptions& o, 
 }
 
 void MakeTiePoints(const std::vector<Candidate>& cands, const Verification& v, const RegionPrediction& pred,
-                   const FrontendOptions& o, TiePointSet* tps) {
+                   const VerificationOptions& o, TiePointSet* tps) {
   int id = 0;
   for (size_t k = 0; k < cands.size(); ++k) {
     if (!v.keep[k]) continue;
@@ -75,7 +75,7 @@ void MakeTiePoints(const std::vector<Candidate>& cands, const Verification& v, c
   }
 }
 
-std::optional<std::string> CheckAgainstDeadReckoning(const RegionPrediction& pred, const FrontendOptions& o,
+std::optional<std::string> CheckAgainstDeadReckoning(const RegionPrediction& pred, const VerificationOptions& o,
                                                      TiePointSet* tps) {
   if (tps->points.size() < 3 || o.max_motion_sigmas <= 0) return std::nullopt;
   Eigen::Matrix3Xd a(3, tps->points.size()), b(3, tps->points.size());

@@ -23,7 +23,7 @@ struct RegionSums {
   std::vector<int> zoom_n, shrink_n;
 };
 
-RegionSums SumOverlaps(const FrontendOptions& o, SitePairState* s) {
+RegionSums SumOverlaps(const WorkRegionOptions& o, SitePairState* s) {
   const size_t np = s->previous.pairs.size(), nc = s->current.pairs.size();
   RegionSums sums{std::vector<double>(nc, 0.0), std::vector<double>(nc, 0.0), std::vector<double>(np, 0.0),
                   std::vector<double>(nc, 0.0), std::vector<int>(np, 0), std::vector<int>(nc, 0)};
@@ -47,7 +47,7 @@ RegionSums SumOverlaps(const FrontendOptions& o, SitePairState* s) {
 
 }  // namespace
 
-int MakeWorkRegions(const FrontendOptions& o, SitePairState* s) {
+int MakeWorkRegions(const WorkRegionOptions& o, bool warp_current, int num_threads, SitePairState* s) {
   const int np = static_cast<int>(s->previous.pairs.size()), nc = static_cast<int>(s->current.pairs.size());
   s->previous_regions.assign(np, {});
   s->current_regions.assign(nc, {});
@@ -89,7 +89,7 @@ int MakeWorkRegions(const FrontendOptions& o, SitePairState* s) {
   for (int j = 0; j < np; ++j) {
     WorkRegion& w = s->previous_regions[j];
     if (w.region.area() == 0) continue;
-    w.zoom = (o.zoom_previous || o.warp_current) ? sums.zoom_sum[j] / std::max(1, sums.zoom_n[j]) : 1.0;
+    w.zoom = (o.zoom_previous || warp_current) ? sums.zoom_sum[j] / std::max(1, sums.zoom_n[j]) : 1.0;
     cv::Mat filtered = WallisFilter(s->previous_left[j].gray(w.region), s->previous_wallis);
     if (std::abs(w.zoom - 1.0) > 1e-3) {
       cv::resize(filtered, w.image, cv::Size(), w.zoom, w.zoom, cv::INTER_CUBIC);
@@ -101,12 +101,12 @@ int MakeWorkRegions(const FrontendOptions& o, SitePairState* s) {
   return num_regions;
 }
 
-void ChooseOverlaps(const FrontendOptions& o, SitePairState* s) {
+void ChooseOverlaps(const WorkRegionOptions& o, bool warp_current, int num_threads, SitePairState* s) {
   const int nc = static_cast<int>(s->current.pairs.size());
   const auto& overlaps = s->prediction.overlaps;
   s->current_filtered.assign(nc, cv::Mat());
-  if (o.warp_current) {
-#pragma omp parallel for schedule(dynamic, 1) num_threads(o.num_threads)
+  if (warp_current) {
+#pragma omp parallel for schedule(dynamic, 1) num_threads(num_threads)
     for (int i = 0; i < nc; ++i)
       if (!s->current_regions[i].image.empty()) s->current_filtered[i] = WallisFilter(s->current_left[i].gray, o.wallis);
   }

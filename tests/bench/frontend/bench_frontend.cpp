@@ -27,8 +27,8 @@ const vloc::testing::SimSitePair& Scene() {
 void RunFrontend(benchmark::State& state, const vloc::testing::SimSitePair& s, int threads) {
   vloc::FrontendOptions o;
   o.num_threads = threads;
-  o.asift.num_threads = threads;
-  o.matching.num_threads = threads;
+  o.features.asift.num_threads = threads;
+  o.overlap_matching.matching.num_threads = threads;
   cv::setNumThreads(threads);
   const vloc::CrossSiteFrontend fe(s.navcam, o);
   int points = 0;

@@ -57,8 +57,8 @@ PairRun RunPair(testing::SimSitePairOptions so = testing::SimSitePairOptions()) 
   FrontendOptions options;
   if (const char* e = std::getenv("VLOC_TEST_FRONTEND_CONFIG")) options = LoadOptionsFile<FrontendOptions>(e);
   if (const char* e = std::getenv("VLOC_TEST_MAX_RANGE")) options.regions.max_range_previous = std::atof(e);
-  if (const char* e = std::getenv("VLOC_TEST_MOTION_SIGMAS")) options.max_motion_sigmas = std::atof(e);
-  if (const char* e = std::getenv("VLOC_TEST_MIN_STAGE1")) options.min_stage1_inliers = std::atoi(e);
+  if (const char* e = std::getenv("VLOC_TEST_MOTION_SIGMAS")) options.verification.max_motion_sigmas = std::atof(e);
+  if (const char* e = std::getenv("VLOC_TEST_MIN_STAGE1")) options.overlap_matching.min_stage1_inliers = std::atoi(e);
   const CrossSiteFrontend frontend(s.navcam, options);
   run.result = frontend.Run(s.previous, s.current);
   const FrontendResult& r = run.result;

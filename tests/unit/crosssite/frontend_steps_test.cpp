@@ -34,51 +34,51 @@ TEST(FrontendOptions, CheckNamesTheFieldAndTheBadValue) {
     std::function<void(FrontendOptions&)> set;
   };
   const std::vector<Case> cases = {
-      {"ground_grid_px", "4", [](FrontendOptions& o) { o.ground_grid_px = 4; }},
-      {"ground_min_points", "2", [](FrontendOptions& o) { o.ground_min_points = 2; }},
-      {"ground_tolerance_m", "0", [](FrontendOptions& o) { o.ground_tolerance_m = 0; }},
-      {"ground_max_slope_deg", "95", [](FrontendOptions& o) { o.ground_max_slope_deg = 95; }},
-      {"min_zoom", "0", [](FrontendOptions& o) { o.min_zoom = 0; }},
-      {"max_zoom", "0.5", [](FrontendOptions& o) { o.max_zoom = 0.5; }},
-      {"max_motion_sigmas", "-1", [](FrontendOptions& o) { o.max_motion_sigmas = -1; }},
-      {"sigma_unrefined_px", "0", [](FrontendOptions& o) { o.sigma_unrefined_px = 0; }},
-      {"warp_max_tilt", "0.5", [](FrontendOptions& o) { o.warp_max_tilt = 0.5; }},
-      {"max_overlaps_per_image", "-1", [](FrontendOptions& o) { o.max_overlaps_per_image = -1; }},
-      {"grid_min_zncc", "1.5", [](FrontendOptions& o) { o.grid_min_zncc = 1.5; }},
-      {"grid_min_margin", "-0.1", [](FrontendOptions& o) { o.grid_min_margin = -0.1; }},
-      {"grid_back_check_px", "-1", [](FrontendOptions& o) { o.grid_back_check_px = -1; }},
-      {"grid_max_shear", "-0.5", [](FrontendOptions& o) { o.grid_max_shear = -0.5; }},
-      {"grid_search_px", "0", [](FrontendOptions& o) { o.grid_search_px = 0; }},
-      {"min_tile_inliers", "3", [](FrontendOptions& o) { o.min_tile_inliers = 3; }},
-      {"tile_inlier_px", "0", [](FrontendOptions& o) { o.tile_inlier_px = 0; }},
-      {"refine_homography_threshold_px", "0", [](FrontendOptions& o) { o.refine_homography_threshold_px = 0; }},
-      {"stage1_cluster_fraction", "1.5", [](FrontendOptions& o) { o.stage1_cluster_fraction = 1.5; }},
-      {"refine_gate_px", "0", [](FrontendOptions& o) { o.refine_gate_px = 0; }},
-      {"max_gate_px", "-3", [](FrontendOptions& o) { o.max_gate_px = -3; }},
-      {"min_stage1_inliers", "2", [](FrontendOptions& o) { o.min_stage1_inliers = 2; }},
-      {"refine_ratio", "0", [](FrontendOptions& o) { o.refine_ratio = 0; }},
-      {"tilt_margin", "0.9", [](FrontendOptions& o) { o.tilt_margin = 0.9; }},
-      {"longitude_margin_deg", "-5", [](FrontendOptions& o) { o.longitude_margin_deg = -5; }},
-      {"gate_margin_px", "-1", [](FrontendOptions& o) { o.gate_margin_px = -1; }},
-      {"fundamental_threshold_px", "-2", [](FrontendOptions& o) { o.fundamental_threshold_px = -2; }},
-      {"max_points_per_overlap", "0", [](FrontendOptions& o) { o.max_points_per_overlap = 0; }},
-      {"stereo_min_depth", "0", [](FrontendOptions& o) { o.stereo_min_depth = 0; }},
-      {"stereo_max_depth", "0.5", [](FrontendOptions& o) { o.stereo_max_depth = 0.5; }},
-      {"cross_sigma_floor_px", "-1", [](FrontendOptions& o) { o.cross_sigma_floor_px = -1; }},
-      {"stereo_sigma_floor_px", "-1", [](FrontendOptions& o) { o.stereo_sigma_floor_px = -1; }},
-      {"sigma_angle_px", "-1", [](FrontendOptions& o) { o.sigma_angle_px = -1; }},
-      {"min_sigma_parallax", "0", [](FrontendOptions& o) { o.min_sigma_parallax = 0; }},
-      {"min_region_std", "-1", [](FrontendOptions& o) { o.min_region_std = -1; }},
-      {"duplicate_radius", "-1", [](FrontendOptions& o) { o.duplicate_radius = -1; }},
+      {"ground_grid_px", "4", [](FrontendOptions& o) { o.ground.ground_grid_px = 4; }},
+      {"ground_min_points", "2", [](FrontendOptions& o) { o.ground.ground_min_points = 2; }},
+      {"ground_tolerance_m", "0", [](FrontendOptions& o) { o.ground.ground_tolerance_m = 0; }},
+      {"ground_max_slope_deg", "95", [](FrontendOptions& o) { o.ground.ground_max_slope_deg = 95; }},
+      {"min_zoom", "0", [](FrontendOptions& o) { o.work_regions.min_zoom = 0; }},
+      {"max_zoom", "0.5", [](FrontendOptions& o) { o.work_regions.max_zoom = 0.5; }},
+      {"max_motion_sigmas", "-1", [](FrontendOptions& o) { o.verification.max_motion_sigmas = -1; }},
+      {"sigma_unrefined_px", "0", [](FrontendOptions& o) { o.cross_site.sigma_unrefined_px = 0; }},
+      {"warp_max_tilt", "0.5", [](FrontendOptions& o) { o.features.warp_max_tilt = 0.5; }},
+      {"max_overlaps_per_image", "-1", [](FrontendOptions& o) { o.work_regions.max_overlaps_per_image = -1; }},
+      {"grid_min_zncc", "1.5", [](FrontendOptions& o) { o.grid.grid_min_zncc = 1.5; }},
+      {"grid_min_margin", "-0.1", [](FrontendOptions& o) { o.grid.grid_min_margin = -0.1; }},
+      {"grid_back_check_px", "-1", [](FrontendOptions& o) { o.grid.grid_back_check_px = -1; }},
+      {"grid_max_shear", "-0.5", [](FrontendOptions& o) { o.grid.grid_max_shear = -0.5; }},
+      {"grid_search_px", "0", [](FrontendOptions& o) { o.grid.grid_search_px = 0; }},
+      {"min_tile_inliers", "3", [](FrontendOptions& o) { o.warp.min_tile_inliers = 3; }},
+      {"tile_inlier_px", "0", [](FrontendOptions& o) { o.warp.tile_inlier_px = 0; }},
+      {"refine_homography_threshold_px", "0", [](FrontendOptions& o) { o.overlap_matching.refine_homography_threshold_px = 0; }},
+      {"stage1_cluster_fraction", "1.5", [](FrontendOptions& o) { o.overlap_matching.stage1_cluster_fraction = 1.5; }},
+      {"refine_gate_px", "0", [](FrontendOptions& o) { o.overlap_matching.refine_gate_px = 0; }},
+      {"max_gate_px", "-3", [](FrontendOptions& o) { o.gate.max_gate_px = -3; }},
+      {"min_stage1_inliers", "2", [](FrontendOptions& o) { o.overlap_matching.min_stage1_inliers = 2; }},
+      {"refine_ratio", "0", [](FrontendOptions& o) { o.overlap_matching.refine_ratio = 0; }},
+      {"tilt_margin", "0.9", [](FrontendOptions& o) { o.features.tilt_margin = 0.9; }},
+      {"longitude_margin_deg", "-5", [](FrontendOptions& o) { o.features.longitude_margin_deg = -5; }},
+      {"gate_margin_px", "-1", [](FrontendOptions& o) { o.gate.gate_margin_px = -1; }},
+      {"fundamental_threshold_px", "-2", [](FrontendOptions& o) { o.overlap_matching.fundamental_threshold_px = -2; }},
+      {"max_points_per_overlap", "0", [](FrontendOptions& o) { o.overlap_matching.max_points_per_overlap = 0; }},
+      {"stereo_min_depth", "0", [](FrontendOptions& o) { o.stereo.stereo_min_depth = 0; }},
+      {"stereo_max_depth", "0.5", [](FrontendOptions& o) { o.stereo.stereo_max_depth = 0.5; }},
+      {"cross_sigma_floor_px", "-1", [](FrontendOptions& o) { o.verification.cross_sigma_floor_px = -1; }},
+      {"stereo_sigma_floor_px", "-1", [](FrontendOptions& o) { o.verification.stereo_sigma_floor_px = -1; }},
+      {"sigma_angle_px", "-1", [](FrontendOptions& o) { o.stereo.sigma_angle_px = -1; }},
+      {"min_sigma_parallax", "0", [](FrontendOptions& o) { o.stereo.min_sigma_parallax = 0; }},
+      {"min_region_std", "-1", [](FrontendOptions& o) { o.work_regions.min_region_std = -1; }},
+      {"duplicate_radius", "-1", [](FrontendOptions& o) { o.cross_site.duplicate_radius = -1; }},
       {"min_tie_points", "0", [](FrontendOptions& o) { o.min_tie_points = 0; }},
       {"num_threads", "0", [](FrontendOptions& o) { o.num_threads = 0; }},
-      {"vehicle_boxes_m", "5", [](FrontendOptions& o) { o.vehicle_boxes_m = {-1, 1, -1, 1, 0}; }},
-      {"vehicle_boxes_m", "box 1", [](FrontendOptions& o) { o.vehicle_boxes_m = {-1, 1, -1, 1, 0, 1, 0, 1, 2, 1, 0, 1}; }},
-      {"vehicle_boxes_m", "box 0", [](FrontendOptions& o) { o.vehicle_boxes_m = {-1, 1, -1, 1, 0, std::nan("")}; }},
-      {"vehicle_margin_px", "-1", [](FrontendOptions& o) { o.vehicle_margin_px = -1; }},
-      {"grid_lsm", "", [](FrontendOptions& o) { o.grid_lsm.half_window = 1; }},
-      {"cross_lsm", "", [](FrontendOptions& o) { o.cross_lsm.max_iterations = 0; }},
-      {"tiles", "", [](FrontendOptions& o) { o.tiles.reduction = 0; }},
+      {"vehicle_boxes_m", "6 numbers per box", [](FrontendOptions& o) { o.vehicle.vehicle_boxes_m = {-1, 1, -1, 1, 0}; }},
+      {"vehicle_boxes_m", "each min below its max", [](FrontendOptions& o) { o.vehicle.vehicle_boxes_m = {-1, 1, -1, 1, 0, 1, 0, 1, 2, 1, 0, 1}; }},
+      {"vehicle_boxes_m", "each min below its max", [](FrontendOptions& o) { o.vehicle.vehicle_boxes_m = {-1, 1, -1, 1, 0, std::nan("")}; }},
+      {"vehicle_margin_px", "-1", [](FrontendOptions& o) { o.vehicle.vehicle_margin_px = -1; }},
+      {"grid_lsm", "", [](FrontendOptions& o) { o.grid.grid_lsm.half_window = 1; }},
+      {"cross_lsm", "", [](FrontendOptions& o) { o.cross_site.cross_lsm.max_iterations = 0; }},
+      {"tiles", "", [](FrontendOptions& o) { o.warp.tiles.reduction = 0; }},
       {"regions", "", [](FrontendOptions& o) { o.regions.grid_step = 1; }},
   };
   for (const Case& c : cases) {
@@ -90,7 +90,7 @@ TEST(FrontendOptions, CheckNamesTheFieldAndTheBadValue) {
     EXPECT_NE(error.find(c.value), std::string::npos) << c.field << ": " << error;
   }
   FrontendOptions nan;
-  nan.tile_inlier_px = std::nan("");
+  nan.warp.tile_inlier_px = std::nan("");
   std::string error;
   EXPECT_FALSE(nan.Check(&error));
 }
@@ -129,10 +129,9 @@ TEST(WorkRegions, ZoomEqualisesTheTwoSitesResolution) {
   // or the other (zoom_previous).
   for (const Mode m : {Mode{true, false, 2.0, 0.5}, Mode{false, true, 2.0, 1.0}, Mode{false, false, 1.0, 0.5}}) {
     SitePairState s = WorkRegionScene(prev, cur);
-    FrontendOptions o;
-    o.warp_current = m.warp_current;
+    WorkRegionOptions o;
     o.zoom_previous = m.zoom_previous;
-    EXPECT_EQ(MakeWorkRegions(o, &s), 2);
+    EXPECT_EQ(MakeWorkRegions(o, m.warp_current, 1, &s), 2);
     EXPECT_DOUBLE_EQ(s.previous_regions[0].zoom, m.previous_zoom);
     EXPECT_DOUBLE_EQ(s.current_regions[0].zoom, m.current_zoom);
     EXPECT_EQ(s.previous_regions[0].image.cols, static_cast<int>(60 * m.previous_zoom));
@@ -146,10 +145,10 @@ TEST(WorkRegions, ZoomEqualisesTheTwoSitesResolution) {
 TEST(WorkRegions, FlatRegionsAndBackwardOverlapsGiveNone) {
   const cv::Mat flat(200, 200, CV_8UC1, cv::Scalar(90));
   SitePairState s = WorkRegionScene(flat, flat);
-  EXPECT_EQ(MakeWorkRegions(FrontendOptions(), &s), 0);
-  EXPECT_LT(s.largest_region_std, FrontendOptions().min_region_std);
+  EXPECT_EQ(MakeWorkRegions(WorkRegionOptions(), true, 1, &s), 0);
+  EXPECT_LT(s.largest_region_std, WorkRegionOptions().min_region_std);
   SitePairState b = WorkRegionScene(Texture({200, 200}, 53, 2.0), Texture({200, 200}, 54, 2.0), true);
-  MakeWorkRegions(FrontendOptions(), &b);
+  MakeWorkRegions(WorkRegionOptions(), true, 1, &b);
   EXPECT_EQ(b.previous_regions[0].region.area(), 0);  // backward overlaps are matched on the ground
   EXPECT_TRUE(b.current_regions[0].image.empty());
 }
@@ -172,9 +171,8 @@ TEST(RegionFeatures, ViewsAreRestrictedByThePrediction) {
   prev.region = cv::Rect(400, 300, 120, 120);
   prev.zoom = 2.0;
   prev.image = Texture({240, 240}, 72, 1.5);
-  FrontendOptions o;
-  o.warp_current = false;
-  EXPECT_GT(DetectRegionFeatures(o, &s), 0);
+  FeatureOptions o;
+  EXPECT_GT(DetectRegionFeatures(o, /*warp_current=*/false, 2, &s), 0);
   ASSERT_EQ(cur.views.size(), 3u);  // 72 / t deg steps: one longitude per tilt within 30 deg
   EXPECT_DOUBLE_EQ(cur.views[1].longitude, 0.3);
   EXPECT_DOUBLE_EQ(cur.views[2].tilt, 2.0);
@@ -190,7 +188,7 @@ TEST(RegionFeatures, ViewsAreRestrictedByThePrediction) {
   wide.previous_regions[0].views.clear();
   wide.previous_regions[0].features = FeatureSet();
   o.longitude_margin_deg = 60;
-  DetectRegionFeatures(o, &wide);
+  DetectRegionFeatures(o, /*warp_current=*/false, 2, &wide);
   EXPECT_EQ(wide.current_regions[0].views.size(), 7u);
   // With the warp the current regions are not described here (the warped images are).
   SitePairState warped = s;
@@ -199,7 +197,7 @@ TEST(RegionFeatures, ViewsAreRestrictedByThePrediction) {
   warped.previous_regions[0].views.clear();
   warped.previous_regions[0].features = FeatureSet();
   warped.num_current_features = 0;
-  DetectRegionFeatures(FrontendOptions(), &warped);
+  DetectRegionFeatures(FeatureOptions(), /*warp_current=*/true, 2, &warped);
   EXPECT_TRUE(warped.current_regions[0].views.empty());
   EXPECT_EQ(warped.num_current_features, 0u);
 }
@@ -232,8 +230,7 @@ TEST(PrepareImages, InputSortedCheckedAndUndistorted) {
   InitTiePointSet(s, &tps);
   EXPECT_EQ(tps.utime, 102);
   EXPECT_EQ(tps.current_pointing.size(), 3u);
-  FrontendOptions o;
-  PrepareImages(navcam, o, &s);
+  PrepareImages(navcam, VehicleOptions(), UsesBspline(FrontendOptions()), 2, &s);
   ASSERT_EQ(s.previous_right.size(), 3u);
   EXPECT_EQ(cv::norm(s.previous_right[1].gray, image, cv::NORM_INF), 0.0);  // no distortion: as it came
   EXPECT_GT(cv::norm(s.previous_left[1].gray, image, cv::NORM_INF), 0.0);   // undistorted
@@ -312,12 +309,6 @@ OverlapScene MakeOverlapScene(const Eigen::Vector2d& offset, int num_true, int n
   return s;
 }
 
-FrontendOptions UnwarpedOptions() {
-  FrontendOptions o;
-  o.warp_current = false;
-  return o;
-}
-
 TEST(OverlapMatching, DensestOffsetClusterIsTheDrError) {
   OverlapScene s = MakeOverlapScene({17.0, -9.0}, 60, 0, 3);
   const FeatureSet& fp = s.state.previous_regions[0].features;
@@ -353,8 +344,8 @@ TEST(OverlapMatching, SpreadSelectTakesOnePerCellFirst) {
 // RANSAC keeps them, and every candidate is a true match.
 TEST(OverlapMatching, RefinedGateFindsTheTrueMatches) {
   OverlapScene s = MakeOverlapScene({25.0, 10.0}, 150, 150, 11, 3.0);
-  const FrontendOptions o = UnwarpedOptions();
-  MatchOverlap(4, s.overlap, s.state, o, &s.work);
+  const OverlapMatchOptions o;
+  MatchOverlap(4, s.overlap, s.state, o, GateOptions(), /*warp_current=*/false, &s.work);
   const auto& cands = s.work.candidates;
   const FeatureSet& fp = s.state.previous_regions[0].features;
   EXPECT_GE(static_cast<int>(cands.size()), 0.9 * s.num_true);
@@ -367,16 +358,16 @@ TEST(OverlapMatching, RefinedGateFindsTheTrueMatches) {
   }
   // Without the epipolar RANSAC's 12 matches nothing passes the epipolar test.
   OverlapScene few = MakeOverlapScene({25.0, 10.0}, 11, 0, 11, 3.0);
-  FrontendOptions o2 = o;
+  OverlapMatchOptions o2 = o;
   o2.min_stage1_inliers = 4;
-  MatchOverlap(0, few.overlap, few.state, o2, &few.work);
+  MatchOverlap(0, few.overlap, few.state, o2, GateOptions(), /*warp_current=*/false, &few.work);
   EXPECT_TRUE(few.work.candidates.empty());
 }
 
 // A DR error beyond the gate: no cluster of min_stage1_inliers, no candidates.
 TEST(OverlapMatching, ErrorBeyondTheGateGivesNoCandidates) {
   OverlapScene s = MakeOverlapScene({250.0, 0.0}, 150, 150, 13);
-  MatchOverlap(0, s.overlap, s.state, UnwarpedOptions(), &s.work);
+  MatchOverlap(0, s.overlap, s.state, OverlapMatchOptions(), GateOptions(), /*warp_current=*/false, &s.work);
   EXPECT_TRUE(s.work.candidates.empty());
 }
 
@@ -416,10 +407,10 @@ WarpScene MakeWarpScene(double blur = 3.0) {
 
 TEST(OverlapWarp, TileRegistrationCorrectsTheDrError) {
   const WarpScene w = MakeWarpScene();
-  const OverlapWork work = WarpOverlap(w.overlap, w.state, FrontendOptions());
+  const OverlapWork work = WarpOverlap(w.overlap, w.state, WarpOptions(), GateOptions());
   ASSERT_FALSE(work.skipped);
   EXPECT_TRUE(work.registered);
-  EXPECT_GE(work.tile_inliers, FrontendOptions().min_tile_inliers);
+  EXPECT_GE(work.tile_inliers, WarpOptions().min_tile_inliers);
   // Previous px -> grid -> current px is the true motion within a fraction of a px.
   for (const Eigen::Vector2d& p : {Eigen::Vector2d(150, 150), Eigen::Vector2d(350, 300)}) {
     const Eigen::Vector2d c = ApplyHomography(work.current_from_train, ApplyHomography(work.train_from_previous, p));
@@ -431,9 +422,9 @@ TEST(OverlapWarp, TileRegistrationCorrectsTheDrError) {
 
 TEST(OverlapWarp, WithoutTileRegistrationTheWarpIsThePrediction) {
   const WarpScene w = MakeWarpScene();
-  FrontendOptions o;
+  WarpOptions o;
   o.tile_registration = false;
-  const OverlapWork work = WarpOverlap(w.overlap, w.state, o);
+  const OverlapWork work = WarpOverlap(w.overlap, w.state, o, GateOptions());
   EXPECT_FALSE(work.registered);
   const Eigen::Vector2d p(200, 200);
   const Eigen::Vector2d c = ApplyHomography(work.current_from_train, ApplyHomography(work.train_from_previous, p));
@@ -443,7 +434,7 @@ TEST(OverlapWarp, WithoutTileRegistrationTheWarpIsThePrediction) {
 TEST(OverlapWarp, NoCommonRegionIsSkipped) {
   WarpScene w = MakeWarpScene();
   w.overlap.previous_region = cv::Rect(600, 600, 50, 50);
-  EXPECT_TRUE(WarpOverlap(w.overlap, w.state, FrontendOptions()).skipped);
+  EXPECT_TRUE(WarpOverlap(w.overlap, w.state, WarpOptions(), GateOptions()).skipped);
 }
 
 // match_previous_resolution: with the previous region zoomed up 2x the
@@ -452,7 +443,7 @@ TEST(OverlapWarp, WarpedImageIsBlurredToTheZoomedPreviousResolution) {
   WarpScene w = MakeWarpScene(0.7);
   w.state.previous_regions[0].zoom = 2.0;
   cv::resize(w.state.previous_regions[0].image, w.state.previous_regions[0].image, cv::Size(), 2.0, 2.0);
-  FrontendOptions o;
+  WarpOptions o;
   o.tile_registration = false;
   auto detail = [](const cv::Mat& m) {
     cv::Mat lap;
@@ -461,9 +452,9 @@ TEST(OverlapWarp, WarpedImageIsBlurredToTheZoomedPreviousResolution) {
     cv::meanStdDev(lap, mean, sd);
     return sd[0];
   };
-  const OverlapWork blurred = WarpOverlap(w.overlap, w.state, o);
+  const OverlapWork blurred = WarpOverlap(w.overlap, w.state, o, GateOptions());
   o.match_previous_resolution = false;
-  const OverlapWork sharp = WarpOverlap(w.overlap, w.state, o);
+  const OverlapWork sharp = WarpOverlap(w.overlap, w.state, o, GateOptions());
   EXPECT_EQ(blurred.warped.size(), cv::Size(864, 864));
   EXPECT_LT(detail(blurred.warped), 0.7 * detail(sharp.warped));  // 7.1 vs 17.3
 }
@@ -495,7 +486,7 @@ OverlapWork GridScene(const Eigen::Matrix2d& A, const Eigen::Vector2d& t) {
   return w;  // train_from_previous = current_from_train = identity
 }
 
-bool GridRefine(const OverlapWork& w, const FrontendOptions& o, Candidate* c) {
+bool GridRefine(const OverlapWork& w, const GridLsmStepOptions& o, Candidate* c) {
   const LsmImage lt = MakeLsmImage(w.previous_crop), lw = MakeLsmImage(w.warped);
   return RefineOnGrid(w, lt, lw, o, o.grid_lsm, c);
 }
@@ -506,7 +497,7 @@ TEST(GridLsm, RefinesASubPixelShift) {
   Candidate c;
   c.prev_left = {100, 80};
   c.cur_left = {102, 79};  // the features' positions differ by a few px
-  ASSERT_TRUE(GridRefine(w, FrontendOptions(), &c));
+  ASSERT_TRUE(GridRefine(w, GridLsmStepOptions(), &c));
   EXPECT_TRUE(c.grid_refined);
   // Within 0.1 px: the shift is made by cubic interpolation, which the LSM's
   // bilinear model does not reproduce exactly (it finds 0.06 px here).
@@ -520,7 +511,7 @@ TEST(GridLsm, ShearGateDropsReliefParallax) {
   Eigen::Matrix2d A = Eigen::Matrix2d::Identity();
   A(0, 1) = 0.7;
   const OverlapWork w = GridScene(A, {0.2, 0.1});
-  FrontendOptions o;
+  GridLsmStepOptions o;
   o.grid_back_check_px = 0;
   Candidate c;
   c.prev_left = c.cur_left = {100, 80};
@@ -539,7 +530,7 @@ TEST(GridLsm, UnrelatedTextureIsNotRefined) {
   w.warped = Texture(w.previous_crop.size(), 99);
   Candidate c;
   c.prev_left = c.cur_left = {100, 80};
-  EXPECT_FALSE(GridRefine(w, FrontendOptions(), &c));
+  EXPECT_FALSE(GridRefine(w, GridLsmStepOptions(), &c));
 }
 
 TEST(GridLsm, OverlapRefinementCountsTheRefined) {
@@ -552,10 +543,10 @@ TEST(GridLsm, OverlapRefinementCountsTheRefined) {
   Candidate edge;  // too close to the border for the 53 x 11 window
   edge.prev_left = edge.cur_left = {10, 80};
   w.candidates.push_back(edge);
-  EXPECT_EQ(RefineOverlapOnGrid(FrontendOptions(), &w), 3);
-  FrontendOptions off;
+  EXPECT_EQ(RefineOverlapOnGrid(GridLsmStepOptions(), /*warp_current=*/true, &w), 3);
+  GridLsmStepOptions off;
   off.grid_lsm_enabled = false;
-  EXPECT_EQ(RefineOverlapOnGrid(off, &w), 0);
+  EXPECT_EQ(RefineOverlapOnGrid(off, /*warp_current=*/true, &w), 0);
 }
 
 // ---- backward overlaps
@@ -590,7 +581,8 @@ TEST(BackwardOverlaps, OppositeViewsMatchOnTheGround) {
   s.prediction.overlaps = {ov};
   TiePointSet tps;
   tps.previous_pointing = tps.current_pointing = {mp};
-  const std::vector<Candidate> c = MatchBackwardOverlap(0, navcam, tps, s, FrontendOptions());
+  const std::vector<Candidate> c = MatchBackwardOverlap(0, navcam, tps, s, RegionOptions(), WallisOptions(),
+                                                                AsiftOptions(), GatedMatchOptions(), GateOptions());
   const cv::Matx33d Hp_inv = Hp.inv(), Hc_inv = Hc.inv();
   int right = 0;
   for (const Candidate& m : c) {
@@ -618,7 +610,7 @@ TEST(BackwardOverlaps, OppositeViewsMatchOnTheGround) {
     return e;
   };
   const double before = Median(errors(s.candidates));
-  ASSERT_GE(RefineCrossSite(FrontendOptions(), &s), static_cast<int>(c.size() / 2));
+  ASSERT_GE(RefineCrossSite(CrossSiteLsmOptions(), /*grid_refined_only=*/true, 2, &s), static_cast<int>(c.size() / 2));
   const std::vector<double> after = errors(s.candidates);
   std::cout << "backward LSM: " << s.candidates.size() << " of " << c.size() << " refined, median error " << before
             << " -> " << Median(after) << " px\n";
@@ -650,7 +642,7 @@ TEST(CrossSiteRefinement, GridUnrefinedForwardMatchesAreDropped) {
   s.candidates.resize(3);
   for (int k = 0; k < 3; ++k) s.candidates[k].cur_left = {100.0 + 10 * k, 50}, s.candidates[k].sigma_cross = 0.1;
   s.candidates[1].grid_refined = true;
-  EXPECT_EQ(RefineCrossSite(FrontendOptions(), &s), 1);
+  EXPECT_EQ(RefineCrossSite(CrossSiteLsmOptions(), /*grid_refined_only=*/true, 2, &s), 1);
   EXPECT_TRUE(s.candidates[0].grid_refined);
   EXPECT_DOUBLE_EQ(s.candidates[0].cur_left.x(), 110);
 }
@@ -672,15 +664,14 @@ TEST(CrossSiteRefinement, UnrefinedMatchesCanBeKept) {
   s.candidates[0].prev_left = s.candidates[0].cur_left = {80, 80};
   s.candidates[1].prev_left = s.candidates[1].cur_left = {80, 80};
   s.candidates[1].cur_pair = 1;  // nothing to match in a flat image
-  FrontendOptions o;
-  o.keep_grid_unrefined = true;
+  CrossSiteLsmOptions o;  // with keep_grid_unrefined (grid_refined_only false): the forward candidates too
   o.keep_unrefined_cross = false;
   SitePairState refined = s;
-  ASSERT_EQ(RefineCrossSite(o, &refined), 1);
+  ASSERT_EQ(RefineCrossSite(o, /*grid_refined_only=*/false, 2, &refined), 1);
   EXPECT_NEAR(refined.candidates[0].cur_left.x(), 80.3, 0.1);
   EXPECT_LT(refined.candidates[0].sigma_cross, o.sigma_unrefined_px);
   o.keep_unrefined_cross = true;
-  ASSERT_EQ(RefineCrossSite(o, &s), 2);
+  ASSERT_EQ(RefineCrossSite(o, /*grid_refined_only=*/false, 2, &s), 2);
   EXPECT_DOUBLE_EQ(s.candidates[1].sigma_cross, o.sigma_unrefined_px);
   EXPECT_EQ(s.candidates[1].cur_left, Eigen::Vector2d(80, 80));
 }
@@ -722,13 +713,13 @@ StereoScene MakeStereoScene() {
 
 TEST(Stereo, CorrelationAndLsmFindTheDisparityAndTheDepth) {
   StereoScene sc = MakeStereoScene();
-  const FrontendOptions o;
+  const StereoStepOptions o;
   const int n = static_cast<int>(sc.state.candidates.size());
-  ASSERT_EQ(CorrelateStereo(sc.navcam, o, &sc.state), n);
+  ASSERT_EQ(CorrelateStereo(sc.navcam, o, 2, &sc.state), n);
   for (const Candidate& c : sc.state.candidates)
     EXPECT_NEAR(c.prev_left.x() - c.prev_right.x(), sc.disparity, 1.0);  // ZNCC: to the px
   EXPECT_EQ(MedianFilterDisparities(o, &sc.state), n);
-  ASSERT_EQ(RefineStereoAndIntersect(sc.navcam, sc.tps, o, &sc.state), n);
+  ASSERT_EQ(RefineStereoAndIntersect(sc.navcam, sc.tps, o, 2, &sc.state), n);
   const Pose3 body_from_left = sc.navcam.mast.BodyFromLeft(0, 0, sc.navcam.rig);
   for (const Candidate& c : sc.state.candidates) {
     EXPECT_NEAR(c.prev_left.x() - c.prev_right.x(), sc.disparity, 0.05);  // LSM: sub-pixel
@@ -750,7 +741,7 @@ TEST(Stereo, MedianFilterDropsADisparityUnlikeItsNeighbours) {
   }
   sc.state.candidates[7].prev_right.x() -= 15;  // at the previous site only
   const int n = static_cast<int>(sc.state.candidates.size());
-  EXPECT_EQ(MedianFilterDisparities(FrontendOptions(), &sc.state), n - 1);
+  EXPECT_EQ(MedianFilterDisparities(StereoStepOptions(), &sc.state), n - 1);
   for (const Candidate& c : sc.state.candidates) EXPECT_NEAR(c.prev_left.x() - c.prev_right.x(), sc.disparity, 1e-9);
 }
 
@@ -787,7 +778,7 @@ TEST(Verification, OutliersFailTheConsistencyChecks) {
   T.linear() = Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   T.translation() = Eigen::Vector3d(9.5, 1.0, 0.1);
   const std::vector<Candidate> c = VerificationScene(T, 60, 5);
-  const FrontendOptions o;
+  const VerificationOptions o;
   Verification v = CheckConsistency(c, o);
   CheckMotion(c, o, &v);
   for (int k = 0; k < 60; ++k) EXPECT_EQ(v.keep[k], k >= 5) << k;
@@ -808,7 +799,7 @@ TEST(Verification, OutliersFailTheConsistencyChecks) {
 // Without motion_consistency the rigid-motion check is skipped.
 TEST(Verification, MotionConsistencyCanBeSwitchedOff) {
   const std::vector<Candidate> c = VerificationScene(Eigen::Isometry3d::Identity(), 30, 0);
-  FrontendOptions o;
+  VerificationOptions o;
   o.motion_consistency = false;
   Verification v = CheckConsistency(c, o);
   v.keep.assign(c.size(), false);  // left as they are when the check is off
@@ -822,7 +813,7 @@ TEST(Verification, MotionFarFromDeadReckoningIsRejected) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.translation() = Eigen::Vector3d(10, 0, 0);
   const std::vector<Candidate> c = VerificationScene(T, 40, 0);
-  const FrontendOptions o;
+  const VerificationOptions o;
   Verification v = CheckConsistency(c, o);
   CheckMotion(c, o, &v);
   TiePointSet tps;
@@ -867,7 +858,8 @@ TEST(GroundPlanes, FittedToSparseStereoOfTheGround) {
     cv::Mat left, right;
     GroundStereo(navcam, mp, truth, &left, &right);
     const LsmImage l = MakeLsmImage(left), r = MakeLsmImage(right);
-    const Eigen::Vector4d plane = FitGroundPlane(navcam, mp, l.gray, r.gray, FrontendOptions());
+    const Eigen::Vector4d plane =
+        FitGroundPlane(navcam, mp, l.gray, r.gray, GroundPlaneOptions(), RegionOptions(), ZnccOptions());
     ASSERT_GT(plane.head<3>().norm(), 0.5) << truth.transpose();
     EXPECT_GT(plane.head<3>().dot(truth.head<3>()), std::cos(0.5 * M_PI / 180)) << plane.transpose();
     EXPECT_NEAR(plane(3), truth(3), 0.03) << plane.transpose();
@@ -881,15 +873,15 @@ TEST(GroundPlanes, NoGroundNoPlane) {
   cv::Mat left, right;
   GroundStereo(navcam, up, Eigen::Vector4d(0, 0, 1, 0), &left, &right);
   const LsmImage l = MakeLsmImage(left), r = MakeLsmImage(right);
-  EXPECT_TRUE(FitGroundPlane(navcam, up, l.gray, r.gray, FrontendOptions()).isZero());
+  EXPECT_TRUE(FitGroundPlane(navcam, up, l.gray, r.gray, GroundPlaneOptions(), RegionOptions(), ZnccOptions()).isZero());
 }
 
 TEST(GroundPlanes, OffGivesNoPlanes) {
   SitePairState s;
   s.current.pairs.resize(3);
-  FrontendOptions o;
+  GroundPlaneOptions o;
   o.fit_ground_planes = false;
-  EXPECT_EQ(FitGroundPlanes(NavcamModel(), TiePointSet(), o, &s), 0);
+  EXPECT_EQ(FitGroundPlanes(NavcamModel(), TiePointSet(), o, RegionOptions(), ZnccOptions(), 2, &s), 0);
   ASSERT_EQ(s.ground_planes.size(), 3u);
   for (const auto& p : s.ground_planes) EXPECT_TRUE(p.isZero());
 }
@@ -926,15 +918,15 @@ TEST(GroundAlignment, RecoversTheDrHeightErrorFromBothSitesGround) {
   Pose3 dr = current;
   dr.translation() += dr_error;
   const NavcamModel navcam;
-  const FrontendOptions o;
-  const GroundAlignment a = AlignGround(prev, cur, dr, up, 0.3, navcam, o);
+  const GroundAlignOptions o;
+  const GroundAlignment a = AlignGround(prev, cur, dr, up, 0.3, navcam, o, 2);
   ASSERT_TRUE(a.ok) << a.why;
   EXPECT_GT(a.points, 500);  // the current points over the previous site's ground
   EXPECT_NEAR(a.delta.z(), -dr_error.z(), 0.03) << a.delta.transpose();
   EXPECT_NEAR(a.delta.head<2>().norm(), 0.0, 1e-12);  // along up only
   EXPECT_LT(a.rms_after, 0.7 * a.rms_before);
   // A DR that claims 2 cm: the 0.25 m correction is refused, the DR stands.
-  const GroundAlignment tight = AlignGround(prev, cur, dr, up, 0.02, navcam, o);
+  const GroundAlignment tight = AlignGround(prev, cur, dr, up, 0.02, navcam, o, 2);
   EXPECT_FALSE(tight.ok);
   EXPECT_NE(tight.why.find("beyond the DR"), std::string::npos) << tight.why;
   // No ground in common (the current site behind the previous one, looking back): no correction.
@@ -942,7 +934,7 @@ TEST(GroundAlignment, RecoversTheDrHeightErrorFromBothSitesGround) {
   away.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   away.translation() = Eigen::Vector3d(-3, 0, 0);
   const std::vector<GroundPointSet> behind{GroundSeenFrom(away, 0.01, &rng)};
-  EXPECT_FALSE(AlignGround(prev, behind, away, up, 0.3, navcam, o).ok);
+  EXPECT_FALSE(AlignGround(prev, behind, away, up, 0.3, navcam, o, 2).ok);
 }
 
 }  // namespace

@@ -206,7 +206,7 @@ TEST(SimRender, FrontendVehicleMaskCoversTheRenderedDeck) {
   options.deck = true;
   options.add_noise = false;
   const NavcamRenderer renderer(TestTerrain(), model, options);
-  FrontendOptions frontend;
+  VehicleOptions frontend;
   frontend.vehicle_boxes_m = {options.deck_rear_m, options.deck_front_m, -options.deck_half_width_m,
                               options.deck_half_width_m, 0.3, options.deck_top_m};
   frontend.vehicle_margin_px = 3;

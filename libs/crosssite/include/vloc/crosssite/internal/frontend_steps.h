@@ -3,21 +3,26 @@
 // CrossSiteFrontend::Run (frontend.cpp, which calls them in this order) and
 // for their unit tests. Internal: not an API, it changes with the steps.
 //
-//   step                          file                        paper
-//   PrepareImages                 prepare_images.cpp          (undistortion)
-//   FitGroundPlanes               ground_planes.cpp           2.1, the ground the regions are projected on
-//   MeasureFarTerrain             ground_planes.cpp           (far-terrain stereo points, regions.far_*)
-//   PredictRegions                regions.cpp                 2.1, initial matching regions
-//   AlignToPreviousGround         ground_alignment.cpp        (DR relative height on the stereo ground)
-//   MakeWorkRegions               work_regions.cpp            2.2, Wallis filter and zoom of the regions
-//   DetectRegionFeatures          region_features.cpp         2.2, ASIFT with restricted tilts/longitudes
-//   WarpOverlap                   overlap_warp.cpp            (ground-plane warp + tile registration)
-//   MatchOverlap                  overlap_matching.cpp        2.2, gated matching + epipolar RANSAC
-//   RefineOnGrid                  grid_lsm.cpp                2.2, cross-site least-squares matching
-//   MatchBackwardOverlap          backward_overlaps.cpp       2.2, opposite views on the ground plane
-//   RefineCrossSite               cross_site_refinement.cpp   2.2, cross-site LSM at full resolution
-//   CorrelateStereo ..            stereo.cpp                  2.2, ZNCC + median filter + LSM at both sites
-//   CheckConsistency .. DR check  verification.cpp            2.2 eq. 2 (thresholds from eq. 7, 3.1)
+//   step                     file                        paper                               options (FrontendOptions.)
+//   PrepareImages            prepare_images.cpp          (undistortion)                      vehicle
+//   FitGroundPlanes          ground_planes.cpp           2.1, the ground the regions lie on  ground (+ regions, stereo.zncc)
+//   MeasureFarTerrain        ground_planes.cpp           (far-terrain stereo, regions.far_*) regions, stereo.zncc
+//   PredictRegions           regions.cpp                 2.1, initial matching regions       regions
+//   AlignToPreviousGround    ground_alignment.cpp        (DR relative height on the ground)  ground_alignment (+ ground,
+//                                                                                            regions, stereo.zncc)
+//   MakeWorkRegions          work_regions.cpp            2.2, Wallis filter and zoom         work_regions
+//   DetectRegionFeatures     region_features.cpp         2.2, ASIFT, restricted tilts        features
+//   WarpOverlap              overlap_warp.cpp            (ground-plane warp + tiles)         warp (+ gate)
+//   MatchOverlap             overlap_matching.cpp        2.2, gated matching + epipolar      overlap_matching (+ gate)
+//   RefineOnGrid             grid_lsm.cpp                2.2, cross-site LSM                 grid
+//   MatchBackwardOverlap     backward_overlaps.cpp       2.2, opposite views on the ground   regions, work_regions.wallis,
+//                                                                                            features.asift, gate,
+//                                                                                            overlap_matching.matching
+//   RefineCrossSite          cross_site_refinement.cpp   2.2, cross-site LSM, full res.      cross_site
+//   CorrelateStereo ..       stereo.cpp                  2.2, ZNCC + median + LSM, both      stereo
+//   CheckConsistency .. DR   verification.cpp            2.2 eq. 2 (eq. 7, 3.1)              verification
+// warp.warp_current (which image the matching steps use) and num_threads
+// are passed to the steps that need them as plain arguments.
 //
 // One SitePairState carries everything between the steps.
 
@@ -184,7 +189,7 @@ bool Triangulate(const Eigen::Vector3d& o1, const Eigen::Vector3d& d1, const Eig
 
 // Left-image mask (full size, dilated by vehicle_margin_px) of the pixels
 // whose ray meets one of vehicle_boxes_m; empty when none does.
-cv::Mat VehicleMask(const NavcamModel& navcam, const MastPointing& pointing, const FrontendOptions& options);
+cv::Mat VehicleMask(const NavcamModel& navcam, const MastPointing& pointing, const VehicleOptions& options);
 bool OnVehicle(const cv::Mat& mask, const Eigen::Vector2d& px);
 // Removes the features whose image position (image_from_feature applied to
 // the feature's point) lies on the mask.
@@ -198,26 +203,35 @@ std::optional<std::string> CheckInput(const SiteImages& previous, const SiteImag
                                       SitePairState* state);
 // The tie point set's header: site ids, poses, pointings, time.
 void InitTiePointSet(const SitePairState& state, TiePointSet* tie_points);
-// Undistorts all images and makes their LSM form.
-void PrepareImages(const NavcamModel& navcam, const FrontendOptions& options, SitePairState* state);
+// Whether an LSM of the steps interpolates by B-spline (stereo.lsm, cross_site.cross_lsm): PrepareImages then
+// makes the images' B-spline form.
+bool UsesBspline(const FrontendOptions& options);
+// Undistorts all images and makes their LSM form (with B-spline
+// interpolation when `bspline`),
+// and the left images' vehicle masks.
+void PrepareImages(const NavcamModel& navcam, const VehicleOptions& vehicle, bool bspline, int num_threads,
+                   SitePairState* state);
 
 // The ground seen by one current pair as a plane n . p + e = 0 (n up, unit)
 // in the body frame, from ZNCC stereo on a coarse grid and RANSAC; zero
-// when there are too few points or the plane is implausible.
+// when there are too few points or the plane is implausible. The points
+// lie within the regions' current ranges; `zncc` matches them.
 Eigen::Vector4d FitGroundPlane(const NavcamModel& navcam, const MastPointing& pointing, const cv::Mat& left,
-                               const cv::Mat& right, const FrontendOptions& options, GroundPointSet* points = nullptr);
+                               const cv::Mat& right, const GroundPlaneOptions& options, const RegionOptions& regions,
+                               const ZnccOptions& zncc, GroundPointSet* points = nullptr);
 // The sparse stereo points a ground plane is fitted to.
 GroundPointSet GroundStereoPoints(const NavcamModel& navcam, const MastPointing& pointing, const cv::Mat& left,
-                                  const cv::Mat& right, const FrontendOptions& options);
+                                  const cv::Mat& right, const GroundPlaneOptions& options, const RegionOptions& regions,
+                                  const ZnccOptions& zncc);
 // Every current pair's ground plane (fit_ground_planes); returns how many.
-int FitGroundPlanes(const NavcamModel& navcam, const TiePointSet& tie_points, const FrontendOptions& options,
-                    SitePairState* state);
+int FitGroundPlanes(const NavcamModel& navcam, const TiePointSet& tie_points, const GroundPlaneOptions& options,
+                    const RegionOptions& regions, const ZnccOptions& zncc, int num_threads, SitePairState* state);
 
 // Every current pair's far-terrain stereo points (regions.far_min_range to
 // far_max_range, on the regions' grid, range sigma from
 // far_disparity_sigma_px); returns how many.
-int MeasureFarTerrain(const NavcamModel& navcam, const TiePointSet& tie_points, const FrontendOptions& options,
-                      SitePairState* state);
+int MeasureFarTerrain(const NavcamModel& navcam, const TiePointSet& tie_points, const RegionOptions& regions,
+                      const ZnccOptions& zncc, int num_threads, SitePairState* state);
 
 // ---- the DR's relative height on the ground both sites measured (ground_alignment.cpp)
 // DR knows the height gained between two sites worst (wheel slip on a
@@ -244,30 +258,33 @@ struct GroundAlignment {
 // (unit); `prior_sigma_m`: the DR's relative height sigma.
 GroundAlignment AlignGround(const std::vector<GroundPointSet>& previous, const std::vector<GroundPointSet>& current,
                             const Pose3& previous_from_current, const Eigen::Vector3d& up, double prior_sigma_m,
-                            const NavcamModel& navcam, const FrontendOptions& options);
-// Runs AlignGround for the pair (options.ground_align) and, when it holds,
-// predicts the regions again from the corrected pose; returns the points used.
-int AlignToPreviousGround(const NavcamModel& navcam, const TiePointSet& tie_points, const FrontendOptions& options,
-                          SitePairState* state);
+                            const NavcamModel& navcam, const GroundAlignOptions& options, int num_threads);
+// Runs AlignGround for the pair (options.ground_align, when the ground
+// planes were fitted; the previous site's points as the planes' are) and, when it holds, predicts the regions again from the
+// corrected pose; returns the points used.
+int AlignToPreviousGround(const NavcamModel& navcam, const TiePointSet& tie_points, const GroundAlignOptions& options,
+                          const GroundPlaneOptions& ground, const RegionOptions& regions, const ZnccOptions& zncc,
+                          int num_threads, SitePairState* state);
 
 // Regions per image, Wallis filter, zoom, previous site's Wallis targets.
 // Returns the number of regions; state->largest_region_std says whether
 // there is texture at all.
-int MakeWorkRegions(const FrontendOptions& options, SitePairState* state);
+int MakeWorkRegions(const WorkRegionOptions& options, bool warp_current, int num_threads, SitePairState* state);
 // Per current image the overlaps with the most ground samples
 // (max_overlaps_per_image), and the current images filtered whole (warp_current).
-void ChooseOverlaps(const FrontendOptions& options, SitePairState* state);
+void ChooseOverlaps(const WorkRegionOptions& options, bool warp_current, int num_threads, SitePairState* state);
 
 // ASIFT on the work regions (previous: t = 1; current, without
 // warp_current: the tilts and longitudes the prediction allows). Returns
 // the number of features.
-int DetectRegionFeatures(const FrontendOptions& options, SitePairState* state);
+int DetectRegionFeatures(const FeatureOptions& options, bool warp_current, int num_threads, SitePairState* state);
 
 // Warps the current image of a forward overlap onto the previous
 // region's grid and registers it by tile correlation (two passes).
-OverlapWork WarpOverlap(const PairOverlap& overlap, const SitePairState& state, const FrontendOptions& options);
+OverlapWork WarpOverlap(const PairOverlap& overlap, const SitePairState& state, const WarpOptions& options,
+                        const GateOptions& gate);
 // ASIFT on a warped overlap (tilts up to warp_max_tilt).
-void DetectWarpedFeatures(const FrontendOptions& options, OverlapWork* work);
+void DetectWarpedFeatures(const FeatureOptions& options, bool warp_current, OverlapWork* work);
 
 // Stage 1: the densest cluster of match offsets (current - predicted, train
 // px) within radius r of one offset, kept within 2r of its mean.
@@ -279,8 +296,8 @@ std::vector<int> SpreadSelect(const std::vector<Candidate>& candidates, const st
                               double cell);
 // Gated matching of forward overlap k: DR prediction (stage 1), refined
 // prediction (stage 2), epipolar test, spread selection. Fills work->candidates.
-void MatchOverlap(int k, const PairOverlap& overlap, const SitePairState& state, const FrontendOptions& options,
-                  OverlapWork* work);
+void MatchOverlap(int k, const PairOverlap& overlap, const SitePairState& state, const OverlapMatchOptions& options,
+                  const GateOptions& gate, bool warp_current, OverlapWork* work);
 
 // The correlation peak of the window around templ_px of `templ` within
 // +-radius px of *target_px in `target` (both CV_8UC1), sub-pixel by a
@@ -292,25 +309,32 @@ bool ZnccPeakNear(const cv::Mat& templ, const Eigen::Vector2d& templ_px, const c
 // forms of work.previous_crop and work.warped; `lsm` the window and gates
 // (options.grid_lsm, or options.grid_lsm_retry on a second try). False: not refined.
 bool RefineOnGrid(const OverlapWork& work, const LsmImage& previous, const LsmImage& warped,
-                  const FrontendOptions& options, const LsmOptions& lsm, Candidate* candidate);
-// RefineOnGrid on every candidate of the overlap; returns how many were refined.
-int RefineOverlapOnGrid(const FrontendOptions& options, OverlapWork* work);
+                  const GridLsmStepOptions& options, const LsmOptions& lsm, Candidate* candidate);
+// RefineOnGrid on every candidate of the overlap (warp_current only);
+// returns how many were refined.
+int RefineOverlapOnGrid(const GridLsmStepOptions& options, bool warp_current, OverlapWork* work);
 
 // A backward overlap matched on the ground plane (ortho images of both sites).
+// It reuses the regions' ground and sigma scale, the Wallis filter, ASIFT,
+// the matcher and the gate margin of the forward steps.
 std::vector<Candidate> MatchBackwardOverlap(int k, const NavcamModel& navcam, const TiePointSet& tie_points,
-                                            const SitePairState& state, const FrontendOptions& options);
+                                            const SitePairState& state, const RegionOptions& regions,
+                                            const WallisOptions& wallis, const AsiftOptions& asift,
+                                            const GatedMatchOptions& matching, const GateOptions& gate);
 
 // Cross-site LSM of the candidates the grid LSM did not refine (full
 // resolution, or dropped), then duplicates merged. Returns the count left.
-int RefineCrossSite(const FrontendOptions& options, SitePairState* state);
+// `grid_refined_only`: the grid LSM ran on the forward overlaps and what it
+// did not refine is dropped (only backward candidates are refined here).
+int RefineCrossSite(const CrossSiteLsmOptions& options, bool grid_refined_only, int num_threads, SitePairState* state);
 // Of candidates sorted by sigma_cross, drops those within `radius` px of a kept one in the same current image.
 void MergeDuplicates(double radius, std::vector<Candidate>* candidates);
 
 // Stereo at both sites, in three steps.
-int CorrelateStereo(const NavcamModel& navcam, const FrontendOptions& options, SitePairState* state);
-int MedianFilterDisparities(const FrontendOptions& options, SitePairState* state);
-int RefineStereoAndIntersect(const NavcamModel& navcam, const TiePointSet& tie_points, const FrontendOptions& options,
-                             SitePairState* state);
+int CorrelateStereo(const NavcamModel& navcam, const StereoStepOptions& options, int num_threads, SitePairState* state);
+int MedianFilterDisparities(const StereoStepOptions& options, SitePairState* state);
+int RefineStereoAndIntersect(const NavcamModel& navcam, const TiePointSet& tie_points, const StereoStepOptions& options,
+                             int num_threads, SitePairState* state);
 
 // Verification: distance consistency (eq. 2), one rigid motion, the tie
 // points with their sigmas, and the check against dead reckoning.
@@ -321,13 +345,13 @@ struct Verification {
   std::vector<bool> keep;        // per candidate, also one rigid motion
   int num_kept = 0;
 };
-Verification CheckConsistency(const std::vector<Candidate>& candidates, const FrontendOptions& options);
-void CheckMotion(const std::vector<Candidate>& candidates, const FrontendOptions& options, Verification* v);
+Verification CheckConsistency(const std::vector<Candidate>& candidates, const VerificationOptions& options);
+void CheckMotion(const std::vector<Candidate>& candidates, const VerificationOptions& options, Verification* v);
 void MakeTiePoints(const std::vector<Candidate>& candidates, const Verification& v, const RegionPrediction& prediction,
-                   const FrontendOptions& options, TiePointSet* tie_points);
+                   const VerificationOptions& options, TiePointSet* tie_points);
 // The motion the tie points imply against the DR prediction; the problem
 // (and the points cleared) when it is beyond max_motion_sigmas.
 std::optional<std::string> CheckAgainstDeadReckoning(const RegionPrediction& prediction,
-                                                     const FrontendOptions& options, TiePointSet* tie_points);
+                                                     const VerificationOptions& options, TiePointSet* tie_points);
 
 }  // namespace vloc::frontend_internal
