@@ -1,7 +1,8 @@
 // Step 10: the cross-site positions the grid LSM did not refine. With the
-// grid LSM on (the default) they are dropped, unless keep_grid_unrefined;
-// otherwise (and for backward overlaps) the previous-left window is matched
-// into the full-resolution current-left image from the predicted affine.
+// grid LSM (warp_current, the default) they are dropped; otherwise (and for
+// backward overlaps) the previous-left window is matched into the
+// full-resolution current-left image from the predicted affine, and a match
+// it cannot refine is dropped.
 // Then duplicates (one current pixel matched through two overlaps) merge.
 #include <omp.h>
 
@@ -32,13 +33,11 @@ int RefineCrossSite(const CrossSiteLsmOptions& o, bool grid_refined_only, int nu
     }
     const LsmResult r = LeastSquaresMatch(s->previous_left[c.prev_pair].lsm, c.prev_left,
                                           s->current_left[c.cur_pair].lsm, c.cur_left, c.initial_affine, o.cross_lsm);
-    c.ok = r.ok || o.keep_unrefined_cross;
+    c.ok = r.ok;
     c.why = r.why;
     if (r.ok) {
       c.cur_left = r.target;
       c.sigma_cross = r.sigma_px;
-    } else {
-      c.sigma_cross = o.sigma_unrefined_px;  // feature position only
     }
   }
   if (VLOG_IS_ON(1)) {
@@ -47,7 +46,7 @@ int RefineCrossSite(const CrossSiteLsmOptions& o, bool grid_refined_only, int nu
       if (c.why && *c.why) ++reasons[c.why];
     for (const auto& [why, n] : reasons) VLOG(1) << "cross-site LSM rejected " << n << ": " << why;
     int num_refined = 0;
-    for (const auto& c : cands) num_refined += c.ok && (c.grid_refined || c.sigma_cross < o.sigma_unrefined_px) ? 1 : 0;
+    for (const auto& c : cands) num_refined += c.ok ? 1 : 0;
     VLOG(1) << "cross-site LSM refined " << num_refined << " of " << cands.size();
   }
   cands.erase(std::remove_if(cands.begin(), cands.end(), [](const Candidate& c) { return !c.ok; }), cands.end());

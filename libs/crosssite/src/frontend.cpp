@@ -81,8 +81,6 @@ void OverlapMatchOptions::Visit(OptionsReader& r) {
 }
 
 void GridLsmStepOptions::Visit(OptionsReader& r) {
-  r.Optional("grid_lsm_enabled", &grid_lsm_enabled,
-             "refine cross-site matches by LSM on the previous region's grid (tests only: false)");
   r.Child("grid_lsm", [&](OptionsReader& c) { grid_lsm.Visit(c); });
   r.Child("grid_lsm_retry", [&](OptionsReader& c) { grid_lsm_retry.Visit(c); });
   r.Optional("grid_retry_below", &grid_retry_below,
@@ -95,15 +93,12 @@ void GridLsmStepOptions::Visit(OptionsReader& r) {
              "px (grid), LSM back from the warped current image must return this close (0 = off)", NonNegative());
   r.Optional("grid_max_shear", &grid_max_shear, "largest |dx/dy| of the grid LSM's affine (relief parallax), 0 = off",
              NonNegative());
-  r.Optional("keep_grid_unrefined", &keep_grid_unrefined,
-             "keep matches the grid LSM could not refine (tests only: true)");
 }
 
 void CrossSiteLsmOptions::Visit(OptionsReader& r) {
   r.Child("cross_lsm", [&](OptionsReader& c) { cross_lsm.Visit(c); });
-  r.Optional("keep_unrefined_cross", &keep_unrefined_cross,
-             "keep matches whose cross-site LSM failed (tests only: true)");
-  r.Optional("sigma_unrefined_px", &sigma_unrefined_px, "px, sigma of an unrefined cross-site position", Positive());
+  r.Optional("sigma_unrefined_px", &sigma_unrefined_px, "px, sigma of a manual click the cross-site LSM could not refine",
+             Positive());
   r.Optional("duplicate_radius", &duplicate_radius, "px, tie points closer than this are merged", NonNegative());
 }
 
@@ -337,9 +332,8 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous, const SiteImag
                                                      std::to_string(s.num_current_features) + "): too little texture");
     s.overlaps.clear();  // the warped images are no longer needed
 
-    // What the grid LSM (forward overlaps, warped) did not refine is dropped, unless kept by keep_grid_unrefined.
-    const bool grid_refined_only = o.grid.grid_lsm_enabled && warp_current && !o.grid.keep_grid_unrefined;
-    stages.Step("cross_lsm_merge", [&] { return RefineCrossSite(o.cross_site, grid_refined_only, o.num_threads, &s); });
+    // With warp_current the grid LSM refined the forward matches: what it did not is dropped.
+    stages.Step("cross_lsm_merge", [&] { return RefineCrossSite(o.cross_site, warp_current, o.num_threads, &s); });
     stages.Step("stereo_zncc", [&] { return CorrelateStereo(navcam, o.stereo, o.num_threads, &s); });
     stages.Step("median_filter", [&] { return MedianFilterDisparities(o.stereo, &s); });
     stages.Step("stereo_lsm", [&] { return RefineStereoAndIntersect(navcam, tps, o.stereo, o.num_threads, &s); });

@@ -89,7 +89,7 @@ bool RefineOnGrid(const OverlapWork& work, const LsmImage& lt, const LsmImage& l
 }
 
 int RefineOverlapOnGrid(const GridLsmStepOptions& o, bool warp_current, OverlapWork* work) {
-  if (!o.grid_lsm_enabled || !warp_current || work->warped.empty() || work->previous_crop.empty() ||
+  if (!warp_current || work->warped.empty() || work->previous_crop.empty() ||
       work->candidates.empty())
     return 0;
   const LsmImage lt = MakeLsmImage(work->previous_crop, o.grid_lsm.bspline),

@@ -544,9 +544,7 @@ TEST(GridLsm, OverlapRefinementCountsTheRefined) {
   edge.prev_left = edge.cur_left = {10, 80};
   w.candidates.push_back(edge);
   EXPECT_EQ(RefineOverlapOnGrid(GridLsmStepOptions(), /*warp_current=*/true, &w), 3);
-  GridLsmStepOptions off;
-  off.grid_lsm_enabled = false;
-  EXPECT_EQ(RefineOverlapOnGrid(off, /*warp_current=*/true, &w), 0);
+  EXPECT_EQ(RefineOverlapOnGrid(GridLsmStepOptions(), /*warp_current=*/false, &w), 0);  // no warp: no grid
 }
 
 // ---- backward overlaps
@@ -599,7 +597,7 @@ TEST(BackwardOverlaps, OppositeViewsMatchOnTheGround) {
   // The cross-site LSM starts from the ground plane's local affine (about a
   // half turn here) and takes the features, placed on the 2 cm ortho grid,
   // to the current pixel of the same ground point; matches it cannot refine
-  // are dropped (keep_unrefined_cross false).
+  // are dropped.
   s.previous_left[0].lsm = MakeLsmImage(prev_img);
   s.current_left[0].lsm = MakeLsmImage(cur_img);
   s.candidates = c;
@@ -634,8 +632,8 @@ TEST(CrossSiteRefinement, DuplicatesMergeToTheMostPrecise) {
   EXPECT_DOUBLE_EQ(c[2].sigma_cross, 0.4);
 }
 
-// With the grid LSM on, forward matches it did not refine are dropped
-// (keep_grid_unrefined false) and refined ones kept as they are.
+// With the grid LSM (warp_current), forward matches it did not refine are
+// dropped and refined ones kept as they are.
 TEST(CrossSiteRefinement, GridUnrefinedForwardMatchesAreDropped) {
   SitePairState s;
   s.prediction.overlaps.resize(1);
@@ -647,11 +645,9 @@ TEST(CrossSiteRefinement, GridUnrefinedForwardMatchesAreDropped) {
   EXPECT_DOUBLE_EQ(s.candidates[0].cur_left.x(), 110);
 }
 
-// keep_grid_unrefined: a forward match the grid LSM could not refine goes
-// to the full-resolution cross-site LSM instead of being dropped; with
-// keep_unrefined_cross a failed LSM keeps the feature position at
-// sigma_unrefined_px.
-TEST(CrossSiteRefinement, UnrefinedMatchesCanBeKept) {
+// Without the warp (no grid LSM) a forward match goes to the
+// full-resolution cross-site LSM; one it cannot refine is dropped.
+TEST(CrossSiteRefinement, UnwarpedMatchesAreRefinedOrDropped) {
   SitePairState s;
   s.prediction.overlaps.resize(1);
   const cv::Mat texture = Texture({160, 160}, 41);
@@ -664,16 +660,10 @@ TEST(CrossSiteRefinement, UnrefinedMatchesCanBeKept) {
   s.candidates[0].prev_left = s.candidates[0].cur_left = {80, 80};
   s.candidates[1].prev_left = s.candidates[1].cur_left = {80, 80};
   s.candidates[1].cur_pair = 1;  // nothing to match in a flat image
-  CrossSiteLsmOptions o;  // with keep_grid_unrefined (grid_refined_only false): the forward candidates too
-  o.keep_unrefined_cross = false;
-  SitePairState refined = s;
-  ASSERT_EQ(RefineCrossSite(o, /*grid_refined_only=*/false, 2, &refined), 1);
-  EXPECT_NEAR(refined.candidates[0].cur_left.x(), 80.3, 0.1);
-  EXPECT_LT(refined.candidates[0].sigma_cross, o.sigma_unrefined_px);
-  o.keep_unrefined_cross = true;
-  ASSERT_EQ(RefineCrossSite(o, /*grid_refined_only=*/false, 2, &s), 2);
-  EXPECT_DOUBLE_EQ(s.candidates[1].sigma_cross, o.sigma_unrefined_px);
-  EXPECT_EQ(s.candidates[1].cur_left, Eigen::Vector2d(80, 80));
+  const CrossSiteLsmOptions o;
+  ASSERT_EQ(RefineCrossSite(o, /*grid_refined_only=*/false, 2, &s), 1);
+  EXPECT_NEAR(s.candidates[0].cur_left.x(), 80.3, 0.1);
+  EXPECT_LT(s.candidates[0].sigma_cross, o.sigma_unrefined_px);
 }
 
 // ---- stereo at both sites

@@ -183,9 +183,9 @@ struct OverlapMatchOptions {
   void Visit(OptionsReader& reader);
 };
 
-// overlap_grid_lsm: cross-site LSM on the previous region's grid, with the relief gates.
+// overlap_grid_lsm: cross-site LSM on the previous region's grid, with the relief gates (with warp_current;
+// the forward matches it does not refine are dropped).
 struct GridLsmStepOptions {
-  bool grid_lsm_enabled = true;        // (tests only) cross-site LSM on the previous region's grid (warp_current)
   LsmOptions grid_lsm = GridLsmDefaults();  // previous region -> warped current image, on the previous grid
   LsmOptions grid_lsm_retry = GridLsmRetryDefaults();  // the unrefined candidates of a poorly refined overlap again
   int grid_retry_below = 40;           // retry an overlap whose grid LSM refined fewer candidates than this (0 = off)
@@ -198,17 +198,16 @@ struct GridLsmStepOptions {
   // epipolar lines, which geometry cannot see (about 1 px there).
   double grid_back_check_px = 0.5;     // px (grid): LSM from the warped current image back must land this close
   double grid_max_shear = 0.5;         // largest |dx/dy| of the grid LSM's affine
-  bool keep_grid_unrefined = false;    // (tests only) keep matches the grid LSM could not refine (at cross-site
-                                       // LSM, else with cross_site's sigma_unrefined_px)
   void Visit(OptionsReader& reader);
 };
 
 // cross_lsm_merge: cross-site LSM of what the grid LSM did not refine, duplicates merged (and the manual clicks).
+// A match it cannot refine is dropped: backward matches kept at their features (on the 2 cm ground grid) were
+// 11.6 % > 2 px off, dropped 0.5 %.
 struct CrossSiteLsmOptions {
   LsmOptions cross_lsm;                // previous-left -> current-left LSM
-  bool keep_unrefined_cross = false;   // (tests only) keep a match whose cross-site LSM failed, at its feature position ...
-  double sigma_unrefined_px = 1.0;     // px, ... with this sigma (backward matches kept that way, their features
-                                       // on the 2 cm ground grid: 11.6 % > 2 px off; dropped: 0.5 %)
+  double sigma_unrefined_px = 1.0;     // px, sigma of a manual click the cross-site LSM could not refine (kept at
+                                       // the click; an automatic match is dropped)
   double duplicate_radius = 1.5;       // px, tie points closer than this in a current left image are merged
   void Visit(OptionsReader& reader);
 };

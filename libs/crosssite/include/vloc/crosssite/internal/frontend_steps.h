@@ -323,9 +323,10 @@ std::vector<Candidate> MatchBackwardOverlap(int k, const NavcamModel& navcam, co
                                             const GatedMatchOptions& matching, const GateOptions& gate);
 
 // Cross-site LSM of the candidates the grid LSM did not refine (full
-// resolution, or dropped), then duplicates merged. Returns the count left.
-// `grid_refined_only`: the grid LSM ran on the forward overlaps and what it
-// did not refine is dropped (only backward candidates are refined here).
+// resolution; dropped when it fails), then duplicates merged. Returns the
+// count left. `grid_refined_only` (warp_current): the grid LSM ran on the
+// forward overlaps and what it did not refine is dropped (only backward
+// candidates are refined here).
 int RefineCrossSite(const CrossSiteLsmOptions& options, bool grid_refined_only, int num_threads, SitePairState* state);
 // Of candidates sorted by sigma_cross, drops those within `radius` px of a kept one in the same current image.
 void MergeDuplicates(double radius, std::vector<Candidate>* candidates);
