@@ -59,6 +59,23 @@ class RegistrationCandidates : public ::testing::Test {
     return in;
   }
   static Keyframe KeyOf(const View& v, int64_t utime = 0) { return Keyframe{v.features, v.mosaic_from_frame, utime}; }
+  // Five views 5 m apart along the east axis (seeds first_seed...) blended into `blender`.
+  static void PaintStrip(MosaicBlender* blender, int first_seed) {
+    blender->Start();
+    for (int i = 0; i < 5; ++i) {
+      const View v = Shoot(-10 + 5 * i, 0, 0, first_seed + i);
+      ASSERT_TRUE(blender->Blend(v.image, v.mosaic_from_frame).done);
+    }
+  }
+  // A GPS prediction `offset` (ground px) from `truth`, with a 200 px tolerance.
+  static Prediction GpsPrediction(const Similarity2& truth, const Similarity2& offset) {
+    Prediction p;
+    p.from_gps = true;
+    p.mosaic_from_frame = offset * truth;
+    p.gps_px = p.mosaic_from_frame.Apply(Centre());
+    p.gps_tolerance_px = 200;
+    return p;
+  }
 
   static testing::SyntheticGround* ground_;
   static NadirCamera cam_;
@@ -148,11 +165,7 @@ TEST_F(RegistrationCandidates, NeighboursTryTheNearestKeptFramesNotTheKeyframe) 
 TEST_F(RegistrationCandidates, MosaicSearchIsCentredOnThePoseItIsGiven) {
   MosaickerOptions o = Options();
   MosaicBlender blender(o.canvas, false);
-  blender.Start();
-  for (int i = 0; i < 5; ++i) {
-    const View v = Shoot(-10 + 5 * i, 0, 0, 20 + i);
-    ASSERT_TRUE(blender.Blend(v.image, v.mosaic_from_frame).done);
-  }
+  PaintStrip(&blender, 20);
   const View b = Shoot(2, 1, 0.1, 30);
   // Searched around the truth: registered; around a pose 2 km away: nothing painted there.
   const Registration r = RegisterToMosaic(b.image, b.features, blender, b.mosaic_from_frame, 1.6, o);
@@ -172,12 +185,7 @@ TEST_F(RegistrationCandidates, MosaicSearchIsCentredOnThePoseItIsGiven) {
   EXPECT_FALSE(RegisterToMosaicAfterLoss(in, o).tried);
   in.lost = true;
   EXPECT_FALSE(RegisterToMosaicAfterLoss(in, o).ok);
-  Prediction p;
-  p.from_gps = true;
-  p.mosaic_from_frame = Similarity2{1, 0, 15, -10} * b.mosaic_from_frame;
-  p.gps_px = p.mosaic_from_frame.Apply(Centre());
-  p.gps_tolerance_px = 200;
-  prediction_ = p;
+  prediction_ = GpsPrediction(b.mosaic_from_frame, Similarity2{1, 0, 15, -10});
   const Registration at_gps = RegisterToMosaicAfterLoss(in, o);
   ASSERT_TRUE(at_gps.ok) << at_gps.why;
   EXPECT_LT(CentreError(at_gps.mosaic_from_frame, b.mosaic_from_frame), 2.0);
@@ -225,21 +233,12 @@ TEST_F(RegistrationCandidates, PlaceByGpsOnlyOnNewGroundAndOnlyWhenAsked) {
 TEST_F(RegistrationCandidates, ANewFlightIsSearchedInTheMosaicAndPlacedByGps) {
   MosaickerOptions o = Options();
   MosaicBlender blender(o.canvas, false);
-  blender.Start();
-  for (int i = 0; i < 5; ++i) {
-    const View v = Shoot(-10 + 5 * i, 0, 0, 70 + i);
-    ASSERT_TRUE(blender.Blend(v.image, v.mosaic_from_frame).done);
-  }
+  PaintStrip(&blender, 70);
   const View b = Shoot(2, 1, 0.1, 80);
   RegistrationInput in = Input(b, nullptr);
   in.mosaic = &blender;
   in.last_good = Similarity2{1, 0, 40000, 0} * b.mosaic_from_frame;
-  Prediction p;
-  p.from_gps = true;
-  p.mosaic_from_frame = Similarity2{1, 0, 15, -10} * b.mosaic_from_frame;
-  p.gps_px = p.mosaic_from_frame.Apply(Centre());
-  p.gps_tolerance_px = 200;
-  prediction_ = p;
+  prediction_ = GpsPrediction(b.mosaic_from_frame, Similarity2{1, 0, 15, -10});
   in.seconds_since_registered = 900;  // 15 minutes later, not lost
   EXPECT_FALSE(NewFlight(in, o));     // off by default
   EXPECT_FALSE(RegisterToMosaicAfterLoss(in, o).tried);
