@@ -47,7 +47,6 @@ SurveyPhotos CheckSurveyPhotos(const std::vector<std::string>& paths, const Imag
 }
 
 bool FitCamera(cv::Size size, double focal_px, cv::Size survey, double survey_focal_px, CameraFit* fit, std::string* why) {
-  fit->size = size;
   fit->scale = 1.0;
   if (size == survey && std::abs(focal_px / survey_focal_px - 1) < 1e-3) return true;
   fit->scale = survey_focal_px / focal_px;

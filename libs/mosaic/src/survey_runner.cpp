@@ -190,6 +190,7 @@ bool SurveyRunner::FitCameras() {
   std::vector<SurveyFrame> frames;
   std::vector<std::string> paths;
   std::vector<cv::Size> sizes;
+  int refitted = 0;
   for (size_t i = 0; i < sizes_.size(); ++i) {
     const double exif = FocalPixelsFromExif(frames_[i].tag, sizes_[i].width, nullptr);
     const double focal = std::isfinite(exif) && std::isfinite(ref_exif) ? f * exif / ref_exif
@@ -202,13 +203,13 @@ bool SurveyRunner::FitCameras() {
       tagged_ -= frames_[i].tag.has_gps ? 1 : 0;
       continue;
     }
-    if (!fit.identity()) ++refitted_;
+    if (!fit.identity()) ++refitted;
     frames.push_back(frames_[i]), paths.push_back(paths_[i]), sizes.push_back(sizes_[i]), fits_.push_back(fit);
   }
   frames_.swap(frames), paths_.swap(paths), sizes_.swap(sizes);
   use_gps_ = use_gps_ && tagged_ >= 2;
-  if (refitted_ > 0)
-    Out() << refitted_ << " photos of another camera resampled to the survey's " << size_.width << " x " << size_.height
+  if (refitted > 0)
+    Out() << refitted << " photos of another camera resampled to the survey's " << size_.width << " x " << size_.height
           << " px at " << f << " px focal length\n";
   if (frames_.size() < 2) {
     Err() << "uav_mosaic_files: " << frames_.size() << " photos usable: at least two are needed\n";

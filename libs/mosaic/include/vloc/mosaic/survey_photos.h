@@ -36,7 +36,6 @@ SurveyPhotos CheckSurveyPhotos(const std::vector<std::string>& paths, const Imag
 // of the survey's camera.
 struct CameraFit {
   double scale = 1.0;
-  cv::Size size;                      // the photo's own size (px)
   bool identity() const { return scale == 1.0; }
 };
 // The fit of a photo of `size` and focal `focal_px` to a survey of `survey`

@@ -163,7 +163,7 @@ class SurveyRunner {
   std::vector<cv::Size> sizes_;        // each photo's own size
   std::vector<CameraFit> fits_;        // each photo brought to the survey's camera
   std::vector<SurveyFrame> frames_;
-  int tagged_ = 0, refusals_ = 0, failures_ = 0, refitted_ = 0;
+  int tagged_ = 0, refusals_ = 0, failures_ = 0;
   bool use_gps_ = false, times_ok_ = false, used_oblique_ = false;
   const ImageGeotag* origin_ = nullptr;  // the first tagged photo's tag
   std::unique_ptr<UavMosaicker> mosaicker_;
