@@ -3,6 +3,8 @@
 #include <glog/logging.h>
 #include <unistd.h>
 
+#include "vloc/lcm_io/convert_launch.h"
+
 namespace vloc {
 
 LaunchLcmAdapter::LaunchLcmAdapter(Supervisor& supervisor, Transport& transport, std::string host,
@@ -32,21 +34,7 @@ void LaunchLcmAdapter::Subscribe() {
 }
 
 void LaunchLcmAdapter::HandleStatus(const procman_status_t& status) {
-  PeerReport report;
-  report.host = status.host;
-  report.launcher_pid = status.launcher_pid;
-  for (const auto& p : status.procs) {
-    ProcessStatus s;
-    s.name = p.name;
-    s.group = p.group;
-    s.pid = p.pid;
-    s.state = static_cast<ProcState>(p.state);
-    s.restarts = p.restarts;
-    s.last_exit_code = p.last_exit_code;
-    s.has_exited = p.last_exit_code != 0 || p.state == proc_status_t::STATE_EXITED;
-    report.procs.push_back(s);
-  }
-  for (const PeerEvent& e : peers_.OnReport(report, std::chrono::steady_clock::now())) {
+  for (const PeerEvent& e : peers_.OnReport(PeerReportFromMessage(status), std::chrono::steady_clock::now())) {
     if (e.kind == PeerEventKind::kDuplicateHost) LOG(WARNING) << "peers: " << e.text;
     else LOG(INFO) << "peers: " << e.text;
   }
@@ -112,49 +100,22 @@ void LaunchLcmAdapter::Tick() {
   next_status_ = now + period_;
 }
 
-void LaunchLcmAdapter::PublishStatus() {
-  procman_status_t msg;
-  msg.utime = std::chrono::duration_cast<std::chrono::microseconds>(
-                  std::chrono::system_clock::now().time_since_epoch())
-                  .count();
-  msg.host = host_;
-  msg.launcher_pid = static_cast<int32_t>(getpid());
-  for (const auto& s : supervisor_.Status()) {
-    proc_status_t p;
-    p.name = s.name;
-    p.group = s.group;
-    p.pid = s.pid;
-    p.state = static_cast<int8_t>(s.state);
-    p.restarts = s.restarts;
-    p.last_exit_code = s.last_exit_code;
-    p.cpu_percent = s.cpu_percent;
-    p.rss_bytes = s.rss_bytes;
-    p.uptime_seconds = s.uptime_seconds;
-    msg.procs.push_back(p);
-  }
-  msg.num_procs = static_cast<int32_t>(msg.procs.size());
-  Publish(transport_, kProcmanStatusChannel, msg);
-  PublishPeers(msg.utime);
+namespace {
+
+int64_t WallMicros() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
 }
 
-void LaunchLcmAdapter::PublishPeers(int64_t utime) {
-  procman_peers_t msg;
-  msg.utime = utime;
-  msg.host = host_;
-  msg.launcher_pid = static_cast<int32_t>(getpid());
-  msg.lost_after_seconds = peer_options_.lost_after_s;
-  for (const PeerView& v : peers_.Peers(std::chrono::steady_clock::now())) {
-    procman_peer_t p;
-    p.host = v.host;
-    p.launcher_pid = v.launcher_pid;
-    p.state = v.lost ? procman_peer_t::STATE_LOST : procman_peer_t::STATE_ALIVE;
-    p.seconds_since_heard = v.seconds_since_heard;
-    p.reports = v.reports;
-    p.times_lost = v.times_lost;
-    msg.peers.push_back(p);
-  }
-  msg.num_peers = static_cast<int32_t>(msg.peers.size());
-  Publish(transport_, kProcmanPeersChannel, msg);
+}  // namespace
+
+void LaunchLcmAdapter::PublishStatus() {
+  const int64_t utime = WallMicros();
+  Publish(transport_, kProcmanStatusChannel,
+          ProcmanStatusToMessage(host_, static_cast<int32_t>(getpid()), utime, supervisor_.Status()));
+  Publish(transport_, kProcmanPeersChannel,
+          ProcmanPeersToMessage(host_, static_cast<int32_t>(getpid()), utime, peer_options_.lost_after_s,
+                                peers_.Peers(std::chrono::steady_clock::now())));
 }
 
 }  // namespace vloc

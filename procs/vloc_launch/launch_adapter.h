@@ -64,7 +64,6 @@ class LaunchLcmAdapter {
   PeerTracker peers_;
   const GroupFile* whole_file_;
   static constexpr int kStatusQueue = 200;  // every launcher's 1 Hz report
-  void PublishPeers(int64_t utime);
   bool OwnedElsewhere(const std::string& target, bool is_group) const;
 };
 

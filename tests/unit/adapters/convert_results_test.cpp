@@ -10,6 +10,7 @@
 #include "vloc/lcm_io/convert.h"
 #include "vloc/lcm_io/convert_ba.h"
 #include "vloc/lcm_io/convert_frontend.h"
+#include "vloc/lcm_io/convert_launch.h"
 #include "vloc/lcm_io/convert_traverse.h"
 #include "vloc/lcm_io/convert_tunnel.h"
 #include "vloc/lcm_io/convert_uav.h"
@@ -274,6 +275,57 @@ TEST(ConvertTunnel, StatusCarriesTheReportAndEveryChannel) {
   EXPECT_EQ(m.channels[0].sent, 9);
   EXPECT_EQ(m.channels[0].dropped, 1);
   EXPECT_EQ(m.channels[1].channel, "TRAVERSE");
+}
+
+TEST(ConvertLaunch, StatusCarriesEveryProcessAndReadsBackAsAPeerReport) {
+  ProcessStatus running;
+  running.name = "crosssite_ba";
+  running.group = "rover";
+  running.pid = 321;
+  running.state = ProcState::kRunning;
+  running.restarts = 2;
+  running.cpu_percent = 37.5;
+  running.rss_bytes = 1 << 20;
+  running.uptime_seconds = 12.5;
+  ProcessStatus crashed = running;
+  crashed.name = "feature_frontend";
+  crashed.pid = 0;
+  crashed.state = ProcState::kBackoff;
+  crashed.last_exit_code = -9;
+  const procman_status_t m = RoundTrip(ProcmanStatusToMessage("rover", 77, 55, {running, crashed}));
+  EXPECT_EQ(m.utime, 55);
+  EXPECT_EQ(m.host, "rover");
+  EXPECT_EQ(m.launcher_pid, 77);
+  ASSERT_EQ(m.num_procs, 2);
+  EXPECT_EQ(m.procs[0].state, +proc_status_t::STATE_RUNNING);
+  EXPECT_EQ(m.procs[0].restarts, 2);
+  EXPECT_DOUBLE_EQ(m.procs[0].cpu_percent, 37.5);
+  EXPECT_EQ(m.procs[0].rss_bytes, 1 << 20);
+  EXPECT_DOUBLE_EQ(m.procs[0].uptime_seconds, 12.5);
+  const PeerReport r = PeerReportFromMessage(m);
+  EXPECT_EQ(r.host, "rover");
+  EXPECT_EQ(r.launcher_pid, 77);
+  ASSERT_EQ(r.procs.size(), 2u);
+  EXPECT_EQ(r.procs[0].name, "crosssite_ba");
+  EXPECT_EQ(r.procs[0].pid, 321);
+  EXPECT_FALSE(r.procs[0].has_exited);
+  EXPECT_EQ(r.procs[1].state, ProcState::kBackoff);
+  EXPECT_EQ(r.procs[1].last_exit_code, -9);
+  EXPECT_TRUE(r.procs[1].has_exited) << "a non-zero exit code";
+}
+
+TEST(ConvertLaunch, PeersCarryTheirStateAndCounts) {
+  PeerView alive{"ground", 12, false, 0.4, 30, 0};
+  PeerView lost{"relay", 13, true, 7.5, 3, 2};
+  const procman_peers_t m = RoundTrip(ProcmanPeersToMessage("rover", 77, 55, 3.0, {alive, lost}));
+  EXPECT_EQ(m.host, "rover");
+  EXPECT_DOUBLE_EQ(m.lost_after_seconds, 3.0);
+  ASSERT_EQ(m.num_peers, 2);
+  EXPECT_EQ(m.peers[0].state, +procman_peer_t::STATE_ALIVE);
+  EXPECT_EQ(m.peers[0].reports, 30);
+  EXPECT_EQ(m.peers[1].state, +procman_peer_t::STATE_LOST);
+  EXPECT_DOUBLE_EQ(m.peers[1].seconds_since_heard, 7.5);
+  EXPECT_EQ(m.peers[1].times_lost, 2);
 }
 
 }  // namespace
