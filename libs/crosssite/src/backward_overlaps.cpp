@@ -10,10 +10,13 @@
 
 namespace vloc::frontend_internal {
 
+BackwardMatchOptions BackwardMatchOptions::Of(const FrontendOptions& o) {
+  return {o.regions, o.work_regions.wallis, o.features.asift, o.overlap_matching.matching, o.gate};
+}
+
 std::vector<Candidate> MatchBackwardOverlap(int k, const NavcamModel& navcam, const TiePointSet& tps,
-                                            const SitePairState& s, const RegionOptions& regions,
-                                            const WallisOptions& wallis, const AsiftOptions& asift,
-                                            const GatedMatchOptions& matching, const GateOptions& gate) {
+                                            const SitePairState& s, const BackwardMatchOptions& o) {
+  const RegionOptions& regions = o.regions;
   std::vector<Candidate> out;
   const PairOverlap& ov = s.prediction.overlaps[k];
   const double res = kOrthoResolutionM;
@@ -30,13 +33,13 @@ std::vector<Candidate> MatchBackwardOverlap(int k, const NavcamModel& navcam, co
   const cv::Matx33d Hp = ImageFromOrtho(cam, prev_cam, origin, res, regions.ground_height);
   const cv::Matx33d Hc = ImageFromOrtho(cam, cur_cam_in_prev, origin, res, regions.ground_height);
   const cv::Mat op = WallisFilter(GroundOrthoImage(s.previous_left[ov.previous_pair].gray, Hp, size), s.previous_wallis);
-  const cv::Mat oc = WallisFilter(GroundOrthoImage(s.current_left[ov.current_pair].gray, Hc, size), wallis);
-  const FeatureSet sp = DetectAsift(op, op > 0, {{1.0, 0.0}}, asift);
-  const FeatureSet sc = DetectAsift(oc, oc > 0, {{1.0, 0.0}}, asift);
-  GatedMatchOptions g = matching;
+  const cv::Mat oc = WallisFilter(GroundOrthoImage(s.current_left[ov.current_pair].gray, Hc, size), o.wallis);
+  const FeatureSet sp = DetectAsift(op, op > 0, {{1.0, 0.0}}, o.asift);
+  const FeatureSet sc = DetectAsift(oc, oc > 0, {{1.0, 0.0}}, o.asift);
+  GatedMatchOptions g = o.matching;
   g.num_threads = 1;
   const Vector6d& sigma = s.prediction.relative_sigma;
-  g.gate_radius = regions.sigma_scale * std::max(sigma(0), sigma(1)) / res + gate.gate_margin_px;
+  g.gate_radius = regions.sigma_scale * std::max(sigma(0), sigma(1)) / res + o.gate.gate_margin_px;
   const cv::Matx33d current_from_previous = Hc * Hp.inv();
   for (const auto& m : GatedMatch(sp, sp.points, sc, g)) {
     Candidate c;

@@ -313,11 +313,10 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous, const SiteImag
     });
     stages.Step("backward_matching", [&] {
       int n = 0;
+      const BackwardMatchOptions backward = BackwardMatchOptions::Of(o);
       for (size_t k = 0; k < s.prediction.overlaps.size(); ++k) {
         if (!s.prediction.overlaps[k].backward) continue;
-        s.overlaps[k].candidates = MatchBackwardOverlap(static_cast<int>(k), navcam, tps, s, o.regions,
-                                                        o.work_regions.wallis, o.features.asift,
-                                                        o.overlap_matching.matching, o.gate);
+        s.overlaps[k].candidates = MatchBackwardOverlap(static_cast<int>(k), navcam, tps, s, backward);
         n += static_cast<int>(s.overlaps[k].candidates.size());
       }
       return n;

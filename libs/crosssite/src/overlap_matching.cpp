@@ -151,6 +151,10 @@ std::vector<int> SpreadSelect(const std::vector<Candidate>& c, const std::vector
   return first;
 }
 
+double DrGateRadiusPx(const PairOverlap& ov, const GateOptions& gate) {
+  return std::min(ov.growth_px / std::max(ov.scale, 1e-3) + gate.gate_margin_px, gate.max_gate_px);
+}
+
 void MatchOverlap(int k, const PairOverlap& ov, const SitePairState& s, const OverlapMatchOptions& o,
                   const GateOptions& gate, bool warp_current, OverlapWork* work) {
   if (work->skipped) return;
@@ -167,7 +171,7 @@ void MatchOverlap(int k, const PairOverlap& ov, const SitePairState& s, const Ov
   // ASIFT views of one point land a few (view) px apart: in full-image px
   // that is distinct_radius / zoom.
   if (!warp_current) g.distinct_radius = o.matching.distinct_radius / std::min(s.current_regions[ov.current_pair].zoom, 1.0);
-  g.gate_radius = std::min(ov.growth_px / std::max(ov.scale, 1e-3) + gate.gate_margin_px, gate.max_gate_px) * train_per_cur;
+  g.gate_radius = DrGateRadiusPx(ov, gate) * train_per_cur;
   const std::vector<FeatureMatch> stage1 = GatedMatch(fp, predicted, fc, g);
   Stage2 st{ov.previous_from_current.inv(), stage1, cv::Mat()};
   size_t stage1_inliers = 0;

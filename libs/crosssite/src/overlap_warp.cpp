@@ -111,8 +111,7 @@ OverlapWork WarpOverlap(const PairOverlap& ov, const SitePairState& s, const War
     // error shears the offsets, a range error stretches them), pass 2 within
     // a few px of the correction.
     const double train_per_cur0 = ov.scale * z;
-    double radius =
-        std::min(ov.growth_px / std::max(ov.scale, 1e-3) + gate.gate_margin_px, gate.max_gate_px) * train_per_cur0;
+    double radius = DrGateRadiusPx(ov, gate) * train_per_cur0;
     for (int pass = 0; pass < kTileRegistrationPasses; ++pass) {
       int inliers = 0;
       const cv::Mat A = RegisterPass(ov, pass, radius, o, &work, &inliers);

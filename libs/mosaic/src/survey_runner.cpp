@@ -77,7 +77,7 @@ void SurveyRunner::LoadViews(const std::vector<std::string>& names, const std::v
   size_ = first_.size();
   frames_.assign(views.size(), SurveyFrame());
   for (size_t i = 0; i < views.size(); ++i) frames_[i].name = names.at(i);
-  use_gps_ = false;
+  tagged_ = 0;  // views carry no geotags: no GPS
 }
 
 // Images are read one at a time (a survey can hold thousands), each brought to the survey's camera.
@@ -100,8 +100,7 @@ void SurveyRunner::ReadGeotags() {
     refusals_ += static_cast<int>(frames_[i].tag.refused.size());
     if (frames_[i].tag.has_gps) ++tagged_;
   }
-  use_gps_ = tagged_ >= 2 && options_.use_gps;
-  if (use_gps_) MarkRepeatedFixes();
+  if (UseGps()) MarkRepeatedFixes();
 }
 
 // A camera's GPS may tag a photo with the fix it already gave the previous
@@ -207,7 +206,6 @@ bool SurveyRunner::FitCameras() {
     frames.push_back(frames_[i]), paths.push_back(paths_[i]), sizes.push_back(sizes_[i]), fits_.push_back(fit);
   }
   frames_.swap(frames), paths_.swap(paths), sizes_.swap(sizes);
-  use_gps_ = use_gps_ && tagged_ >= 2;
   if (refitted > 0)
     Out() << refitted << " photos of another camera resampled to the survey's " << size_.width << " x " << size_.height
           << " px at " << f << " px focal length\n";
@@ -279,7 +277,7 @@ void SurveyRunner::ChooseTimes() {
       Out() << frames_[i].name << ": taken " << seconds << " s after the previous photo: a new flight (a photo that "
             << "matches nothing is placed by its GPS)\n";
   }
-  if (use_gps_) {
+  if (UseGps()) {
     const int a = options_.drop_gps_first, b = options_.drop_gps_last;
     Out() << tagged_ << " of " << frames_.size() << " photos geotagged; "
           << (times_ok_ ? "EXIF capture times" : "one second per photo (EXIF times missing or not increasing)")
@@ -335,7 +333,7 @@ void SurveyRunner::RegisterOne(size_t i, Loaded loaded) {
   if (origin_ && rec.tag.has_gps)
     rec.enu = LatLonToEnu(rec.tag.latitude, rec.tag.longitude, origin_->latitude, origin_->longitude);
   rec.dropped = static_cast<int>(i) >= options_.drop_gps_first && static_cast<int>(i) <= options_.drop_gps_last;
-  if (use_gps_ && rec.tag.has_gps && !rec.dropped && !rec.repeated_fix) {
+  if (UseGps() && rec.tag.has_gps && !rec.dropped && !rec.repeated_fix) {
     GpsFix fix;
     fix.utime = utime;
     fix.valid = true;
@@ -359,7 +357,7 @@ void SurveyRunner::RegisterOne(size_t i, Loaded loaded) {
 }
 
 bool SurveyRunner::WriteMosaic(const std::string& png_path) {
-  used_oblique_ = failures_ > 0 && !use_gps_ && views_.empty() && options_.oblique_fallback;
+  used_oblique_ = failures_ > 0 && !UseGps() && views_.empty() && options_.oblique_fallback;
   if (used_oblique_) return WriteObliqueMosaic(png_path);
   std::string error;
   if (!mosaicker_->WriteMosaic(png_path, &error)) {

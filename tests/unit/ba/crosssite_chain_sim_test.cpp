@@ -17,6 +17,7 @@
 #include "vloc/deadreckoning/dead_reckoning.h"
 #include "vloc/sim/rover_traverse.h"
 #include "vloc/sim/terrain.h"
+#include "vloc/testing/traverse_feed.h"
 
 namespace vloc {
 namespace {
@@ -25,24 +26,10 @@ std::vector<PoseWithCovariance> DeadReckonSites(const sim::SimulatedTraverse& tr
   YAML::Node root = LoadYamlFile("config/procs/dead_reckoning.yaml");
   DeadReckoningOptions o = LoadOptions<DeadReckoningOptions>(root["dead_reckoning"], "dead_reckoning");
   DeadReckoning dr(o);
-  std::vector<PoseWithCovariance> sites(tr.sites.size());
-  size_t i = 0, w = 0, e = 0;
-  bool start_set = false;
-  while (i < tr.imu.size() || w < tr.wheel.size() || e < tr.events.size()) {
-    const int64_t ti = i < tr.imu.size() ? tr.imu[i].utime : INT64_MAX;
-    const int64_t tw = w < tr.wheel.size() ? tr.wheel[w].utime : INT64_MAX;
-    const int64_t te = e < tr.events.size() ? tr.events[e].utime : INT64_MAX;
-    if (te < ti && te < tw) {
-      dr.AddSiteEvent(tr.events[e++]);
-    } else if (tw <= ti) {
-      dr.AddWheel(tr.wheel[w++]);
-    } else {
-      dr.AddImu(tr.imu[i++]);
-      if (!start_set) start_set = dr.SetStartPose(tr.sites[0].world_from_body);  // as from SITE_POSE_GT
-    }
-    for (const auto& [site, pose] : dr.PopSitePoses()) sites[site] = pose;
-  }
-  return sites;
+  bool start_set = false;  // the start pose as from SITE_POSE_GT, once there is attitude
+  return testing::FeedTraverse(tr, dr, [&] {
+    if (!start_set) start_set = dr.SetStartPose(tr.sites[0].world_from_body);
+  });
 }
 
 TEST(CrossSiteChainSim, BaBeatsDeadReckoningOnEverySitePair) {

@@ -579,8 +579,7 @@ TEST(BackwardOverlaps, OppositeViewsMatchOnTheGround) {
   s.prediction.overlaps = {ov};
   TiePointSet tps;
   tps.previous_pointing = tps.current_pointing = {mp};
-  const std::vector<Candidate> c = MatchBackwardOverlap(0, navcam, tps, s, RegionOptions(), WallisOptions(),
-                                                                AsiftOptions(), GatedMatchOptions(), GateOptions());
+  const std::vector<Candidate> c = MatchBackwardOverlap(0, navcam, tps, s, BackwardMatchOptions());
   const cv::Matx33d Hp_inv = Hp.inv(), Hc_inv = Hc.inv();
   int right = 0;
   for (const Candidate& m : c) {

@@ -11,6 +11,7 @@
 #include "vloc/deadreckoning/dead_reckoning.h"
 #include "vloc/sim/rover_traverse.h"
 #include "vloc/sim/terrain.h"
+#include "vloc/testing/traverse_feed.h"
 
 namespace vloc {
 namespace {
@@ -22,29 +23,6 @@ const sim::Terrain& TestTerrain() {
     return std::make_unique<sim::Terrain>(options);
   }();
   return *terrain;
-}
-
-// Feeds the traverse in time order and returns the pose at every arrival, by site.
-std::vector<PoseWithCovariance> FeedTraverse(const sim::SimulatedTraverse& tr, DeadReckoning& dr) {
-  std::vector<PoseWithCovariance> sites(tr.sites.size());
-  size_t i = 0, w = 0, e = 0;
-  while (i < tr.imu.size() || w < tr.wheel.size() || e < tr.events.size()) {
-    const int64_t ti = i < tr.imu.size() ? tr.imu[i].utime : INT64_MAX;
-    const int64_t tw = w < tr.wheel.size() ? tr.wheel[w].utime : INT64_MAX;
-    const int64_t te = e < tr.events.size() ? tr.events[e].utime : INT64_MAX;
-    if (te < ti && te < tw) {
-      dr.AddSiteEvent(tr.events[e++]);
-    } else if (tw <= ti) {
-      dr.AddWheel(tr.wheel[w++]);
-    } else {
-      dr.AddImu(tr.imu[i++]);
-    }
-    for (const auto& [site, pose] : dr.PopSitePoses())
-      if (site >= 0 && site < static_cast<int>(sites.size())) sites[site] = pose;
-    while (dr.PopPeriodicPose()) {
-    }
-  }
-  return sites;
 }
 
 DeadReckoningOptions OptionsFor(const sim::SimulatedTraverse& tr) {
@@ -70,7 +48,7 @@ TEST(DeadReckoningSim, IdealSensorsReproduceGroundTruth) {
   options.plan.num_sites = 6;
   const sim::SimulatedTraverse tr = sim::SimulateTraverse(TestTerrain(), options);
   DeadReckoning dr(OptionsFor(tr));
-  const auto sites = FeedTraverse(tr, dr);
+  const auto sites = testing::FeedTraverse(tr, dr);
   double worst_position = 0, worst_angle = 0;
   for (size_t k = 0; k < sites.size(); ++k) {
     const Pose3& gt = tr.sites[k].world_from_body;
@@ -87,7 +65,7 @@ TEST(DeadReckoningSim, IdealSensorsReproduceGroundTruth) {
 TEST(DeadReckoningSim, DefaultNoiseDriftsWithinCovariance) {
   const sim::SimulatedTraverse tr = sim::SimulateTraverse(TestTerrain(), sim::TraverseOptions{});
   DeadReckoning dr(OptionsFor(tr));
-  const auto sites = FeedTraverse(tr, dr);
+  const auto sites = testing::FeedTraverse(tr, dr);
   int inside = 0;
   double final_drift = 0;
   for (size_t k = 1; k < sites.size(); ++k) {

@@ -142,6 +142,8 @@ class SurveyRunner {
   size_t ReferencePhoto() const;       // the first photo of the survey's size: its EXIF gives the focal length
   bool FitCameras();
   void MarkRepeatedFixes();
+  // The tags place the photos: GPS asked for and at least two usable photos tagged.
+  bool UseGps() const { return options_.use_gps && tagged_ >= 2; }
   void ChooseTimes();
   struct Loaded;
   Loaded Prepare(size_t i, FramePreparer* preparer) const;
@@ -164,7 +166,7 @@ class SurveyRunner {
   std::vector<CameraFit> fits_;        // each photo brought to the survey's camera
   std::vector<SurveyFrame> frames_;
   int tagged_ = 0, refusals_ = 0, failures_ = 0;
-  bool use_gps_ = false, times_ok_ = false, used_oblique_ = false;
+  bool times_ok_ = false, used_oblique_ = false;
   const ImageGeotag* origin_ = nullptr;  // the first tagged photo's tag
   std::unique_ptr<UavMosaicker> mosaicker_;
   SurveyTimes times_;

@@ -279,6 +279,11 @@ void ChooseOverlaps(const WorkRegionOptions& options, bool warp_current, int num
 // the number of features.
 int DetectRegionFeatures(const FeatureOptions& options, bool warp_current, int num_threads, SitePairState* state);
 
+// The DR gate of a forward overlap, current-image px: the region's growth
+// under the DR uncertainty (growth_px over the scale) plus gate_margin_px,
+// at most max_gate_px. WarpOverlap's first tile pass and MatchOverlap's
+// stage 1 search within it (times their train px per current px).
+double DrGateRadiusPx(const PairOverlap& overlap, const GateOptions& gate);
 // Warps the current image of a forward overlap onto the previous
 // region's grid and registers it by tile correlation (two passes).
 OverlapWork WarpOverlap(const PairOverlap& overlap, const SitePairState& state, const WarpOptions& options,
@@ -314,13 +319,18 @@ bool RefineOnGrid(const OverlapWork& work, const LsmImage& previous, const LsmIm
 // returns how many were refined.
 int RefineOverlapOnGrid(const GridLsmStepOptions& options, bool warp_current, OverlapWork* work);
 
+// What the backward matching reuses of the forward steps' options.
+struct BackwardMatchOptions {
+  RegionOptions regions;       // regions: the ground height and the sigma scale of the gate
+  WallisOptions wallis;        // work_regions.wallis: the current ortho image's filter
+  AsiftOptions asift;          // features.asift: detection on both ortho images
+  GatedMatchOptions matching;  // overlap_matching.matching: the matcher
+  GateOptions gate;            // gate: the gate margin
+  static BackwardMatchOptions Of(const FrontendOptions& options);
+};
 // A backward overlap matched on the ground plane (ortho images of both sites).
-// It reuses the regions' ground and sigma scale, the Wallis filter, ASIFT,
-// the matcher and the gate margin of the forward steps.
 std::vector<Candidate> MatchBackwardOverlap(int k, const NavcamModel& navcam, const TiePointSet& tie_points,
-                                            const SitePairState& state, const RegionOptions& regions,
-                                            const WallisOptions& wallis, const AsiftOptions& asift,
-                                            const GatedMatchOptions& matching, const GateOptions& gate);
+                                            const SitePairState& state, const BackwardMatchOptions& options);
 
 // Cross-site LSM of the candidates the grid LSM did not refine (full
 // resolution; dropped when it fails), then duplicates merged. Returns the
