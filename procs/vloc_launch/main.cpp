@@ -8,12 +8,11 @@
 
 #include <unistd.h>
 
-#include <algorithm>
-#include <chrono>
 #include <iostream>
 
 #include "launch_adapter.h"
 #include "launch_environment.h"
+#include "launch_run.h"
 #include "vloc/common/logging.h"
 #include "vloc/common/options.h"
 #include "vloc/launch/group_file.h"
@@ -79,44 +78,7 @@ int main(int argc, char** argv) {
                                  peer_options, host.empty() ? nullptr : &whole);
   adapter.Subscribe();
 
-  std::optional<int> outcome;
-  vloc::RunUntilSignal(
-      *setup->transport, 20,
-      [&] {
-        supervisor.Step(30);
-        adapter.Tick();
-      },
-      [&] {
-        if (exit_when_done) outcome = supervisor.DoneOutcome(done_names);
-        return outcome.has_value();
-      });
-
-  if (outcome && *outcome == 0) {
-    // Give the others time to finish their last piece of work.
-    double grace = 0.0;
-    for (const auto& n : done_names)
-      if (const auto* spec = file.Find(n)) grace = std::max(grace, spec->exit_grace);
-    grace = setup->args.GetDouble("exit-grace", grace);
-    LOG(INFO) << "done (--exit-when-done): stopping the rest in " << grace << " s";
-    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(grace);
-    while (std::chrono::steady_clock::now() < until && !vloc::StopSignalPending()) {
-      setup->transport->Handle(20);
-      supervisor.Step(30);
-      adapter.Tick();
-    }
-  }
-  if (outcome && *outcome != 0) LOG(ERROR) << "done (--exit-when-done) with a failure; stopping the rest";
-  adapter.SetShuttingDown();
-  supervisor.StopAll();
-  while (!supervisor.AllStopped()) {
-    if (vloc::StopSignalPending()) {
-      LOG(WARNING) << "second stop signal: killing every process now";
-      supervisor.KillAll();
-    }
-    supervisor.Step(50);
-    adapter.Tick();
-  }
-  adapter.PublishStatus();
-  LOG(INFO) << "every process stopped; orders: " << adapter.SubscriptionLine() << "; exiting";
-  return outcome.value_or(0);
+  vloc::LaunchRunOptions run{exit_when_done, done_names, std::nullopt};
+  if (setup->args.Has("exit-grace")) run.exit_grace_s = setup->args.GetDouble("exit-grace", 0.0);
+  return vloc::RunLauncher(*setup->transport, supervisor, adapter, run);
 }

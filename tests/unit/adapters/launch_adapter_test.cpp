@@ -9,6 +9,7 @@
 #include <string>
 
 #include "launch_adapter.h"
+#include "launch_run.h"
 #include "vloc/lcm_io/transport.h"
 #include "vloc/lcm_io/typed.h"
 
@@ -141,6 +142,45 @@ TEST(LaunchAdapter, PublishesItsProcessesAndThePeersItHearsOnTick) {
   EXPECT_EQ(peers.peers[0].host, "ground");
   EXPECT_EQ(peers.peers[0].launcher_pid, 4242);
   EXPECT_EQ(peers.peers[0].state, +procman_peer_t::STATE_ALIVE);
+}
+
+ProcessSpec Shell(const std::string& name, const std::string& script, bool done) {
+  ProcessSpec p = Spec(name, "g");
+  p.command = "/bin/sh";
+  p.args = {"-c", script};
+  p.max_restarts = 0;
+  p.stop_timeout = 2.0;
+  p.exit_when_done = done;
+  return p;
+}
+
+// RunLauncher with --exit-when-done over `done` (ends by itself) and a
+// sleeper; returns its exit code and the final status it published.
+int RunUntilDone(const std::string& done_script, procman_status_t* final_status) {
+  MockTransport bus;
+  GroupFile file;
+  file.path = "done.yaml";
+  file.processes = {Shell("done", done_script, true), Shell("sleeper", "exec sleep 30", false)};
+  Supervisor supervisor(file, {});
+  std::string error;
+  EXPECT_TRUE(supervisor.StartGroups({}, &error)) << error;
+  LaunchLcmAdapter adapter(supervisor, bus, "rover", 3600);
+  adapter.Subscribe();
+  LaunchRunOptions run{true, supervisor.ExitWhenDoneNames(), 0.0};
+  const int rc = RunLauncher(bus, supervisor, adapter, run);
+  EXPECT_TRUE(supervisor.AllStopped());
+  EXPECT_TRUE(supervisor.LivePids().empty());
+  const std::vector<uint8_t>* bytes = bus.Last(kProcmanStatusChannel);
+  EXPECT_TRUE(bytes && Decode(bytes->data(), bytes->size(), final_status));
+  return rc;
+}
+
+TEST(LaunchAdapter, ExitWhenDoneStopsTheRestAndReportsTheOutcome) {
+  procman_status_t last{};
+  EXPECT_EQ(RunUntilDone("exit 0", &last), 0);
+  ASSERT_EQ(last.num_procs, 2);
+  for (const proc_status_t& p : last.procs) EXPECT_EQ(p.pid, 0) << p.name << ": the last status shows it ended";
+  EXPECT_EQ(RunUntilDone("exit 3", &last), 1) << "a done process that failed";
 }
 
 }  // namespace
