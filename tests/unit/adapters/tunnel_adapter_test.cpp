@@ -9,6 +9,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstdio>
 #include <deque>
 #include <functional>
 #include <memory>
@@ -62,8 +63,9 @@ class ThreadedBus : public Transport {
   std::deque<std::pair<std::string, std::vector<uint8_t>>> waiting_;
 };
 
-std::string SocketPath(const std::string& name) {
-  return "ipc://" + ::testing::TempDir() + "/tunnel_" + std::to_string(getpid()) + "_" + name;
+// The Unix socket of a test's link (removed by ~Tunnel).
+std::string SocketFile(const std::string& name) {
+  return ::testing::TempDir() + "/tunnel_" + std::to_string(getpid()) + "_" + name;
 }
 
 tunnel::TunnelOptions End(const std::string& name, const std::string& socket, bool bind) {
@@ -81,6 +83,10 @@ struct Tunnel {
   std::vector<ThreadedBus*> buses;
   std::atomic<bool> stop{false};
   std::vector<std::thread> links;
+  std::string socket_file;
+
+  explicit Tunnel(const std::string& name) : socket_file(SocketFile(name)) {}
+  std::string endpoint() const { return "ipc://" + socket_file; }
 
   void Add(ThreadedBus& bus, const tunnel::TunnelOptions& options) {
     ends.push_back(std::make_unique<TunnelAdapter>(bus, options));
@@ -103,6 +109,8 @@ struct Tunnel {
   ~Tunnel() {
     stop = true;
     for (std::thread& t : links) t.join();
+    ends.clear();
+    std::remove(socket_file.c_str());
   }
 };
 
@@ -130,8 +138,8 @@ struct StatusOf {
 TEST(TunnelAdapter, CarriesEachMessageAcrossOnceAndNeverBack) {
   ThreadedBus vehicle, ground;
   StatusOf ground_status(ground, "ground");
-  Tunnel t;
-  const std::string socket = SocketPath("carry");
+  Tunnel t("carry");
+  const std::string socket = t.endpoint();
   t.Add(ground, End("ground", socket, /*bind=*/true));
   t.Add(vehicle, End("vehicle", socket, /*bind=*/false));
   ASSERT_TRUE(Publish(vehicle, "SITE_POSE_DR", SitePose(4)));
@@ -156,8 +164,8 @@ TEST(TunnelAdapter, CarriesEachMessageAcrossOnceAndNeverBack) {
 TEST(TunnelAdapter, OnlyTheChannelsOneSideSendsAndTheOtherReceivesCross) {
   ThreadedBus vehicle, ground;
   StatusOf ground_status(ground, "ground");
-  Tunnel t;
-  const std::string socket = SocketPath("filter");
+  Tunnel t("filter");
+  const std::string socket = t.endpoint();
   tunnel::TunnelOptions g = End("ground", socket, true);
   g.receive_channels = {"SITE_POSE_.*", "TUNNEL_STATUS"};
   tunnel::TunnelOptions v = End("vehicle", socket, false);
@@ -176,8 +184,8 @@ TEST(TunnelAdapter, OnlyTheChannelsOneSideSendsAndTheOtherReceivesCross) {
 
 TEST(TunnelAdapter, BothEndsOnOneBusIsALoop) {
   ThreadedBus bus;
-  Tunnel t;
-  const std::string socket = SocketPath("loop");
+  Tunnel t("loop");
+  const std::string socket = t.endpoint();
   t.Add(bus, End("ground", socket, true));
   t.Add(bus, End("vehicle", socket, false));
   ASSERT_TRUE(t.HandleUntil([&] { return t.ends[0]->LoopDetected() || t.ends[1]->LoopDetected(); }));
