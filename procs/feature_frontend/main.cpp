@@ -7,12 +7,14 @@
 #include <iostream>
 
 #include "frontend_adapter.h"
+#include "vloc/common/allocator.h"
 #include "vloc/common/logging.h"
 #include "vloc/common/options.h"
 #include "vloc/lcm_io/process.h"
 
 int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
+  vloc::KeepLargeBlocksForReuse();
   auto setup = vloc::SetupProcess(argc, argv,
                                   {"feature_frontend", {"site-cache"}, true,
                                    "--config config/procs/feature_frontend.yaml [--site-cache DIR]"});

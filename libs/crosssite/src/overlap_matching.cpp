@@ -172,7 +172,8 @@ void MatchOverlap(int k, const PairOverlap& ov, const SitePairState& s, const Ov
   // that is distinct_radius / zoom.
   if (!warp_current) g.distinct_radius = o.matching.distinct_radius / std::min(s.current_regions[ov.current_pair].zoom, 1.0);
   g.gate_radius = DrGateRadiusPx(ov, gate) * train_per_cur;
-  const std::vector<FeatureMatch> stage1 = GatedMatch(fp, predicted, fc, g);
+  // A registered overlap's stage 1 is the tile registration: the wide-gate matching runs only without it.
+  const std::vector<FeatureMatch> stage1 = work->registered ? std::vector<FeatureMatch>() : GatedMatch(fp, predicted, fc, g);
   Stage2 st{ov.previous_from_current.inv(), stage1, cv::Mat()};
   size_t stage1_inliers = 0;
   if (work->registered) {

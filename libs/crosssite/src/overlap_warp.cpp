@@ -132,6 +132,24 @@ OverlapWork WarpOverlap(const PairOverlap& ov, const SitePairState& s, const War
   return work;
 }
 
+namespace {
+
+// The part of the warped image its coverage covers, grown by kWarpedSiftMarginPx (SIFT's blur at the finer
+// octaves sees the same zeros beyond the coverage) from a corner on a multiple of kWarpedSiftAlignPx (the
+// finer octaves sample the same pixels). The rest is zero: SIFT finds nothing there, at the cost of the
+// whole image (the current image covers 25-65 % of the previous region's grid).
+cv::Rect CoveredPart(const cv::Mat& coverage) {
+  const cv::Rect covered = cv::boundingRect(coverage);
+  if (covered.area() == 0) return cv::Rect(0, 0, coverage.cols, coverage.rows);
+  auto down = [](int v) { return std::max(0, (v - kWarpedSiftMarginPx) / kWarpedSiftAlignPx * kWarpedSiftAlignPx); };
+  const int x0 = down(covered.x), y0 = down(covered.y);
+  const int x1 = std::min(coverage.cols, covered.br().x + kWarpedSiftMarginPx);
+  const int y1 = std::min(coverage.rows, covered.br().y + kWarpedSiftMarginPx);
+  return cv::Rect(x0, y0, x1 - x0, y1 - y0);
+}
+
+}  // namespace
+
 void DetectWarpedFeatures(const FeatureOptions& o, bool warp_current, OverlapWork* work) {
   if (!warp_current || work->skipped) return;
   std::vector<AffineView> views{{1.0, 0.0}};
@@ -139,7 +157,11 @@ void DetectWarpedFeatures(const FeatureOptions& o, bool warp_current, OverlapWor
     if (t > 1 + 1e-6 && t <= o.warp_max_tilt) views.push_back({t, 0.0}), views.push_back({t, M_PI / 2});
   AsiftOptions single = o.asift;
   single.num_threads = 1;
-  work->warped_features = DetectAsift(work->warped, work->coverage, views, single);
+  const cv::Rect part = CoveredPart(work->coverage);
+  FeatureSet& f = work->warped_features;
+  f = DetectAsift(work->warped(part), work->coverage(part), views, single);
+  const Eigen::Vector2d corner(part.x, part.y);
+  for (Eigen::Vector2d& p : f.points) p += corner;  // (the keypoints stay in the views of the part)
 }
 
 }  // namespace vloc::frontend_internal

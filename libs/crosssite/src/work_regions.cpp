@@ -120,6 +120,12 @@ void ChooseOverlaps(const WorkRegionOptions& o, bool warp_current, int num_threa
     std::sort(by_samples.begin(), by_samples.end());
     for (size_t r = o.max_overlaps_per_image; r < by_samples.size(); ++r) s->overlap_used[by_samples[r].second] = false;
   }
+  // A previous region that no chosen overlap matches is not described (ASIFT) or warped onto.
+  std::vector<bool> matched(s->previous_regions.size(), false);
+  for (size_t k = 0; k < overlaps.size(); ++k)
+    if (s->overlap_used[k] && !overlaps[k].backward) matched[overlaps[k].previous_pair] = true;
+  for (size_t j = 0; j < matched.size(); ++j)
+    if (!matched[j]) s->previous_regions[j] = WorkRegion();
 }
 
 }  // namespace vloc::frontend_internal

@@ -6,6 +6,8 @@
 //   VLOC_SIM_CACHE=/tmp/vloc-sim-cache build/bench/bench_frontend --benchmark_repetitions=5
 //     (add --benchmark_report_aggregates_only=true for medians only)
 // (run from the source root; the cache folder keeps the rendered images between runs)
+// Time is wall; CPU is the whole process's (all threads), the work done whatever the machine's load. The
+// counters give each stage's wall seconds under its FRONTEND_STATUS name.
 #include <benchmark/benchmark.h>
 
 #include <chrono>
@@ -15,6 +17,7 @@
 #include <opencv2/features2d.hpp>
 
 #include "../../unit/crosssite/sim_site_pair.h"
+#include "vloc/common/allocator.h"
 
 namespace {
 
@@ -23,7 +26,8 @@ const vloc::testing::SimSitePair& Scene() {
   return scene;
 }
 
-// The front end with `threads` threads on `s`; counters: tie points.
+// The front end with `threads` threads on `s`; counters: tie points and each stage's seconds (FRONTEND_STATUS's
+// names).
 void RunFrontend(benchmark::State& state, const vloc::testing::SimSitePair& s, int threads) {
   vloc::FrontendOptions o;
   o.num_threads = threads;
@@ -32,16 +36,20 @@ void RunFrontend(benchmark::State& state, const vloc::testing::SimSitePair& s, i
   cv::setNumThreads(threads);
   const vloc::CrossSiteFrontend fe(s.navcam, o);
   int points = 0;
+  std::map<std::string, double> stage_seconds;
   for (auto _ : state) {
     const auto r = fe.Run(s.previous, s.current);
     points = static_cast<int>(r.tie_points.points.size());
     benchmark::DoNotOptimize(points);
+    stage_seconds.clear();
+    for (const vloc::StageReport& st : r.summary.stages) stage_seconds[st.name] += st.seconds;
   }
   state.counters["tie_points"] = points;
+  for (const auto& [name, seconds] : stage_seconds) state.counters[name] = seconds;
 }
 
 void BM_Frontend(benchmark::State& state) { RunFrontend(state, Scene(), static_cast<int>(state.range(0))); }
-BENCHMARK(BM_Frontend)->Arg(1)->Arg(2)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK(BM_Frontend)->Arg(1)->Arg(2)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime()->MeasureProcessCPUTime();
 
 // The same pair rendered in each simulator profile (config/procs/sim_rover_<profile>.yaml), 2 threads: the time
 // per profile (a pair that fails stops early, at the stage that failed).
@@ -55,9 +63,9 @@ void BM_FrontendProfile(benchmark::State& state, const char* profile) {
   RunFrontend(state, scenes.at(profile), 2);
 }
 BENCHMARK_CAPTURE(BM_FrontendProfile, hard, "config/procs/sim_rover_hard.yaml")
-    ->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+    ->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime()->MeasureProcessCPUTime();
 BENCHMARK_CAPTURE(BM_FrontendProfile, extreme, "config/procs/sim_rover_extreme.yaml")
-    ->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+    ->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime()->MeasureProcessCPUTime();
 
 // The plain approach on one previous and one current image (the full pair
 // has 14 images and 21 overlapping image pairs: at this machine's speed it
@@ -98,4 +106,12 @@ BENCHMARK(BM_PlainAffineFeature)->Arg(2)->Unit(benchmark::kSecond)->Iterations(1
 
 }  // namespace
 
-BENCHMARK_MAIN();
+// The allocator set up as feature_frontend's main sets it.
+int main(int argc, char** argv) {
+  vloc::KeepLargeBlocksForReuse();
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

@@ -47,6 +47,8 @@ constexpr double kRansacConfidence = 0.999;        // of the tile homography and
 constexpr int kTileRegistrationPasses = 2;         // whole gate, then a few px around the correction
 constexpr double kSecondPassRadiusTiles = 3.0;     // reduced px, search radius of the second pass
 constexpr int kCoverageErodePx = 9;                // px, the warped image's coverage mask is eroded by this box
+constexpr int kWarpedSiftMarginPx = 160;            // px, around the coverage, of the warped image SIFT describes
+constexpr int kWarpedSiftAlignPx = 32;             // px, that part starts on a multiple of this
 constexpr int kMinEpipolarMatches = 12;            // stage-2 matches needed for the epipolar RANSAC
 constexpr double kMinClusterRadiusPx = 8.0;        // current px, smallest radius of the stage-1 offset cluster
 constexpr double kSpreadCellPx = 24.0;             // px, grid cell of the spread selection per overlap
@@ -272,6 +274,7 @@ int AlignToPreviousGround(const NavcamModel& navcam, const TiePointSet& tie_poin
 int MakeWorkRegions(const WorkRegionOptions& options, bool warp_current, int num_threads, SitePairState* state);
 // Per current image the overlaps with the most ground samples
 // (max_overlaps_per_image), and the current images filtered whole (warp_current).
+// The previous regions no chosen overlap matches are cleared.
 void ChooseOverlaps(const WorkRegionOptions& options, bool warp_current, int num_threads, SitePairState* state);
 
 // ASIFT on the work regions (previous: t = 1; current, without
