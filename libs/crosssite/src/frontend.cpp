@@ -271,28 +271,10 @@ FrontendResult CrossSiteFrontend::Run(const SiteImages& previous, const SiteImag
       for (const cv::Mat& m : s.current_filtered) n += m.empty() ? 0 : 1;
       return n;
     });
-    stages.Step("region_asift", [&] { return DetectRegionFeatures(o.features, warp_current, o.num_threads, &s); });
-
-    // Forward overlaps, each step over all of them in parallel.
-    s.overlaps.assign(s.prediction.overlaps.size(), OverlapWork());
-    stages.Step("overlap_warp_tiles", [&] {
-      ForEachForwardOverlap(s, o.num_threads,
-                            [&](int k) { s.overlaps[k] = WarpOverlap(s.prediction.overlaps[k], s, o.warp, o.gate); });
-      int n = 0;
-      for (const OverlapWork& w : s.overlaps) n += w.registered ? 1 : 0;
-      return n;
-    });
-    stages.Step("overlap_asift", [&] {
-      ForEachForwardOverlap(s, o.num_threads, [&](int k) {
-        OverlapWork& w = s.overlaps[k];
-        DetectWarpedFeatures(o.features, warp_current, &w);
-        DropVehicleFeatures(s.current_left[s.prediction.overlaps[k].current_pair].vehicle, w.current_from_train,
-                            &w.warped_features);
-      });
-      size_t n = 0;
-      for (const OverlapWork& w : s.overlaps) n += w.warped_features.size();
-      s.num_current_features += n;
-      return static_cast<int>(n);
+    // ASIFT on the regions and each forward overlap's warp and ASIFT, in one pool; then each forward overlap's
+    // steps over all of them in parallel.
+    stages.Step("asift_and_warps", [&] {
+      return DescribeRegionsAndWarpOverlaps(o.features, o.warp, o.gate, o.num_threads, &s);
     });
     stages.Step("overlap_matching", [&] {
       ForEachForwardOverlap(s, o.num_threads, [&](int k) {

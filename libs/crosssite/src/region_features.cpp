@@ -2,7 +2,8 @@
 // t = 1; current regions (without warp_current) on the views the predicted
 // viewpoint change allows: tilts up to the predicted tilt times
 // tilt_margin, longitudes within longitude_margin_deg of the predicted one.
-// One flat job list of (image, view) over both sites keeps the threads busy.
+// One flat job list of (image, view) over both sites keeps the threads busy
+// (with warp_current, asift_and_warps.cpp runs these jobs among the overlaps' own).
 #include <omp.h>
 
 #include <algorithm>
@@ -16,12 +17,6 @@
 namespace vloc::frontend_internal {
 
 namespace {
-
-struct Job {
-  bool current;
-  int image;
-  AffineView view;
-};
 
 // The restricted views of one current region.
 std::vector<AffineView> CurrentViews(const WorkRegion& w, const FeatureOptions& o) {
@@ -54,10 +49,14 @@ void AddViewFeatures(const AffineView& view, const FeatureSet& s, WorkRegion* w)
   }
 }
 
+const WorkRegion& RegionOf(const RegionFeatureJob& job, const SitePairState& s) {
+  return job.current ? s.current_regions[job.image] : s.previous_regions[job.image];
+}
+
 }  // namespace
 
-int DetectRegionFeatures(const FeatureOptions& o, bool warp_current, int num_threads, SitePairState* s) {
-  std::vector<Job> jobs;
+std::vector<RegionFeatureJob> RegionFeatureJobs(const FeatureOptions& o, bool warp_current, SitePairState* s) {
+  std::vector<RegionFeatureJob> jobs;
   for (int i = 0; i < static_cast<int>(s->current_regions.size()); ++i) {
     WorkRegion& w = s->current_regions[i];
     if (w.image.empty() || warp_current) continue;
@@ -80,28 +79,24 @@ int DetectRegionFeatures(const FeatureOptions& o, bool warp_current, int num_thr
     const WorkRegion& w = s->previous_regions[j];
     if (!w.image.empty()) VLOG(1) << "previous image " << j << ": region " << w.region << " zoom " << w.zoom;
   }
-  std::vector<FeatureSet> job_sets(jobs.size());
+  return jobs;
+}
+
+// SIFT's time grows with the pixels (the zoomed previous regions differ up to 7x).
+double RegionFeatureJobCost(const RegionFeatureJob& job, const SitePairState& s) {
+  return RegionOf(job, s).image.total() / job.view.tilt;
+}
+
+FeatureSet DetectRegionFeatureJob(const RegionFeatureJob& job, const FeatureOptions& o, const SitePairState& s) {
   AsiftOptions single = o.asift;
   single.num_threads = 1;
-  // Largest images first (SIFT's time grows with the pixels; the zoomed
-  // previous regions differ up to 7x): the last job to finish is a small
-  // one. The results keep the job order.
-  auto image_of = [&](const Job& jb) -> const cv::Mat& {
-    return jb.current ? s->current_regions[jb.image].image : s->previous_regions[jb.image].image;
-  };
-  std::vector<int> order(jobs.size());
-  for (size_t k = 0; k < jobs.size(); ++k) order[k] = static_cast<int>(k);
-  std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
-    return image_of(jobs[a]).total() / jobs[a].view.tilt > image_of(jobs[b]).total() / jobs[b].view.tilt;
-  });
-#pragma omp parallel for schedule(dynamic, 1) num_threads(num_threads)
-  for (int i = 0; i < static_cast<int>(jobs.size()); ++i) {
-    const int k = order[i];
-    const Job& jb = jobs[k];
-    job_sets[k] = DetectAsift(image_of(jb), cv::Mat(), {jb.view}, single);
-  }
+  return DetectAsift(RegionOf(job, s).image, cv::Mat(), {job.view}, single);
+}
+
+int AddRegionFeatures(const std::vector<RegionFeatureJob>& jobs, const std::vector<FeatureSet>& sets,
+                      SitePairState* s) {
   for (size_t k = 0; k < jobs.size(); ++k)
-    AddViewFeatures(jobs[k].view, job_sets[k],
+    AddViewFeatures(jobs[k].view, sets[k],
                     jobs[k].current ? &s->current_regions[jobs[k].image] : &s->previous_regions[jobs[k].image]);
   for (size_t j = 0; j < s->previous_regions.size() && j < s->previous_left.size(); ++j)
     DropVehicleFeatures(s->previous_left[j].vehicle, cv::Matx33d::eye(), &s->previous_regions[j].features);
@@ -112,6 +107,15 @@ int DetectRegionFeatures(const FeatureOptions& o, bool warp_current, int num_thr
   for (const auto& w : s->current_regions) n += static_cast<int>(w.features.size());
   for (const auto& w : s->current_regions) s->num_current_features += w.features.size();
   return n;
+}
+
+int DetectRegionFeatures(const FeatureOptions& o, bool warp_current, int num_threads, SitePairState* s) {
+  const std::vector<RegionFeatureJob> jobs = RegionFeatureJobs(o, warp_current, s);
+  std::vector<double> costs;
+  for (const RegionFeatureJob& job : jobs) costs.push_back(RegionFeatureJobCost(job, *s));
+  std::vector<FeatureSet> sets(jobs.size());
+  RunLargestFirst(costs, num_threads, [&](int k) { sets[k] = DetectRegionFeatureJob(jobs[k], o, *s); });
+  return AddRegionFeatures(jobs, sets, s);
 }
 
 }  // namespace vloc::frontend_internal

@@ -157,7 +157,7 @@ TEST(FrontendSim, SitePairMeetsTheTiePointFigures) {
   EXPECT_EQ(names, (std::vector<std::string>{
                        "prepare_images", "ground_planes", "region_prediction", "ground_alignment", "region_wallis_zoom",
                        "current_wallis",
-                       "region_asift", "overlap_warp_tiles", "overlap_asift", "overlap_matching", "overlap_grid_lsm",
+                       "asift_and_warps", "overlap_matching", "overlap_grid_lsm",
                        "backward_matching", "vehicle_mask", "cross_lsm_merge", "stereo_zncc", "median_filter", "stereo_lsm",
                        "distance_consistency", "motion_consistency", "dr_check"}));
 }

@@ -12,9 +12,9 @@
 //   ground_alignment (points)            DR relative height corrected on both sites' stereo ground, regions again
 //   region_wallis_zoom (regions)         Wallis filter and zoom of the regions (previous targets from the current)
 //   current_wallis (images)              Wallis filter of the whole current images (for the warp), overlap choice
-//   region_asift (features)              ASIFT on the regions (current: tilts/longitudes the prediction allows)
-//   overlap_warp_tiles (registered)      current image warped onto the previous region's grid, tile registration
-//   overlap_asift (features)             ASIFT on the warped current images
+//   asift_and_warps (features)           ASIFT on the regions (current: tilts/longitudes the prediction allows);
+//                                        each overlap's current image warped onto the previous region's grid,
+//                                        tile registration, ASIFT on it (all as one pool of jobs)
 //   overlap_matching (matches)           gated matching (DR gate, then refined gate), epipolar RANSAC, spread
 //   overlap_grid_lsm (refined)           cross-site LSM on the previous region's grid, with the relief gates
 //   backward_matching (matches)          opposite views matched on ground-plane ortho images
@@ -139,7 +139,7 @@ struct WorkRegionOptions {
   void Visit(OptionsReader& reader);
 };
 
-// region_asift, overlap_asift: ASIFT on the regions and on the warped current images.
+// asift_and_warps: ASIFT on the regions and on the warped current images.
 struct FeatureOptions {
   AsiftOptions asift;
   double tilt_margin = 1.25;           // simulate tilts t <= predicted tilt * tilt_margin (and always t = 1)
@@ -149,7 +149,7 @@ struct FeatureOptions {
   void Visit(OptionsReader& reader);
 };
 
-// The stage-1 gate around the DR prediction (overlap_warp_tiles searches it, overlap_matching and
+// The stage-1 gate around the DR prediction (asift_and_warps' tiles search it, overlap_matching and
 // backward_matching match within it).
 struct GateOptions {
   double gate_margin_px = 20.0;        // px, gate radius = region growth + this (current-image px)
@@ -157,7 +157,7 @@ struct GateOptions {
   void Visit(OptionsReader& reader);
 };
 
-// overlap_warp_tiles: the current image warped onto the previous region's grid, registered by tiles.
+// asift_and_warps: the current image warped onto the previous region's grid, registered by tiles.
 struct WarpOptions {
   bool warp_current = true;            // match on the current image warped onto the zoomed previous region by
                                        // the predicted ground-plane homography (false: ASIFT on the current region)
@@ -257,9 +257,9 @@ struct FrontendOptions {
   GroundPlaneOptions ground;              // ground_planes
   GroundAlignOptions ground_alignment;    // ground_alignment
   WorkRegionOptions work_regions;         // region_wallis_zoom, current_wallis
-  FeatureOptions features;                // region_asift, overlap_asift
-  GateOptions gate;                       // overlap_warp_tiles, overlap_matching, backward_matching
-  WarpOptions warp;                       // overlap_warp_tiles
+  FeatureOptions features;                // asift_and_warps
+  GateOptions gate;                       // asift_and_warps, overlap_matching, backward_matching
+  WarpOptions warp;                       // asift_and_warps
   OverlapMatchOptions overlap_matching;   // overlap_matching (its `matching` also backward_matching)
   GridLsmStepOptions grid;                // overlap_grid_lsm
   CrossSiteLsmOptions cross_site;         // cross_lsm_merge, manual_cross_lsm

@@ -13,6 +13,8 @@
 //   MakeWorkRegions          work_regions.cpp            2.2, Wallis filter and zoom         work_regions
 //   DetectRegionFeatures     region_features.cpp         2.2, ASIFT, restricted tilts        features
 //   WarpOverlap              overlap_warp.cpp            (ground-plane warp + tiles)         warp (+ gate)
+//   DescribeRegionsAnd-      asift_and_warps.cpp         the two above as one pool of jobs   features, warp, gate
+//     WarpOverlaps                                       (warp_current)
 //   MatchOverlap             overlap_matching.cpp        2.2, gated matching + epipolar      overlap_matching (+ gate)
 //   RefineOnGrid             grid_lsm.cpp                2.2, cross-site LSM                 grid
 //   MatchBackwardOverlap     backward_overlaps.cpp       2.2, opposite views on the ground   regions, work_regions.wallis,
@@ -27,6 +29,7 @@
 // One SitePairState carries everything between the steps.
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
@@ -277,10 +280,37 @@ int MakeWorkRegions(const WorkRegionOptions& options, bool warp_current, int num
 // The previous regions no chosen overlap matches are cleared.
 void ChooseOverlaps(const WorkRegionOptions& options, bool warp_current, int num_threads, SitePairState* state);
 
+// Runs body(i) for every i < costs.size() on num_threads threads, the
+// largest cost first: the last job to finish is a small one.
+template <class Body>
+void RunLargestFirst(const std::vector<double>& costs, int num_threads, Body body) {
+  std::vector<int> order(costs.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return costs[a] > costs[b]; });
+#pragma omp parallel for schedule(dynamic, 1) num_threads(num_threads)
+  for (int i = 0; i < static_cast<int>(order.size()); ++i) body(order[i]);
+}
+
 // ASIFT on the work regions (previous: t = 1; current, without
 // warp_current: the tilts and longitudes the prediction allows). Returns
 // the number of features.
 int DetectRegionFeatures(const FeatureOptions& options, bool warp_current, int num_threads, SitePairState* state);
+// The same in parts, for a caller that runs the jobs among others: one job
+// per (region, view) (sets the regions' views), its cost, its features (in
+// the view's region px), and all jobs' features added to their regions
+// (returns how many).
+struct RegionFeatureJob {
+  bool current = false;  // a current region (else a previous one)
+  int image = 0;         // its index
+  AffineView view;
+};
+std::vector<RegionFeatureJob> RegionFeatureJobs(const FeatureOptions& options, bool warp_current,
+                                                SitePairState* state);
+double RegionFeatureJobCost(const RegionFeatureJob& job, const SitePairState& state);
+FeatureSet DetectRegionFeatureJob(const RegionFeatureJob& job, const FeatureOptions& options,
+                                  const SitePairState& state);
+int AddRegionFeatures(const std::vector<RegionFeatureJob>& jobs, const std::vector<FeatureSet>& sets,
+                      SitePairState* state);
 
 // The DR gate of a forward overlap, current-image px: the region's growth
 // under the DR uncertainty (growth_px over the scale) plus gate_margin_px,
@@ -293,6 +323,13 @@ OverlapWork WarpOverlap(const PairOverlap& overlap, const SitePairState& state, 
                         const GateOptions& gate);
 // ASIFT on a warped overlap (tilts up to warp_max_tilt).
 void DetectWarpedFeatures(const FeatureOptions& options, bool warp_current, OverlapWork* work);
+
+// With warp_current, DetectRegionFeatures and every matched forward
+// overlap's WarpOverlap + DetectWarpedFeatures (features on the rover's
+// body dropped) as one pool of jobs, largest first (asift_and_warps.cpp).
+// Fills state->overlaps; returns the features (regions and warped images).
+int DescribeRegionsAndWarpOverlaps(const FeatureOptions& features, const WarpOptions& warp, const GateOptions& gate,
+                                   int num_threads, SitePairState* state);
 
 // Stage 1: the densest cluster of match offsets (current - predicted, train
 // px) within radius r of one offset, kept within 2r of its mean.
