@@ -1,6 +1,8 @@
 // Row least-squares matching (step 3 of vloc::DenseStereo): one pixel
 // (RowLeastSquaresMatch) or many at once (internal::RowLeastSquaresMatchBatch,
-// 8 pixels per AVX2 register, the same results bit for bit).
+// 8 pixels per AVX2 register, the same results bit for bit). The sums and
+// interpolations are fused multiply-adds: std::fma in the scalar code, FMA
+// instructions in the lanes (fewer operations and shorter chains).
 #include "row_lsm.h"
 
 #include <Eigen/Cholesky>
@@ -9,7 +11,6 @@
 #include <cmath>
 #include <vector>
 
-#include "cubic_kernels.h"
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
@@ -60,6 +61,32 @@ bool TapsInside(const LsmState& s, const DenseStereoOptions& o, int W) {
   return !(xmin - 1 < 0 || xmax + 2 > W - 1);
 }
 
+// The kernel weights of cubic_kernels.h in fused multiply-adds (one
+// rounding each) and 1/6 multiplied, as the vector lanes compute them.
+inline void RowWeights(bool bspline, float t, float w[4], float dw[4]) {
+  const float t2 = t * t, t3 = t2 * t;
+  if (bspline) {
+    const float u = 1.f - t, k6 = 1.f / 6.f;
+    w[0] = u * u * u * k6;
+    w[1] = std::fma(3.f, t3, std::fma(-6.f, t2, 4.f)) * k6;
+    w[2] = std::fma(-3.f, t3, std::fma(3.f, t2, std::fma(3.f, t, 1.f))) * k6;
+    w[3] = t3 * k6;
+    dw[0] = -0.5f * u * u;
+    dw[1] = std::fma(1.5f, t2, -2.f * t);
+    dw[2] = std::fma(-1.5f, t2, t + 0.5f);
+    dw[3] = 0.5f * t2;
+  } else {
+    w[0] = std::fma(-0.5f, t3, std::fma(-0.5f, t, t2));
+    w[1] = std::fma(1.5f, t3, std::fma(-2.5f, t2, 1.f));
+    w[2] = std::fma(-1.5f, t3, std::fma(2.f, t2, 0.5f * t));
+    w[3] = std::fma(0.5f, t3, -0.5f * t2);
+    dw[0] = std::fma(-1.5f, t2, std::fma(2.f, t, -0.5f));
+    dw[1] = std::fma(4.5f, t2, -5.f * t);
+    dw[2] = std::fma(-4.5f, t2, std::fma(4.f, t, 0.5f));
+    dw[3] = std::fma(1.5f, t2, -t);
+  }
+}
+
 // One pixel's normal equations at its current state (s->nn, s->bb, s->ssr, G).
 void AccumulateScalar(const cv::Mat& R, const DenseStereoOptions& o, const float* T, float* G, LsmState* s) {
   const int h = o.lsm_half_window, hy = o.lsm_half_height;
@@ -79,20 +106,17 @@ void AccumulateScalar(const cv::Mat& R, const DenseStereoOptions& o, const float
     const double row_shift = x - d - gy * r;
     float rn[15] = {0}, rb[5] = {0}, rs = 0;
     for (int c = -h; c <= h; ++c, ++i) {
-      const double xr = row_shift + c * (1.0 - gx);
+      const double xr = std::fma(static_cast<double>(c), 1.0 - gx, row_shift);
       const int x0 = static_cast<int>(xr);  // xr >= 1: truncation is floor
       const float t = static_cast<float>(xr - x0);
-      if (o.lsm_bspline) {
-        internal::BSplineWeights(t, w, dw);
-      } else {
-        internal::CubicWeights(t, w, dw);
-      }
+      RowWeights(o.lsm_bspline, t, w, dw);
       const float* p = row + x0 - 1;
-      const float g = w[0] * p[0] + w[1] * p[1] + w[2] * p[2] + w[3] * p[3];
-      const float dg = fr1 * (dw[0] * p[0] + dw[1] * p[1] + dw[2] * p[2] + dw[3] * p[3]);
+      // Fused multiply-adds (one rounding each), as the vector lanes do them.
+      const float g = std::fma(w[3], p[3], std::fma(w[2], p[2], std::fma(w[1], p[1], w[0] * p[0])));
+      const float dg = fr1 * std::fma(dw[3], p[3], std::fma(dw[2], p[2], std::fma(dw[1], p[1], dw[0] * p[0])));
       G[i] = g;
-      const float resid = T[i] - (fr0 + fr1 * g);
-      rs += resid * resid;
+      const float resid = T[i] - std::fma(fr1, g, fr0);
+      rs = std::fma(resid, resid, rs);
       float j[5];
       if (plane) {
         j[0] = -dg, j[1] = -dg * c, j[2] = -dg * r, j[3] = 1.f, j[4] = g;
@@ -100,8 +124,8 @@ void AccumulateScalar(const cv::Mat& R, const DenseStereoOptions& o, const float
         j[0] = -dg, j[1] = 1.f, j[2] = g, j[3] = 0.f, j[4] = 0.f;
       }
       for (int k = 0, q = 0; k < 5; ++k) {
-        rb[k] += j[k] * resid;
-        for (int l = 0; l <= k; ++l, ++q) rn[q] += j[k] * j[l];
+        rb[k] = std::fma(j[k], resid, rb[k]);
+        for (int l = 0; l <= k; ++l, ++q) rn[q] = std::fma(j[k], j[l], rn[q]);
       }
     }
     for (int q = 0; q < 15; ++q) nn[q] += rn[q];
@@ -235,12 +259,18 @@ VLOC_AVX2 void Store(const __m256d v[2], double* out) {
   _mm256_storeu_pd(out + 4, v[1]);
 }
 #undef VLOC_AVX2
+// A float in all lanes.
+__attribute__((target("avx2"), always_inline)) inline __m256 S(float a) { return _mm256_set1_ps(a); }
+// a * b + c, rounded once (std::fma in the scalar code).
+__attribute__((target("avx2,fma"), always_inline)) inline __m256 Fma(__m256 a, __m256 b, __m256 c) {
+  return _mm256_fmadd_ps(a, b, c);
+}
 
 // The window sums of 8 pixels (one per lane) at their current states:
 // AccumulateScalar's operations in its order, 8 at a time. T and G hold
 // window sample i of lane k at [i * 8 + k].
 template <bool kBspline>
-__attribute__((target("avx2"))) void AccumulateLanes(const cv::Mat& R, const DenseStereoOptions& o,
+__attribute__((target("avx2,fma"), optimize("fp-contract=off"))) void AccumulateLanes(const cv::Mat& R, const DenseStereoOptions& o,
                                                      LsmState* const* lanes, const float* T, float* G) {
   const int h = o.lsm_half_window, hy = o.lsm_half_height;
   const int stride = static_cast<int>(R.step1());
@@ -278,8 +308,7 @@ __attribute__((target("avx2"))) void AccumulateLanes(const cv::Mat& R, const Den
     for (auto& v : rb) v = _mm256_setzero_ps();
     for (int c = -h; c <= h; ++c, ++i) {
       const __m256d cd = _mm256_set1_pd(c);
-      const __m256d xr_lo = _mm256_add_pd(shift_lo, _mm256_mul_pd(cd, omg_lo));
-      const __m256d xr_hi = _mm256_add_pd(shift_hi, _mm256_mul_pd(cd, omg_hi));
+      const __m256d xr_lo = _mm256_fmadd_pd(cd, omg_lo, shift_lo), xr_hi = _mm256_fmadd_pd(cd, omg_hi, shift_hi);
       const __m128i x0_lo = _mm256_cvttpd_epi32(xr_lo), x0_hi = _mm256_cvttpd_epi32(xr_hi);
       const __m128 t_lo = _mm256_cvtpd_ps(_mm256_sub_pd(xr_lo, _mm256_cvtepi32_pd(x0_lo)));
       const __m128 t_hi = _mm256_cvtpd_ps(_mm256_sub_pd(xr_hi, _mm256_cvtepi32_pd(x0_hi)));
@@ -301,63 +330,58 @@ __attribute__((target("avx2"))) void AccumulateLanes(const cv::Mat& R, const Den
       const __m256 p3 = _mm256_insertf128_ps(_mm256_castps128_ps256(a3), b3, 1);
       const __m256 t2 = _mm256_mul_ps(t, t), t3 = _mm256_mul_ps(t2, t);
       __m256 w0, w1, w2, w3, dw0, dw1, dw2, dw3;
+      // RowWeights, 8 phases at a time.
+      const __m256 k1 = _mm256_set1_ps(1.f);
       if (kBspline) {
-        const __m256 u = _mm256_sub_ps(_mm256_set1_ps(1.f), t), six = _mm256_set1_ps(6.f);
-        w0 = _mm256_div_ps(_mm256_mul_ps(_mm256_mul_ps(u, u), u), six);
-        w1 = _mm256_div_ps(_mm256_add_ps(_mm256_sub_ps(Mul(3.f, t3), Mul(6.f, t2)), _mm256_set1_ps(4.f)), six);
-        w2 = _mm256_div_ps(
-            _mm256_add_ps(_mm256_add_ps(_mm256_add_ps(Mul(-3.f, t3), Mul(3.f, t2)), Mul(3.f, t)), _mm256_set1_ps(1.f)),
-            six);
-        w3 = _mm256_div_ps(t3, six);
+        const __m256 u = _mm256_sub_ps(k1, t), k6 = _mm256_set1_ps(1.f / 6.f);
+        w0 = _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(u, u), u), k6);
+        w1 = _mm256_mul_ps(Fma(S(3.f), t3, Fma(S(-6.f), t2, S(4.f))), k6);
+        w2 = _mm256_mul_ps(Fma(S(-3.f), t3, Fma(S(3.f), t2, Fma(S(3.f), t, k1))), k6);
+        w3 = _mm256_mul_ps(t3, k6);
         dw0 = _mm256_mul_ps(Mul(-0.5f, u), u);
-        dw1 = _mm256_sub_ps(Mul(1.5f, t2), Mul(2.f, t));
-        dw2 = _mm256_add_ps(_mm256_add_ps(Mul(-1.5f, t2), t), _mm256_set1_ps(0.5f));
+        dw1 = Fma(S(1.5f), t2, Mul(-2.f, t));
+        dw2 = Fma(S(-1.5f), t2, _mm256_add_ps(t, S(0.5f)));
         dw3 = Mul(0.5f, t2);
       } else {
-        w0 = _mm256_sub_ps(_mm256_add_ps(Mul(-0.5f, t3), t2), Mul(0.5f, t));
-        w1 = _mm256_add_ps(_mm256_sub_ps(Mul(1.5f, t3), Mul(2.5f, t2)), _mm256_set1_ps(1.f));
-        w2 = _mm256_add_ps(_mm256_add_ps(Mul(-1.5f, t3), Mul(2.f, t2)), Mul(0.5f, t));
-        w3 = _mm256_sub_ps(Mul(0.5f, t3), Mul(0.5f, t2));
-        dw0 = _mm256_sub_ps(_mm256_add_ps(Mul(-1.5f, t2), Mul(2.f, t)), _mm256_set1_ps(0.5f));
-        dw1 = _mm256_sub_ps(Mul(4.5f, t2), Mul(5.f, t));
-        dw2 = _mm256_add_ps(_mm256_add_ps(Mul(-4.5f, t2), Mul(4.f, t)), _mm256_set1_ps(0.5f));
-        dw3 = _mm256_sub_ps(Mul(1.5f, t2), t);
+        w0 = Fma(S(-0.5f), t3, Fma(S(-0.5f), t, t2));
+        w1 = Fma(S(1.5f), t3, Fma(S(-2.5f), t2, k1));
+        w2 = Fma(S(-1.5f), t3, Fma(S(2.f), t2, Mul(0.5f, t)));
+        w3 = Fma(S(0.5f), t3, Mul(-0.5f, t2));
+        dw0 = Fma(S(-1.5f), t2, Fma(S(2.f), t, S(-0.5f)));
+        dw1 = Fma(S(4.5f), t2, Mul(-5.f, t));
+        dw2 = Fma(S(-4.5f), t2, Fma(S(4.f), t, S(0.5f)));
+        dw3 = Fma(S(1.5f), t2, _mm256_xor_ps(t, sign));
       }
-      const __m256 g = _mm256_add_ps(
-          _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(w0, p0), _mm256_mul_ps(w1, p1)), _mm256_mul_ps(w2, p2)),
-          _mm256_mul_ps(w3, p3));
-      const __m256 dg = _mm256_mul_ps(
-          fr1, _mm256_add_ps(_mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dw0, p0), _mm256_mul_ps(dw1, p1)),
-                                           _mm256_mul_ps(dw2, p2)),
-                             _mm256_mul_ps(dw3, p3)));
+      const __m256 g = Fma(w3, p3, Fma(w2, p2, Fma(w1, p1, _mm256_mul_ps(w0, p0))));
+      const __m256 dg = _mm256_mul_ps(fr1, Fma(dw3, p3, Fma(dw2, p2, Fma(dw1, p1, _mm256_mul_ps(dw0, p0)))));
       _mm256_storeu_ps(G + i * kLanes, g);
-      const __m256 resid = _mm256_sub_ps(_mm256_loadu_ps(T + i * kLanes), _mm256_add_ps(fr0, _mm256_mul_ps(fr1, g)));
-      rs = _mm256_add_ps(rs, _mm256_mul_ps(resid, resid));
+      const __m256 resid = _mm256_sub_ps(_mm256_loadu_ps(T + i * kLanes), Fma(fr1, g, fr0));
+      rs = Fma(resid, resid, rs);
       // j = (-dg, -dg c, -dg r, 1, g); the products with 1 are exact.
       const __m256 j0 = _mm256_xor_ps(dg, sign);
       const __m256 j1 = _mm256_mul_ps(j0, _mm256_set1_ps(static_cast<float>(c)));
       const __m256 j2 = _mm256_mul_ps(j0, rf);
       const __m256 j4 = g;
-      rb[0] = _mm256_add_ps(rb[0], _mm256_mul_ps(j0, resid));
-      rb[1] = _mm256_add_ps(rb[1], _mm256_mul_ps(j1, resid));
-      rb[2] = _mm256_add_ps(rb[2], _mm256_mul_ps(j2, resid));
+      rb[0] = Fma(j0, resid, rb[0]);
+      rb[1] = Fma(j1, resid, rb[1]);
+      rb[2] = Fma(j2, resid, rb[2]);
       rb[3] = _mm256_add_ps(rb[3], resid);
-      rb[4] = _mm256_add_ps(rb[4], _mm256_mul_ps(j4, resid));
-      rn[0] = _mm256_add_ps(rn[0], _mm256_mul_ps(j0, j0));
-      rn[1] = _mm256_add_ps(rn[1], _mm256_mul_ps(j1, j0));
-      rn[2] = _mm256_add_ps(rn[2], _mm256_mul_ps(j1, j1));
-      rn[3] = _mm256_add_ps(rn[3], _mm256_mul_ps(j2, j0));
-      rn[4] = _mm256_add_ps(rn[4], _mm256_mul_ps(j2, j1));
-      rn[5] = _mm256_add_ps(rn[5], _mm256_mul_ps(j2, j2));
+      rb[4] = Fma(j4, resid, rb[4]);
+      rn[0] = Fma(j0, j0, rn[0]);
+      rn[1] = Fma(j1, j0, rn[1]);
+      rn[2] = Fma(j1, j1, rn[2]);
+      rn[3] = Fma(j2, j0, rn[3]);
+      rn[4] = Fma(j2, j1, rn[4]);
+      rn[5] = Fma(j2, j2, rn[5]);
       rn[6] = _mm256_add_ps(rn[6], j0);
       rn[7] = _mm256_add_ps(rn[7], j1);
       rn[8] = _mm256_add_ps(rn[8], j2);
       rn[9] = _mm256_add_ps(rn[9], _mm256_set1_ps(1.f));
-      rn[10] = _mm256_add_ps(rn[10], _mm256_mul_ps(j4, j0));
-      rn[11] = _mm256_add_ps(rn[11], _mm256_mul_ps(j4, j1));
-      rn[12] = _mm256_add_ps(rn[12], _mm256_mul_ps(j4, j2));
+      rn[10] = Fma(j4, j0, rn[10]);
+      rn[11] = Fma(j4, j1, rn[11]);
+      rn[12] = Fma(j4, j2, rn[12]);
       rn[13] = _mm256_add_ps(rn[13], j4);
-      rn[14] = _mm256_add_ps(rn[14], _mm256_mul_ps(j4, j4));
+      rn[14] = Fma(j4, j4, rn[14]);
     }
     for (int q = 0; q < 15; ++q) AddTo(nn[q], rn[q]);
     for (int k = 0; k < 5; ++k) AddTo(bb[k], rb[k]);
@@ -376,8 +400,8 @@ __attribute__((target("avx2"))) void AccumulateLanes(const cv::Mat& R, const Den
   for (int k = 0; k < kLanes; ++k) lanes[k]->ssr = buf[k];
 }
 
-bool HasAvx2() {
-  static const bool has = __builtin_cpu_supports("avx2");
+bool HasAvx2Fma() {
+  static const bool has = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
   return has;
 }
 
@@ -386,7 +410,7 @@ bool HasAvx2() {
 
 bool RowLsmBatchVectorised(const DenseStereoOptions& o) {
 #ifdef VLOC_ROW_LSM_AVX2
-  return HasAvx2() && o.lsm_disparity_plane;
+  return HasAvx2Fma() && o.lsm_disparity_plane;
 #else
   (void)o;
   return false;

@@ -3,9 +3,10 @@
 // Gauss-Newton steps as vloc::RowLeastSquaresMatch, pixel for pixel, with
 // the window sums of 8 pixels in the 8 lanes of an AVX2 register (each
 // lane runs the scalar code's float and double operations in the scalar
-// code's order, so the results are bit for bit those of
-// RowLeastSquaresMatch; row_lsm_test checks it). Without AVX2, or without
-// the disparity plane, it loops over RowLeastSquaresMatch.
+// code's order, its fused multiply-adds as FMA instructions, so the
+// results are bit for bit those of RowLeastSquaresMatch; row_lsm_test
+// checks it). Without AVX2 and FMA, or without the disparity plane, it
+// loops over RowLeastSquaresMatch.
 
 #include <opencv2/core.hpp>
 

@@ -17,8 +17,8 @@
 //      integer: the pair is rectified). Keys' cubic convolution instead
 //      biases the disparity by up to +-0.02 px with its sub-pixel phase.
 //      8 pixels at a time in the lanes of AVX2 registers where the CPU has
-//      them (row_lsm.cpp: the scalar code's operations in its order, the
-//      same disparities bit for bit; row_lsm_test).
+//      them and FMA (row_lsm.cpp: the scalar code's operations in its
+//      order, the same disparities bit for bit; row_lsm_test).
 // Options default to the paper's pipeline; lsm_median_tolerance and
 // lsm_back_check_px add filters after LSM (off by default: each trades
 // matched pixels for fewer > 1 px errors). config/stereo_photo.yaml holds
