@@ -5,8 +5,6 @@
 // instructions in the lanes (fewer operations and shorter chains).
 #include "row_lsm.h"
 
-#include <Eigen/Cholesky>
-#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <vector>
@@ -21,8 +19,6 @@ namespace vloc {
 
 namespace {
 
-using Mat5 = Eigen::Matrix<double, 5, 5>;
-using Vec5 = Eigen::Matrix<double, 5, 1>;
 constexpr int kMaxN = 41 * 41;  // largest window (half sizes <= 20)
 
 // One pixel's Gauss-Newton state. The template T and the resampled window
@@ -33,7 +29,7 @@ struct LsmState {
   double d = 0, gx = 0, gy = 0, r0 = 0, r1 = 1;  // disparity, its gradients, radiometry
   double tsum = 0;                              // sum of the template
   double nn[15] = {0}, bb[5] = {0}, ssr = 0;    // this iteration's normal equations (lower triangle)
-  Mat5 N;
+  double chol[15] = {0}, inv_diag[5] = {0};     // their Cholesky factor (see Factor)
   int it = 0;                                   // Gauss-Newton iterations done
 };
 
@@ -139,34 +135,81 @@ void AccumulateScalar(const cv::Mat& R, const DenseStereoOptions& o, const float
 
 enum class LsmStep { kContinue, kConverged, kRejected };
 
-// Solves this iteration's normal equations and moves the state.
-LsmStep UpdateLsm(const DenseStereoOptions& o, LsmState* s) {
-  const bool plane = o.lsm_disparity_plane;
-  Vec5 b;
-  for (int k = 0, q = 0; k < 5; ++k) {
-    b(k) = s->bb[k];
-    for (int l = 0; l <= k; ++l, ++q) s->N(k, l) = s->N(l, k) = s->nn[q];
+// Packed lower-triangle index of (i, j), j <= i (the order of nn).
+constexpr int Tri(int i, int j) { return i * (i + 1) / 2 + j; }
+
+// The normal matrix as solved: the parameters that do not enter (the
+// plane's without it, dd/dy with one window row) get a unit diagonal and
+// stay 0.
+void Regularise(const DenseStereoOptions& o, double nn[15]) {
+  if (!o.lsm_disparity_plane) nn[Tri(3, 3)] += 1.0, nn[Tri(4, 4)] += 1.0;
+  if (o.lsm_disparity_plane && o.lsm_half_height == 0) nn[Tri(2, 2)] = 1.0;
+}
+
+// Cholesky factor l (packed as nn) of the normal matrix and the
+// reciprocals of its diagonal: false when it is not positive definite.
+// FactorLanes repeats these operations in this order for 8 pixels.
+bool Factor(const double nn[15], double l[15], double inv_diag[5]) {
+  for (int j = 0; j < 5; ++j) {
+    double d = nn[Tri(j, j)];
+    for (int k = 0; k < j; ++k) d -= l[Tri(j, k)] * l[Tri(j, k)];
+    if (!(d > 0)) return false;
+    l[Tri(j, j)] = std::sqrt(d);
+    inv_diag[j] = 1.0 / l[Tri(j, j)];
+    for (int i = j + 1; i < 5; ++i) {
+      double t = nn[Tri(i, j)];
+      for (int k = 0; k < j; ++k) t -= l[Tri(i, k)] * l[Tri(j, k)];
+      l[Tri(i, j)] = t * inv_diag[j];
+    }
   }
-  if (!plane) s->N.block<2, 2>(3, 3).diagonal().array() += 1.0;
-  const Eigen::LDLT<Mat5> ldlt(s->N);
-  if (ldlt.info() != Eigen::Success) return LsmStep::kRejected;
-  const Vec5 dx = ldlt.solve(b);
-  if (!dx.allFinite()) return LsmStep::kRejected;
-  s->d += dx(0);
+  return true;
+}
+
+// Solves l l^T x = b with Factor's output.
+void Solve(const double l[15], const double inv_diag[5], const double b[5], double x[5]) {
+  double y[5];
+  for (int i = 0; i < 5; ++i) {
+    double t = b[i];
+    for (int k = 0; k < i; ++k) t -= l[Tri(i, k)] * y[k];
+    y[i] = t * inv_diag[i];
+  }
+  for (int i = 4; i >= 0; --i) {
+    double t = y[i];
+    for (int k = i + 1; k < 5; ++k) t -= l[Tri(k, i)] * x[k];
+    x[i] = t * inv_diag[i];
+  }
+}
+
+// This iteration's update from the normal equations: false when they are
+// singular.
+bool SolveNormalEquations(const DenseStereoOptions& o, LsmState* s, double dx[5]) {
+  double nn[15];
+  std::copy(s->nn, s->nn + 15, nn);
+  Regularise(o, nn);
+  if (!Factor(nn, s->chol, s->inv_diag)) return false;
+  Solve(s->chol, s->inv_diag, s->bb, dx);
+  return true;
+}
+
+// Moves the state by this iteration's update dx (false: singular).
+LsmStep UpdateLsm(const DenseStereoOptions& o, bool solved, const double dx[5], LsmState* s) {
+  const bool plane = o.lsm_disparity_plane;
+  if (!solved || !std::all_of(dx, dx + 5, [](double v) { return std::isfinite(v); })) return LsmStep::kRejected;
+  s->d += dx[0];
   if (plane) {
-    s->gx += dx(1);
-    s->gy += dx(2);
-    s->r0 += dx(3);
-    s->r1 += dx(4);
+    s->gx += dx[1];
+    s->gy += dx[2];
+    s->r0 += dx[3];
+    s->r1 += dx[4];
   } else {
-    s->r0 += dx(1);
-    s->r1 += dx(2);
+    s->r0 += dx[1];
+    s->r1 += dx[2];
   }
   if (std::abs(s->d - s->initial_disparity) > o.lsm_max_shift_px || std::abs(s->gx) > 0.5 || std::abs(s->gy) > 1.0 ||
       s->r1 < 0.2)
     return LsmStep::kRejected;
   ++s->it;
-  return std::abs(dx(0)) < o.lsm_convergence_px ? LsmStep::kConverged : LsmStep::kContinue;
+  return std::abs(dx[0]) < o.lsm_convergence_px ? LsmStep::kConverged : LsmStep::kContinue;
 }
 
 // Precision and window correlation of a converged pixel: accepted?
@@ -175,8 +218,10 @@ bool FinishLsm(const LsmState& s, const DenseStereoOptions& o, const float* T, c
   const int n = (2 * o.lsm_half_window + 1) * (2 * o.lsm_half_height + 1);
   const int np = o.lsm_disparity_plane ? 5 : 3;  // d, [dd/dx, dd/dy], r0, r1
   const double sigma0_sq = s.ssr / std::max(1, n - np);
-  const Mat5 Ninv = Eigen::LDLT<Mat5>(s.N).solve(Mat5::Identity());
-  const double sigma = std::sqrt(std::max(0.0, sigma0_sq * Ninv(0, 0)));
+  const double e0[5] = {1, 0, 0, 0, 0};
+  double ninv0[5];  // first column of the inverse normal matrix
+  Solve(s.chol, s.inv_diag, e0, ninv0);
+  const double sigma = std::sqrt(std::max(0.0, sigma0_sq * ninv0[0]));
   const double tm = s.tsum / n;
   double gm = 0;
   for (int i = 0; i < n; ++i) gm += G[i * stride];
@@ -233,7 +278,9 @@ bool RowLeastSquaresMatch(const cv::Mat& L, const cv::Mat& R, int x, int y, doub
   for (;;) {
     if (s.it >= o.lsm_max_iterations || !TapsInside(s, o, R.cols)) return false;
     AccumulateScalar(R, o, T, G, &s);
-    const LsmStep step = UpdateLsm(o, &s);
+    double dx[5];
+    const bool solved = SolveNormalEquations(o, &s, dx);
+    const LsmStep step = UpdateLsm(o, solved, dx, &s);
     if (step == LsmStep::kRejected) return false;
     if (step == LsmStep::kConverged) break;
   }
@@ -400,6 +447,59 @@ __attribute__((target("avx2,fma"), optimize("fp-contract=off"))) void Accumulate
   for (int k = 0; k < kLanes; ++k) lanes[k]->ssr = buf[k];
 }
 
+// SolveNormalEquations of 8 pixels (one per lane; 4 doubles a register):
+// Factor's and Solve's operations in their order. A lane whose matrix is
+// not positive definite gets solved[k] = false (its numbers are NaN).
+__attribute__((target("avx2"), optimize("fp-contract=off"))) void SolveLanes(const DenseStereoOptions& o,
+                                                                             LsmState* const* lanes,
+                                                                             bool solved[kLanes],
+                                                                             double dx[kLanes][5]) {
+  alignas(32) double nn[15][kLanes], bb[5][kLanes], l_out[15][kLanes], inv_out[5][kLanes], x_out[5][kLanes];
+  alignas(32) double ok_out[kLanes];
+  for (int k = 0; k < kLanes; ++k) {
+    double m[15];
+    std::copy(lanes[k]->nn, lanes[k]->nn + 15, m);
+    Regularise(o, m);
+    for (int q = 0; q < 15; ++q) nn[q][k] = m[q];
+    for (int q = 0; q < 5; ++q) bb[q][k] = lanes[k]->bb[q];
+  }
+  const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
+  for (int half = 0; half < kLanes; half += 4) {
+    auto ld = [&](const double* row) { return _mm256_load_pd(row + half); };
+    __m256d l[15], inv[5], y[5], x[5], ok = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+    for (int j = 0; j < 5; ++j) {
+      __m256d d = ld(nn[Tri(j, j)]);
+      for (int k = 0; k < j; ++k) d = _mm256_sub_pd(d, _mm256_mul_pd(l[Tri(j, k)], l[Tri(j, k)]));
+      ok = _mm256_and_pd(ok, _mm256_cmp_pd(d, zero, _CMP_GT_OQ));
+      l[Tri(j, j)] = _mm256_sqrt_pd(d);
+      inv[j] = _mm256_div_pd(one, l[Tri(j, j)]);
+      for (int i = j + 1; i < 5; ++i) {
+        __m256d t = ld(nn[Tri(i, j)]);
+        for (int k = 0; k < j; ++k) t = _mm256_sub_pd(t, _mm256_mul_pd(l[Tri(i, k)], l[Tri(j, k)]));
+        l[Tri(i, j)] = _mm256_mul_pd(t, inv[j]);
+      }
+    }
+    for (int i = 0; i < 5; ++i) {
+      __m256d t = ld(bb[i]);
+      for (int k = 0; k < i; ++k) t = _mm256_sub_pd(t, _mm256_mul_pd(l[Tri(i, k)], y[k]));
+      y[i] = _mm256_mul_pd(t, inv[i]);
+    }
+    for (int i = 4; i >= 0; --i) {
+      __m256d t = y[i];
+      for (int k = i + 1; k < 5; ++k) t = _mm256_sub_pd(t, _mm256_mul_pd(l[Tri(k, i)], x[k]));
+      x[i] = _mm256_mul_pd(t, inv[i]);
+    }
+    for (int q = 0; q < 15; ++q) _mm256_store_pd(l_out[q] + half, l[q]);
+    for (int q = 0; q < 5; ++q) _mm256_store_pd(inv_out[q] + half, inv[q]), _mm256_store_pd(x_out[q] + half, x[q]);
+    _mm256_store_pd(ok_out + half, ok);
+  }
+  for (int k = 0; k < kLanes; ++k) {
+    for (int q = 0; q < 15; ++q) lanes[k]->chol[q] = l_out[q][k];
+    for (int q = 0; q < 5; ++q) lanes[k]->inv_diag[q] = inv_out[q][k], dx[k][q] = x_out[q][k];
+    solved[k] = std::signbit(ok_out[k]);  // all ones: a NaN with the sign bit set
+  }
+}
+
 bool HasAvx2Fma() {
   static const bool has = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
   return has;
@@ -464,9 +564,12 @@ void RowLeastSquaresMatchBatch(const cv::Mat& L, const cv::Mat& R, const RowLsmT
     } else {
       AccumulateLanes<false>(R, o, lanes, T.data(), G.data());
     }
+    bool solved[kLanes];
+    double dx[kLanes][5];
+    SolveLanes(o, lanes, solved, dx);
     for (int k = 0; k < kLanes; ++k) {
       if (task_of[k] < 0) continue;
-      const LsmStep step = UpdateLsm(o, &state[k]);
+      const LsmStep step = UpdateLsm(o, solved[k], dx[k], &state[k]);
       if (step == LsmStep::kContinue) continue;
       const int t = task_of[k];
       if (step == LsmStep::kConverged)
