@@ -1,12 +1,16 @@
 #include "vloc/mosaic/frame_matcher.h"
 
 #include <opencv2/calib3d.hpp>
+#include <opencv2/core/hal/hal.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <chrono>
+#include <cfloat>
 #include <cmath>
+#include <cstdint>
+#include <unordered_map>
 
 #include "vloc/common/options.h"
 
@@ -102,6 +106,54 @@ void RatioMatches(const std::vector<std::vector<cv::DMatch>>& knn, const FrameFe
   }
 }
 
+// What BFMatcher measures between row i of a and row j of b: L2 (float descriptors) or Hamming (binary).
+float DescriptorDistance(const cv::Mat& a, int i, const cv::Mat& b, int j, int norm) {
+  if (norm == cv::NORM_L2) return std::sqrt(cv::hal::normL2Sqr_(a.ptr<float>(i), b.ptr<float>(j), a.cols));
+  return static_cast<float>(cv::hal::normHamming(a.ptr<uchar>(i), b.ptr<uchar>(j), a.cols));
+}
+
+// The two nearest `to` descriptors of each `from` feature among the `to`
+// features within gate_px of its predicted place: BFMatcher::knnMatch with a
+// mask of the gate, without computing the distances outside it (a grid of
+// gate-sized cells holds the `to` features).
+std::vector<std::vector<cv::DMatch>> GatedKnn(const FrameFeatures& from, const FrameFeatures& to,
+                                              const MotionPrior& prior, int norm) {
+  const double cell = std::max(1.0, prior.gate_px);
+  const auto key = [](int cx, int cy) { return (static_cast<int64_t>(cx) << 32) ^ static_cast<uint32_t>(cy); };
+  std::unordered_map<int64_t, std::vector<int>> grid;
+  for (size_t j = 0; j < to.points.size(); ++j)
+    grid[key(static_cast<int>(std::floor(to.points[j].x / cell)), static_cast<int>(std::floor(to.points[j].y / cell)))]
+        .push_back(static_cast<int>(j));
+  const double gate2 = prior.gate_px * prior.gate_px;
+  std::vector<std::vector<cv::DMatch>> knn(from.points.size());
+  for (size_t i = 0; i < from.points.size(); ++i) {
+    const cv::Point2d p = prior.to_from_from.Apply(cv::Point2d(from.points[i]));
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || std::abs(p.x) > 1e6 || std::abs(p.y) > 1e6) continue;
+    const int cx = static_cast<int>(std::floor(p.x / cell)), cy = static_cast<int>(std::floor(p.y / cell));
+    cv::DMatch best(static_cast<int>(i), -1, FLT_MAX), second = best;
+    for (int gy = cy - 1; gy <= cy + 1; ++gy) {
+      for (int gx = cx - 1; gx <= cx + 1; ++gx) {
+        const auto it = grid.find(key(gx, gy));
+        if (it == grid.end()) continue;
+        for (int j : it->second) {
+          const double dx = to.points[j].x - p.x, dy = to.points[j].y - p.y;
+          if (dx * dx + dy * dy > gate2) continue;
+          const float d = DescriptorDistance(from.descriptors, static_cast<int>(i), to.descriptors, j, norm);
+          if (d < best.distance || (d == best.distance && j < best.trainIdx)) {
+            second = best;
+            best = cv::DMatch(static_cast<int>(i), j, d);
+          } else if (d < second.distance || (d == second.distance && j < second.trainIdx)) {
+            second = cv::DMatch(static_cast<int>(i), j, d);
+          }
+        }
+      }
+    }
+    if (best.trainIdx >= 0) knn[i].push_back(best);
+    if (second.trainIdx >= 0) knn[i].push_back(second);
+  }
+  return knn;
+}
+
 // Robust homography a -> b; returns the number of inliers (0 when none was found).
 int FitHomography(const std::vector<cv::Point2f>& a, const std::vector<cv::Point2f>& b, int method, double threshold,
                   cv::Matx33d* H) {
@@ -191,26 +243,15 @@ MotionEstimate EstimateMotion(const FrameFeatures& from, const FrameFeatures& to
                 "): blank, blurred or featureless frame");
   if (from.descriptors.type() != to.descriptors.type())
     return fail("descriptors of different kinds (detector changed between frames)");
-  cv::BFMatcher matcher(from.descriptors.depth() == CV_32F ? cv::NORM_L2 : cv::NORM_HAMMING);
+  const int norm = from.descriptors.depth() == CV_32F ? cv::NORM_L2 : cv::NORM_HAMMING;
   std::vector<std::vector<cv::DMatch>> knn;
   double ratio = options.ratio;
   if (prior) {
-    // Candidates only near the predicted place of each `from` point.
-    cv::Mat mask(static_cast<int>(from.points.size()), static_cast<int>(to.points.size()), CV_8U, cv::Scalar(0));
-    const double gate2 = prior->gate_px * prior->gate_px;
-    for (size_t i = 0; i < from.points.size(); ++i) {
-      const cv::Point2d p = prior->to_from_from.Apply(cv::Point2d(from.points[i]));
-      uchar* row = mask.ptr<uchar>(static_cast<int>(i));
-      for (size_t j = 0; j < to.points.size(); ++j) {
-        const double dx = to.points[j].x - p.x, dy = to.points[j].y - p.y;
-        row[j] = dx * dx + dy * dy <= gate2 ? 1 : 0;
-      }
-    }
-    matcher.knnMatch(from.descriptors, to.descriptors, knn, 2, mask);
+    knn = GatedKnn(from, to, *prior, norm);
     ratio = options.guided_ratio;
     m.guided = true;
   } else {
-    matcher.knnMatch(from.descriptors, to.descriptors, knn, 2);
+    cv::BFMatcher(norm).knnMatch(from.descriptors, to.descriptors, knn, 2);
   }
   std::vector<cv::Point2f> a, b;
   RatioMatches(knn, from, to, ratio, &a, &b);

@@ -140,4 +140,13 @@ cv::Mat ToGray(const cv::Mat& image) {
   return gray;
 }
 
+double OverlapFraction(const Similarity2& other_to_this, cv::Size size) {
+  const std::vector<cv::Point2f> rect = {
+      {0, 0}, {float(size.width), 0}, {float(size.width), float(size.height)}, {0, float(size.height)}};
+  std::vector<cv::Point2f> quad, inter;
+  for (const auto& p : rect) quad.push_back(other_to_this.Apply(p));
+  const float area = cv::intersectConvexConvex(rect, quad, inter, true);
+  return area / (static_cast<double>(size.area()) + 1e-9);
+}
+
 }  // namespace vloc::mosaic

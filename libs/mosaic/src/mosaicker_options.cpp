@@ -21,6 +21,7 @@ void MosaickerOptions::Visit(OptionsReader& r) {
   r.Child("calibration", [&](OptionsReader& c) { calibration.Visit(c); });
   r.Child("matcher", [&](OptionsReader& c) { matcher.Visit(c); });
   r.Child("height_filter", [&](OptionsReader& c) { height_filter.Visit(c); });
+  r.Child("height_graph", [&](OptionsReader& c) { height_graph.Visit(c); });
   r.Child("canvas", [&](OptionsReader& c) { canvas.Visit(c); });
   r.Child("geo", [&](OptionsReader& c) { geo.Visit(c); });
   r.Optional("mosaic_every_n_frames", &mosaic_every_n_frames, "blend every n-th tracked frame", AtLeast(1));
@@ -76,6 +77,7 @@ std::string MosaickerSummary::BriefReport() const {
   if (georeferenced) s << " (" << tie_pairs << " fixes, rms " << tie_rms << " m)";
   if (guided + gps_rejections + reseats > 0)
     s << ", guided " << guided << ", rejected by GPS " << gps_rejections << ", placed by GPS " << reseats;
+  if (height_ties > 0) s << ", height ties " << height_ties << " (" << height_ties_dropped << " dropped)";
   if (reregistrations + reregistrations_rejected > 0)
     s << ", re-registered against the mosaic " << reregistrations << " times (" << reregistrations_rejected
       << " rejected)";

@@ -1,7 +1,8 @@
 // UavMosaicker::ProcessFrame as a table of contents over one FrameWork:
 // decode and undistort, calibrate (first frames), detect, start the mosaic
 // (first frame), predict, register (ranked candidates, registration.h), then
-// refine, ground plane, height, keyframe, route and GPS tie, blend.
+// refine, ground plane, height ties (height_ties.cpp), height, keyframe, route
+// and GPS tie, blend.
 #include "vloc/mosaic/uav_mosaicker.h"
 
 #include <glog/logging.h>
@@ -34,6 +35,7 @@ UavMosaicker::UavMosaicker(const MosaickerOptions& options)
       calibration_step_(options.calibration),
       undistorter_(options.camera),
       height_filter_(options.height_filter),
+      heights_(options.height_graph),
       gps_(options.geo),
       blender_(options.canvas, options.async_mosaic, options.async_mosaic_queue) {
   cv::setNumThreads(options_.num_threads);
@@ -86,6 +88,7 @@ FrameState UavMosaicker::Process(FrameWork* w) {
   RefinePose(w);
   MarkRegistered(w);
   EstimateGroundPlane(w);
+  TieHeights(w);
   EstimateHeight(w);
   UpdateKeyframe(w);
   TieRouteToGps(w);
@@ -187,6 +190,7 @@ void UavMosaicker::StartMosaic(FrameWork* w) {
   const cv::Point2d c = PrincipalPoint();
   const Similarity2 S{s, 0, -s * c.x, -s * c.y};
   keyframe_ = Keyframe{w->features, S, w->utime};
+  if (options_.height_graph.ties > 0) heights_.AddFrame(w->utime, std::log(S.Scale()));
   KeepImageForFinerLevel(w->frame);
   last_ = LastPoses{S, std::nullopt, gps_.GpsEnuAt(w->utime)};
   last_scale_ = s;
@@ -379,7 +383,7 @@ void UavMosaicker::EstimateHeight(FrameWork* w) {
   const Similarity2& S = w->registration.mosaic_from_frame;
   const double s = S.Scale();
   state.scale = last_scale_ / s;
-  state.height_raw = s * metres_per_pixel_ * focal_;
+  state.height_raw = HeightScale(w->utime, s) * metres_per_pixel_ * focal_;
   state.height = height_filter_.UpdateVision(state.height_raw, w->utime);
   if (last_good_index_ == state.frame_index - 1 && !w->was_lost) {
     last_.prev_good = last_.last_good;
@@ -393,18 +397,6 @@ void UavMosaicker::EstimateHeight(FrameWork* w) {
   last_.last_good_enu = gps_.GpsEnuAt(w->utime);
   gps_.UpdateYawOffset(S, w->utime);
 }
-
-namespace {
-double KeyframeOverlap(const Similarity2& key_to_cur, cv::Size size) {
-  const Similarity2 cur_to_key = key_to_cur.Inverse();
-  std::vector<cv::Point2f> rect = {{0, 0}, {float(size.width), 0}, {float(size.width), float(size.height)}, {0, float(size.height)}};
-  std::vector<cv::Point2f> quad;
-  for (const auto& p : rect) quad.push_back(cur_to_key.Apply(p));
-  std::vector<cv::Point2f> inter;
-  const float area = cv::intersectConvexConvex(rect, quad, inter, true);
-  return area / (static_cast<double>(size.area()) + 1e-9);
-}
-}  // namespace
 
 // A new keyframe after a loss, a registration not against the keyframe, a
 // re-registration, or too little support, scale change or overlap.
@@ -423,7 +415,7 @@ void UavMosaicker::UpdateKeyframe(FrameWork* w) {
   w->new_keyframe = w->was_lost || via_mosaic || via_neighbour || w->reregistered ||
                     r.motion.num_background < options_.keyframe_min_inliers ||
                     key_scale > options_.keyframe_max_scale || key_scale < 1.0 / options_.keyframe_max_scale ||
-                    (!via_mosaic && KeyframeOverlap(r.motion.similarity, w->frame.size()) < options_.keyframe_min_overlap);
+                    (!via_mosaic && OverlapFraction(r.motion.similarity.Inverse(), w->frame.size()) < options_.keyframe_min_overlap);
   if (w->new_keyframe) {
     keyframe_ = Keyframe{w->features, S, w->utime, w->plane_ok ? ground_normal_ : keyframe_->normal};
     KeepImageForFinerLevel(w->frame);

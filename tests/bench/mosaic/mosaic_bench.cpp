@@ -260,7 +260,8 @@ BENCHMARK(BM_TenMinuteFlightMemory)->Unit(benchmark::kSecond)->Iterations(1);
 //   Arg 0 "full resolution, serial": features on the full frame, one thread of work after another (the stills
 //         settings before issue 31);
 //   Arg 1 "stills settings": config/procs/uav_mosaic_files.yaml as it is (reduced-level features, the next photo
-//         prepared while this one registers, blending on a worker).
+//         prepared while this one registers, blending on a worker, heights tied to earlier overlapping photos);
+//   Arg 2 "stills settings without height ties" (height_graph.ties 0: the heights of the registration chain alone).
 // Counters: photos_per_s (wall), registered, and per photo the seconds of features, registration and blending
 // (summed over threads: with prefetch they overlap).
 //   build/bench/mosaic_bench --benchmark_filter=Stills --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
@@ -305,9 +306,12 @@ const std::vector<StillsSet>& StillsSets() {
   return *sets;
 }
 
-vm::SurveyOptions StillsOptions(bool fast) {
+enum StillsMode { kFullSerial = 0, kStills = 1, kStillsWithoutTies = 2 };
+
+vm::SurveyOptions StillsOptions(int mode) {
   vm::SurveyOptions o = vm::LoadSurveyOptions("config/procs/uav_mosaic_files.yaml");
-  if (!fast) {
+  if (mode == kStillsWithoutTies) o.mosaicker.height_graph.ties = 0;
+  if (mode == kFullSerial) {
     o.mosaicker.matcher.downscale = 1.0;
     o.mosaicker.matcher.detect_width = 0;
     o.mosaicker.fallback_downscale = 0;
@@ -323,13 +327,14 @@ void BM_Stills(benchmark::State& state) {
     state.SkipWithError("../shared/data/real absent");
     return;
   }
-  state.SetLabel(std::string(set.name) + (state.range(1) ? ", stills settings" : ", full resolution, serial"));
+  static const char* const kModes[] = {", full resolution, serial", ", stills settings", ", stills without height ties"};
+  state.SetLabel(std::string(set.name) + kModes[state.range(1)]);
   int registered = 0;
   vm::SurveyTimes times;
   double wall = 0, cpu = 0;
   for (auto _ : state) {
     const double cpu0 = ProcessCpuSeconds();
-    vm::SurveyRunner runner(StillsOptions(state.range(1) != 0), nullptr, nullptr);
+    vm::SurveyRunner runner(StillsOptions(static_cast<int>(state.range(1))), nullptr, nullptr);
     if (!runner.LoadPhotos(set.paths) || !runner.ChooseCamera() || !runner.ChooseFirstHeight()) {
       state.SkipWithError("photos not loaded");
       return;
@@ -349,7 +354,7 @@ void BM_Stills(benchmark::State& state) {
   state.counters["decoding_s"] = times.decoding / n;
   state.counters["cpu_s_per_photo"] = cpu / (n * state.iterations());  // all threads: what 2 quiet cores share
 }
-BENCHMARK(BM_Stills)->ArgsProduct({{0, 1, 2}, {0, 1}})->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
+BENCHMARK(BM_Stills)->ArgsProduct({{0, 1, 2}, {kFullSerial, kStills, kStillsWithoutTies}})->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
 
 void BM_StillsStitcherScans(benchmark::State& state) {
   const StillsSet& set = StillsSets().at(static_cast<size_t>(state.range(0)));

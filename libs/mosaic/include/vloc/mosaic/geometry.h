@@ -31,6 +31,10 @@ struct AxisScaleFit {
 };
 AxisScaleFit FitAxisScale(const std::vector<cv::Point2f>& from, const std::vector<cv::Point2f>& to);
 
+// Fraction of a frame of `size` that another frame of the same size covers,
+// `other_to_this` mapping the other's px to this frame's px.
+double OverlapFraction(const Similarity2& other_to_this, cv::Size size);
+
 // Least-squares similarity (closed form, Umeyama without reflection).
 // rms receives the residual in px when not null. ok=false for < 2 points.
 bool FitSimilarity(const std::vector<cv::Point2f>& from, const std::vector<cv::Point2f>& to,

@@ -40,6 +40,7 @@
 #include "vloc/mosaic/geometry.h"
 #include "vloc/mosaic/gps_tie.h"
 #include "vloc/mosaic/height_filter.h"
+#include "vloc/mosaic/height_graph.h"
 #include "vloc/mosaic/mosaic_blender.h"
 #include "vloc/mosaic/registration.h"
 #include "vloc/mosaic/tiled_canvas.h"
@@ -55,6 +56,7 @@ struct MosaickerOptions {
   CalibrationOptions calibration;       // sec. 2.1
   MatcherOptions matcher;               // sec. 2.2, eqs. 2-3
   HeightFilterOptions height_filter;    // smoothing of eqs. 4-5, GPS fusion option
+  HeightGraphOptions height_graph;      // heights tied to earlier overlapping frames, not only the chain (stills)
   CanvasOptions canvas;                 // tiled mosaic, blending, memory budget
   GeoOptions geo;                       // tie to GPS
   int mosaic_every_n_frames = 3;        // blend every n-th tracked frame into the mosaic (keyframes always)
@@ -151,6 +153,8 @@ struct MosaickerSummary {
   int guided = 0;                       // frames registered by guided matching
   int gps_rejections = 0;               // registrations rejected because they disagreed with the GPS motion
   int reseats = 0;                      // frames placed by GPS after every registration failed
+  int height_ties = 0;                  // height ties to earlier overlapping frames added (height_graph)
+  int height_ties_dropped = 0;          // of the ties, dropped as outliers of the solution
   std::string last_problem;
   Calibration calibration;
   double metres_per_pixel = 0;          // mosaic ground resolution
@@ -213,6 +217,9 @@ class UavMosaicker {
   double metres_per_pixel() const { return metres_per_pixel_; }
   // Local ENU east/north (m) of a mosaic pixel (best current estimate).
   cv::Point2d MosaicToLocal(const cv::Point2d& mosaic_px) const;
+  // A registered frame's height (m) from the height graph as solved now (all
+  // ties so far); none when height_graph.ties is 0 or the frame is unknown.
+  std::optional<double> AdjustedHeight(int64_t utime) const;
   // Waits until queued blends are done (async_mosaic).
   void FlushMosaic() { blender_.Flush(); }
   // Forces calibration (e.g. from a tool that knows height and focal).
@@ -258,6 +265,7 @@ class UavMosaicker {
   void MarkLost(FrameWork* w);
   void MarkRegistered(FrameWork* w);
   void EstimateGroundPlane(FrameWork* w);
+  void TieHeights(FrameWork* w);  // height_ties.cpp
   void EstimateHeight(FrameWork* w);
   void UpdateKeyframe(FrameWork* w);
   void TieRouteToGps(FrameWork* w);
@@ -265,6 +273,10 @@ class UavMosaicker {
   FrameState Finish(FrameWork* w);
 
   RegistrationInput InputFor(const FrameWork& w) const;
+  std::vector<const Keyframe*> FramesToTie(const FrameWork& w) const;
+  std::optional<double> HeightRatioTo(const Keyframe& earlier, const FrameWork& w, int* support) const;
+  double TieSigma(int matches) const;
+  double HeightScale(int64_t utime, double registration_scale) const;
   cv::Point2d PrincipalPoint() const;
   // The ground plane of homography H (reference frame -> this frame): this frame's height relative to the
   // reference's and the ground normal in this frame's camera; false when no decomposition is plausible.
@@ -283,6 +295,7 @@ class UavMosaicker {
   CalibrationStep calibration_step_;
   FrameUndistorter undistorter_;
   HeightFilter height_filter_;
+  HeightGraph heights_;                    // log scales of the registered frames and their ties (height_graph.ties)
   GpsTie gps_;
   MosaicBlender blender_;
 

@@ -1,0 +1,89 @@
+// The height-tie step of ProcessFrame (height_graph.h): the registered frame
+// joins the height graph by its registration and by ties to the kept earlier
+// frames that overlap it most (the adjacent strip of a survey), each matched
+// inside a gate around where the mosaic poses put it; the frame's height is
+// then the graph's solution.
+#include <algorithm>
+#include <cmath>
+#include <utility>
+#include <vector>
+
+#include "vloc/mosaic/uav_mosaicker.h"
+
+namespace vloc::mosaic {
+
+void UavMosaicker::TieHeights(FrameWork* w) {
+  const HeightGraphOptions& o = options_.height_graph;
+  if (o.ties <= 0) return;
+  const Registration& r = w->registration;
+  const double log_s = std::log(r.mosaic_from_frame.Scale());
+  heights_.AddFrame(w->utime, log_s);
+  if (r.reference && r.source != RegistrationSource::kMosaic)
+    heights_.AddTie(r.reference->utime, w->utime, log_s - std::log(r.reference->mosaic_from_frame.Scale()),
+                    TieSigma(r.motion.num_background));
+  for (const Keyframe* n : FramesToTie(*w)) {
+    const double chained = log_s - std::log(n->mosaic_from_frame.Scale());
+    int support = 0;
+    const std::optional<double> measured = HeightRatioTo(*n, *w, &support);
+      if (!measured || std::abs(*measured - chained) > o.max_disagreement) continue;
+    heights_.AddTie(n->utime, w->utime, *measured, TieSigma(support));
+    ++summary_.height_ties;
+  }
+  heights_.Solve();
+  summary_.height_ties_dropped = heights_.dropped();
+}
+
+// The kept frames (not the registration's reference) covering at least
+// min_overlap of this frame by their mosaic poses, most overlap first.
+std::vector<const Keyframe*> UavMosaicker::FramesToTie(const FrameWork& w) const {
+  const Registration& r = w.registration;
+  const Similarity2 frame_from_mosaic = r.mosaic_from_frame.Inverse();
+  std::vector<std::pair<double, const Keyframe*>> overlapping;
+  for (const Keyframe& n : neighbours_) {
+    if (n.utime == w.utime || (r.reference && n.utime == r.reference->utime) || !heights_.Has(n.utime)) continue;
+    const double overlap = OverlapFraction(frame_from_mosaic * n.mosaic_from_frame, w.frame.size());
+    if (overlap >= options_.height_graph.min_overlap) overlapping.emplace_back(overlap, &n);
+  }
+  std::sort(overlapping.begin(), overlapping.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  if (overlapping.size() > static_cast<size_t>(options_.height_graph.ties)) overlapping.resize(options_.height_graph.ties);
+  std::vector<const Keyframe*> frames;
+  for (const auto& [overlap, n] : overlapping) frames.push_back(n);
+  return frames;
+}
+
+// log(h_frame / h_earlier) of the plane homography from the earlier frame,
+// matched inside a gate around the mosaic poses' prediction; none when the
+// match or the decomposition fails.
+std::optional<double> UavMosaicker::HeightRatioTo(const Keyframe& earlier, const FrameWork& w, int* support) const {
+  MotionPrior prior;
+  prior.to_from_from = w.registration.mosaic_from_frame.Inverse() * earlier.mosaic_from_frame;
+  prior.gate_px = options_.guide_gate * w.frame.cols;
+  const MotionEstimate m = EstimateMotion(earlier.features, w.features, options_.matcher, &prior);
+  double ratio = 1;
+  cv::Vec3d normal;
+  if (!m.ok || !PlaneFromHomography(m.homography, earlier, &ratio, &normal)) return std::nullopt;
+  *support = m.num_background;
+  return std::log(ratio);
+}
+
+// A height ratio's log sigma from the matches behind it: sigma at 100, as 1/sqrt(n) (seneca against the GPS altitude:
+// 3.1 % below 60 matches, 2.0 % at 150-300, 1.7 % above 300, of which about 1.5 % is the GPS altitude's own noise).
+double UavMosaicker::TieSigma(int matches) const {
+  return options_.height_graph.sigma * std::sqrt(100.0 / std::max(matches, 1));
+}
+
+// The frame's scale for its height: the height graph's solution when ties are on, else the registration's.
+double UavMosaicker::HeightScale(int64_t utime, double registration_scale) const {
+  if (options_.height_graph.ties <= 0) return registration_scale;
+  const std::optional<double> solved = heights_.LogScale(utime);
+  return solved ? std::exp(*solved) : registration_scale;
+}
+
+std::optional<double> UavMosaicker::AdjustedHeight(int64_t utime) const {
+  if (options_.height_graph.ties <= 0 || !calibrated_) return std::nullopt;
+  const std::optional<double> solved = heights_.LogScale(utime);
+  if (!solved) return std::nullopt;
+  return std::exp(*solved) * metres_per_pixel_ * focal_;
+}
+
+}  // namespace vloc::mosaic
