@@ -40,12 +40,16 @@ bool StartLsm(const cv::Mat& L, int x, int y, double initial_disparity, const De
   if (x - h < 0 || x + h >= L.cols || y - hy < 0 || y + hy >= L.rows) return false;
   *s = LsmState();
   s->x = x, s->y = y, s->initial_disparity = initial_disparity, s->d = initial_disparity;
-  double tsum = 0;
+  // The template's sum in two chains side by side (one chain's latency
+  // was the cost), rows alternating.
+  double sum[2] = {0, 0};
   for (int r = -hy, i = 0; r <= hy; ++r) {
     const float* row = L.ptr<float>(y + r);
-    for (int c = -h; c <= h; ++c, ++i) tsum += T[i * stride] = row[x + c];
+    double rs = 0;
+    for (int c = -h; c <= h; ++c, ++i) rs += T[i * stride] = row[x + c];
+    sum[(r + hy) & 1] += rs;
   }
-  s->tsum = tsum;
+  s->tsum = sum[0] + sum[1];
   return true;
 }
 
@@ -83,54 +87,92 @@ inline void RowWeights(bool bspline, float t, float w[4], float dw[4]) {
   }
 }
 
+// The right window's sample positions: x - d - gy r + (1 - gx) c, as the
+// integer x - floor(d) + c plus the small offset u = -frac(d) - gy r - gx c
+// in float (an offset of integral value can round to the next integer:
+// PrepareRowLsmTarget's guard rows).
+struct WindowShift {
+  int base;              // x - floor(d) - 1: tap 0 at offset 0
+  float frac, mgx, mgy;  // frac(d), -gx, -gy
+};
+WindowShift ShiftOf(const LsmState& s) {
+  const double fd = std::floor(s.d);
+  return {s.x - static_cast<int>(fd) - 1, static_cast<float>(s.d - fd), static_cast<float>(-s.gx),
+          static_cast<float>(-s.gy)};
+}
+
+// Sums of one window row that build the normal equations: with the
+// Jacobian j = (j0, j0 c, j0 r, 1, g) (j0 = -r1 dG/dx; without the plane
+// (j0, 1, g)) the terms in c are summed per sample, those in r per row
+// (WindowTotals): 14 sums instead of the 20 products of j.
+enum RowSum { kA, kAc, kAcc, kJ, kJc, kQ, kQc, kG, kGg, kJe, kJec, kE, kGe, kEe, kRowSums };
+constexpr int kWeighted[5] = {kA, kAc, kJ, kQ, kJe};  // the sums also needed weighted by r
+
+// The window's totals of the row sums: plain, weighted by r (kWeighted)
+// and by r^2 (kA), each row added in double in row order.
+struct WindowTotals {
+  double t[kRowSums] = {0}, rt[5] = {0}, rra = 0;
+  void AddRow(const float* v, int r) {
+    for (int k = 0; k < kRowSums; ++k) t[k] += v[k];
+    for (int k = 0; k < 5; ++k) rt[k] += r * static_cast<double>(v[kWeighted[k]]);
+    rra += static_cast<double>(r * r) * v[kA];
+  }
+};
+
+// The normal equations (lower triangle nn, right side bb) and the sum of
+// squared residuals from the window's totals.
+void NormalEquations(const WindowTotals& w, int n, bool plane, LsmState* s) {
+  const double* t = w.t;
+  std::fill(s->nn, s->nn + 15, 0.0);
+  std::fill(s->bb, s->bb + 5, 0.0);
+  if (plane) {
+    const double nn[15] = {t[kA],    t[kAc], t[kAcc], w.rt[0], w.rt[1], w.rra, t[kJ], t[kJc],
+                           w.rt[2], static_cast<double>(n), t[kQ], t[kQc], w.rt[3], t[kG], t[kGg]};
+    const double bb[5] = {t[kJe], t[kJec], w.rt[4], t[kE], t[kGe]};
+    std::copy(nn, nn + 15, s->nn);
+    std::copy(bb, bb + 5, s->bb);
+  } else {
+    const double nn[6] = {t[kA], t[kJ], static_cast<double>(n), t[kQ], t[kG], t[kGg]};
+    std::copy(nn, nn + 6, s->nn);
+    s->bb[0] = t[kJe], s->bb[1] = t[kE], s->bb[2] = t[kGe];
+  }
+  s->ssr = t[kEe];
+}
+
 // One pixel's normal equations at its current state (s->nn, s->bb, s->ssr, G).
+// Float sums per row, added in double: the terms are grey-level products,
+// a row's sums stay well inside float range.
 void AccumulateScalar(const cv::Mat& R, const DenseStereoOptions& o, const float* T, float* G, LsmState* s) {
   const int h = o.lsm_half_window, hy = o.lsm_half_height;
-  const bool plane = o.lsm_disparity_plane;
-  const int x = s->x, y = s->y;
-  const double d = s->d, gx = s->gx, gy = s->gy;
-  // Normal equations accumulated by hand (lower triangle): Eigen's
-  // rankUpdate per pixel was most of the time.
-  // Float accumulation per row, summed into doubles: the terms are
-  // grey-level products, the sums of a row stay well inside float range.
-  double nn[15] = {0}, bb[5] = {0};
-  double ssr = 0;
-  float w[4], dw[4];
+  const WindowShift ws = ShiftOf(*s);
   const float fr1 = static_cast<float>(s->r1), fr0 = static_cast<float>(s->r0);
+  WindowTotals totals;
+  float w[4], dw[4];
   for (int r = -hy, i = 0; r <= hy; ++r) {
-    const float* row = R.ptr<float>(y + r);
-    const double row_shift = x - d - gy * r;
-    float rn[15] = {0}, rb[5] = {0}, rs = 0;
+    const float* row = R.ptr<float>(s->y + r) + ws.base;
+    const float urow = ws.mgy * static_cast<float>(r) - ws.frac;
+    float v[kRowSums] = {0};
     for (int c = -h; c <= h; ++c, ++i) {
-      const double xr = std::fma(static_cast<double>(c), 1.0 - gx, row_shift);
-      const int x0 = static_cast<int>(xr);  // xr >= 1: truncation is floor
-      const float t = static_cast<float>(xr - x0);
-      RowWeights(o.lsm_bspline, t, w, dw);
-      const float* p = row + x0 - 1;
+      const float fc = static_cast<float>(c), fcc = static_cast<float>(c * c);
+      const float u = std::fma(ws.mgx, fc, urow), fl = std::floor(u);
+      RowWeights(o.lsm_bspline, u - fl, w, dw);
+      const float* p = row + c + static_cast<int>(fl);
       // Fused multiply-adds (one rounding each), as the vector lanes do them.
       const float g = std::fma(w[3], p[3], std::fma(w[2], p[2], std::fma(w[1], p[1], w[0] * p[0])));
-      const float dg = fr1 * std::fma(dw[3], p[3], std::fma(dw[2], p[2], std::fma(dw[1], p[1], dw[0] * p[0])));
+      const float j0 = -(fr1 * std::fma(dw[3], p[3], std::fma(dw[2], p[2], std::fma(dw[1], p[1], dw[0] * p[0]))));
       G[i] = g;
-      const float resid = T[i] - std::fma(fr1, g, fr0);
-      rs = std::fma(resid, resid, rs);
-      float j[5];
-      if (plane) {
-        j[0] = -dg, j[1] = -dg * c, j[2] = -dg * r, j[3] = 1.f, j[4] = g;
-      } else {
-        j[0] = -dg, j[1] = 1.f, j[2] = g, j[3] = 0.f, j[4] = 0.f;
-      }
-      for (int k = 0, q = 0; k < 5; ++k) {
-        rb[k] = std::fma(j[k], resid, rb[k]);
-        for (int l = 0; l <= k; ++l, ++q) rn[q] = std::fma(j[k], j[l], rn[q]);
-      }
+      const float e = T[i] - std::fma(fr1, g, fr0);
+      const float a = j0 * j0, q = g * j0, je = j0 * e;
+      v[kA] += a, v[kAc] = std::fma(a, fc, v[kAc]), v[kAcc] = std::fma(a, fcc, v[kAcc]);
+      v[kJ] += j0, v[kJc] = std::fma(j0, fc, v[kJc]);
+      v[kQ] += q, v[kQc] = std::fma(q, fc, v[kQc]);
+      v[kG] += g, v[kGg] = std::fma(g, g, v[kGg]);
+      v[kJe] += je, v[kJec] = std::fma(je, fc, v[kJec]);
+      v[kE] += e, v[kGe] = std::fma(g, e, v[kGe]), v[kEe] = std::fma(e, e, v[kEe]);
     }
-    for (int q = 0; q < 15; ++q) nn[q] += rn[q];
-    for (int k = 0; k < 5; ++k) bb[k] += rb[k];
-    ssr += rs;
+    totals.AddRow(v, r);
   }
-  std::copy(nn, nn + 15, s->nn);
-  std::copy(bb, bb + 5, s->bb);
-  s->ssr = ssr;
+  NormalEquations(totals, (2 * h + 1) * (2 * hy + 1), o.lsm_disparity_plane, s);
 }
 
 enum class LsmStep { kContinue, kConverged, kRejected };
@@ -222,17 +264,26 @@ bool FinishLsm(const LsmState& s, const DenseStereoOptions& o, const float* T, c
   double ninv0[5];  // first column of the inverse normal matrix
   Solve(s.chol, s.inv_diag, e0, ninv0);
   const double sigma = std::sqrt(std::max(0.0, sigma0_sq * ninv0[0]));
+  // Both windows about their means, two samples per step in separate
+  // chains (one chain's latency was the cost).
   const double tm = s.tsum / n;
-  double gm = 0;
-  for (int i = 0; i < n; ++i) gm += G[i * stride];
-  gm /= n;
-  double stg = 0, stt = 0, sgg = 0;
-  for (int i = 0; i < n; ++i) {
-    const float t = T[i * stride], g = G[i * stride];
-    stg += (t - tm) * (g - gm);
-    stt += (t - tm) * (t - tm);
-    sgg += (g - gm) * (g - gm);
+  double gm0 = 0, gm1 = 0;
+  int i = 0;
+  for (; i + 1 < n; i += 2) gm0 += G[i * stride], gm1 += G[(i + 1) * stride];
+  if (i < n) gm0 += G[i * stride];
+  const double gm = (gm0 + gm1) / n;
+  double stg0 = 0, stt0 = 0, sgg0 = 0, stg1 = 0, stt1 = 0, sgg1 = 0;
+  for (i = 0; i + 1 < n; i += 2) {
+    const double t0 = T[i * stride] - tm, g0 = G[i * stride] - gm;
+    const double t1 = T[(i + 1) * stride] - tm, g1 = G[(i + 1) * stride] - gm;
+    stg0 += t0 * g0, stt0 += t0 * t0, sgg0 += g0 * g0;
+    stg1 += t1 * g1, stt1 += t1 * t1, sgg1 += g1 * g1;
   }
+  if (i < n) {
+    const double t0 = T[i * stride] - tm, g0 = G[i * stride] - gm;
+    stg0 += t0 * g0, stt0 += t0 * t0, sgg0 += g0 * g0;
+  }
+  const double stg = stg0 + stg1, stt = stt0 + stt1, sgg = sgg0 + sgg1;
   const double corr = stg / std::sqrt(std::max(stt * sgg, 1e-12));
   if (result) {
     result->disparity = s.d;
@@ -246,7 +297,10 @@ bool FinishLsm(const LsmState& s, const DenseStereoOptions& o, const float* T, c
 }  // namespace
 
 cv::Mat PrepareRowLsmTarget(const cv::Mat& right, const DenseStereoOptions& o) {
-  cv::Mat out;
+  // A guard row above and below: a tap position rounded in float (ShiftOf)
+  // may reach one sample past the row ends that TapsInside allows.
+  cv::Mat guarded(right.rows + 2, right.cols, CV_32F, cv::Scalar(0));
+  cv::Mat out = guarded.rowRange(1, right.rows + 1);
   right.convertTo(out, CV_32F);
   if (!o.lsm_bspline) return out;
   // Cubic B-spline prefilter along the rows (Unser 1999; mirror boundary).
@@ -301,6 +355,11 @@ VLOC_AVX2 void AddTo(__m256d acc[2], __m256 v) {
   acc[0] = _mm256_add_pd(acc[0], _mm256_cvtps_pd(_mm256_castps256_ps128(v)));
   acc[1] = _mm256_add_pd(acc[1], _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1)));
 }
+// acc += r * v (r: 4 equal doubles).
+VLOC_AVX2 void AddTo(__m256d acc[2], __m256d r, __m256 v) {
+  acc[0] = _mm256_add_pd(acc[0], _mm256_mul_pd(r, _mm256_cvtps_pd(_mm256_castps256_ps128(v))));
+  acc[1] = _mm256_add_pd(acc[1], _mm256_mul_pd(r, _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1))));
+}
 VLOC_AVX2 void Store(const __m256d v[2], double* out) {
   _mm256_storeu_pd(out, v[0]);
   _mm256_storeu_pd(out + 4, v[1]);
@@ -322,45 +381,35 @@ __attribute__((target("avx2,fma"), optimize("fp-contract=off"))) void Accumulate
   const int h = o.lsm_half_window, hy = o.lsm_half_height;
   const int stride = static_cast<int>(R.step1());
   const float* base = R.ptr<float>(0);
-  alignas(32) double x_d[kLanes], gy_d[kLanes], omg_d[kLanes];
-  alignas(32) float r0_f[kLanes], r1_f[kLanes];
+  alignas(32) float frac[kLanes], mgx[kLanes], mgy[kLanes], r0_f[kLanes], r1_f[kLanes];
   alignas(32) int row0[kLanes];
   for (int k = 0; k < kLanes; ++k) {
     const LsmState& s = *lanes[k];
-    x_d[k] = s.x - s.d;  // x - d - gy * r, left to right
-    gy_d[k] = s.gy;
-    omg_d[k] = 1.0 - s.gx;
+    const WindowShift ws = ShiftOf(s);
+    frac[k] = ws.frac, mgx[k] = ws.mgx, mgy[k] = ws.mgy;
     r0_f[k] = static_cast<float>(s.r0);
     r1_f[k] = static_cast<float>(s.r1);
-    row0[k] = s.y * stride - 1;  // tap 0 of x0 is x0 - 1
+    row0[k] = s.y * stride + ws.base;
   }
-  const __m256d xmd_lo = _mm256_load_pd(x_d), xmd_hi = _mm256_load_pd(x_d + 4);
-  const __m256d gy_lo = _mm256_load_pd(gy_d), gy_hi = _mm256_load_pd(gy_d + 4);
-  const __m256d omg_lo = _mm256_load_pd(omg_d), omg_hi = _mm256_load_pd(omg_d + 4);
+  const __m256 vfrac = _mm256_load_ps(frac), vmgx = _mm256_load_ps(mgx), vmgy = _mm256_load_ps(mgy);
   const __m256 fr0 = _mm256_load_ps(r0_f), fr1 = _mm256_load_ps(r1_f);
   const __m256i rows = _mm256_load_si256(reinterpret_cast<const __m256i*>(row0));
   const __m256 sign = _mm256_set1_ps(-0.f);
-  __m256d nn[15][2], bb[5][2], ssr[2];
-  for (auto& v : nn) v[0] = v[1] = _mm256_setzero_pd();
-  for (auto& v : bb) v[0] = v[1] = _mm256_setzero_pd();
-  ssr[0] = ssr[1] = _mm256_setzero_pd();
+  __m256d t[kRowSums][2], rt[5][2], rra[2];  // WindowTotals, 8 lanes
+  for (auto& v : t) v[0] = v[1] = _mm256_setzero_pd();
+  for (auto& v : rt) v[0] = v[1] = _mm256_setzero_pd();
+  rra[0] = rra[1] = _mm256_setzero_pd();
   for (int r = -hy, i = 0; r <= hy; ++r) {
-    const __m256d rd = _mm256_set1_pd(r);
-    const __m256d shift_lo = _mm256_sub_pd(xmd_lo, _mm256_mul_pd(gy_lo, rd));
-    const __m256d shift_hi = _mm256_sub_pd(xmd_hi, _mm256_mul_pd(gy_hi, rd));
-    const __m256i row = _mm256_add_epi32(rows, _mm256_set1_epi32((r) * stride));
     const __m256 rf = _mm256_set1_ps(static_cast<float>(r));
-    __m256 rn[15], rb[5], rs = _mm256_setzero_ps();
-    for (auto& v : rn) v = _mm256_setzero_ps();
-    for (auto& v : rb) v = _mm256_setzero_ps();
+    const __m256 urow = _mm256_sub_ps(_mm256_mul_ps(vmgy, rf), vfrac);
+    const __m256i row = _mm256_add_epi32(rows, _mm256_set1_epi32(r * stride));
+    __m256 v[kRowSums];
+    for (auto& x : v) x = _mm256_setzero_ps();
     for (int c = -h; c <= h; ++c, ++i) {
-      const __m256d cd = _mm256_set1_pd(c);
-      const __m256d xr_lo = _mm256_fmadd_pd(cd, omg_lo, shift_lo), xr_hi = _mm256_fmadd_pd(cd, omg_hi, shift_hi);
-      const __m128i x0_lo = _mm256_cvttpd_epi32(xr_lo), x0_hi = _mm256_cvttpd_epi32(xr_hi);
-      const __m128 t_lo = _mm256_cvtpd_ps(_mm256_sub_pd(xr_lo, _mm256_cvtepi32_pd(x0_lo)));
-      const __m128 t_hi = _mm256_cvtpd_ps(_mm256_sub_pd(xr_hi, _mm256_cvtepi32_pd(x0_hi)));
-      const __m256 t = _mm256_insertf128_ps(_mm256_castps128_ps256(t_lo), t_hi, 1);
-      const __m256i idx = _mm256_add_epi32(row, _mm256_insertf128_si256(_mm256_castsi128_si256(x0_lo), x0_hi, 1));
+      const __m256 fc = _mm256_set1_ps(static_cast<float>(c)), fcc = _mm256_set1_ps(static_cast<float>(c * c));
+      const __m256 u = Fma(vmgx, fc, urow), fl = _mm256_floor_ps(u);
+      const __m256 t = _mm256_sub_ps(u, fl);
+      const __m256i idx = _mm256_add_epi32(_mm256_add_epi32(row, _mm256_set1_epi32(c)), _mm256_cvttps_epi32(fl));
       // The 4 taps of each lane are adjacent: one 4-float load per lane and
       // a transpose (fewer loads than 4 gathers).
       alignas(32) int at[kLanes];
@@ -402,49 +451,34 @@ __attribute__((target("avx2,fma"), optimize("fp-contract=off"))) void Accumulate
       const __m256 g = Fma(w3, p3, Fma(w2, p2, Fma(w1, p1, _mm256_mul_ps(w0, p0))));
       const __m256 dg = _mm256_mul_ps(fr1, Fma(dw3, p3, Fma(dw2, p2, Fma(dw1, p1, _mm256_mul_ps(dw0, p0)))));
       _mm256_storeu_ps(G + i * kLanes, g);
-      const __m256 resid = _mm256_sub_ps(_mm256_loadu_ps(T + i * kLanes), Fma(fr1, g, fr0));
-      rs = Fma(resid, resid, rs);
-      // j = (-dg, -dg c, -dg r, 1, g); the products with 1 are exact.
+      const __m256 e = _mm256_sub_ps(_mm256_loadu_ps(T + i * kLanes), Fma(fr1, g, fr0));
       const __m256 j0 = _mm256_xor_ps(dg, sign);
-      const __m256 j1 = _mm256_mul_ps(j0, _mm256_set1_ps(static_cast<float>(c)));
-      const __m256 j2 = _mm256_mul_ps(j0, rf);
-      const __m256 j4 = g;
-      rb[0] = Fma(j0, resid, rb[0]);
-      rb[1] = Fma(j1, resid, rb[1]);
-      rb[2] = Fma(j2, resid, rb[2]);
-      rb[3] = _mm256_add_ps(rb[3], resid);
-      rb[4] = Fma(j4, resid, rb[4]);
-      rn[0] = Fma(j0, j0, rn[0]);
-      rn[1] = Fma(j1, j0, rn[1]);
-      rn[2] = Fma(j1, j1, rn[2]);
-      rn[3] = Fma(j2, j0, rn[3]);
-      rn[4] = Fma(j2, j1, rn[4]);
-      rn[5] = Fma(j2, j2, rn[5]);
-      rn[6] = _mm256_add_ps(rn[6], j0);
-      rn[7] = _mm256_add_ps(rn[7], j1);
-      rn[8] = _mm256_add_ps(rn[8], j2);
-      rn[9] = _mm256_add_ps(rn[9], _mm256_set1_ps(1.f));
-      rn[10] = Fma(j4, j0, rn[10]);
-      rn[11] = Fma(j4, j1, rn[11]);
-      rn[12] = Fma(j4, j2, rn[12]);
-      rn[13] = _mm256_add_ps(rn[13], j4);
-      rn[14] = Fma(j4, j4, rn[14]);
+      const __m256 a = _mm256_mul_ps(j0, j0), q = _mm256_mul_ps(g, j0), je = _mm256_mul_ps(j0, e);
+      v[kA] = _mm256_add_ps(v[kA], a), v[kAc] = Fma(a, fc, v[kAc]), v[kAcc] = Fma(a, fcc, v[kAcc]);
+      v[kJ] = _mm256_add_ps(v[kJ], j0), v[kJc] = Fma(j0, fc, v[kJc]);
+      v[kQ] = _mm256_add_ps(v[kQ], q), v[kQc] = Fma(q, fc, v[kQc]);
+      v[kG] = _mm256_add_ps(v[kG], g), v[kGg] = Fma(g, g, v[kGg]);
+      v[kJe] = _mm256_add_ps(v[kJe], je), v[kJec] = Fma(je, fc, v[kJec]);
+      v[kE] = _mm256_add_ps(v[kE], e), v[kGe] = Fma(g, e, v[kGe]), v[kEe] = Fma(e, e, v[kEe]);
     }
-    for (int q = 0; q < 15; ++q) AddTo(nn[q], rn[q]);
-    for (int k = 0; k < 5; ++k) AddTo(bb[k], rb[k]);
-    AddTo(ssr, rs);
+    // WindowTotals::AddRow, 8 lanes at a time.
+    const __m256d rd = _mm256_set1_pd(r), rrd = _mm256_set1_pd(static_cast<double>(r * r));
+    for (int k = 0; k < kRowSums; ++k) AddTo(t[k], v[k]);
+    for (int k = 0; k < 5; ++k) AddTo(rt[k], rd, v[kWeighted[k]]);
+    AddTo(rra, rrd, v[kA]);
   }
-  double buf[kLanes];
-  for (int q = 0; q < 15; ++q) {
-    Store(nn[q], buf);
-    for (int k = 0; k < kLanes; ++k) lanes[k]->nn[q] = buf[k];
+  alignas(32) double buf[kRowSums + 6][kLanes];
+  for (int k = 0; k < kRowSums; ++k) Store(t[k], buf[k]);
+  for (int k = 0; k < 5; ++k) Store(rt[k], buf[kRowSums + k]);
+  Store(rra, buf[kRowSums + 5]);
+  const int n = (2 * h + 1) * (2 * hy + 1);
+  for (int l = 0; l < kLanes; ++l) {
+    WindowTotals w;
+    for (int k = 0; k < kRowSums; ++k) w.t[k] = buf[k][l];
+    for (int k = 0; k < 5; ++k) w.rt[k] = buf[kRowSums + k][l];
+    w.rra = buf[kRowSums + 5][l];
+    NormalEquations(w, n, o.lsm_disparity_plane, lanes[l]);
   }
-  for (int q = 0; q < 5; ++q) {
-    Store(bb[q], buf);
-    for (int k = 0; k < kLanes; ++k) lanes[k]->bb[q] = buf[k];
-  }
-  Store(ssr, buf);
-  for (int k = 0; k < kLanes; ++k) lanes[k]->ssr = buf[k];
 }
 
 // SolveNormalEquations of 8 pixels (one per lane; 4 doubles a register):
