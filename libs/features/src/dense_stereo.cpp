@@ -127,6 +127,7 @@ __attribute__((target_clones("avx2", "default"))) void RowScores(const float* V,
       S[started] = s;
     }
     const int active = std::min(nd, started + 1);
+    const double inv_n = 1.0 / n;  // a multiply, not a division per score
     float* c = C + static_cast<size_t>(x) * nd;
     const float ml = mL[x], il = iL[x];
     const int k0 = W - 1 - x + dlo;  // reversed index of x - dlo
@@ -135,7 +136,7 @@ __attribute__((target_clones("avx2", "default"))) void RowScores(const float* V,
     float* br = bestRrev + k0;
     int* brd = bestRdrev + k0;
     for (int di = 0; di < active; ++di) {
-      const float cov = static_cast<float>(S[di] / n) - ml * mr[di];
+      const float cov = static_cast<float>(S[di] * inv_n) - ml * mr[di];
       const float z = il > 0 && ir[di] > 0 ? cov * il * ir[di] : -2.f;
       c[di] = z;
       const bool up = z > br[di];
