@@ -28,6 +28,7 @@ struct LsmState {
   double initial_disparity = 0;
   double d = 0, gx = 0, gy = 0, r0 = 0, r1 = 1;  // disparity, its gradients, radiometry
   double tsum = 0;                              // sum of the template
+  double gsum = 0;                              // sum of the resampled window G (last iteration)
   double nn[15] = {0}, bb[5] = {0}, ssr = 0;    // this iteration's normal equations (lower triangle)
   double chol[15] = {0}, inv_diag[5] = {0};     // their Cholesky factor (see Factor)
   int it = 0;                                   // Gauss-Newton iterations done
@@ -137,6 +138,7 @@ void NormalEquations(const WindowTotals& w, int n, bool plane, LsmState* s) {
     s->bb[0] = t[kJe], s->bb[1] = t[kE], s->bb[2] = t[kGe];
   }
   s->ssr = t[kEe];
+  s->gsum = t[kG];
 }
 
 // One pixel's normal equations at its current state (s->nn, s->bb, s->ssr, G).
@@ -264,16 +266,14 @@ bool FinishLsm(const LsmState& s, const DenseStereoOptions& o, const float* T, c
   double ninv0[5];  // first column of the inverse normal matrix
   Solve(s.chol, s.inv_diag, e0, ninv0);
   const double sigma = std::sqrt(std::max(0.0, sigma0_sq * ninv0[0]));
-  // Both windows about their means, two samples per step in separate
-  // chains (one chain's latency was the cost).
+  // Both windows about their means (the resampled window's from the last
+  // accumulation's sum), two samples per step in separate chains (one
+  // chain's latency was the cost).
   const double tm = s.tsum / n;
-  double gm0 = 0, gm1 = 0;
-  int i = 0;
-  for (; i + 1 < n; i += 2) gm0 += G[i * stride], gm1 += G[(i + 1) * stride];
-  if (i < n) gm0 += G[i * stride];
-  const double gm = (gm0 + gm1) / n;
+  const double gm = s.gsum / n;
   double stg0 = 0, stt0 = 0, sgg0 = 0, stg1 = 0, stt1 = 0, sgg1 = 0;
-  for (i = 0; i + 1 < n; i += 2) {
+  int i = 0;
+  for (; i + 1 < n; i += 2) {
     const double t0 = T[i * stride] - tm, g0 = G[i * stride] - gm;
     const double t1 = T[(i + 1) * stride] - tm, g1 = G[(i + 1) * stride] - gm;
     stg0 += t0 * g0, stt0 += t0 * t0, sgg0 += g0 * g0;
