@@ -95,6 +95,18 @@ bool HeightGraph::DropWorstOutlier() {
   return true;
 }
 
+double HeightGraph::ResidualRms() const {
+  double sum = 0;
+  int n = 0;
+  for (const Tie& t : ties_) {
+    if (!t.active) continue;
+    const double r = (solved_[t.to] - solved_[t.from] - t.log_ratio) / t.sigma;
+    sum += r * r;
+    ++n;
+  }
+  return n > 0 ? std::sqrt(sum / n) : 0.0;
+}
+
 std::optional<double> HeightGraph::LogScale(int64_t key) const {
   const auto it = index_.find(key);
   if (it == index_.end()) return std::nullopt;

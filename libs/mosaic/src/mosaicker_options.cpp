@@ -77,7 +77,9 @@ std::string MosaickerSummary::BriefReport() const {
   if (georeferenced) s << " (" << tie_pairs << " fixes, rms " << tie_rms << " m)";
   if (guided + gps_rejections + reseats > 0)
     s << ", guided " << guided << ", rejected by GPS " << gps_rejections << ", placed by GPS " << reseats;
-  if (height_ties > 0) s << ", height ties " << height_ties << " (" << height_ties_dropped << " dropped)";
+  if (height_ties > 0)
+    s << ", height ties " << height_ties << " (" << height_ties_dropped << " dropped, residual RMS " << height_tie_rms
+      << " sigma)";
   if (reregistrations + reregistrations_rejected > 0)
     s << ", re-registered against the mosaic " << reregistrations << " times (" << reregistrations_rejected
       << " rejected)";

@@ -155,6 +155,7 @@ struct MosaickerSummary {
   int reseats = 0;                      // frames placed by GPS after every registration failed
   int height_ties = 0;                  // height ties to earlier overlapping frames added (height_graph)
   int height_ties_dropped = 0;          // of the ties, dropped as outliers of the solution
+  double height_tie_rms = 0;            // RMS of the kept links' and ties' residuals, in their sigmas
   std::string last_problem;
   Calibration calibration;
   double metres_per_pixel = 0;          // mosaic ground resolution
