@@ -274,52 +274,55 @@ ZnccStage ZnccRows(const cv::Mat& left8, const cv::Mat& right8, const DenseStere
   return out;
 }
 
+// Whether disparity d at grid cell (x, y) of `in` passes the median test:
+// within abs_tolerance + rel_tolerance |median| of its valid neighbours'
+// median. `neigh`: scratch.
+bool KeepByMedian(const cv::Mat& in, int x, int y, float d, const DenseStereoOptions& o, double abs_tolerance,
+                  double rel_tolerance, std::vector<float>* neigh) {
+  const int r = o.median_radius, s = o.median_stride;
+  // Without the relative term the median is within the tolerance unless
+  // k + 1 neighbours lie below the tolerated interval around d (the median
+  // among them) or size - k above it: counted in the same pass, without
+  // sorting (the interval is contiguous: |d - v| rounds monotonically in v).
+  const bool count_only = rel_tolerance == 0;
+  size_t n = 0, below = 0, above = 0;
+  neigh->clear();
+  for (int dy = -(r / s) * s; dy <= r; dy += s) {
+    const int yy = y + dy;
+    if (yy < 0 || yy >= in.rows) continue;
+    const float* row = in.ptr<float>(yy);
+    for (int dx = -(r / s) * s; dx <= r; dx += s) {
+      const int xx = x + dx;
+      if (xx < 0 || xx >= in.cols || (dx == 0 && dy == 0) || !std::isfinite(row[xx])) continue;
+      const float v = row[xx];
+      ++n;
+      if (!count_only) {
+        neigh->push_back(v);
+      } else if (std::abs(d - static_cast<double>(v)) > abs_tolerance) {
+        ++(v < d ? below : above);
+      }
+    }
+  }
+  if (static_cast<int>(n) < std::max(1, o.median_min_neighbours)) return o.median_min_neighbours == 0;
+  const size_t k = n / 2;  // the median is the k-th smallest
+  if (count_only) return below <= k && above < n - k;
+  std::nth_element(neigh->begin(), neigh->begin() + k, neigh->end());
+  const double med = (*neigh)[k];
+  return std::abs(d - med) <= abs_tolerance + rel_tolerance * std::abs(med);
+}
+
 // Step 2: drops disparities far from the median of their grid neighbours.
 long MedianTest(const DenseStereoOptions& o, double abs_tolerance, double rel_tolerance, cv::Mat* disp) {
   const cv::Mat in = disp->clone();
-  const int r = o.median_radius, s = o.median_stride;
   long kept = 0;
 #pragma omp parallel for schedule(dynamic, 8) num_threads(o.num_threads) reduction(+ : kept)
   for (int y = 0; y < in.rows; ++y) {
     std::vector<float> neigh;
+    const float* row = in.ptr<float>(y);
     float* out = disp->ptr<float>(y);
     for (int x = 0; x < in.cols; ++x) {
-      const float d = in.at<float>(y, x);
-      if (!std::isfinite(d)) continue;
-      neigh.clear();
-      for (int dy = -(r / s) * s; dy <= r; dy += s) {
-        const int yy = y + dy;
-        if (yy < 0 || yy >= in.rows) continue;
-        const float* row = in.ptr<float>(yy);
-        for (int dx = -(r / s) * s; dx <= r; dx += s) {
-          const int xx = x + dx;
-          if (xx < 0 || xx >= in.cols || (dx == 0 && dy == 0)) continue;
-          if (std::isfinite(row[xx])) neigh.push_back(row[xx]);
-        }
-      }
-      bool keep = false;
-      if (static_cast<int>(neigh.size()) >= std::max(1, o.median_min_neighbours)) {
-        const size_t k = neigh.size() / 2;  // the median is the k-th smallest
-        if (rel_tolerance == 0) {
-          // The median is within the tolerance unless k + 1 neighbours lie
-          // below the tolerated interval around d (the median among them)
-          // or size - k above it: the same test without sorting (the
-          // interval is contiguous: |d - v| rounds monotonically in v).
-          size_t below = 0, above = 0;
-          for (const float v : neigh) {
-            if (std::abs(d - static_cast<double>(v)) <= abs_tolerance) continue;
-            ++(v < d ? below : above);
-          }
-          keep = below <= k && above < neigh.size() - k;
-        } else {
-          std::nth_element(neigh.begin(), neigh.begin() + k, neigh.end());
-          const double med = neigh[k];
-          keep = std::abs(d - med) <= abs_tolerance + rel_tolerance * std::abs(med);
-        }
-      } else {
-        keep = o.median_min_neighbours == 0;
-      }
-      if (keep) {
+      if (!std::isfinite(row[x])) continue;
+      if (KeepByMedian(in, x, y, row[x], o, abs_tolerance, rel_tolerance, &neigh)) {
         ++kept;
       } else {
         out[x] = std::numeric_limits<float>::quiet_NaN();
