@@ -17,16 +17,17 @@ void UavMosaicker::TieHeights(FrameWork* w) {
   if (o.ties <= 0) return;
   const Registration& r = w->registration;
   const double log_s = std::log(r.mosaic_from_frame.Scale());
-  heights_.AddFrame(w->utime, log_s);
+  const int key = w->state.frame_index;
+  heights_.AddFrame(key, log_s);
   if (r.reference && r.source != RegistrationSource::kMosaic)
-    heights_.AddTie(r.reference->utime, w->utime, log_s - std::log(r.reference->mosaic_from_frame.Scale()),
+    heights_.AddTie(r.reference->frame_index, key, log_s - std::log(r.reference->mosaic_from_frame.Scale()),
                     TieSigma(r.motion.num_background));
   for (const Keyframe* n : FramesToTie(*w)) {
     const double chained = log_s - std::log(n->mosaic_from_frame.Scale());
     int support = 0;
     const std::optional<double> measured = HeightRatioTo(*n, *w, &support);
-      if (!measured || std::abs(*measured - chained) > o.max_disagreement) continue;
-    heights_.AddTie(n->utime, w->utime, *measured, TieSigma(support));
+    if (!measured || std::abs(*measured - chained) > o.max_disagreement) continue;
+    heights_.AddTie(n->frame_index, key, *measured, TieSigma(support));
     ++summary_.height_ties;
   }
   heights_.Solve();
@@ -41,7 +42,9 @@ std::vector<const Keyframe*> UavMosaicker::FramesToTie(const FrameWork& w) const
   const Similarity2 frame_from_mosaic = r.mosaic_from_frame.Inverse();
   std::vector<std::pair<double, const Keyframe*>> overlapping;
   for (const Keyframe& n : neighbours_) {
-    if (n.utime == w.utime || (r.reference && n.utime == r.reference->utime) || !heights_.Has(n.utime)) continue;
+    if (n.frame_index == w.state.frame_index || (r.reference && n.frame_index == r.reference->frame_index) ||
+        !heights_.Has(n.frame_index))
+      continue;
     const double overlap = OverlapFraction(frame_from_mosaic * n.mosaic_from_frame, w.frame.size());
     if (overlap >= options_.height_graph.min_overlap) overlapping.emplace_back(overlap, &n);
   }
@@ -74,15 +77,15 @@ double UavMosaicker::TieSigma(int matches) const {
 }
 
 // The frame's scale for its height: the height graph's solution when ties are on, else the registration's.
-double UavMosaicker::HeightScale(int64_t utime, double registration_scale) const {
+double UavMosaicker::HeightScale(int frame_index, double registration_scale) const {
   if (options_.height_graph.ties <= 0) return registration_scale;
-  const std::optional<double> solved = heights_.LogScale(utime);
+  const std::optional<double> solved = heights_.LogScale(frame_index);
   return solved ? std::exp(*solved) : registration_scale;
 }
 
-std::optional<double> UavMosaicker::AdjustedHeight(int64_t utime) const {
+std::optional<double> UavMosaicker::AdjustedHeight(int frame_index) const {
   if (options_.height_graph.ties <= 0 || !calibrated_) return std::nullopt;
-  const std::optional<double> solved = heights_.LogScale(utime);
+  const std::optional<double> solved = heights_.LogScale(frame_index);
   if (!solved) return std::nullopt;
   return std::exp(*solved) * metres_per_pixel_ * focal_;
 }

@@ -422,7 +422,7 @@ void SurveyRunner::Evaluate(const std::string& reference_path) {
     usable.push_back(f.registered && f.tag.has_gps && !f.repeated_fix);
     in_fit.push_back(!f.dropped);
     // With height ties, every height from the graph as solved at the end (later ties correct earlier frames).
-    fig.heights.push_back(f.registered ? mosaicker_->AdjustedHeight(f.state.utime).value_or(f.state.height)
+    fig.heights.push_back(f.registered ? mosaicker_->AdjustedHeight(f.state.frame_index).value_or(f.state.height)
                                        : std::nan(""));
     fig.gps_heights.push_back(fig.relative_altitude ? f.tag.relative_altitude : f.tag.altitude);
   }

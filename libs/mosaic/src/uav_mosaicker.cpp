@@ -190,7 +190,8 @@ void UavMosaicker::StartMosaic(FrameWork* w) {
   const cv::Point2d c = PrincipalPoint();
   const Similarity2 S{s, 0, -s * c.x, -s * c.y};
   keyframe_ = Keyframe{w->features, S, w->utime};
-  if (options_.height_graph.ties > 0) heights_.AddFrame(w->utime, std::log(S.Scale()));
+  keyframe_->frame_index = w->state.frame_index;
+  if (options_.height_graph.ties > 0) heights_.AddFrame(w->state.frame_index, std::log(S.Scale()));
   KeepImageForFinerLevel(w->frame);
   last_ = LastPoses{S, std::nullopt, gps_.GpsEnuAt(w->utime)};
   last_scale_ = s;
@@ -274,6 +275,7 @@ void UavMosaicker::MarkLost(FrameWork* w) {
   if (const std::optional<Similarity2> P = PlaceByGps(InputFor(*w), options_, &placed)) {
     // Restart from this frame at its GPS position: the next frame is matched against it.
     keyframe_ = Keyframe{w->features, *P, w->utime, ground_normal_};
+    keyframe_->frame_index = w->state.frame_index;
     KeepImageForFinerLevel(w->frame);
     last_ = LastPoses{*P, std::nullopt, gps_.GpsEnuAt(w->utime)};
     last_good_index_ = state.frame_index;
@@ -383,7 +385,7 @@ void UavMosaicker::EstimateHeight(FrameWork* w) {
   const Similarity2& S = w->registration.mosaic_from_frame;
   const double s = S.Scale();
   state.scale = last_scale_ / s;
-  state.height_raw = HeightScale(w->utime, s) * metres_per_pixel_ * focal_;
+  state.height_raw = HeightScale(w->state.frame_index, s) * metres_per_pixel_ * focal_;
   state.height = height_filter_.UpdateVision(state.height_raw, w->utime);
   if (last_good_index_ == state.frame_index - 1 && !w->was_lost) {
     last_.prev_good = last_.last_good;
@@ -407,9 +409,10 @@ void UavMosaicker::UpdateKeyframe(FrameWork* w) {
   const bool via_mosaic = r.source == RegistrationSource::kMosaic;
   const bool via_neighbour = r.source == RegistrationSource::kNeighbour;
   w->state.reregistered = w->reregistered;
-  KeepNeighbour(w->features, S, w->utime);
+  KeepNeighbour(w->features, S, w->utime, w->state.frame_index);
   if (options_.fallback_downscale > 0 && options_.fallback_frames > 0) {
     recent_.push_back(Keyframe{w->features, S, w->utime, ground_normal_, w->frame});
+    recent_.back().frame_index = w->state.frame_index;
     while (static_cast<int>(recent_.size()) > options_.fallback_frames) recent_.pop_front();
   }
   w->new_keyframe = w->was_lost || via_mosaic || via_neighbour || w->reregistered ||
@@ -418,6 +421,7 @@ void UavMosaicker::UpdateKeyframe(FrameWork* w) {
                     (!via_mosaic && OverlapFraction(r.motion.similarity.Inverse(), w->frame.size()) < options_.keyframe_min_overlap);
   if (w->new_keyframe) {
     keyframe_ = Keyframe{w->features, S, w->utime, w->plane_ok ? ground_normal_ : keyframe_->normal};
+    keyframe_->frame_index = w->state.frame_index;
     KeepImageForFinerLevel(w->frame);
     w->state.keyframe = true;
     ++summary_.keyframes;
@@ -429,9 +433,11 @@ void UavMosaicker::KeepImageForFinerLevel(const cv::Mat& frame) {
   if (options_.fallback_downscale > 0) keyframe_->image = frame;
 }
 
-void UavMosaicker::KeepNeighbour(const FrameFeatures& features, const Similarity2& mosaic_from_frame, int64_t utime) {
+void UavMosaicker::KeepNeighbour(const FrameFeatures& features, const Similarity2& mosaic_from_frame, int64_t utime,
+                                 int frame_index) {
   if (options_.neighbour_frames <= 0) return;
   neighbours_.push_back(Keyframe{features, mosaic_from_frame, utime, ground_normal_});
+  neighbours_.back().frame_index = frame_index;
   while (static_cast<int>(neighbours_.size()) > options_.neighbour_frames) neighbours_.pop_front();
 }
 

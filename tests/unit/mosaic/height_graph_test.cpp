@@ -129,7 +129,7 @@ TEST(HeightTies, SecondStripIsTiedToTheFirstAndHeightsHold) {
   int checked = 0;
   for (size_t i = 1; i < states.size(); ++i) {
     if (states[i].status != TrackStatus::kTracking) continue;
-    const std::optional<double> h = m.AdjustedHeight(states[i].utime);
+    const std::optional<double> h = m.AdjustedHeight(states[i].frame_index);
     ASSERT_TRUE(h.has_value()) << "frame " << i;
     EXPECT_NEAR(*h / poses[i].height, 1.0, 0.02) << "frame " << i;
     ++checked;
@@ -140,6 +140,31 @@ TEST(HeightTies, SecondStripIsTiedToTheFirstAndHeightsHold) {
   UavMosaicker chain_only(off);
   chain_only.ProcessFrame(testing::RenderNadir(ground, cam, poses[0].east, poses[0].north, poses[0].height, 0, 2.0, 1), 0);
   EXPECT_FALSE(chain_only.AdjustedHeight(0).has_value());
+}
+
+// A bad clock: two frames with one time. The graph knows frames by their index, not their time: nothing is
+// confused with the other frame, every height finite and near the truth.
+TEST(HeightTies, ARepeatedFrameTimeConfusesNoFrame) {
+  const testing::SyntheticGround ground = testing::MakeGround(3200, 0.05, 34);
+  const testing::NadirCamera cam;
+  MosaickerOptions o = testing::OptionsForCamera(cam, 30.0);
+  o.canvas.metres_per_pixel = 0.12;
+  o.neighbour_frames = 30;
+  o.height_graph.ties = 2;
+  UavMosaicker m(o);
+  const std::vector<int64_t> utimes = {0, 3000000, 6000000, 6000000, 9000000};
+  const std::vector<double> heights = {30.0, 31.0, 32.0, 27.0, 30.0};  // the repeated time 5 m lower
+  for (size_t i = 0; i < utimes.size(); ++i) {
+    const double east = -20.0 + 8.0 * i;
+    const FrameState s =
+        m.ProcessFrame(testing::RenderNadir(ground, cam, east, 0.0, heights[i], 0.0, 2.0, i + 1), utimes[i]);
+    if (i == 0) continue;
+    ASSERT_EQ(s.status, TrackStatus::kTracking) << "frame " << i;
+    ASSERT_TRUE(std::isfinite(s.height)) << "frame " << i;
+    EXPECT_NEAR(s.height_raw / heights[i], 1.0, 0.03) << "frame " << i;
+  }
+  for (int i = 1; i < 5; ++i) EXPECT_NEAR(*m.AdjustedHeight(i) / heights[i], 1.0, 0.03) << "frame " << i;
+  EXPECT_EQ(m.summary().tracked, 5);
 }
 
 }  // namespace

@@ -7,7 +7,7 @@
 // registrations alone is a random walk (each link adds its error); the least-
 // squares solution over the ties spreads a tie's disagreement over the links
 // between, as a pose graph does with loop closures, and bounds the drift.
-// Pure algorithm (Eigen): nodes keyed by the frame's time.
+// Pure algorithm (Eigen): nodes keyed by a frame's unique index.
 #include <cstdint>
 #include <optional>
 #include <string>

@@ -40,6 +40,7 @@ struct Keyframe {
   cv::Vec3d normal{0, 0, 1};          // ground-plane normal in its camera frame (scale_source homography)
   cv::Mat image;                      // undistorted (the keyframe and recent frames only: RegisterAtFinerLevel)
   mutable std::shared_ptr<FrameFeatures> finer;  // features of image at fallback_downscale, found when first needed
+  int frame_index = -1;               // FrameState::frame_index: unique, unlike a time (the height graph's key)
 };
 
 // What a candidate may use to register the frame.

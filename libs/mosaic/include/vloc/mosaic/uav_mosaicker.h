@@ -219,8 +219,9 @@ class UavMosaicker {
   // Local ENU east/north (m) of a mosaic pixel (best current estimate).
   cv::Point2d MosaicToLocal(const cv::Point2d& mosaic_px) const;
   // A registered frame's height (m) from the height graph as solved now (all
-  // ties so far); none when height_graph.ties is 0 or the frame is unknown.
-  std::optional<double> AdjustedHeight(int64_t utime) const;
+  // ties so far), by its FrameState::frame_index; none when height_graph.ties
+  // is 0 or the frame is not in the graph.
+  std::optional<double> AdjustedHeight(int frame_index) const;
   // Waits until queued blends are done (async_mosaic).
   void FlushMosaic() { blender_.Flush(); }
   // Forces calibration (e.g. from a tool that knows height and focal).
@@ -277,7 +278,7 @@ class UavMosaicker {
   std::vector<const Keyframe*> FramesToTie(const FrameWork& w) const;
   std::optional<double> HeightRatioTo(const Keyframe& earlier, const FrameWork& w, int* support) const;
   double TieSigma(int matches) const;
-  double HeightScale(int64_t utime, double registration_scale) const;
+  double HeightScale(int frame_index, double registration_scale) const;
   cv::Point2d PrincipalPoint() const;
   // The ground plane of homography H (reference frame -> this frame): this frame's height relative to the
   // reference's and the ground normal in this frame's camera; false when no decomposition is plausible.
@@ -285,7 +286,7 @@ class UavMosaicker {
                            cv::Vec3d* normal) const;
   // The keyframe's image, for the finer-level candidate (fallback_downscale).
   void KeepImageForFinerLevel(const cv::Mat& frame);
-  void KeepNeighbour(const FrameFeatures& features, const Similarity2& mosaic_from_frame, int64_t utime);
+  void KeepNeighbour(const FrameFeatures& features, const Similarity2& mosaic_from_frame, int64_t utime, int frame_index);
   void FillRoute(FrameState* state);
 
   MosaickerOptions options_;
