@@ -42,14 +42,14 @@ std::vector<const Keyframe*> UavMosaicker::FramesToTie(const FrameWork& w) const
   const Similarity2 frame_from_mosaic = r.mosaic_from_frame.Inverse();
   std::vector<std::pair<double, const Keyframe*>> overlapping;
   for (const Keyframe& n : neighbours_) {
-    if (n.frame_index == w.state.frame_index || (r.reference && n.frame_index == r.reference->frame_index) ||
-        !heights_.Has(n.frame_index))
-      continue;
+    // (The kept frames are earlier ones: this frame joins them after its height.)
+    if ((r.reference && n.frame_index == r.reference->frame_index) || !heights_.Has(n.frame_index)) continue;
     const double overlap = OverlapFraction(frame_from_mosaic * n.mosaic_from_frame, w.frame.size());
     if (overlap >= options_.height_graph.min_overlap) overlapping.emplace_back(overlap, &n);
   }
   std::sort(overlapping.begin(), overlapping.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
-  if (overlapping.size() > static_cast<size_t>(options_.height_graph.ties)) overlapping.resize(options_.height_graph.ties);
+  const size_t ties = static_cast<size_t>(options_.height_graph.ties);
+  if (overlapping.size() > ties) overlapping.resize(ties);
   std::vector<const Keyframe*> frames;
   for (const auto& [overlap, n] : overlapping) frames.push_back(n);
   return frames;
@@ -76,18 +76,19 @@ double UavMosaicker::TieSigma(int matches) const {
   return options_.height_graph.sigma * std::sqrt(100.0 / std::max(matches, 1));
 }
 
-// The frame's scale for its height: the height graph's solution when ties are on, else the registration's.
-double UavMosaicker::HeightScale(int frame_index, double registration_scale) const {
-  if (options_.height_graph.ties <= 0) return registration_scale;
+// The frame's scale (mosaic px per frame px) as the height graph solves it; none when ties are off or the frame is
+// not in the graph (then its registration's scale stands).
+std::optional<double> UavMosaicker::GraphScale(int frame_index) const {
+  if (options_.height_graph.ties <= 0) return std::nullopt;
   const std::optional<double> solved = heights_.LogScale(frame_index);
-  return solved ? std::exp(*solved) : registration_scale;
+  if (!solved) return std::nullopt;
+  return std::exp(*solved);
 }
 
 std::optional<double> UavMosaicker::AdjustedHeight(int frame_index) const {
-  if (options_.height_graph.ties <= 0 || !calibrated_) return std::nullopt;
-  const std::optional<double> solved = heights_.LogScale(frame_index);
-  if (!solved) return std::nullopt;
-  return std::exp(*solved) * metres_per_pixel_ * focal_;
+  const std::optional<double> scale = GraphScale(frame_index);
+  if (!scale || !calibrated_) return std::nullopt;
+  return *scale * metres_per_pixel_ * focal_;
 }
 
 }  // namespace vloc::mosaic

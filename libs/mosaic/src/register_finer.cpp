@@ -16,7 +16,8 @@ Registration AgainstAtFinerLevel(const RegistrationInput& in, const FrameFeature
                                  const MosaickerOptions& finer) {
   if (!reference.finer)
     reference.finer = std::make_shared<FrameFeatures>(ExtractFeatures(reference.image, finer.matcher));
-  const Keyframe key{*reference.finer, reference.mosaic_from_frame, reference.utime, reference.normal};
+  const Keyframe key{*reference.finer, reference.mosaic_from_frame, reference.utime, reference.frame_index,
+                     reference.normal};
   RegistrationInput at_finer = in;
   at_finer.features = &features;
   at_finer.keyframe = &key;
@@ -47,7 +48,7 @@ Registration RegisterAtFinerLevel(const RegistrationInput& in, const MosaickerOp
   std::vector<const Keyframe*> references{in.keyframe};
   if (in.recent)
     for (auto it = in.recent->rbegin(); it != in.recent->rend(); ++it)
-      if (it->utime != in.keyframe->utime && !it->image.empty()) references.push_back(&*it);
+      if (it->frame_index != in.keyframe->frame_index && !it->image.empty()) references.push_back(&*it);
   Registration result;
   int rejections = 0;
   std::string why;

@@ -23,7 +23,7 @@ Registration RegisterToNeighbours(const RegistrationInput& in, const MosaickerOp
   const double reach = expected.Scale() * in.features->size.width;
   std::vector<std::pair<double, const Keyframe*>> near;
   for (const auto& n : *in.neighbours) {
-    if (in.keyframe && n.utime == in.keyframe->utime) continue;  // tried already
+    if (in.keyframe && n.frame_index == in.keyframe->frame_index) continue;  // tried already
     const double d = cv::norm(n.mosaic_from_frame.Apply(c) - at);
     if (d < reach) near.emplace_back(d, &n);
   }

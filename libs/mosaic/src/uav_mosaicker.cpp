@@ -189,8 +189,7 @@ void UavMosaicker::StartMosaic(FrameWork* w) {
   // The principal point of the first frame is mosaic px (0, 0).
   const cv::Point2d c = PrincipalPoint();
   const Similarity2 S{s, 0, -s * c.x, -s * c.y};
-  keyframe_ = Keyframe{w->features, S, w->utime};
-  keyframe_->frame_index = w->state.frame_index;
+  keyframe_ = Keyframe{w->features, S, w->utime, w->state.frame_index};
   if (options_.height_graph.ties > 0) heights_.AddFrame(w->state.frame_index, std::log(S.Scale()));
   KeepImageForFinerLevel(w->frame);
   last_ = LastPoses{S, std::nullopt, gps_.GpsEnuAt(w->utime)};
@@ -274,8 +273,7 @@ void UavMosaicker::MarkLost(FrameWork* w) {
   std::string placed;
   if (const std::optional<Similarity2> P = PlaceByGps(InputFor(*w), options_, &placed)) {
     // Restart from this frame at its GPS position: the next frame is matched against it.
-    keyframe_ = Keyframe{w->features, *P, w->utime, ground_normal_};
-    keyframe_->frame_index = w->state.frame_index;
+    keyframe_ = Keyframe{w->features, *P, w->utime, w->state.frame_index, ground_normal_};
     KeepImageForFinerLevel(w->frame);
     last_ = LastPoses{*P, std::nullopt, gps_.GpsEnuAt(w->utime)};
     last_good_index_ = state.frame_index;
@@ -385,7 +383,7 @@ void UavMosaicker::EstimateHeight(FrameWork* w) {
   const Similarity2& S = w->registration.mosaic_from_frame;
   const double s = S.Scale();
   state.scale = last_scale_ / s;
-  state.height_raw = HeightScale(w->state.frame_index, s) * metres_per_pixel_ * focal_;
+  state.height_raw = GraphScale(w->state.frame_index).value_or(s) * metres_per_pixel_ * focal_;
   state.height = height_filter_.UpdateVision(state.height_raw, w->utime);
   if (last_good_index_ == state.frame_index - 1 && !w->was_lost) {
     last_.prev_good = last_.last_good;
@@ -411,17 +409,17 @@ void UavMosaicker::UpdateKeyframe(FrameWork* w) {
   w->state.reregistered = w->reregistered;
   KeepNeighbour(w->features, S, w->utime, w->state.frame_index);
   if (options_.fallback_downscale > 0 && options_.fallback_frames > 0) {
-    recent_.push_back(Keyframe{w->features, S, w->utime, ground_normal_, w->frame});
-    recent_.back().frame_index = w->state.frame_index;
+    recent_.push_back(Keyframe{w->features, S, w->utime, w->state.frame_index, ground_normal_, w->frame});
     while (static_cast<int>(recent_.size()) > options_.fallback_frames) recent_.pop_front();
   }
   w->new_keyframe = w->was_lost || via_mosaic || via_neighbour || w->reregistered ||
                     r.motion.num_background < options_.keyframe_min_inliers ||
                     key_scale > options_.keyframe_max_scale || key_scale < 1.0 / options_.keyframe_max_scale ||
-                    (!via_mosaic && OverlapFraction(r.motion.similarity.Inverse(), w->frame.size()) < options_.keyframe_min_overlap);
+                    (!via_mosaic &&
+                     OverlapFraction(r.motion.similarity.Inverse(), w->frame.size()) < options_.keyframe_min_overlap);
   if (w->new_keyframe) {
-    keyframe_ = Keyframe{w->features, S, w->utime, w->plane_ok ? ground_normal_ : keyframe_->normal};
-    keyframe_->frame_index = w->state.frame_index;
+    const cv::Vec3d normal = w->plane_ok ? ground_normal_ : keyframe_->normal;
+    keyframe_ = Keyframe{w->features, S, w->utime, w->state.frame_index, normal};
     KeepImageForFinerLevel(w->frame);
     w->state.keyframe = true;
     ++summary_.keyframes;
@@ -436,8 +434,7 @@ void UavMosaicker::KeepImageForFinerLevel(const cv::Mat& frame) {
 void UavMosaicker::KeepNeighbour(const FrameFeatures& features, const Similarity2& mosaic_from_frame, int64_t utime,
                                  int frame_index) {
   if (options_.neighbour_frames <= 0) return;
-  neighbours_.push_back(Keyframe{features, mosaic_from_frame, utime, ground_normal_});
-  neighbours_.back().frame_index = frame_index;
+  neighbours_.push_back(Keyframe{features, mosaic_from_frame, utime, frame_index, ground_normal_});
   while (static_cast<int>(neighbours_.size()) > options_.neighbour_frames) neighbours_.pop_front();
 }
 

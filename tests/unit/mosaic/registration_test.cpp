@@ -58,7 +58,10 @@ class RegistrationCandidates : public ::testing::Test {
     in.last_good = key ? key->mosaic_from_frame : Similarity2{};
     return in;
   }
-  static Keyframe KeyOf(const View& v, int64_t utime = 0) { return Keyframe{v.features, v.mosaic_from_frame, utime}; }
+  // A kept frame; its time doubles as its (unique) frame index.
+  static Keyframe KeyOf(const View& v, int64_t utime = 0) {
+    return Keyframe{v.features, v.mosaic_from_frame, utime, static_cast<int>(utime)};
+  }
   // Five views 5 m apart along the east axis (seeds first_seed...) blended into `blender`.
   static void PaintStrip(MosaicBlender* blender, int first_seed) {
     blender->Start();
@@ -279,7 +282,7 @@ TEST_F(RegistrationCandidates, FinerLevelTriesTheKeyframeThenTheRecentFramesWith
   // A keyframe that does not overlap: the recent frame registers it.
   Keyframe far = KeyOf(Shoot(300, 300, 0.0, 63), 2);
   far.image = Shoot(300, 300, 0.0, 63).image;
-  std::deque<Keyframe> recent{Keyframe{last.features, last.mosaic_from_frame, 3, {0, 0, 1}, last.image}};
+  std::deque<Keyframe> recent{Keyframe{last.features, last.mosaic_from_frame, 3, 3, {0, 0, 1}, last.image}};
   RegistrationInput in = Input(b, &far);
   in.recent = &recent;
   const Registration via_recent = RegisterAtFinerLevel(in, o);

@@ -37,10 +37,10 @@ struct Keyframe {
   FrameFeatures features;
   Similarity2 mosaic_from_frame;
   int64_t utime = 0;
+  int frame_index = -1;               // FrameState::frame_index: unique, unlike a time (which frame this is)
   cv::Vec3d normal{0, 0, 1};          // ground-plane normal in its camera frame (scale_source homography)
   cv::Mat image;                      // undistorted (the keyframe and recent frames only: RegisterAtFinerLevel)
   mutable std::shared_ptr<FrameFeatures> finer;  // features of image at fallback_downscale, found when first needed
-  int frame_index = -1;               // FrameState::frame_index: unique, unlike a time (the height graph's key)
 };
 
 // What a candidate may use to register the frame.

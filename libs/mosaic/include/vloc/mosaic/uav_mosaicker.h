@@ -278,7 +278,7 @@ class UavMosaicker {
   std::vector<const Keyframe*> FramesToTie(const FrameWork& w) const;
   std::optional<double> HeightRatioTo(const Keyframe& earlier, const FrameWork& w, int* support) const;
   double TieSigma(int matches) const;
-  double HeightScale(int frame_index, double registration_scale) const;
+  std::optional<double> GraphScale(int frame_index) const;
   cv::Point2d PrincipalPoint() const;
   // The ground plane of homography H (reference frame -> this frame): this frame's height relative to the
   // reference's and the ground normal in this frame's camera; false when no decomposition is plausible.
