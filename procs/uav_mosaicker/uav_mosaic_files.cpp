@@ -4,7 +4,7 @@
 //   uav_mosaic_files [--config config/procs/uav_mosaic_files.yaml] [--calibration CAMERA.yaml]
 //                    [--focal F] [--height H] [--no-gps] [--drop-gps A-B]
 //                    [--geotiff OUT.tif] [--geojson OUT.geojson] [--report OUT.tsv] [--reference ORTHO.jpg]
-//                    --out out/mosaic.png (FOLDER | IMAGE...)
+//                    [--self-calibrate CAMERA_OUT.yaml] --out out/mosaic.png (FOLDER | IMAGE...)
 // The survey itself runs in vloc::mosaic::SurveyRunner (survey_runner.h);
 // this tool parses the arguments and calls its steps. Settings: --config,
 // else the stills settings config/procs/uav_mosaic_files.yaml of the source
@@ -22,6 +22,10 @@
 // A photo tagged with the previous photo's fix (same GPS time) gets no GPS.
 // --reference compares the route and the GPS with a reference orthomosaic
 // of the same flight made by another tool (e.g. OpenDroneMap's).
+// --self-calibrate CAMERA_OUT.yaml: for a camera without a calibration, a
+// first run finds the lens's radial distortion k1 from the height ties (the
+// k1 under which they agree best, lens_search.h; no GPS used), writes the
+// camera there and runs the survey with it.
 //   uav_mosaic_files --split [--angle DEG] [--zoom Z] --out out/x.png IMAGE
 // instead cuts one real image into two overlapping views related by a known
 // similarity (rotation DEG, default 12; view 2 seen from Z times higher,
@@ -51,6 +55,7 @@
 #include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <sstream>
 
 #include "vloc/common/command_line.h"
 #include "vloc/common/logging.h"
@@ -165,7 +170,7 @@ const char* kUsage =
     "usage: uav_mosaic_files [--config config/procs/uav_mosaic_files.yaml] [--calibration CAMERA.yaml] "
     "[--focal F] [--height H] [--no-gps] [--drop-gps A-B] [--gps-sigma M] [--geotiff OUT.tif] "
     "[--geojson OUT.geojson] [--report OUT.tsv] [--reference ORTHO.jpg] [--preview P.png --preview-side N] "
-    "[--no-oblique] --out OUT.png (FOLDER | IMAGE IMAGE...)\n"
+    "[--no-oblique] [--self-calibrate CAMERA_OUT.yaml] --out OUT.png (FOLDER | IMAGE IMAGE...)\n"
     "       uav_mosaic_files --split [--angle DEG] [--zoom Z] --out OUT.png IMAGE\n";
 
 // The survey options from the arguments; false with one line on stderr.
@@ -197,6 +202,28 @@ bool SurveyOptionsFrom(const vloc::CommandLine& args, vm::SurveyOptions* o) {
   return true;
 }
 
+// --self-calibrate CAMERA.yaml: a first run over the photos finds the lens's k1 from the height ties
+// (lens_search.h); the camera is written to CAMERA.yaml and the survey runs with it. False with one line on stderr.
+bool SelfCalibrate(const std::string& camera_path, const std::vector<std::string>& photos, vm::SurveyOptions* o) {
+  std::cout << "lens self-calibration: a first run over the " << photos.size() << " photos\n";
+  vloc::PinholeCamera camera;
+  vm::LensSearch search;
+  if (!vm::SelfCalibrateLens(*o, photos, &std::cout, &std::cerr, &camera, &search)) return false;
+  std::ostringstream comment;
+  comment << "Self-calibrated by uav_mosaic_files --self-calibrate: of k1 = " << search.curve.front().x << " ... "
+          << search.curve.back().x << ", the one whose height ties agree best\n(" << search.pairs
+          << " links and ties; residual " << search.residual << " sigmas, " << search.residual_as_run
+          << " without). No GPS used.";
+  std::string error;
+  if (!vm::WriteCameraFile(camera_path, camera, comment.str(), &error)) {
+    std::cerr << "uav_mosaic_files: --self-calibrate: " << error << "\n";
+    return false;
+  }
+  std::cout << "lens self-calibration: camera written to " << camera_path << "; the survey runs with it\n";
+  o->calibration_file = camera_path;
+  return true;
+}
+
 // The tool; main() turns any exception into one line and exit code 1.
 int Run(int argc, char** argv) {
   vloc::CommandLine args;
@@ -204,7 +231,7 @@ int Run(int argc, char** argv) {
   if (!args.Parse(argc, argv,
                   {"config", "calibration", "height", "focal", "out", "help", "split", "angle", "zoom", "preview",
                    "preview-side", "no-oblique", "no-gps", "drop-gps", "geotiff", "geojson", "report", "gps-sigma",
-                   "reference"},
+                   "reference", "self-calibrate"},
                   &error) ||
       args.Has("help") || args.positional().empty() || !args.Has("out")) {
     std::cerr << (error.empty() ? "" : "uav_mosaic_files: " + error + "\n") << kUsage;
@@ -224,6 +251,7 @@ int Run(int argc, char** argv) {
   }
   vm::SurveyOptions options;
   if (!SurveyOptionsFrom(args, &options)) return 1;
+  if (!split && args.Has("self-calibrate") && !SelfCalibrate(args.Get("self-calibrate"), paths, &options)) return 1;
   vm::SurveyRunner runner(options, &std::cout, &std::cerr);
   double true_scale = 0;
   if (split) {

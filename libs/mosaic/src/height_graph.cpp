@@ -34,11 +34,12 @@ void HeightGraph::AddFrame(int64_t key, double log_scale) {
   solved_.push_back(log_scale);
 }
 
-void HeightGraph::AddTie(int64_t from, int64_t to, double log_ratio, double sigma) {
+bool HeightGraph::AddTie(int64_t from, int64_t to, double log_ratio, double sigma) {
   const auto f = index_.find(from), t = index_.find(to);
-  if (f == index_.end() || t == index_.end() || f->second == t->second) return;
-  if (!std::isfinite(log_ratio) || !(sigma > 0)) return;
+  if (f == index_.end() || t == index_.end() || f->second == t->second) return false;
+  if (!std::isfinite(log_ratio) || !(sigma > 0)) return false;
   ties_.push_back(Tie{f->second, t->second, log_ratio, sigma});
+  return true;
 }
 
 bool HeightGraph::Solve() {

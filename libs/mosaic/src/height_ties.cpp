@@ -19,20 +19,37 @@ void UavMosaicker::TieHeights(FrameWork* w) {
   const double log_s = std::log(r.mosaic_from_frame.Scale());
   const int key = w->state.frame_index;
   heights_.AddFrame(key, log_s);
+  if (observations_) observations_->frames.emplace_back(key, log_s);
+  std::vector<HeightObservation> measured;
   if (r.reference && r.source != RegistrationSource::kMosaic)
-    heights_.AddTie(r.reference->frame_index, key, log_s - std::log(r.reference->mosaic_from_frame.Scale()),
-                    TieSigma(r.motion.num_background));
+    measured.push_back(RegistrationLink(*w, log_s - std::log(r.reference->mosaic_from_frame.Scale())));
   for (const Keyframe* n : FramesToTie(*w)) {
     const double chained = log_s - std::log(n->mosaic_from_frame.Scale());
-    int support = 0;
-    const std::optional<double> measured = HeightRatioTo(*n, *w, &support);
-    if (!measured || std::abs(*measured - chained) > o.max_disagreement) continue;
-    heights_.AddTie(n->frame_index, key, *measured, TieSigma(support));
+    std::optional<HeightObservation> tie = HeightRatioTo(*n, *w);
+    if (!tie || std::abs(tie->log_ratio - chained) > o.max_disagreement) continue;
+    measured.push_back(std::move(*tie));
     ++summary_.height_ties;
+  }
+  for (HeightObservation& m : measured) {
+    heights_.AddTie(m.from, m.to, m.log_ratio, TieSigma(m.support));
+    if (observations_) observations_->pairs.push_back(std::move(m));
   }
   heights_.Solve();
   summary_.height_ties_dropped = heights_.dropped();
   summary_.height_tie_rms = heights_.ResidualRms();
+}
+
+// The registration's own height ratio as a link of the graph; its points
+// when the ratio came from the ground plane (scale_source homography).
+HeightObservation UavMosaicker::RegistrationLink(const FrameWork& w, double log_ratio) const {
+  const Registration& r = w.registration;
+  HeightObservation link{r.reference->frame_index, w.state.frame_index, log_ratio, r.motion.num_background,
+                         r.reference->normal};
+  if (observations_ && w.plane_ok && options_.scale_source == "homography") {
+    link.from_px = r.motion.from_background;
+    link.to_px = r.motion.to_background;
+  }
+  return link;
 }
 
 // The kept frames (not the registration's reference) covering at least
@@ -57,17 +74,23 @@ std::vector<const Keyframe*> UavMosaicker::FramesToTie(const FrameWork& w) const
 
 // log(h_frame / h_earlier) of the plane homography from the earlier frame,
 // matched inside a gate around the mosaic poses' prediction; none when the
-// match or the decomposition fails.
-std::optional<double> UavMosaicker::HeightRatioTo(const Keyframe& earlier, const FrameWork& w, int* support) const {
+// match or the decomposition fails. Its points are kept only when the
+// observations are (KeepHeightObservations).
+std::optional<HeightObservation> UavMosaicker::HeightRatioTo(const Keyframe& earlier, const FrameWork& w) const {
   MotionPrior prior;
   prior.to_from_from = w.registration.mosaic_from_frame.Inverse() * earlier.mosaic_from_frame;
   prior.gate_px = options_.guide_gate * w.frame.cols;
-  const MotionEstimate m = EstimateMotion(earlier.features, w.features, options_.matcher, &prior);
-  double ratio = 1;
-  cv::Vec3d normal;
-  if (!m.ok || !PlaneFromHomography(m.homography, earlier, &ratio, &normal)) return std::nullopt;
-  *support = m.num_background;
-  return std::log(ratio);
+  MotionEstimate m = EstimateMotion(earlier.features, w.features, options_.matcher, &prior);
+  if (!m.ok) return std::nullopt;
+  const std::optional<PlaneRatio> plane = PlaneFromHomography(m.homography, undistorter_.camera().K(), earlier.normal);
+  if (!plane) return std::nullopt;
+  HeightObservation tie{earlier.frame_index, w.state.frame_index, std::log(plane->height_ratio), m.num_background,
+                        earlier.normal};
+  if (observations_) {
+    tie.from_px = std::move(m.from_background);
+    tie.to_px = std::move(m.to_background);
+  }
+  return tie;
 }
 
 // A height ratio's log sigma from the matches behind it: sigma at 100, as 1/sqrt(n) (seneca's links against the GPS

@@ -304,6 +304,7 @@ SurveyRunner::Loaded SurveyRunner::Prepare(size_t i, FramePreparer* preparer) co
 void SurveyRunner::RegisterAll() {
   ChooseTimes();
   mosaicker_ = std::make_unique<UavMosaicker>(options_.mosaicker);
+  if (options_.keep_height_observations) mosaicker_->KeepHeightObservations();
   FramePreparer preparer(options_.mosaicker);
   const auto t0 = std::chrono::steady_clock::now();
   auto prepare = [this, &preparer](size_t i) { return Prepare(i, &preparer); };

@@ -324,11 +324,14 @@ void UavMosaicker::MarkRegistered(FrameWork* w) {
 // relative to the reference frame (scale_source homography).
 void UavMosaicker::EstimateGroundPlane(FrameWork* w) {
   const Registration& r = w->registration;
-  double height_ratio = 1;
-  cv::Vec3d normal;
-  w->plane_ok = r.source != RegistrationSource::kMosaic &&
-                PlaneFromHomography(r.motion.homography, *r.reference, &height_ratio, &normal);
+  const std::optional<PlaneRatio> plane =
+      r.source == RegistrationSource::kMosaic
+          ? std::nullopt
+          : PlaneFromHomography(r.motion.homography, undistorter_.camera().K(), r.reference->normal);
+  w->plane_ok = plane.has_value();
   if (!w->plane_ok) return;
+  const double height_ratio = plane->height_ratio;
+  const cv::Vec3d normal = plane->normal;
   ground_normal_ = normal;
   w->state.tilt = std::acos(std::clamp(normal[2], -1.0, 1.0));
   if (options_.scale_source != "homography") return;
@@ -343,37 +346,6 @@ void UavMosaicker::EstimateGroundPlane(FrameWork* w) {
   H.tx = target.x - moved.x;
   H.ty = target.y - moved.y;
   S = H;
-}
-
-bool UavMosaicker::PlaneFromHomography(const cv::Matx33d& H, const Keyframe& reference, double* height_ratio,
-                                       cv::Vec3d* normal) const {
-  std::vector<cv::Mat> rotations, translations, normals;
-  int n = 0;
-  try {
-    n = cv::decomposeHomographyMat(cv::Mat(H), cv::Mat(undistorter_.camera().K()), rotations, translations, normals);
-  } catch (const cv::Exception&) {
-    return false;
-  }
-  // H = K (R + t n^T / d) K^-1, n^T X = d in the keyframe (OpenCV returns t / d).
-  // Of the solutions facing the camera, the one whose normal is nearest the keyframe's.
-  double best = 0.5;  // within 60 degrees
-  bool found = false;
-  for (int i = 0; i < n; ++i) {
-    const cv::Vec3d nk(normals[i]);
-    if (nk[2] <= 0) continue;
-    const double agree = nk.dot(reference.normal) / cv::norm(nk);
-    if (agree <= best) continue;
-    const cv::Matx33d R(rotations[i]);
-    const cv::Vec3d t(translations[i]);
-    const double ratio = 1.0 + nk.dot(R.t() * t);
-    if (!(ratio > 0.2 && ratio < 5)) continue;
-    best = agree;
-    *height_ratio = ratio;
-    const cv::Vec3d nc = R * nk;
-    *normal = nc / cv::norm(nc);
-    found = true;
-  }
-  return found;
 }
 
 // Height (eqs. 4-5 chained through the similarity scale) and lambda; the

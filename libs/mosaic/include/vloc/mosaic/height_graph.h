@@ -41,8 +41,9 @@ class HeightGraph {
   // reaches keeps it).
   void AddFrame(int64_t key, double log_scale);
   bool Has(int64_t key) const { return index_.count(key) > 0; }
-  // log s_to - log s_from = log_ratio (1-sigma `sigma` in log); both frames added before.
-  void AddTie(int64_t from, int64_t to, double log_ratio, double sigma);
+  // log s_to - log s_from = log_ratio (1-sigma `sigma` in log); both frames added before. False (not added) for an
+  // unknown frame, a tie of a frame to itself, a ratio that is not finite or a sigma that is not positive.
+  bool AddTie(int64_t from, int64_t to, double log_ratio, double sigma);
   // Least squares over all ties; the tie farthest beyond outlier_sigmas of
   // the solution is dropped and the rest solved again, until none is (a few
   // per call). False when there is nothing to solve.
@@ -54,6 +55,7 @@ class HeightGraph {
   int frames() const { return static_cast<int>(chained_.size()); }
   int ties() const { return static_cast<int>(ties_.size()); }
   int dropped() const { return dropped_; }
+  bool Kept(int tie) const { return ties_.at(tie).active; }  // tie `tie` (in the order added) not dropped
   // RMS of the kept ties' residuals in their sigmas (about 1 when the sigmas are right; 0 without ties).
   double ResidualRms() const;
 

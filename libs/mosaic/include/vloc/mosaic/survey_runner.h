@@ -39,6 +39,7 @@
 #include "vloc/common/image_header.h"
 #include "vloc/mosaic/altitude_fusion.h"
 #include "vloc/mosaic/geotag.h"
+#include "vloc/mosaic/lens_search.h"
 #include "vloc/mosaic/survey_eval.h"
 #include "vloc/mosaic/survey_photos.h"
 #include "vloc/mosaic/uav_mosaicker.h"
@@ -58,6 +59,7 @@ struct SurveyOptions {
   double gps_sigma = 3.0;              // m, horizontal sigma of the photos' GPS
   bool oblique_fallback = true;        // untagged photos the mosaicker loses: pairwise affine-invariant mosaic
   bool prefetch = true;                // decode the next photo and find its features while this one registers
+  bool keep_height_observations = false;  // the height links and ties kept with their points (SelfCalibrateLens)
 };
 
 // The stills settings of a config file: "mosaicker" and "photo_limits" (when present). Throws ConfigError.
@@ -173,5 +175,15 @@ class SurveyRunner {
   SurveyFigures figures_;
   ReferenceComparison reference_;
 };
+
+// The lens's k1 self-calibrated from a first run over the photos (lens_search.h): every height link and tie of the
+// run re-measured under candidate k1 (no GPS used); *camera is the run's camera with the best k1. out: the search's
+// lines (the run itself is silent); false with one line on err when the photos or the search fail.
+bool SelfCalibrateLens(const SurveyOptions& options, const std::vector<std::string>& paths, std::ostream* out,
+                       std::ostream* err, PinholeCamera* camera, LensSearch* search);
+
+// A camera as the YAML a calibration file holds (LoadOptionsFile<PinholeCamera> reads it back), after comment lines.
+bool WriteCameraFile(const std::string& path, const PinholeCamera& camera, const std::string& comment,
+                     std::string* error);
 
 }  // namespace vloc::mosaic

@@ -41,6 +41,7 @@
 #include "vloc/mosaic/gps_tie.h"
 #include "vloc/mosaic/height_filter.h"
 #include "vloc/mosaic/height_graph.h"
+#include "vloc/mosaic/lens_search.h"
 #include "vloc/mosaic/mosaic_blender.h"
 #include "vloc/mosaic/registration.h"
 #include "vloc/mosaic/tiled_canvas.h"
@@ -222,6 +223,10 @@ class UavMosaicker {
   // ties so far), by its FrameState::frame_index; none when height_graph.ties
   // is 0 or the frame is not in the graph.
   std::optional<double> AdjustedHeight(int frame_index) const;
+  // From now on every height link and tie is kept with its matched points, for SearchRadialDistortion
+  // (lens_search.h); null before this is called.
+  void KeepHeightObservations() { observations_.emplace(); }
+  const HeightObservations* height_observations() const { return observations_ ? &*observations_ : nullptr; }
   // Waits until queued blends are done (async_mosaic).
   void FlushMosaic() { blender_.Flush(); }
   // Forces calibration (e.g. from a tool that knows height and focal).
@@ -276,14 +281,11 @@ class UavMosaicker {
 
   RegistrationInput InputFor(const FrameWork& w) const;
   std::vector<const Keyframe*> FramesToTie(const FrameWork& w) const;
-  std::optional<double> HeightRatioTo(const Keyframe& earlier, const FrameWork& w, int* support) const;
+  std::optional<HeightObservation> HeightRatioTo(const Keyframe& earlier, const FrameWork& w) const;
+  HeightObservation RegistrationLink(const FrameWork& w, double log_ratio) const;
   double TieSigma(int matches) const;
   std::optional<double> GraphScale(int frame_index) const;
   cv::Point2d PrincipalPoint() const;
-  // The ground plane of homography H (reference frame -> this frame): this frame's height relative to the
-  // reference's and the ground normal in this frame's camera; false when no decomposition is plausible.
-  bool PlaneFromHomography(const cv::Matx33d& H, const Keyframe& reference, double* height_ratio,
-                           cv::Vec3d* normal) const;
   // The keyframe's image, for the finer-level candidate (fallback_downscale).
   void KeepImageForFinerLevel(const cv::Mat& frame);
   void KeepNeighbour(const FrameFeatures& features, const Similarity2& mosaic_from_frame, int64_t utime, int frame_index);
@@ -298,6 +300,7 @@ class UavMosaicker {
   FrameUndistorter undistorter_;
   HeightFilter height_filter_;
   HeightGraph heights_;                    // log scales of the registered frames and their ties (height_graph.ties)
+  std::optional<HeightObservations> observations_;  // the graph's links and ties with their points (when kept)
   GpsTie gps_;
   MosaicBlender blender_;
 
