@@ -142,6 +142,7 @@ std::unique_ptr<Transport> MakeLcmTransport(const std::string& url, std::string*
 
 bool MockTransport::Publish(const std::string& channel, const void* data, size_t size) {
   const auto* bytes = static_cast<const uint8_t*>(data);
+  std::lock_guard<std::mutex> lock(mutex_);
   queue_.emplace_back(channel, std::vector<uint8_t>(bytes, bytes + size));
   last_[channel] = queue_.back().second;
   ++counts_[channel];
@@ -150,19 +151,29 @@ bool MockTransport::Publish(const std::string& channel, const void* data, size_t
 
 int MockTransport::Subscribe(const std::string& channel, RawHandler handler, int /*queue_capacity*/,
                              DropHandler /*on_drop*/) {
+  std::lock_guard<std::mutex> lock(mutex_);
   const int id = next_id_++;
   subscriptions_[id] = {channel, std::move(handler)};
   return id;
 }
 
-void MockTransport::Unsubscribe(int id) { subscriptions_.erase(id); }
+void MockTransport::Unsubscribe(int id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  subscriptions_.erase(id);
+}
 
 int MockTransport::Handle(int /*timeout_ms*/) {
-  if (queue_.empty()) return 0;
-  auto [channel, bytes] = std::move(queue_.front());
-  queue_.pop_front();
-  // Copy: a handler may subscribe or unsubscribe while we iterate.
-  auto subscriptions = subscriptions_;
+  std::pair<std::string, std::vector<uint8_t>> message;
+  std::map<int, Subscription> subscriptions;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (queue_.empty()) return 0;
+    message = std::move(queue_.front());
+    queue_.pop_front();
+    // A copy: a handler may subscribe or unsubscribe while we deliver.
+    subscriptions = subscriptions_;
+  }
+  const auto& [channel, bytes] = message;
   for (auto& [id, sub] : subscriptions) {
     if (std::regex_match(channel, std::regex(sub.pattern))) sub.handler(channel, bytes.data(), bytes.size());
   }
@@ -176,11 +187,13 @@ int MockTransport::HandleAll() {
 }
 
 int MockTransport::Count(const std::string& channel) const {
+  std::lock_guard<std::mutex> lock(mutex_);
   auto it = counts_.find(channel);
   return it == counts_.end() ? 0 : it->second;
 }
 
 const std::vector<uint8_t>* MockTransport::Last(const std::string& channel) const {
+  std::lock_guard<std::mutex> lock(mutex_);
   auto it = last_.find(channel);
   return it == last_.end() ? nullptr : &it->second;
 }

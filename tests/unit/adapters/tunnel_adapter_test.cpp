@@ -10,10 +10,8 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
-#include <deque>
 #include <functional>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <thread>
 #include <utility>
@@ -27,41 +25,6 @@
 
 namespace vloc {
 namespace {
-
-// A MockTransport an adapter may publish to from its link thread: Publish
-// queues under a lock; Handle (the test's thread) moves what waits onto the
-// MockTransport and delivers it there, outside the lock.
-class ThreadedBus : public Transport {
- public:
-  bool Publish(const std::string& channel, const void* data, size_t size) override {
-    const auto* bytes = static_cast<const uint8_t*>(data);
-    std::lock_guard<std::mutex> lock(mutex_);
-    waiting_.emplace_back(channel, std::vector<uint8_t>(bytes, bytes + size));
-    return true;
-  }
-  int Subscribe(const std::string& channel, RawHandler handler, int queue_capacity = 30,
-                DropHandler on_drop = {}) override {
-    return bus_.Subscribe(channel, std::move(handler), queue_capacity, std::move(on_drop));
-  }
-  void Unsubscribe(int id) override { bus_.Unsubscribe(id); }
-  int Handle(int /*timeout_ms*/) override {
-    std::deque<std::pair<std::string, std::vector<uint8_t>>> moved;
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      moved.swap(waiting_);
-    }
-    for (const auto& [channel, bytes] : moved) bus_.Publish(channel, bytes.data(), bytes.size());
-    return bus_.HandleAll();
-  }
-  // What was published here so far (delivered by Handle), on the test's thread.
-  int Count(const std::string& channel) const { return bus_.Count(channel); }
-  const std::vector<uint8_t>* Last(const std::string& channel) const { return bus_.Last(channel); }
-
- private:
-  MockTransport bus_;
-  std::mutex mutex_;
-  std::deque<std::pair<std::string, std::vector<uint8_t>>> waiting_;
-};
 
 // The Unix socket of a test's link (removed by ~Tunnel).
 std::string SocketFile(const std::string& name) {
@@ -80,7 +43,7 @@ tunnel::TunnelOptions End(const std::string& name, const std::string& socket, bo
 // joined at the end of the test.
 struct Tunnel {
   std::vector<std::unique_ptr<TunnelAdapter>> ends;
-  std::vector<ThreadedBus*> buses;
+  std::vector<MockTransport*> buses;
   std::atomic<bool> stop{false};
   std::vector<std::thread> links;
   std::string socket_file;
@@ -88,7 +51,7 @@ struct Tunnel {
   explicit Tunnel(const std::string& name) : socket_file(SocketFile(name)) {}
   std::string endpoint() const { return "ipc://" + socket_file; }
 
-  void Add(ThreadedBus& bus, const tunnel::TunnelOptions& options) {
+  void Add(MockTransport& bus, const tunnel::TunnelOptions& options) {
     ends.push_back(std::make_unique<TunnelAdapter>(bus, options));
     buses.push_back(&bus);
     std::string error;
@@ -101,7 +64,7 @@ struct Tunnel {
     const auto guard = std::chrono::steady_clock::now() + std::chrono::seconds(60);
     while (!done()) {
       if (std::chrono::steady_clock::now() > guard) return false;
-      for (ThreadedBus* bus : buses) bus->Handle(0);
+      for (MockTransport* bus : buses) bus->HandleAll();
       std::this_thread::sleep_for(std::chrono::milliseconds(2));
     }
     return true;
@@ -123,7 +86,7 @@ site_pose_t SitePose(int site) {
 
 // The newest status report of end `name` heard on `bus`.
 struct StatusOf {
-  tunnel_status_t last;
+  tunnel_status_t last{};  // zeroed: lcm-gen leaves a default-constructed message's numbers uninitialised
   int reports = 0;
   std::shared_ptr<SubscriptionStats> stats;
   StatusOf(Transport& bus, const std::string& name) {
@@ -136,7 +99,7 @@ struct StatusOf {
 };
 
 TEST(TunnelAdapter, CarriesEachMessageAcrossOnceAndNeverBack) {
-  ThreadedBus vehicle, ground;
+  MockTransport vehicle, ground;
   StatusOf ground_status(ground, "ground");
   Tunnel t("carry");
   const std::string socket = t.endpoint();
@@ -162,7 +125,7 @@ TEST(TunnelAdapter, CarriesEachMessageAcrossOnceAndNeverBack) {
 }
 
 TEST(TunnelAdapter, OnlyTheChannelsOneSideSendsAndTheOtherReceivesCross) {
-  ThreadedBus vehicle, ground;
+  MockTransport vehicle, ground;
   StatusOf ground_status(ground, "ground");
   Tunnel t("filter");
   const std::string socket = t.endpoint();
@@ -183,7 +146,7 @@ TEST(TunnelAdapter, OnlyTheChannelsOneSideSendsAndTheOtherReceivesCross) {
 }
 
 TEST(TunnelAdapter, BothEndsOnOneBusIsALoop) {
-  ThreadedBus bus;
+  MockTransport bus;
   Tunnel t("loop");
   const std::string socket = t.endpoint();
   t.Add(bus, End("ground", socket, true));

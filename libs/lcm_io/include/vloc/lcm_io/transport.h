@@ -7,6 +7,7 @@
 #include <deque>
 #include <functional>
 #include <map>
+#include <mutex>
 #include <memory>
 #include <string>
 #include <vector>
@@ -52,6 +53,9 @@ std::unique_ptr<Transport> MakeLcmTransport(const std::string& url, std::string*
 
 // In-process transport: Publish queues, Handle delivers to every matching
 // subscriber, and the last message on each channel is kept for inspection.
+// As with LCM, any thread may publish while one thread handles: the queue and
+// the subscriptions are locked; handlers run outside the lock (they may
+// publish or subscribe).
 class MockTransport : public Transport {
  public:
   bool Publish(const std::string& channel, const void* data, size_t size) override;
@@ -63,6 +67,7 @@ class MockTransport : public Transport {
   int HandleAll();
 
   int Count(const std::string& channel) const;
+  // Valid until the next message on `channel` is published.
   const std::vector<uint8_t>* Last(const std::string& channel) const;
 
  private:
@@ -70,6 +75,7 @@ class MockTransport : public Transport {
     std::string pattern;
     RawHandler handler;
   };
+  mutable std::mutex mutex_;
   std::map<int, Subscription> subscriptions_;
   int next_id_ = 1;
   std::deque<std::pair<std::string, std::vector<uint8_t>>> queue_;
