@@ -251,6 +251,10 @@ int Run(int argc, char** argv) {
   }
   vm::SurveyOptions options;
   if (!SurveyOptionsFrom(args, &options)) return 1;
+  if (split && args.Has("self-calibrate")) {
+    std::cerr << "uav_mosaic_files: --self-calibrate needs a survey (its height ties), not --split's two views\n";
+    return 1;
+  }
   if (!split && args.Has("self-calibrate") && !SelfCalibrate(args.Get("self-calibrate"), paths, &options)) return 1;
   vm::SurveyRunner runner(options, &std::cout, &std::cerr);
   double true_scale = 0;
