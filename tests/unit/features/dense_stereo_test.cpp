@@ -261,6 +261,26 @@ TEST(DenseStereo, MotorcycleSubPixelFewerGrossErrorsThanSgbm) {
   EXPECT_LT(ours.median_abs, peer.median_abs);
 }
 
+// The median test counts its neighbours 8 cells at a time (AVX2) when it
+// has no relative term; with a relative term too small to matter it sorts
+// them one cell at a time: the same cells kept, on a real pair with many
+// rejections (ZNCC and median test only).
+TEST(DenseStereo, MedianTestCountsAsItSorts) {
+  const testing::StereoPair pair = testing::LoadMotorcycle();
+  if (!pair.ok) GTEST_SKIP() << "missing " << pair.missing << ": apt-get install python3-skimage";
+  DenseStereoOptions o = testing::StereoOptionsFor(pair, "config/stereo_photo.yaml", 1);
+  o.lsm_enabled = false;
+  DenseStereoSummary counted, sorted;
+  const cv::Mat a = DenseStereo(pair.left, pair.right, o, &counted);
+  o.median_rel_tolerance = 1e-300;
+  const cv::Mat b = DenseStereo(pair.left, pair.right, o, &sorted);
+  EXPECT_LT(counted.after_median, counted.zncc_matches * 0.99);
+  EXPECT_EQ(counted.after_median, sorted.after_median);
+  cv::Mat differ = (a != b) & (a == a);  // NaN != NaN: compare where a has a value
+  EXPECT_EQ(cv::countNonZero(differ), 0);
+  EXPECT_EQ(cv::countNonZero(a == a), cv::countNonZero(b == b));
+}
+
 // A real Curiosity Navcam pair (../shared/data/real/mars_navcam, sol 1431;
 // rectified from its own SIFT matches, real_pairs.h), beside SGBM, with
 // the JPEG settings. No dense truth: the SIFT matches on the epipolar lines
