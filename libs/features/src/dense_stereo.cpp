@@ -13,6 +13,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include "row_lsm.h"
@@ -94,12 +95,13 @@ struct ZnccStage {
   long points = 0, matches = 0;
 };
 
-// Adds sign * L(r, x) R(r, x - d) to V[x * nd + di] (d = dlo + di, x - d >= 0);
-// `rrev`: the right row reversed (rrev[k] = R(r, W - 1 - k)). The scalar
-// loop's operations, vectorised along di (AVX2 where the CPU has it).
+// Adds sign * L(r, x) R(r, x - d) to V[x * nd + di] (d = dlo + di, x - d >= 0)
+// for x in [xa, xb); `rrev`: the right row reversed (rrev[k] = R(r, W - 1 - k)).
+// The scalar loop's operations, vectorised along di (AVX2 where the CPU has it).
 __attribute__((target_clones("avx2", "default"))) void AddRowProducts(const float* l, const float* rrev, int W,
-                                                                       int dlo, int nd, float sign, float* V) {
-  for (int x = dlo; x < W; ++x) {
+                                                                       int dlo, int nd, int xa, int xb, float sign,
+                                                                       float* V) {
+  for (int x = std::max(xa, dlo); x < xb; ++x) {
     const int m = std::min(nd - 1, x - dlo);
     float* v = V + static_cast<size_t>(x) * nd;
     const float sl = sign * l[x];
@@ -108,17 +110,18 @@ __attribute__((target_clones("avx2", "default"))) void AddRowProducts(const floa
   }
 }
 
-// ZNCC C[x * nd + di] of one row from the column sums V, for x in
-// [d + h, W - h - 1]: the window sum S[di] starts at x = d + h (summed in
-// x order) and slides with x, in double; the best score of each right pixel
-// x - d in bestRrev / bestRdrev (reversed: index W - 1 - (x - d); the first
-// of equal scores in d order). mRrev, iRrev: the right row's window mean and
-// inverse std, reversed. Each lane does the scalar operations in their order.
+// ZNCC C[(x - xa) * nd + di] of one row from the column sums V, for x in
+// [xa, xb) within [d + h, W - h - 1] (calls in x order): the window sum
+// S[di] starts at x = d + h (summed in x order) and slides with x, in
+// double; the best score of each right pixel x - d in bestRrev / bestRdrev
+// (reversed: index W - 1 - (x - d); the first of equal scores in d order).
+// mRrev, iRrev: the right row's window mean and inverse std, reversed. Each
+// lane does the scalar operations in their order.
 __attribute__((target_clones("avx2", "default"))) void RowScores(const float* V, int W, int nd, int dlo, int h, int n,
-                                                                  const float* mL, const float* iL,
+                                                                  int xa, int xb, const float* mL, const float* iL,
                                                                   const float* mRrev, const float* iRrev, double* S,
                                                                   float* C, float* bestRrev, int* bestRdrev) {
-  for (int x = dlo + h; x <= W - h - 1; ++x) {
+  for (int x = std::max(xa, dlo + h); x < std::min(xb, W - h); ++x) {
     const int started = x - dlo - h;  // disparities below this slide; this one starts at x
     const float* va = V + static_cast<size_t>(x + h) * nd;
     const float* vb = V + static_cast<size_t>(x - h - 1) * nd;
@@ -131,7 +134,7 @@ __attribute__((target_clones("avx2", "default"))) void RowScores(const float* V,
     }
     const int active = std::min(nd, started + 1);
     const double inv_n = 1.0 / n;  // a multiply, not a division per score
-    float* c = C + static_cast<size_t>(x) * nd;
+    float* c = C + static_cast<size_t>(x - xa) * nd;
     const float ml = mL[x], il = iL[x];
     const int k0 = W - 1 - x + dlo;  // reversed index of x - dlo
     const float* mr = mRrev + k0;
@@ -146,6 +149,7 @@ __attribute__((target_clones("avx2", "default"))) void RowScores(const float* V,
       br[di] = up ? z : br[di];
       brd[di] = up ? di : brd[di];
     }
+    for (int di = active; di < nd; ++di) c[di] = -2.f;
   }
 }
 
@@ -186,9 +190,183 @@ void BestAndSecondPeak(const float* c, int nd, int* best_index, float* best_scor
   *second_score = second;
 }
 
+// BestAndSecondPeak 8 disparities at a time (AVX2): the same maxima (a
+// maximum does not depend on the order), the first index of the best score.
+__attribute__((target("avx2"))) void BestAndSecondPeakAvx2(const float* c, int nd, int* best_index,
+                                                           float* best_score, float* second_score) {
+  alignas(32) float lanes[8];
+  auto reduce_max = [&lanes](float init) {
+    for (float x : lanes) init = std::max(init, x);
+    return init;
+  };
+  __m256 vbest = _mm256_set1_ps(-2.f);
+  int di = 0;
+  for (; di + 8 <= nd; di += 8) vbest = _mm256_max_ps(vbest, _mm256_loadu_ps(c + di));
+  _mm256_store_ps(lanes, vbest);
+  float best = reduce_max(-2.f);
+  for (; di < nd; ++di) best = std::max(best, c[di]);
+  int bi = -1;
+  if (best > -2.f) {
+    const __m256 vb = _mm256_set1_ps(best);
+    for (di = 0; di + 8 <= nd; di += 8) {
+      const int m = _mm256_movemask_ps(_mm256_cmp_ps(_mm256_loadu_ps(c + di), vb, _CMP_EQ_OQ));
+      if (m) break;
+    }
+    for (; c[di] != best; ++di) {
+    }
+    bi = di;
+  }
+  auto qualifies = [&](int d) {
+    return std::abs(d - bi) >= 3 && (d == 0 || c[d] >= c[d - 1]) && (d + 1 == nd || c[d] >= c[d + 1]);
+  };
+  float second = -2.f;
+  if (qualifies(0)) second = std::max(second, c[0]);
+  __m256 vsec = _mm256_set1_ps(-2.f);
+  const __m256i lo = _mm256_set1_epi32(bi - 2), hi = _mm256_set1_epi32(bi + 2), eight = _mm256_set1_epi32(8);
+  __m256i idx = _mm256_setr_epi32(1, 2, 3, 4, 5, 6, 7, 8);
+  di = 1;
+  for (; di + 9 <= nd; di += 8, idx = _mm256_add_epi32(idx, eight)) {  // d = di .. di + 7, all with both neighbours
+    const __m256 cur = _mm256_loadu_ps(c + di);
+    const __m256 peak = _mm256_and_ps(_mm256_cmp_ps(cur, _mm256_loadu_ps(c + di - 1), _CMP_GE_OQ),
+                                      _mm256_cmp_ps(cur, _mm256_loadu_ps(c + di + 1), _CMP_GE_OQ));
+    const __m256 far = _mm256_castsi256_ps(_mm256_or_si256(_mm256_cmpgt_epi32(lo, idx), _mm256_cmpgt_epi32(idx, hi)));
+    vsec = _mm256_max_ps(vsec, _mm256_blendv_ps(_mm256_set1_ps(-2.f), cur, _mm256_and_ps(peak, far)));
+  }
+  _mm256_store_ps(lanes, vsec);
+  second = reduce_max(second);
+  for (; di < nd; ++di)
+    if (qualifies(di)) second = std::max(second, c[di]);
+  *best_index = bi;
+  *best_score = best;
+  *second_score = second;
+}
+
+bool HasAvx2() {
+  static const bool has = __builtin_cpu_supports("avx2");
+  return has;
+}
+
+// A grid pixel's ZNCC peak before the left-right check.
+struct ZnccPeak {
+  int gx, bi;     // grid column, best disparity index
+  double offset;  // sub-pixel parabola offset
+};
+
+// The ZNCC peak of grid column x from its scores c[0, nd): false when the
+// best score is too low, not unique enough, or at the search limit.
+bool PeakOfColumn(const float* c, int x, int nd, int dlo, int h, const DenseStereoOptions& o, int* bi_out,
+                  double* offset_out) {
+  int bi;
+  float best, second;
+  if (HasAvx2()) {
+    BestAndSecondPeakAvx2(c, nd, &bi, &best, &second);
+  } else {
+    BestAndSecondPeak(c, nd, &bi, &best, &second);
+  }
+  // Near the left edge the search stops at the largest disparity whose
+  // window fits the right image; a best score at that limit may still be
+  // rising, so it is no peak.
+  const int last = std::min(nd - 1, x - h - dlo);
+  if (bi < 0 || best < o.min_score || best - second < o.min_peak_margin) return false;
+  if (last < nd - 1 && bi == last) return false;
+  double offset = 0;
+  if (bi > 0 && bi + 1 < nd) {
+    const double a = c[bi - 1], bb = best, cc = c[bi + 1];
+    const double den = a - 2 * bb + cc;
+    if (a > -2 && cc > -2 && den < -1e-9) offset = std::clamp(0.5 * (a - cc) / den, -0.5, 0.5);
+  }
+  *bi_out = bi;
+  *offset_out = offset;
+  return true;
+}
+
+// One thread's buffers for ZnccRows. Disparity-major per x: V[x * nd + di];
+// the scores of a chunk of kChunk columns C[(x - x0) * nd + di] (the chunk
+// stays in the first-level cache). The right image's rows and statistics
+// are read reversed, so that x - d runs forward with di; bestR / bestRd are
+// kept reversed too.
+struct ZnccScratch {
+  static constexpr int kChunk = 16;
+  ZnccScratch(int W, int nd)
+      : V(static_cast<size_t>(nd) * W), C(static_cast<size_t>(nd) * kChunk), S(nd), mRrev(W), iRrev(W), bestRrev(W),
+        bestRdrev(W) {}
+  std::vector<float> V, C;
+  std::vector<double> S;
+  std::vector<float> mRrev, iRrev, bestRrev;
+  std::vector<int> bestRdrev;
+  std::vector<std::vector<float>> rrev;  // the reversed right rows added / subtracted this grid row
+  std::vector<ZnccPeak> peaks;
+  int prev_y = -(1 << 20);
+};
+
+// The window rows that enter (sign +1) and leave (-1) V for grid row y, the
+// right rows reversed; V cleared when the windows do not overlap.
+std::vector<std::pair<int, float>> RowsToAdd(const cv::Mat& R, int y, int h, int window, ZnccScratch* z) {
+  std::vector<std::pair<int, float>> rows;
+  if (y - z->prev_y < window) {
+    for (int r = z->prev_y + h + 1; r <= y + h; ++r) rows.emplace_back(r, 1.f);
+    for (int r = z->prev_y - h; r < y - h; ++r) rows.emplace_back(r, -1.f);
+  } else {
+    std::fill(z->V.begin(), z->V.end(), 0.f);
+    for (int r = y - h; r <= y + h; ++r) rows.emplace_back(r, 1.f);
+  }
+  z->prev_y = y;
+  z->rrev.resize(rows.size());
+  for (size_t k = 0; k < rows.size(); ++k) {
+    const float* rr = R.ptr<float>(rows[k].first);
+    z->rrev[k].resize(R.cols);
+    std::reverse_copy(rr, rr + R.cols, z->rrev[k].begin());
+  }
+  return rows;
+}
+
+// One grid row of step 1, chunk by chunk of columns: the column sums V
+// (rows in, then rows out), the scores and the peaks of the grid columns;
+// then the left-right check (the right pixels' best disparities are
+// complete only after the row). Returns the grid points searched.
+long ZnccRow(const cv::Mat& L, const cv::Mat& R, const cv::Mat& muL, const cv::Mat& isdL, const cv::Mat& muR,
+             const cv::Mat& isdR, int y, const DenseStereoOptions& o, ZnccScratch* z, float* out_row, long* matches) {
+  const int W = L.cols, h = o.zncc_window / 2, n = o.zncc_window * o.zncc_window;
+  const int dlo = static_cast<int>(std::ceil(o.min_disparity)), dhi = static_cast<int>(std::floor(o.max_disparity));
+  const int nd = dhi - dlo + 1;
+  const std::vector<std::pair<int, float>> rows = RowsToAdd(R, y, h, o.zncc_window, z);
+  std::fill(z->bestRrev.begin(), z->bestRrev.end(), -2.f);
+  std::fill(z->bestRdrev.begin(), z->bestRdrev.end(), -1);
+  const float* mR = muR.ptr<float>(y);
+  const float* iR = isdR.ptr<float>(y);
+  std::reverse_copy(mR, mR + W, z->mRrev.begin());
+  std::reverse_copy(iR, iR + W, z->iRrev.begin());
+  z->peaks.clear();
+  long points = 0;
+  // Scores at x need V up to column x + h.
+  for (int x0 = dlo + h, vdone = 0; x0 < W - h; x0 += ZnccScratch::kChunk) {
+    const int x1 = std::min(W - h, x0 + ZnccScratch::kChunk);
+    for (size_t k = 0; k < rows.size(); ++k)
+      AddRowProducts(L.ptr<float>(rows[k].first), z->rrev[k].data(), W, dlo, nd, vdone, x1 + h, rows[k].second,
+                     z->V.data());
+    vdone = x1 + h;
+    RowScores(z->V.data(), W, nd, dlo, h, n, x0, x1, muL.ptr<float>(y), isdL.ptr<float>(y), z->mRrev.data(),
+              z->iRrev.data(), z->S.data(), z->C.data(), z->bestRrev.data(), z->bestRdrev.data());
+    for (int x = (x0 + o.step - 1) / o.step * o.step; x < x1; x += o.step) {
+      ++points;
+      ZnccPeak p;
+      p.gx = x / o.step;
+      if (PeakOfColumn(z->C.data() + static_cast<size_t>(x - x0) * nd, x, nd, dlo, h, o, &p.bi, &p.offset))
+        z->peaks.push_back(p);
+    }
+  }
+  for (const ZnccPeak& p : z->peaks) {
+    const int xr = p.gx * o.step - (dlo + p.bi);
+    if (o.left_right_check && std::abs(z->bestRdrev[W - 1 - xr] - p.bi) > o.max_left_right_diff) continue;
+    out_row[p.gx] = static_cast<float>(dlo + p.bi + p.offset);
+    ++*matches;
+  }
+  return points;
+}
+
 // Step 1: ZNCC for every grid pixel and integer disparity.
 ZnccStage ZnccRows(const cv::Mat& left8, const cv::Mat& right8, const DenseStereoOptions& o) {
-  const int W = left8.cols, H = left8.rows, h = o.zncc_window / 2, n = o.zncc_window * o.zncc_window;
+  const int W = left8.cols, H = left8.rows, h = o.zncc_window / 2;
   const int dlo = static_cast<int>(std::ceil(o.min_disparity)), dhi = static_cast<int>(std::floor(o.max_disparity));
   const int nd = dhi - dlo + 1;
   const int gw = (W + o.step - 1) / o.step, gh = (H + o.step - 1) / o.step;
@@ -206,69 +384,14 @@ ZnccStage ZnccRows(const cv::Mat& left8, const cv::Mat& right8, const DenseStere
   long points = 0, matches = 0;
 #pragma omp parallel num_threads(o.num_threads) reduction(+ : points, matches)
   {
-    // Disparity-major per x: V[x * nd + di], C[x * nd + di]. The right
-    // image's rows and statistics are read reversed, so that x - d runs
-    // forward with di; bestR / bestRd are kept reversed too.
-    std::vector<float> V(static_cast<size_t>(nd) * W), C(static_cast<size_t>(nd) * W);
-    std::vector<double> S(nd);
-    std::vector<float> rrev(W), mRrev(W), iRrev(W), bestRrev(W);
-    std::vector<int> bestRdrev(W);
+    ZnccScratch z(W, nd);
 #pragma omp for schedule(dynamic, 1)
     for (int b = 0; b < nblocks; ++b) {
-      int prev_y = -(1 << 20);
+      z.prev_y = -(1 << 20);
       for (int gy = b * block; gy < std::min(gh, (b + 1) * block); ++gy) {
         const int y = gy * o.step;
         if (y - h < 0 || y + h >= H) continue;
-        // Column sums V[x][d] = sum over the window rows of L(r, x) R(r, x - d).
-        auto add_row = [&](int r, float sign) {
-          const float* rr = R.ptr<float>(r);
-          std::reverse_copy(rr, rr + W, rrev.begin());
-          AddRowProducts(L.ptr<float>(r), rrev.data(), W, dlo, nd, sign, V.data());
-        };
-        if (y - prev_y < o.zncc_window) {
-          for (int r = prev_y + h + 1; r <= y + h; ++r) add_row(r, 1.f);
-          for (int r = prev_y - h; r < y - h; ++r) add_row(r, -1.f);
-        } else {
-          std::fill(V.begin(), V.end(), 0.f);
-          for (int r = y - h; r <= y + h; ++r) add_row(r, 1.f);
-        }
-        prev_y = y;
-        // Scores C[x][d] (-2 = undefined) and the right pixels' best disparities.
-        std::fill(C.begin(), C.end(), -2.f);
-        std::fill(bestRrev.begin(), bestRrev.end(), -2.f);
-        std::fill(bestRdrev.begin(), bestRdrev.end(), -1);
-        const float* mR = muR.ptr<float>(y);
-        const float* iR = isdR.ptr<float>(y);
-        std::reverse_copy(mR, mR + W, mRrev.begin());
-        std::reverse_copy(iR, iR + W, iRrev.begin());
-        RowScores(V.data(), W, nd, dlo, h, n, muL.ptr<float>(y), isdL.ptr<float>(y), mRrev.data(), iRrev.data(),
-                  S.data(), C.data(), bestRrev.data(), bestRdrev.data());
-        float* out_row = out.disparity.ptr<float>(gy);
-        for (int gx = 0; gx < gw; ++gx) {
-          const int x = gx * o.step;
-          const float* c = C.data() + static_cast<size_t>(x) * nd;
-          // Near the left edge the search stops at the largest disparity
-          // whose window fits the right image; a best score at that limit
-          // may still be rising, so it is no peak.
-          if (x - h < 0 || x + h >= W || x - dlo - h < 0) continue;
-          ++points;
-          int bi;
-          float best, second;
-          BestAndSecondPeak(c, nd, &bi, &best, &second);
-          const int last = std::min(nd - 1, x - h - dlo);
-          if (bi < 0 || best < o.min_score || best - second < o.min_peak_margin) continue;
-          if (last < nd - 1 && bi == last) continue;
-          const int xr = x - (dlo + bi);
-          if (o.left_right_check && std::abs(bestRdrev[W - 1 - xr] - bi) > o.max_left_right_diff) continue;
-          double offset = 0;
-          if (bi > 0 && bi + 1 < nd) {
-            const double a = c[bi - 1], bb = best, cc = c[bi + 1];
-            const double den = a - 2 * bb + cc;
-            if (a > -2 && cc > -2 && den < -1e-9) offset = std::clamp(0.5 * (a - cc) / den, -0.5, 0.5);
-          }
-          out_row[gx] = static_cast<float>(dlo + bi + offset);
-          ++matches;
-        }
+        points += ZnccRow(L, R, muL, isdL, muR, isdR, y, o, &z, out.disparity.ptr<float>(gy), &matches);
       }
     }
   }
@@ -322,7 +445,8 @@ __attribute__((target("avx2"))) void KeepRowByMedianAvx2(const cv::Mat& in, int 
   const int r = o.median_radius, s = o.median_stride, cols = in.cols;
   const float* row = in.ptr<float>(y);
   const __m256d tol = _mm256_set1_pd(abs_tolerance), abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(~(1LL << 63)));
-  const __m256 fmax = _mm256_set1_ps(std::numeric_limits<float>::max()), fabs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+  const __m256 fmax = _mm256_set1_ps(std::numeric_limits<float>::max());
+  const __m256 fabs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
   const __m256i pack = _mm256_setr_epi32(1, 3, 5, 7, 0, 0, 0, 0);  // the high halves of 4 64-bit masks
   const int kmin = -(r / s) * s;
   int x = 0;
@@ -339,13 +463,14 @@ __attribute__((target("avx2"))) void KeepRowByMedianAvx2(const cv::Mat& in, int 
         if (dx == 0 && dy == 0) continue;
         // Lanes whose neighbour column lies outside the grid load nothing.
         const __m256i xx = _mm256_add_epi32(lane, _mm256_set1_epi32(dx));
-        const __m256i inside = _mm256_andnot_si256(
-            _mm256_or_si256(_mm256_cmpgt_epi32(_mm256_setzero_si256(), xx), _mm256_cmpgt_epi32(xx, _mm256_set1_epi32(cols - 1))),
-            _mm256_set1_epi32(-1));
+        const __m256i outside = _mm256_or_si256(_mm256_cmpgt_epi32(_mm256_setzero_si256(), xx),
+                                                _mm256_cmpgt_epi32(xx, _mm256_set1_epi32(cols - 1)));
+        const __m256i inside = _mm256_andnot_si256(outside, _mm256_set1_epi32(-1));
         const __m256 v = _mm256_maskload_ps(nrow + x + dx, inside);
         const __m256 finite = _mm256_cmp_ps(_mm256_and_ps(v, fabs_mask), fmax, _CMP_LE_OQ);
         const __m256i valid = _mm256_and_si256(inside, _mm256_castps_si256(finite));
-        const __m256d v0 = _mm256_cvtps_pd(_mm256_castps256_ps128(v)), v1 = _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1));
+        const __m256d v0 = _mm256_cvtps_pd(_mm256_castps256_ps128(v));
+        const __m256d v1 = _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1));
         const __m256d far0 = _mm256_cmp_pd(_mm256_and_pd(_mm256_sub_pd(d0, v0), abs_mask), tol, _CMP_GT_OQ);
         const __m256d far1 = _mm256_cmp_pd(_mm256_and_pd(_mm256_sub_pd(d1, v1), abs_mask), tol, _CMP_GT_OQ);
         const __m256i far = _mm256_and_si256(_mm256_setr_m128i(
@@ -373,11 +498,6 @@ __attribute__((target("avx2"))) void KeepRowByMedianAvx2(const cv::Mat& in, int 
   std::vector<float> neigh;
   for (; x < cols; ++x)
     keep[x] = std::isfinite(row[x]) && KeepByMedian(in, x, y, row[x], o, abs_tolerance, 0.0, &neigh);
-}
-
-bool HasAvx2() {
-  static const bool has = __builtin_cpu_supports("avx2");
-  return has;
 }
 
 // Step 2: drops disparities far from the median of their grid neighbours.
