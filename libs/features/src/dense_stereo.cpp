@@ -110,6 +110,39 @@ __attribute__((target_clones("avx2", "default"))) void AddRowProducts(const floa
   }
 }
 
+bool HasAvx2() {
+  static const bool has = __builtin_cpu_supports("avx2");
+  return has;
+}
+
+// RowScores' scores for di in [0, active) 8 at a time, the same float
+// operations in each lane; returns the first di left to the scalar loop.
+__attribute__((target("avx2"))) int ScoresAvx2(const double* S, double inv_n, float ml, float il, const float* mr,
+                                               const float* ir, int active, float* c, float* br, int* brd) {
+  const __m256d vinv = _mm256_set1_pd(inv_n);
+  const __m256 vml = _mm256_set1_ps(ml), vil = _mm256_set1_ps(il), undefined = _mm256_set1_ps(-2.f);
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256 left_ok = il > 0 ? _mm256_castsi256_ps(_mm256_set1_epi32(-1)) : zero;
+  __m256i vdi = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  int di = 0;
+  for (; di + 8 <= active; di += 8, vdi = _mm256_add_epi32(vdi, _mm256_set1_epi32(8))) {
+    const __m128 s0 = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_loadu_pd(S + di), vinv));
+    const __m128 s1 = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_loadu_pd(S + di + 4), vinv));
+    const __m256 vir = _mm256_loadu_ps(ir + di);
+    const __m256 cov = _mm256_sub_ps(_mm256_set_m128(s1, s0), _mm256_mul_ps(vml, _mm256_loadu_ps(mr + di)));
+    const __m256 ok = _mm256_and_ps(left_ok, _mm256_cmp_ps(vir, zero, _CMP_GT_OQ));
+    const __m256 z = _mm256_blendv_ps(undefined, _mm256_mul_ps(_mm256_mul_ps(cov, vil), vir), ok);
+    _mm256_storeu_ps(c + di, z);
+    const __m256 old = _mm256_loadu_ps(br + di);
+    const __m256 up = _mm256_cmp_ps(z, old, _CMP_GT_OQ);
+    _mm256_storeu_ps(br + di, _mm256_blendv_ps(old, z, up));
+    const __m256i oldd = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(brd + di));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(brd + di),
+                        _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(oldd), _mm256_castsi256_ps(vdi), up)));
+  }
+  return di;
+}
+
 // ZNCC C[(x - xa) * nd + di] of one row from the column sums V, for x in
 // [xa, xb) within [d + h, W - h - 1] (calls in x order): the window sum
 // S[di] starts at x = d + h (summed in x order) and slides with x, in
@@ -141,7 +174,8 @@ __attribute__((target_clones("avx2", "default"))) void RowScores(const float* V,
     const float* ir = iRrev + k0;
     float* br = bestRrev + k0;
     int* brd = bestRdrev + k0;
-    for (int di = 0; di < active; ++di) {
+    const int first = HasAvx2() ? ScoresAvx2(S, inv_n, ml, il, mr, ir, active, c, br, brd) : 0;
+    for (int di = first; di < active; ++di) {
       const float cov = static_cast<float>(S[di] * inv_n) - ml * mr[di];
       const float z = il > 0 && ir[di] > 0 ? cov * il * ir[di] : -2.f;
       c[di] = z;
@@ -239,11 +273,6 @@ __attribute__((target("avx2"))) void BestAndSecondPeakAvx2(const float* c, int n
   *best_index = bi;
   *best_score = best;
   *second_score = second;
-}
-
-bool HasAvx2() {
-  static const bool has = __builtin_cpu_supports("avx2");
-  return has;
 }
 
 // A grid pixel's ZNCC peak before the left-right check.
