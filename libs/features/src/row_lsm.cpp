@@ -6,6 +6,7 @@
 #include "row_lsm.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <vector>
 
@@ -376,8 +377,8 @@ __attribute__((target("avx2,fma"), always_inline)) inline __m256 Fma(__m256 a, _
 // AccumulateScalar's operations in its order, 8 at a time. T and G hold
 // window sample i of lane k at [i * 8 + k].
 template <bool kBspline>
-__attribute__((target("avx2,fma"), optimize("fp-contract=off"))) void AccumulateLanes(const cv::Mat& R, const DenseStereoOptions& o,
-                                                     LsmState* const* lanes, const float* T, float* G) {
+__attribute__((target("avx2,fma"), optimize("fp-contract=off"), always_inline)) inline void AccumulateLanesBody(
+    const cv::Mat& R, const DenseStereoOptions& o, LsmState* const* lanes, const float* T, float* G) {
   const int h = o.lsm_half_window, hy = o.lsm_half_height;
   const int stride = static_cast<int>(R.step1());
   const float* base = R.ptr<float>(0);
@@ -481,6 +482,20 @@ __attribute__((target("avx2,fma"), optimize("fp-contract=off"))) void Accumulate
   }
 }
 
+// AccumulateLanesBody for AVX2 + FMA (16 vector registers) and, the same
+// instructions, for a CPU with AVX-512VL, whose 32 registers hold the 13
+// row sums without spilling them.
+template <bool kBspline>
+__attribute__((target("avx2,fma"), optimize("fp-contract=off"))) void AccumulateLanes(
+    const cv::Mat& R, const DenseStereoOptions& o, LsmState* const* lanes, const float* T, float* G) {
+  AccumulateLanesBody<kBspline>(R, o, lanes, T, G);
+}
+template <bool kBspline>
+__attribute__((target("avx2,fma,avx512f,avx512vl"), optimize("fp-contract=off"))) void AccumulateLanes32(
+    const cv::Mat& R, const DenseStereoOptions& o, LsmState* const* lanes, const float* T, float* G) {
+  AccumulateLanesBody<kBspline>(R, o, lanes, T, G);
+}
+
 // SolveNormalEquations of 8 pixels (one per lane; 4 doubles a register):
 // Factor's and Solve's operations in their order. A lane whose matrix is
 // not positive definite gets solved[k] = false (its numbers are NaN).
@@ -534,6 +549,13 @@ __attribute__((target("avx2"), optimize("fp-contract=off"))) void SolveLanes(con
   }
 }
 
+std::atomic<bool> avx512_allowed{true};  // AllowRowLsmAvx512
+
+bool HasAvx512Vl() {
+  static const bool has = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl");
+  return has && avx512_allowed.load(std::memory_order_relaxed);
+}
+
 bool HasAvx2Fma() {
   static const bool has = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
   return has;
@@ -541,6 +563,23 @@ bool HasAvx2Fma() {
 
 }  // namespace
 #endif
+
+void AllowRowLsmAvx512(bool allowed) {
+#ifdef VLOC_ROW_LSM_AVX2
+  avx512_allowed = allowed;
+#else
+  (void)allowed;
+#endif
+}
+
+bool RowLsmBatchUsesAvx512(const DenseStereoOptions& o) {
+#ifdef VLOC_ROW_LSM_AVX2
+  return RowLsmBatchVectorised(o) && HasAvx512Vl();
+#else
+  (void)o;
+  return false;
+#endif
+}
 
 bool RowLsmBatchVectorised(const DenseStereoOptions& o) {
 #ifdef VLOC_ROW_LSM_AVX2
@@ -593,7 +632,13 @@ void RowLeastSquaresMatchBatch(const cv::Mat& L, const cv::Mat& R, const RowLsmT
     // Idle lanes repeat a live one (their sums are ignored).
     LsmState idle = state[live];
     for (int k = 0; k < kLanes; ++k) lanes[k] = task_of[k] >= 0 ? &state[k] : &idle;
-    if (o.lsm_bspline) {
+    if (HasAvx512Vl()) {
+      if (o.lsm_bspline) {
+        AccumulateLanes32<true>(R, o, lanes, T.data(), G.data());
+      } else {
+        AccumulateLanes32<false>(R, o, lanes, T.data(), G.data());
+      }
+    } else if (o.lsm_bspline) {
       AccumulateLanes<true>(R, o, lanes, T.data(), G.data());
     } else {
       AccumulateLanes<false>(R, o, lanes, T.data(), G.data());

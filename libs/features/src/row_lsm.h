@@ -27,4 +27,10 @@ void RowLeastSquaresMatchBatch(const cv::Mat& left32, const cv::Mat& right32, co
 // Whether RowLeastSquaresMatchBatch runs its AVX2 lanes for `options` on this CPU.
 bool RowLsmBatchVectorised(const DenseStereoOptions& options);
 
+// Whether the lanes' kernel is its AVX-512VL build (the same instructions
+// with 32 registers: the same results), which they use where the CPU has
+// it unless AllowRowLsmAvx512(false) (tests: the AVX2 build on such a CPU).
+bool RowLsmBatchUsesAvx512(const DenseStereoOptions& options);
+void AllowRowLsmAvx512(bool allowed);
+
 }  // namespace vloc::internal

@@ -47,8 +47,17 @@ void ExpectBatchEqualsScalar(const DenseStereoOptions& o, int* accepted_count, i
   *tested = static_cast<int>(tasks.size());
 }
 
-TEST(RowLsmBatch, SameResultsAsOnePixelAtATime) {
+// Both builds of the lanes' kernel where the CPU has AVX-512VL.
+class RowLsmBatch : public ::testing::TestWithParam<bool> {
+ protected:
+  void SetUp() override { internal::AllowRowLsmAvx512(GetParam()); }
+  void TearDown() override { internal::AllowRowLsmAvx512(true); }
+};
+
+TEST_P(RowLsmBatch, SameResultsAsOnePixelAtATime) {
   if (!internal::RowLsmBatchVectorised(DenseStereoOptions())) std::cout << "no AVX2: the batch loops over one pixel\n";
+  if (GetParam() && !internal::RowLsmBatchUsesAvx512(DenseStereoOptions())) std::cout << "no AVX-512VL: AVX2 build\n";
+  EXPECT_FALSE(!GetParam() && internal::RowLsmBatchUsesAvx512(DenseStereoOptions()));
   struct Case {
     bool bspline;
     int half_width, half_height, max_iterations;
@@ -69,6 +78,9 @@ TEST(RowLsmBatch, SameResultsAsOnePixelAtATime) {
     EXPECT_LT(accepted, tested);
   }
 }
+
+INSTANTIATE_TEST_SUITE_P(KernelBuilds, RowLsmBatch, ::testing::Values(false, true),
+                         [](const ::testing::TestParamInfo<bool>& info) { return info.param ? "Avx512" : "Avx2"; });
 
 }  // namespace
 }  // namespace vloc
