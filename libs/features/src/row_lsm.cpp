@@ -373,6 +373,50 @@ __attribute__((target("avx2,fma"), always_inline)) inline __m256 Fma(__m256 a, _
   return _mm256_fmadd_ps(a, b, c);
 }
 
+#define VLOC_LANES __attribute__((target("avx2,fma"), optimize("fp-contract=off"), always_inline)) inline
+
+// WindowTotals of 8 lanes.
+struct LaneTotals {
+  __m256d t[kRowSums][2], rt[5][2], rra[2];
+};
+VLOC_LANES void ZeroTotals(LaneTotals* w) {
+  for (auto& v : w->t) v[0] = v[1] = _mm256_setzero_pd();
+  for (auto& v : w->rt) v[0] = v[1] = _mm256_setzero_pd();
+  w->rra[0] = w->rra[1] = _mm256_setzero_pd();
+}
+// WindowTotals::AddRow, 8 lanes at a time.
+VLOC_LANES void AddRowTotals(const __m256* v, int r, LaneTotals* w) {
+  const __m256d rd = _mm256_set1_pd(r), rrd = _mm256_set1_pd(static_cast<double>(r * r));
+  for (int k = 0; k < kRowSums; ++k) AddTo(w->t[k], v[k]);
+  for (int k = 0; k < 5; ++k) AddTo(w->rt[k], rd, v[kWeighted[k]]);
+  AddTo(w->rra, rrd, v[kA]);
+}
+// Each lane's normal equations from its totals.
+VLOC_LANES void ExportTotals(const LaneTotals& w, int n, const DenseStereoOptions& o, LsmState* const* lanes) {
+  alignas(32) double buf[kRowSums + 6][kLanes];
+  for (int k = 0; k < kRowSums; ++k) Store(w.t[k], buf[k]);
+  for (int k = 0; k < 5; ++k) Store(w.rt[k], buf[kRowSums + k]);
+  Store(w.rra, buf[kRowSums + 5]);
+  for (int l = 0; l < kLanes; ++l) {
+    WindowTotals one;
+    for (int k = 0; k < kRowSums; ++k) one.t[k] = buf[k][l];
+    for (int k = 0; k < 5; ++k) one.rt[k] = buf[kRowSums + k][l];
+    one.rra = buf[kRowSums + 5][l];
+    NormalEquations(one, n, o.lsm_disparity_plane, lanes[l]);
+  }
+}
+// One tap's terms added to the row sums v (AccumulateScalar's order):
+// resampled value g, Jacobian j0, residual e, column c and c^2.
+VLOC_LANES void AddTap(__m256 g, __m256 j0, __m256 e, __m256 fc, __m256 fcc, __m256* v) {
+  const __m256 a = _mm256_mul_ps(j0, j0), q = _mm256_mul_ps(g, j0), je = _mm256_mul_ps(j0, e);
+  v[kA] = _mm256_add_ps(v[kA], a), v[kAc] = Fma(a, fc, v[kAc]), v[kAcc] = Fma(a, fcc, v[kAcc]);
+  v[kJ] = _mm256_add_ps(v[kJ], j0), v[kJc] = Fma(j0, fc, v[kJc]);
+  v[kQ] = _mm256_add_ps(v[kQ], q), v[kQc] = Fma(q, fc, v[kQc]);
+  v[kG] = _mm256_add_ps(v[kG], g), v[kGg] = Fma(g, g, v[kGg]);
+  v[kJe] = _mm256_add_ps(v[kJe], je), v[kJec] = Fma(je, fc, v[kJec]);
+  v[kE] = _mm256_add_ps(v[kE], e), v[kGe] = Fma(g, e, v[kGe]), v[kEe] = Fma(e, e, v[kEe]);
+}
+
 // The window sums of 8 pixels (one per lane) at their current states:
 // AccumulateScalar's operations in its order, 8 at a time. T and G hold
 // window sample i of lane k at [i * 8 + k].
@@ -396,10 +440,8 @@ __attribute__((target("avx2,fma"), optimize("fp-contract=off"), always_inline)) 
   const __m256 fr0 = _mm256_load_ps(r0_f), fr1 = _mm256_load_ps(r1_f);
   const __m256i rows = _mm256_load_si256(reinterpret_cast<const __m256i*>(row0));
   const __m256 sign = _mm256_set1_ps(-0.f);
-  __m256d t[kRowSums][2], rt[5][2], rra[2];  // WindowTotals, 8 lanes
-  for (auto& v : t) v[0] = v[1] = _mm256_setzero_pd();
-  for (auto& v : rt) v[0] = v[1] = _mm256_setzero_pd();
-  rra[0] = rra[1] = _mm256_setzero_pd();
+  LaneTotals totals;
+  ZeroTotals(&totals);
   for (int r = -hy, i = 0; r <= hy; ++r) {
     const __m256 rf = _mm256_set1_ps(static_cast<float>(r));
     const __m256 urow = _mm256_sub_ps(_mm256_mul_ps(vmgy, rf), vfrac);
@@ -453,33 +495,96 @@ __attribute__((target("avx2,fma"), optimize("fp-contract=off"), always_inline)) 
       const __m256 dg = _mm256_mul_ps(fr1, Fma(dw3, p3, Fma(dw2, p2, Fma(dw1, p1, _mm256_mul_ps(dw0, p0)))));
       _mm256_storeu_ps(G + i * kLanes, g);
       const __m256 e = _mm256_sub_ps(_mm256_loadu_ps(T + i * kLanes), Fma(fr1, g, fr0));
-      const __m256 j0 = _mm256_xor_ps(dg, sign);
-      const __m256 a = _mm256_mul_ps(j0, j0), q = _mm256_mul_ps(g, j0), je = _mm256_mul_ps(j0, e);
-      v[kA] = _mm256_add_ps(v[kA], a), v[kAc] = Fma(a, fc, v[kAc]), v[kAcc] = Fma(a, fcc, v[kAcc]);
-      v[kJ] = _mm256_add_ps(v[kJ], j0), v[kJc] = Fma(j0, fc, v[kJc]);
-      v[kQ] = _mm256_add_ps(v[kQ], q), v[kQc] = Fma(q, fc, v[kQc]);
-      v[kG] = _mm256_add_ps(v[kG], g), v[kGg] = Fma(g, g, v[kGg]);
-      v[kJe] = _mm256_add_ps(v[kJe], je), v[kJec] = Fma(je, fc, v[kJec]);
-      v[kE] = _mm256_add_ps(v[kE], e), v[kGe] = Fma(g, e, v[kGe]), v[kEe] = Fma(e, e, v[kEe]);
+      AddTap(g, _mm256_xor_ps(dg, sign), e, fc, fcc, v);
     }
-    // WindowTotals::AddRow, 8 lanes at a time.
-    const __m256d rd = _mm256_set1_pd(r), rrd = _mm256_set1_pd(static_cast<double>(r * r));
-    for (int k = 0; k < kRowSums; ++k) AddTo(t[k], v[k]);
-    for (int k = 0; k < 5; ++k) AddTo(rt[k], rd, v[kWeighted[k]]);
-    AddTo(rra, rrd, v[kA]);
+    AddRowTotals(v, r, &totals);
   }
-  alignas(32) double buf[kRowSums + 6][kLanes];
-  for (int k = 0; k < kRowSums; ++k) Store(t[k], buf[k]);
-  for (int k = 0; k < 5; ++k) Store(rt[k], buf[kRowSums + k]);
-  Store(rra, buf[kRowSums + 5]);
-  const int n = (2 * h + 1) * (2 * hy + 1);
-  for (int l = 0; l < kLanes; ++l) {
-    WindowTotals w;
-    for (int k = 0; k < kRowSums; ++k) w.t[k] = buf[k][l];
-    for (int k = 0; k < 5; ++k) w.rt[k] = buf[kRowSums + k][l];
-    w.rra = buf[kRowSums + 5][l];
-    NormalEquations(w, n, o.lsm_disparity_plane, lanes[l]);
+  ExportTotals(totals, (2 * h + 1) * (2 * hy + 1), o, lanes);
+}
+
+// Columns k of the 8 x 8 block r[0..7] (r[k] = row k): r[j] = column j.
+VLOC_LANES void Transpose8(__m256 r[8]) {
+  __m256 t[8], u[8];
+  for (int k = 0; k < 8; k += 2) {
+    t[k] = _mm256_unpacklo_ps(r[k], r[k + 1]);
+    t[k + 1] = _mm256_unpackhi_ps(r[k], r[k + 1]);
   }
+  for (int k = 0; k < 8; k += 4) {
+    u[k] = _mm256_shuffle_ps(t[k], t[k + 2], 0x44), u[k + 1] = _mm256_shuffle_ps(t[k], t[k + 2], 0xEE);
+    u[k + 2] = _mm256_shuffle_ps(t[k + 1], t[k + 3], 0x44), u[k + 3] = _mm256_shuffle_ps(t[k + 1], t[k + 3], 0xEE);
+  }
+  for (int k = 0; k < 4; ++k) {
+    r[k] = _mm256_permute2f128_ps(u[k], u[k + 4], 0x20);
+    r[k + 4] = _mm256_permute2f128_ps(u[k], u[k + 4], 0x31);
+  }
+}
+
+// A lane's first iteration: with no disparity gradients every tap has the
+// same sub-pixel phase (the kernel's u = -frac(d), or 0), so its weights
+// are computed once and the window row is resampled along the row.
+struct FirstLane {
+  const float* row;  // the right image at tap (r = 0, c = 0), p0
+  float w[4], dw[4], r0, r1;
+};
+FirstLane FirstLaneOf(const cv::Mat& R, const LsmState& s, bool bspline) {
+  const WindowShift ws = ShiftOf(s);
+  FirstLane f;
+  const float u = ws.frac == 0.f ? 0.f : -ws.frac, fl = std::floor(u);
+  RowWeights(bspline, u - fl, f.w, f.dw);
+  f.row = R.ptr<float>(s.y) + ws.base + static_cast<int>(fl);
+  f.r0 = static_cast<float>(s.r0), f.r1 = static_cast<float>(s.r1);
+  return f;
+}
+
+// AccumulateLanesBody for 8 lanes in their first iteration (gx = gy = 0):
+// the same operations per tap. Each lane resamples 8 taps of its window
+// row at a time (g, the Jacobian's dG/dx and the residual), transposed
+// into the lanes for the sums. T[k], G[k]: lane k's window, row by row,
+// readable 8 floats past its end.
+VLOC_LANES void FirstIterationBody(const cv::Mat& R, const DenseStereoOptions& o, LsmState* const* lanes,
+                                   const float* const* T, float* const* G) {
+  const int h = o.lsm_half_window, hy = o.lsm_half_height, wc = 2 * h + 1;
+  const int stride = static_cast<int>(R.step1());
+  FirstLane f[kLanes];
+  for (int k = 0; k < kLanes; ++k) f[k] = FirstLaneOf(R, *lanes[k], o.lsm_bspline);
+  const __m256 sign = _mm256_set1_ps(-0.f);
+  LaneTotals totals;
+  ZeroTotals(&totals);
+  for (int r = -hy; r <= hy; ++r) {
+    __m256 v[kRowSums];
+    for (auto& x : v) x = _mm256_setzero_ps();
+    const int i0 = (r + hy) * wc;  // window index of tap (r, -h)
+    for (int c0 = -h; c0 <= h; c0 += 8) {
+      __m256 g[kLanes], dg[kLanes], e[kLanes];
+      for (int k = 0; k < kLanes; ++k) {
+        const float* p = f[k].row + r * stride + c0;
+        const __m256 p0 = _mm256_loadu_ps(p), p1 = _mm256_loadu_ps(p + 1), p2 = _mm256_loadu_ps(p + 2),
+                     p3 = _mm256_loadu_ps(p + 3);
+        const float *w = f[k].w, *dw = f[k].dw;
+        g[k] = Fma(S(w[3]), p3, Fma(S(w[2]), p2, Fma(S(w[1]), p1, _mm256_mul_ps(S(w[0]), p0))));
+        const __m256 dp = Fma(S(dw[3]), p3, Fma(S(dw[2]), p2, Fma(S(dw[1]), p1, _mm256_mul_ps(S(dw[0]), p0))));
+        dg[k] = _mm256_mul_ps(S(f[k].r1), dp);
+        _mm256_storeu_ps(G[k] + i0 + c0 + h, g[k]);
+        e[k] = _mm256_sub_ps(_mm256_loadu_ps(T[k] + i0 + c0 + h), Fma(S(f[k].r1), g[k], S(f[k].r0)));
+      }
+      Transpose8(g), Transpose8(dg), Transpose8(e);
+      for (int j = 0; j < 8 && c0 + j <= h; ++j) {
+        const int c = c0 + j;
+        AddTap(g[j], _mm256_xor_ps(dg[j], sign), e[j], S(static_cast<float>(c)), S(static_cast<float>(c * c)), v);
+      }
+    }
+    AddRowTotals(v, r, &totals);
+  }
+  ExportTotals(totals, wc * (2 * hy + 1), o, lanes);
+}
+
+__attribute__((target("avx2,fma"), optimize("fp-contract=off"))) void FirstIteration(
+    const cv::Mat& R, const DenseStereoOptions& o, LsmState* const* lanes, const float* const* T, float* const* G) {
+  FirstIterationBody(R, o, lanes, T, G);
+}
+__attribute__((target("avx2,fma,avx512f,avx512vl"), optimize("fp-contract=off"))) void FirstIteration32(
+    const cv::Mat& R, const DenseStereoOptions& o, LsmState* const* lanes, const float* const* T, float* const* G) {
+  FirstIterationBody(R, o, lanes, T, G);
 }
 
 // AccumulateLanesBody for AVX2 + FMA (16 vector registers) and, the same
@@ -561,6 +666,86 @@ bool HasAvx2Fma() {
   return has;
 }
 
+// The first iteration of the tasks, 8 at a time (FirstIteration): the
+// pixels it rejects or finishes get their result here, the others wait in
+// `ready` for a lane of the later iterations, their templates in `T_`.
+class FirstIterations {
+ public:
+  FirstIterations(const cv::Mat& L, const cv::Mat& R, const RowLsmTask* tasks, int count, const DenseStereoOptions& o,
+                  RowLsmResult* results, unsigned char* accepted)
+      : L_(L), R_(R), tasks_(tasks), count_(count), o_(o), results_(results), accepted_(accepted),
+        n_((2 * o.lsm_half_window + 1) * (2 * o.lsm_half_height + 1)),
+        T_(static_cast<size_t>(n_ + 8) * (kLanes + 1), 0.f), G_(T_.size(), 0.f) {}
+
+  // The next pixel past its first iteration: its state, its template into
+  // T[i * stride] (i < n); its task, or -1 when none is left.
+  int Next(LsmState* s, float* T, int stride) {
+    while (ready_next_ == ready_count_)
+      if (!RunGroup()) return -1;
+    const int k = ready_[ready_next_++];
+    *s = state_[k];
+    const float* from = T_.data() + static_cast<size_t>(k) * (n_ + 8);
+    for (int i = 0; i < n_; ++i) T[i * stride] = from[i];
+    return task_[k];
+  }
+
+ private:
+  // The first iteration of the next (up to) 8 tasks whose template and
+  // window fit: false when no task is left.
+  bool RunGroup() {
+    ready_next_ = ready_count_ = 0;
+    int m = 0;
+    while (m < kLanes && next_ < count_) {
+      const int t = next_++;
+      results_[t] = RowLsmResult();
+      accepted_[t] = 0;
+      float* T = T_.data() + static_cast<size_t>(m) * (n_ + 8);
+      if (!StartLsm(L_, tasks_[t].x, tasks_[t].y, tasks_[t].initial_disparity, o_, &state_[m], T, 1)) continue;
+      if (state_[m].it >= o_.lsm_max_iterations || !TapsInside(state_[m], o_, R_.cols)) continue;
+      task_[m++] = t;
+    }
+    if (m == 0) return false;
+    // Idle lanes repeat lane 0 into a spare window (their sums are ignored).
+    LsmState idle = state_[0];
+    LsmState* lanes[kLanes];
+    const float* T[kLanes];
+    float* G[kLanes];
+    for (int k = 0; k < kLanes; ++k) {
+      const size_t at = static_cast<size_t>(k < m ? k : kLanes) * (n_ + 8);
+      lanes[k] = k < m ? &state_[k] : &idle;
+      T[k] = k < m ? T_.data() + at : T_.data();
+      G[k] = G_.data() + at;
+    }
+    if (HasAvx512Vl()) {
+      FirstIteration32(R_, o_, lanes, T, G);
+    } else {
+      FirstIteration(R_, o_, lanes, T, G);
+    }
+    bool solved[kLanes];
+    double dx[kLanes][5];
+    SolveLanes(o_, lanes, solved, dx);
+    for (int k = 0; k < m; ++k) {
+      const LsmStep step = UpdateLsm(o_, solved[k], dx[k], &state_[k]);
+      if (step == LsmStep::kContinue) ready_[ready_count_++] = k;
+      if (step == LsmStep::kConverged)
+        accepted_[task_[k]] = FinishLsm(state_[k], o_, T[k], G[k], 1, &results_[task_[k]]);
+    }
+    return true;
+  }
+
+  const cv::Mat &L_, &R_;
+  const RowLsmTask* tasks_;
+  const int count_;
+  const DenseStereoOptions& o_;
+  RowLsmResult* results_;
+  unsigned char* accepted_;
+  const int n_;
+  std::vector<float> T_, G_;  // lane k's window at k * (n + 8) (a spare one for idle lanes)
+  LsmState state_[kLanes];
+  int task_[kLanes] = {0}, ready_[kLanes] = {0};
+  int ready_next_ = 0, ready_count_ = 0, next_ = 0;
+};
+
 }  // namespace
 #endif
 
@@ -602,22 +787,13 @@ void RowLeastSquaresMatchBatch(const cv::Mat& L, const cv::Mat& R, const RowLsmT
 #ifdef VLOC_ROW_LSM_AVX2
   const int n = (2 * o.lsm_half_window + 1) * (2 * o.lsm_half_height + 1);
   std::vector<float> T(static_cast<size_t>(n) * kLanes, 0.f), G(static_cast<size_t>(n) * kLanes, 0.f);
+  FirstIterations first(L, R, tasks, count, o, results, accepted);
   LsmState state[kLanes];
   int task_of[kLanes];
-  int next = 0;
-  // Lane k takes the next task whose template fits (false: none left).
+  // Lane k takes the next pixel past its first iteration (false: none left).
   auto start = [&](int k) {
-    while (next < count) {
-      const int t = next++;
-      results[t] = RowLsmResult();
-      accepted[t] = 0;
-      if (StartLsm(L, tasks[t].x, tasks[t].y, tasks[t].initial_disparity, o, &state[k], T.data() + k, kLanes)) {
-        task_of[k] = t;
-        return true;
-      }
-    }
-    task_of[k] = -1;
-    return false;
+    task_of[k] = first.Next(&state[k], T.data() + k, kLanes);
+    return task_of[k] >= 0;
   };
   for (int k = 0; k < kLanes; ++k) start(k);
   LsmState* lanes[kLanes];

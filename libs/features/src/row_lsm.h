@@ -5,8 +5,10 @@
 // lane runs the scalar code's float and double operations in the scalar
 // code's order, its fused multiply-adds as FMA instructions, so the
 // results are bit for bit those of RowLeastSquaresMatch; row_lsm_test
-// checks it). Without AVX2 and FMA, or without the disparity plane, it
-// loops over RowLeastSquaresMatch.
+// checks it). A pixel's first iteration, where every tap has the same
+// sub-pixel phase, runs 8 pixels at a time before the lanes take it (the
+// window rows resampled 8 taps at a time). Without AVX2 and FMA, or without
+// the disparity plane, it loops over RowLeastSquaresMatch.
 
 #include <opencv2/core.hpp>
 
