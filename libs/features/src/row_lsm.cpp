@@ -440,6 +440,7 @@ __attribute__((target("avx2,fma"), optimize("fp-contract=off"), always_inline)) 
   const __m256 fr0 = _mm256_load_ps(r0_f), fr1 = _mm256_load_ps(r1_f);
   const __m256i rows = _mm256_load_si256(reinterpret_cast<const __m256i*>(row0));
   const __m256 sign = _mm256_set1_ps(-0.f);
+  const __m256i one = _mm256_set1_epi32(1);
   LaneTotals totals;
   ZeroTotals(&totals);
   for (int r = -hy, i = 0; r <= hy; ++r) {
@@ -448,17 +449,23 @@ __attribute__((target("avx2,fma"), optimize("fp-contract=off"), always_inline)) 
     const __m256i row = _mm256_add_epi32(rows, _mm256_set1_epi32(r * stride));
     __m256 v[kRowSums];
     for (auto& x : v) x = _mm256_setzero_ps();
-    for (int c = -h; c <= h; ++c, ++i) {
-      const __m256 fc = _mm256_set1_ps(static_cast<float>(c)), fcc = _mm256_set1_ps(static_cast<float>(c * c));
+    // c as a float and the row's index at c counted up (exact: small integers).
+    __m256 fc = _mm256_set1_ps(static_cast<float>(-h));
+    __m256i rowc = _mm256_add_epi32(row, _mm256_set1_epi32(-h));
+    for (int c = -h; c <= h; ++c, ++i, fc = _mm256_add_ps(fc, S(1.f)), rowc = _mm256_add_epi32(rowc, one)) {
+      const __m256 fcc = _mm256_mul_ps(fc, fc);
       const __m256 u = Fma(vmgx, fc, urow), fl = _mm256_floor_ps(u);
       const __m256 t = _mm256_sub_ps(u, fl);
-      const __m256i idx = _mm256_add_epi32(_mm256_add_epi32(row, _mm256_set1_epi32(c)), _mm256_cvttps_epi32(fl));
+      const __m256i idx = _mm256_add_epi32(rowc, _mm256_cvttps_epi32(fl));
       // The 4 taps of each lane are adjacent: one 4-float load per lane,
       // lanes k and k + 4 in the halves of one register, and a 4 x 4
       // transpose within the halves (fewer loads than 4 gathers, fewer
       // shuffles than two 128-bit transposes and their joins).
       alignas(32) int at[kLanes];
       _mm256_store_si256(reinterpret_cast<__m256i*>(at), idx);
+      // Read back from memory: 8 loads are fewer instructions than the 8
+      // extracts and sign extensions the compiler makes of them otherwise.
+      asm volatile("" : : "m"(at) : "memory");
       __m256 q4[4];
       for (int k = 0; k < 4; ++k)
         q4[k] = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(base + at[k])), _mm_loadu_ps(base + at[k + 4]),
