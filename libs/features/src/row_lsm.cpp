@@ -391,19 +391,33 @@ VLOC_LANES void AddRowTotals(const __m256* v, int r, LaneTotals* w) {
   for (int k = 0; k < 5; ++k) AddTo(w->rt[k], rd, v[kWeighted[k]]);
   AddTo(w->rra, rrd, v[kA]);
 }
-// Each lane's normal equations from its totals.
-VLOC_LANES void ExportTotals(const LaneTotals& w, int n, const DenseStereoOptions& o, LsmState* const* lanes) {
-  alignas(32) double buf[kRowSums + 6][kLanes];
-  for (int k = 0; k < kRowSums; ++k) Store(w.t[k], buf[k]);
-  for (int k = 0; k < 5; ++k) Store(w.rt[k], buf[kRowSums + k]);
-  Store(w.rra, buf[kRowSums + 5]);
-  for (int l = 0; l < kLanes; ++l) {
-    WindowTotals one;
-    for (int k = 0; k < kRowSums; ++k) one.t[k] = buf[k][l];
-    for (int k = 0; k < 5; ++k) one.rt[k] = buf[kRowSums + k][l];
-    one.rra = buf[kRowSums + 5][l];
-    NormalEquations(one, n, o.lsm_disparity_plane, lanes[l]);
+// The 8 lanes' normal equations (with the disparity plane, which the lanes
+// need), lane k of entry q at nn[q][k]: NormalEquations' entries and
+// Regularise's unit diagonal, without the round trip through LsmState.
+struct LaneSystems {
+  alignas(32) double nn[15][kLanes];
+  alignas(32) double bb[5][kLanes];
+};
+// The lanes' normal equations from their totals; each lane's sum of
+// squared residuals and of G into its state.
+VLOC_LANES void ExportTotals(const LaneTotals& w, int n, const DenseStereoOptions& o, LsmState* const* lanes,
+                             LaneSystems* sys) {
+  const __m256d* nn[15] = {w.t[kA], w.t[kAc], w.t[kAcc], w.rt[0], w.rt[1], w.rra,  w.t[kJ], w.t[kJc],
+                           w.rt[2], nullptr,  w.t[kQ],   w.t[kQc], w.rt[3], w.t[kG], w.t[kGg]};
+  const __m256d* bb[5] = {w.t[kJe], w.t[kJec], w.rt[4], w.t[kE], w.t[kGe]};
+  for (int q = 0; q < 15; ++q) {
+    if (nn[q]) {
+      Store(nn[q], sys->nn[q]);
+    } else {
+      std::fill(sys->nn[q], sys->nn[q] + kLanes, static_cast<double>(n));
+    }
   }
+  for (int q = 0; q < 5; ++q) Store(bb[q], sys->bb[q]);
+  if (o.lsm_half_height == 0) std::fill(sys->nn[Tri(2, 2)], sys->nn[Tri(2, 2)] + kLanes, 1.0);  // Regularise
+  alignas(32) double ssr[kLanes], gsum[kLanes];
+  Store(w.t[kEe], ssr);
+  Store(w.t[kG], gsum);
+  for (int l = 0; l < kLanes; ++l) lanes[l]->ssr = ssr[l], lanes[l]->gsum = gsum[l];
 }
 // One tap's terms added to the row sums v (AccumulateScalar's order):
 // resampled value g, Jacobian j0, residual e, column c and c^2.
@@ -422,7 +436,7 @@ VLOC_LANES void AddTap(__m256 g, __m256 j0, __m256 e, __m256 fc, __m256 fcc, __m
 // window sample i of lane k at [i * 8 + k].
 template <bool kBspline>
 __attribute__((target("avx2,fma"), optimize("fp-contract=off"), always_inline)) inline void AccumulateLanesBody(
-    const cv::Mat& R, const DenseStereoOptions& o, LsmState* const* lanes, const float* T, float* G) {
+    const cv::Mat& R, const DenseStereoOptions& o, LsmState* const* lanes, const float* T, float* G, LaneSystems* sys) {
   const int h = o.lsm_half_window, hy = o.lsm_half_height;
   const int stride = static_cast<int>(R.step1());
   const float* base = R.ptr<float>(0);
@@ -506,7 +520,7 @@ __attribute__((target("avx2,fma"), optimize("fp-contract=off"), always_inline)) 
     }
     AddRowTotals(v, r, &totals);
   }
-  ExportTotals(totals, (2 * h + 1) * (2 * hy + 1), o, lanes);
+  ExportTotals(totals, (2 * h + 1) * (2 * hy + 1), o, lanes, sys);
 }
 
 // Columns k of the 8 x 8 block r[0..7] (r[k] = row k): r[j] = column j.
@@ -549,7 +563,7 @@ FirstLane FirstLaneOf(const cv::Mat& R, const LsmState& s, bool bspline) {
 // into the lanes for the sums. T[k], G[k]: lane k's window, row by row,
 // readable 8 floats past its end.
 VLOC_LANES void FirstIterationBody(const cv::Mat& R, const DenseStereoOptions& o, LsmState* const* lanes,
-                                   const float* const* T, float* const* G) {
+                                   const float* const* T, float* const* G, LaneSystems* sys) {
   const int h = o.lsm_half_window, hy = o.lsm_half_height, wc = 2 * h + 1;
   const int stride = static_cast<int>(R.step1());
   FirstLane f[kLanes];
@@ -582,16 +596,18 @@ VLOC_LANES void FirstIterationBody(const cv::Mat& R, const DenseStereoOptions& o
     }
     AddRowTotals(v, r, &totals);
   }
-  ExportTotals(totals, wc * (2 * hy + 1), o, lanes);
+  ExportTotals(totals, wc * (2 * hy + 1), o, lanes, sys);
 }
 
 __attribute__((target("avx2,fma"), optimize("fp-contract=off"))) void FirstIteration(
-    const cv::Mat& R, const DenseStereoOptions& o, LsmState* const* lanes, const float* const* T, float* const* G) {
-  FirstIterationBody(R, o, lanes, T, G);
+    const cv::Mat& R, const DenseStereoOptions& o, LsmState* const* lanes, const float* const* T, float* const* G,
+    LaneSystems* sys) {
+  FirstIterationBody(R, o, lanes, T, G, sys);
 }
 __attribute__((target("avx2,fma,avx512f,avx512vl"), optimize("fp-contract=off"))) void FirstIteration32(
-    const cv::Mat& R, const DenseStereoOptions& o, LsmState* const* lanes, const float* const* T, float* const* G) {
-  FirstIterationBody(R, o, lanes, T, G);
+    const cv::Mat& R, const DenseStereoOptions& o, LsmState* const* lanes, const float* const* T, float* const* G,
+    LaneSystems* sys) {
+  FirstIterationBody(R, o, lanes, T, G, sys);
 }
 
 // AccumulateLanesBody for AVX2 + FMA (16 vector registers) and, the same
@@ -599,31 +615,27 @@ __attribute__((target("avx2,fma,avx512f,avx512vl"), optimize("fp-contract=off"))
 // row sums without spilling them.
 template <bool kBspline>
 __attribute__((target("avx2,fma"), optimize("fp-contract=off"))) void AccumulateLanes(
-    const cv::Mat& R, const DenseStereoOptions& o, LsmState* const* lanes, const float* T, float* G) {
-  AccumulateLanesBody<kBspline>(R, o, lanes, T, G);
+    const cv::Mat& R, const DenseStereoOptions& o, LsmState* const* lanes, const float* T, float* G, LaneSystems* sys) {
+  AccumulateLanesBody<kBspline>(R, o, lanes, T, G, sys);
 }
 template <bool kBspline>
 __attribute__((target("avx2,fma,avx512f,avx512vl"), optimize("fp-contract=off"))) void AccumulateLanes32(
-    const cv::Mat& R, const DenseStereoOptions& o, LsmState* const* lanes, const float* T, float* G) {
-  AccumulateLanesBody<kBspline>(R, o, lanes, T, G);
+    const cv::Mat& R, const DenseStereoOptions& o, LsmState* const* lanes, const float* T, float* G, LaneSystems* sys) {
+  AccumulateLanesBody<kBspline>(R, o, lanes, T, G, sys);
 }
 
 // SolveNormalEquations of 8 pixels (one per lane; 4 doubles a register):
-// Factor's and Solve's operations in their order. A lane whose matrix is
-// not positive definite gets solved[k] = false (its numbers are NaN).
-__attribute__((target("avx2"), optimize("fp-contract=off"))) void SolveLanes(const DenseStereoOptions& o,
+// Factor's and Solve's operations in their order on the lanes' regularised
+// systems. A lane whose matrix is not positive definite gets solved[k] =
+// false (its numbers are NaN).
+__attribute__((target("avx2"), optimize("fp-contract=off"))) void SolveLanes(const LaneSystems& sys,
                                                                              LsmState* const* lanes,
                                                                              bool solved[kLanes],
                                                                              double dx[kLanes][5]) {
-  alignas(32) double nn[15][kLanes], bb[5][kLanes], l_out[15][kLanes], inv_out[5][kLanes], x_out[5][kLanes];
+  const auto& nn = sys.nn;
+  const auto& bb = sys.bb;
+  alignas(32) double l_out[15][kLanes], inv_out[5][kLanes], x_out[5][kLanes];
   alignas(32) double ok_out[kLanes];
-  for (int k = 0; k < kLanes; ++k) {
-    double m[15];
-    std::copy(lanes[k]->nn, lanes[k]->nn + 15, m);
-    Regularise(o, m);
-    for (int q = 0; q < 15; ++q) nn[q][k] = m[q];
-    for (int q = 0; q < 5; ++q) bb[q][k] = lanes[k]->bb[q];
-  }
   const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
   for (int half = 0; half < kLanes; half += 4) {
     auto ld = [&](const double* row) { return _mm256_load_pd(row + half); };
@@ -723,14 +735,15 @@ class FirstIterations {
       T[k] = k < m ? T_.data() + at : T_.data();
       G[k] = G_.data() + at;
     }
+    LaneSystems sys;
     if (HasAvx512Vl()) {
-      FirstIteration32(R_, o_, lanes, T, G);
+      FirstIteration32(R_, o_, lanes, T, G, &sys);
     } else {
-      FirstIteration(R_, o_, lanes, T, G);
+      FirstIteration(R_, o_, lanes, T, G, &sys);
     }
     bool solved[kLanes];
     double dx[kLanes][5];
-    SolveLanes(o_, lanes, solved, dx);
+    SolveLanes(sys, lanes, solved, dx);
     for (int k = 0; k < m; ++k) {
       const LsmStep step = UpdateLsm(o_, solved[k], dx[k], &state_[k]);
       if (step == LsmStep::kContinue) ready_[ready_count_++] = k;
@@ -815,20 +828,21 @@ void RowLeastSquaresMatchBatch(const cv::Mat& L, const cv::Mat& R, const RowLsmT
     // Idle lanes repeat a live one (their sums are ignored).
     LsmState idle = state[live];
     for (int k = 0; k < kLanes; ++k) lanes[k] = task_of[k] >= 0 ? &state[k] : &idle;
+    LaneSystems sys;
     if (HasAvx512Vl()) {
       if (o.lsm_bspline) {
-        AccumulateLanes32<true>(R, o, lanes, T.data(), G.data());
+        AccumulateLanes32<true>(R, o, lanes, T.data(), G.data(), &sys);
       } else {
-        AccumulateLanes32<false>(R, o, lanes, T.data(), G.data());
+        AccumulateLanes32<false>(R, o, lanes, T.data(), G.data(), &sys);
       }
     } else if (o.lsm_bspline) {
-      AccumulateLanes<true>(R, o, lanes, T.data(), G.data());
+      AccumulateLanes<true>(R, o, lanes, T.data(), G.data(), &sys);
     } else {
-      AccumulateLanes<false>(R, o, lanes, T.data(), G.data());
+      AccumulateLanes<false>(R, o, lanes, T.data(), G.data(), &sys);
     }
     bool solved[kLanes];
     double dx[kLanes][5];
-    SolveLanes(o, lanes, solved, dx);
+    SolveLanes(sys, lanes, solved, dx);
     for (int k = 0; k < kLanes; ++k) {
       if (task_of[k] < 0) continue;
       const LsmStep step = UpdateLsm(o, solved[k], dx[k], &state[k]);
