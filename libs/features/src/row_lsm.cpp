@@ -15,6 +15,9 @@
 #include <immintrin.h>
 #define VLOC_ROW_LSM_AVX2 1
 #endif
+#if defined(__SSE2__) && !defined(__FMA__)
+#define VLOC_ROW_LSM_SSE2 1  // FinishLsm's two chains in one register (no FMA to contract them into)
+#endif
 
 namespace vloc {
 
@@ -274,12 +277,31 @@ bool FinishLsm(const LsmState& s, const DenseStereoOptions& o, const float* T, c
   const double gm = s.gsum / n;
   double stg0 = 0, stt0 = 0, sgg0 = 0, stg1 = 0, stt1 = 0, sgg1 = 0;
   int i = 0;
+#ifdef VLOC_ROW_LSM_SSE2
+  // The two chains in the two halves of an SSE2 register (x86-64's
+  // baseline, no fused multiply-adds): the same operations.
+  {
+    const __m128d vtm = _mm_set1_pd(tm), vgm = _mm_set1_pd(gm);
+    __m128d stg = _mm_setzero_pd(), stt = stg, sgg = stg;
+    for (; i + 1 < n; i += 2) {
+      const __m128d t = _mm_sub_pd(_mm_set_pd(T[(i + 1) * stride], T[i * stride]), vtm);
+      const __m128d g = _mm_sub_pd(_mm_set_pd(G[(i + 1) * stride], G[i * stride]), vgm);
+      stg = _mm_add_pd(stg, _mm_mul_pd(t, g));
+      stt = _mm_add_pd(stt, _mm_mul_pd(t, t));
+      sgg = _mm_add_pd(sgg, _mm_mul_pd(g, g));
+    }
+    alignas(16) double out[3][2];
+    _mm_store_pd(out[0], stg), _mm_store_pd(out[1], stt), _mm_store_pd(out[2], sgg);
+    stg0 = out[0][0], stg1 = out[0][1], stt0 = out[1][0], stt1 = out[1][1], sgg0 = out[2][0], sgg1 = out[2][1];
+  }
+#else
   for (; i + 1 < n; i += 2) {
     const double t0 = T[i * stride] - tm, g0 = G[i * stride] - gm;
     const double t1 = T[(i + 1) * stride] - tm, g1 = G[(i + 1) * stride] - gm;
     stg0 += t0 * g0, stt0 += t0 * t0, sgg0 += g0 * g0;
     stg1 += t1 * g1, stt1 += t1 * t1, sgg1 += g1 * g1;
   }
+#endif
   if (i < n) {
     const double t0 = T[i * stride] - tm, g0 = G[i * stride] - gm;
     stg0 += t0 * g0, stt0 += t0 * t0, sgg0 += g0 * g0;
