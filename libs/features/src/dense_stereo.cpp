@@ -226,7 +226,8 @@ void BestAndSecondPeak(const float* c, int nd, int* best_index, float* best_scor
 
 // BestAndSecondPeak 8 disparities at a time (AVX2): the same maxima (a
 // maximum does not depend on the order), the first index of the best score.
-__attribute__((target("avx2"))) void BestAndSecondPeakAvx2(const float* c, int nd, int* best_index,
+// A best score under `min_best` has no second peak looked for (-2).
+__attribute__((target("avx2"))) void BestAndSecondPeakAvx2(const float* c, int nd, double min_best, int* best_index,
                                                            float* best_score, float* second_score) {
   alignas(32) float lanes[8];
   auto reduce_max = [&lanes](float init) {
@@ -250,6 +251,10 @@ __attribute__((target("avx2"))) void BestAndSecondPeakAvx2(const float* c, int n
     }
     bi = di;
   }
+  *best_index = bi;
+  *best_score = best;
+  *second_score = -2.f;
+  if (best < min_best) return;  // compared in double, as PeakOfColumn does
   auto qualifies = [&](int d) {
     return std::abs(d - bi) >= 3 && (d == 0 || c[d] >= c[d - 1]) && (d + 1 == nd || c[d] >= c[d + 1]);
   };
@@ -270,8 +275,6 @@ __attribute__((target("avx2"))) void BestAndSecondPeakAvx2(const float* c, int n
   second = reduce_max(second);
   for (; di < nd; ++di)
     if (qualifies(di)) second = std::max(second, c[di]);
-  *best_index = bi;
-  *best_score = best;
   *second_score = second;
 }
 
@@ -288,7 +291,7 @@ bool PeakOfColumn(const float* c, int x, int nd, int dlo, int h, const DenseSter
   int bi;
   float best, second;
   if (HasAvx2()) {
-    BestAndSecondPeakAvx2(c, nd, &bi, &best, &second);
+    BestAndSecondPeakAvx2(c, nd, o.min_score, &bi, &best, &second);
   } else {
     BestAndSecondPeak(c, nd, &bi, &best, &second);
   }
