@@ -453,6 +453,36 @@ VLOC_LANES void AddTap(__m256 g, __m256 j0, __m256 e, __m256 fc, __m256 fcc, __m
   v[kE] = _mm256_add_ps(v[kE], e), v[kGe] = Fma(g, e, v[kGe]), v[kEe] = Fma(e, e, v[kEe]);
 }
 
+// One tap of the 8 lanes: its sub-pixel phase t and its 4 samples.
+struct LaneTap {
+  __m256 t, p[4];
+};
+// The tap at column fc (float) whose row index without the phase's whole
+// part is rowc, for window row offset urow.
+VLOC_LANES LaneTap LoadTap(const float* base, __m256 vmgx, __m256 urow, __m256 fc, __m256i rowc) {
+  const __m256 u = Fma(vmgx, fc, urow), fl = _mm256_floor_ps(u);
+  LaneTap tap;
+  tap.t = _mm256_sub_ps(u, fl);
+  const __m256i idx = _mm256_add_epi32(rowc, _mm256_cvttps_epi32(fl));
+  // The 4 taps of each lane are adjacent: one 4-float load per lane,
+  // lanes k and k + 4 in the halves of one register, and a 4 x 4
+  // transpose within the halves (fewer loads than 4 gathers, fewer
+  // shuffles than two 128-bit transposes and their joins).
+  alignas(32) int at[kLanes];
+  _mm256_store_si256(reinterpret_cast<__m256i*>(at), idx);
+  // Read back from memory: 8 loads are fewer instructions than the 8
+  // extracts and sign extensions the compiler makes of them otherwise.
+  asm volatile("" : : "m"(at) : "memory");
+  __m256 q4[4];
+  for (int k = 0; k < 4; ++k)
+    q4[k] = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(base + at[k])), _mm_loadu_ps(base + at[k + 4]), 1);
+  const __m256 lo01 = _mm256_unpacklo_ps(q4[0], q4[1]), lo23 = _mm256_unpacklo_ps(q4[2], q4[3]);
+  const __m256 hi01 = _mm256_unpackhi_ps(q4[0], q4[1]), hi23 = _mm256_unpackhi_ps(q4[2], q4[3]);
+  tap.p[0] = _mm256_shuffle_ps(lo01, lo23, 0x44), tap.p[1] = _mm256_shuffle_ps(lo01, lo23, 0xEE);
+  tap.p[2] = _mm256_shuffle_ps(hi01, hi23, 0x44), tap.p[3] = _mm256_shuffle_ps(hi01, hi23, 0xEE);
+  return tap;
+}
+
 // The window sums of 8 pixels (one per lane) at their current states:
 // AccumulateScalar's operations in its order, 8 at a time. T and G hold
 // window sample i of lane k at [i * 8 + k].
@@ -488,28 +518,14 @@ __attribute__((target("avx2,fma"), optimize("fp-contract=off"), always_inline)) 
     // c as a float and the row's index at c counted up (exact: small integers).
     __m256 fc = _mm256_set1_ps(static_cast<float>(-h));
     __m256i rowc = _mm256_add_epi32(row, _mm256_set1_epi32(-h));
+    // Each tap's phase and samples are read one tap ahead (software
+    // pipelining: the next tap's loads start before this tap's sums).
+    LaneTap next = LoadTap(base, vmgx, urow, fc, rowc);
     for (int c = -h; c <= h; ++c, ++i, fc = _mm256_add_ps(fc, S(1.f)), rowc = _mm256_add_epi32(rowc, one)) {
+      const LaneTap tap = next;
+      if (c < h) next = LoadTap(base, vmgx, urow, _mm256_add_ps(fc, S(1.f)), _mm256_add_epi32(rowc, one));
       const __m256 fcc = _mm256_mul_ps(fc, fc);
-      const __m256 u = Fma(vmgx, fc, urow), fl = _mm256_floor_ps(u);
-      const __m256 t = _mm256_sub_ps(u, fl);
-      const __m256i idx = _mm256_add_epi32(rowc, _mm256_cvttps_epi32(fl));
-      // The 4 taps of each lane are adjacent: one 4-float load per lane,
-      // lanes k and k + 4 in the halves of one register, and a 4 x 4
-      // transpose within the halves (fewer loads than 4 gathers, fewer
-      // shuffles than two 128-bit transposes and their joins).
-      alignas(32) int at[kLanes];
-      _mm256_store_si256(reinterpret_cast<__m256i*>(at), idx);
-      // Read back from memory: 8 loads are fewer instructions than the 8
-      // extracts and sign extensions the compiler makes of them otherwise.
-      asm volatile("" : : "m"(at) : "memory");
-      __m256 q4[4];
-      for (int k = 0; k < 4; ++k)
-        q4[k] = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(base + at[k])), _mm_loadu_ps(base + at[k + 4]),
-                                     1);
-      const __m256 lo01 = _mm256_unpacklo_ps(q4[0], q4[1]), lo23 = _mm256_unpacklo_ps(q4[2], q4[3]);
-      const __m256 hi01 = _mm256_unpackhi_ps(q4[0], q4[1]), hi23 = _mm256_unpackhi_ps(q4[2], q4[3]);
-      const __m256 p0 = _mm256_shuffle_ps(lo01, lo23, 0x44), p1 = _mm256_shuffle_ps(lo01, lo23, 0xEE);
-      const __m256 p2 = _mm256_shuffle_ps(hi01, hi23, 0x44), p3 = _mm256_shuffle_ps(hi01, hi23, 0xEE);
+      const __m256 t = tap.t, p0 = tap.p[0], p1 = tap.p[1], p2 = tap.p[2], p3 = tap.p[3];
       const __m256 t2 = _mm256_mul_ps(t, t), t3 = _mm256_mul_ps(t2, t);
       __m256 w0, w1, w2, w3, dw0, dw1, dw2, dw3;
       // RowWeights, 8 phases at a time.
