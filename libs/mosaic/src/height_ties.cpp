@@ -31,7 +31,7 @@ void UavMosaicker::TieHeights(FrameWork* w) {
     ++summary_.height_ties;
   }
   for (HeightObservation& m : measured) {
-    heights_.AddTie(m.from, m.to, m.log_ratio, TieSigma(m.support));
+    heights_.AddTie(m.from, m.to, m.log_ratio, o.SigmaFor(m.support));
     if (observations_) observations_->pairs.push_back(std::move(m));
   }
   heights_.Solve();
@@ -91,12 +91,6 @@ std::optional<HeightObservation> UavMosaicker::HeightRatioTo(const Keyframe& ear
     tie.to_px = std::move(m.to_background);
   }
   return tie;
-}
-
-// A height ratio's log sigma from the matches behind it: sigma at 100, as 1/sqrt(n) (seneca's links against the GPS
-// altitude: 3.1 % below 60 matches, 2.0 % at 150-300, 1.7 % above 300, most of it the GPS altitude's own noise).
-double UavMosaicker::TieSigma(int matches) const {
-  return options_.height_graph.sigma * std::sqrt(100.0 / std::max(matches, 1));
 }
 
 // The frame's scale (mosaic px per frame px) as the height graph solves it; none when ties are off or the frame is

@@ -77,7 +77,7 @@ Scored SolveWith(const HeightObservations& obs, const std::vector<double>& log_r
   std::vector<int> tie_of(obs.pairs.size(), -1);
   for (size_t i = 0; i < obs.pairs.size(); ++i) {
     const HeightObservation& o = obs.pairs[i];
-    if (use[i] && g.AddTie(o.from, o.to, log_ratio[i], graph.sigma * std::sqrt(100.0 / std::max(o.support, 1))))
+    if (use[i] && g.AddTie(o.from, o.to, log_ratio[i], graph.SigmaFor(o.support)))
       tie_of[i] = g.ties() - 1;
   }
   for (int before = -1; g.dropped() != before;) {

@@ -30,6 +30,7 @@ struct HeightGraphOptions {
   double max_disagreement = 0.15; // a tie disagreeing with the chain by more than this (log) is not added
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
+  double SigmaFor(int matches) const;  // a height ratio's log sigma from the matches behind it (sigma at 100)
 };
 
 class HeightGraph {

@@ -63,7 +63,7 @@ struct LensSearch {
   bool ok = false;
   std::string why;               // when !ok
   double k1 = 0;                 // the smallest residual (parabola through the best step and its neighbours)
-  double residual = 0;           // tie residual RMS in sigmas at k1
+  double residual = 0;           // tie residual RMS in sigmas at the best step
   double residual_as_run = 0;    // at the run camera's own k1
   std::vector<cv::Point2d> curve;  // (k1, residual) per candidate
   int pairs = 0;                 // pairs with points re-measured

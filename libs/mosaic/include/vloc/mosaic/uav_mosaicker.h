@@ -283,7 +283,6 @@ class UavMosaicker {
   std::vector<const Keyframe*> FramesToTie(const FrameWork& w) const;
   std::optional<HeightObservation> HeightRatioTo(const Keyframe& earlier, const FrameWork& w) const;
   HeightObservation RegistrationLink(const FrameWork& w, double log_ratio) const;
-  double TieSigma(int matches) const;
   std::optional<double> GraphScale(int frame_index) const;
   cv::Point2d PrincipalPoint() const;
   // The keyframe's image, for the finer-level candidate (fallback_downscale).
