@@ -84,19 +84,6 @@ LsmImage MakeLsmImage(const cv::Mat& gray, bool bspline_coefficients) {
     CV_Assert(gray.type() == CV_8UC1);
     gray.convertTo(out.gray, CV_32F);
   }
-  out.gx = cv::Mat::zeros(out.gray.size(), CV_32F);
-  out.gy = cv::Mat::zeros(out.gray.size(), CV_32F);
-  for (int y = 1; y + 1 < out.gray.rows; ++y) {
-    const float* p = out.gray.ptr<float>(y);
-    const float* pu = out.gray.ptr<float>(y - 1);
-    const float* pd = out.gray.ptr<float>(y + 1);
-    float* gx = out.gx.ptr<float>(y);
-    float* gy = out.gy.ptr<float>(y);
-    for (int x = 1; x + 1 < out.gray.cols; ++x) {
-      gx[x] = 0.5f * (p[x + 1] - p[x - 1]);
-      gy[x] = 0.5f * (pd[x] - pu[x]);
-    }
-  }
   if (bspline_coefficients) out.bspline = BSplineCoefficients(out.gray);
   return out;
 }

@@ -234,7 +234,7 @@ TEST(PrepareImages, InputSortedCheckedAndUndistorted) {
   ASSERT_EQ(s.previous_right.size(), 3u);
   EXPECT_EQ(cv::norm(s.previous_right[1].gray, image, cv::NORM_INF), 0.0);  // no distortion: as it came
   EXPECT_GT(cv::norm(s.previous_left[1].gray, image, cv::NORM_INF), 0.0);   // undistorted
-  EXPECT_EQ(s.current_left[2].lsm.gx.size(), image.size());
+  EXPECT_EQ(s.current_left[2].lsm.gray.size(), image.size());
   // A wrong size names the site and pair.
   current.pairs[2].right = cv::Mat(10, 10, CV_8UC1);  // pair_index 1
   current.site_id = 7;

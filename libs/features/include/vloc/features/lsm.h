@@ -34,11 +34,10 @@ struct LsmOptions {
   bool Check(std::string* error) const;
 };
 
-// An image prepared for LSM: float grey levels and central-difference gradients.
+// An image prepared for LSM: float grey levels (LSM takes its gradients from
+// the cubic it resamples with, not from gradient images).
 struct LsmImage {
   cv::Mat gray;     // CV_32FC1
-  cv::Mat gx;       // CV_32FC1, d gray / d x
-  cv::Mat gy;       // CV_32FC1, d gray / d y
   cv::Mat bspline;  // CV_32FC1, cubic B-spline coefficients of gray (empty unless asked for)
 };
 // Accepts CV_8UC1 or CV_32FC1.
