@@ -24,7 +24,7 @@ void WarpAndDescribe(int k, const FeatureOptions& features, const WarpOptions& w
   const PairOverlap& ov = s->prediction.overlaps[k];
   OverlapWork& w = s->overlaps[k];
   w = WarpOverlap(ov, *s, warp, gate);
-  DetectWarpedFeatures(features, warp.warp_current, &w);
+  DetectWarpedFeatures(features, warp.warp_current, s->previous_regions[ov.previous_pair].zoom, &w);
   DropVehicleFeatures(s->current_left[ov.current_pair].vehicle, w.current_from_train, &w.warped_features);
 }
 

@@ -47,6 +47,8 @@ void FeatureOptions::Visit(OptionsReader& r) {
   r.Optional("longitude_margin_deg", &longitude_margin_deg, "deg, simulated longitudes around the predicted one",
              NonNegative());
   r.Optional("warp_max_tilt", &warp_max_tilt, "largest tilt simulated on the warped image", AtLeast(1));
+  r.Optional("sift_max_zoom", &sift_max_zoom,
+             "SIFT on grids zoomed more than this runs on the grid resized to this zoom (0 = off)", NonNegative());
 }
 
 void GateOptions::Visit(OptionsReader& r) {

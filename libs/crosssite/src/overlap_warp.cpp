@@ -150,16 +150,14 @@ cv::Rect CoveredPart(const cv::Mat& coverage) {
 
 }  // namespace
 
-void DetectWarpedFeatures(const FeatureOptions& o, bool warp_current, OverlapWork* work) {
+void DetectWarpedFeatures(const FeatureOptions& o, bool warp_current, double zoom, OverlapWork* work) {
   if (!warp_current || work->skipped) return;
   std::vector<AffineView> views{{1.0, 0.0}};
   for (double t : o.asift.tilts)
     if (t > 1 + 1e-6 && t <= o.warp_max_tilt) views.push_back({t, 0.0}), views.push_back({t, M_PI / 2});
-  AsiftOptions single = o.asift;
-  single.num_threads = 1;
   const cv::Rect part = CoveredPart(work->coverage);
   FeatureSet& f = work->warped_features;
-  f = DetectAsift(work->warped(part), work->coverage(part), views, single);
+  f = DetectOnGrid(work->warped(part), work->coverage(part), views, zoom, o);
   const Eigen::Vector2d corner(part.x, part.y);
   for (Eigen::Vector2d& p : f.points) p += corner;  // (the keypoints stay in the views of the part)
 }

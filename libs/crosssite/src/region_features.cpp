@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include <glog/logging.h>
 
@@ -88,9 +89,30 @@ double RegionFeatureJobCost(const RegionFeatureJob& job, const SitePairState& s)
 }
 
 FeatureSet DetectRegionFeatureJob(const RegionFeatureJob& job, const FeatureOptions& o, const SitePairState& s) {
+  const WorkRegion& w = RegionOf(job, s);
+  return DetectOnGrid(w.image, cv::Mat(), {job.view}, job.current ? 1.0 : w.zoom, o);
+}
+
+FeatureSet DetectOnGrid(const cv::Mat& image, const cv::Mat& mask, const std::vector<AffineView>& views, double zoom,
+                        const FeatureOptions& o) {
   AsiftOptions single = o.asift;
   single.num_threads = 1;
-  return DetectAsift(RegionOf(job, s).image, cv::Mat(), {job.view}, single);
+  if (!(o.sift_max_zoom > 0 && zoom > o.sift_max_zoom)) return DetectAsift(image, mask, views, single);
+  const double f = o.sift_max_zoom / zoom;
+  const cv::Size size(std::max(1, static_cast<int>(std::lround(image.cols * f))),
+                      std::max(1, static_cast<int>(std::lround(image.rows * f))));
+  cv::Mat reduced, reduced_mask;
+  cv::resize(image, reduced, size, 0, 0, cv::INTER_AREA);
+  if (!mask.empty()) cv::resize(mask, reduced_mask, size, 0, 0, cv::INTER_NEAREST);
+  FeatureSet out = DetectAsift(reduced, reduced_mask, views, single);
+  // Back onto the grid; cv::resize maps pixel centres: grid px = (reduced px + 0.5) * s - 0.5.
+  const double sx = static_cast<double>(image.cols) / size.width, sy = static_cast<double>(image.rows) / size.height;
+  for (Eigen::Vector2d& p : out.points) p = Eigen::Vector2d((p.x() + 0.5) * sx - 0.5, (p.y() + 0.5) * sy - 0.5);
+  for (cv::KeyPoint& k : out.keypoints) {
+    k.pt = cv::Point2f(static_cast<float>((k.pt.x + 0.5) * sx - 0.5), static_cast<float>((k.pt.y + 0.5) * sy - 0.5));
+    k.size *= static_cast<float>(sx);
+  }
+  return out;
 }
 
 int AddRegionFeatures(const std::vector<RegionFeatureJob>& jobs, const std::vector<FeatureSet>& sets,

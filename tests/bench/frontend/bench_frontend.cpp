@@ -7,10 +7,12 @@
 //     (add --benchmark_report_aggregates_only=true for medians only)
 // (run from the source root; the cache folder keeps the rendered images between runs)
 // Time is wall; CPU is the whole process's (all threads), the work done whatever the machine's load. The
-// counters give each stage's wall seconds under its FRONTEND_STATUS name.
+// counters give each stage's wall seconds under its FRONTEND_STATUS name. VLOC_TEST_FRONTEND_CONFIG=<yaml> overrides
+// options, as in the pair tests (num_threads and the thread counts stay the benchmark's).
 #include <benchmark/benchmark.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <map>
 #include <string>
 #include <opencv2/core.hpp>
@@ -30,6 +32,7 @@ const vloc::testing::SimSitePair& Scene() {
 // names).
 void RunFrontend(benchmark::State& state, const vloc::testing::SimSitePair& s, int threads) {
   vloc::FrontendOptions o;
+  if (const char* e = std::getenv("VLOC_TEST_FRONTEND_CONFIG")) o = vloc::LoadOptionsFile<vloc::FrontendOptions>(e);
   o.num_threads = threads;
   o.features.asift.num_threads = threads;
   o.overlap_matching.matching.num_threads = threads;

@@ -146,6 +146,10 @@ struct FeatureOptions {
   double longitude_margin_deg = 30.0;  // deg, simulated longitudes within this of the predicted one
   double warp_max_tilt = 1.0;          // tilts simulated on the warped image: the warp by the predicted ground
                                        // homography leaves tilt ~1, so the restricted set is {1}
+  double sift_max_zoom = 0.0;          // SIFT on a previous region zoomed more than this, and on the current images
+                                       // warped onto it, runs on the grid resized to this zoom (0 = off: on the
+                                       // grid itself, which cv::SIFT doubles again: its first octave is then 4x
+                                       // the region's pixels at zoom 2, ~75 % of its pyramid)
   void Visit(OptionsReader& reader);
 };
 

@@ -307,6 +307,10 @@ struct RegionFeatureJob {
 std::vector<RegionFeatureJob> RegionFeatureJobs(const FeatureOptions& options, bool warp_current,
                                                 SitePairState* state);
 double RegionFeatureJobCost(const RegionFeatureJob& job, const SitePairState& state);
+// ASIFT (one thread) on `image`, a grid zoomed by `zoom` from its region; where zoom > options.sift_max_zoom (> 0)
+// on the grid resized to that zoom, the features mapped back onto the grid.
+FeatureSet DetectOnGrid(const cv::Mat& image, const cv::Mat& mask, const std::vector<AffineView>& views, double zoom,
+                        const FeatureOptions& options);
 FeatureSet DetectRegionFeatureJob(const RegionFeatureJob& job, const FeatureOptions& options,
                                   const SitePairState& state);
 int AddRegionFeatures(const std::vector<RegionFeatureJob>& jobs, const std::vector<FeatureSet>& sets,
@@ -321,8 +325,8 @@ double DrGateRadiusPx(const PairOverlap& overlap, const GateOptions& gate);
 // region's grid and registers it by tile correlation (two passes).
 OverlapWork WarpOverlap(const PairOverlap& overlap, const SitePairState& state, const WarpOptions& options,
                         const GateOptions& gate);
-// ASIFT on a warped overlap (tilts up to warp_max_tilt).
-void DetectWarpedFeatures(const FeatureOptions& options, bool warp_current, OverlapWork* work);
+// ASIFT on a warped overlap (tilts up to warp_max_tilt); zoom: its previous region's (DetectOnGrid).
+void DetectWarpedFeatures(const FeatureOptions& options, bool warp_current, double zoom, OverlapWork* work);
 
 // With warp_current, DetectRegionFeatures and every matched forward
 // overlap's WarpOverlap + DetectWarpedFeatures (features on the rover's
