@@ -202,6 +202,40 @@ TEST(RegionFeatures, ViewsAreRestrictedByThePrediction) {
   EXPECT_EQ(warped.num_current_features, 0u);
 }
 
+// sift_max_zoom: SIFT on a grid zoomed 2x runs on the grid resized back to zoom 1 and its features are mapped onto
+// the grid: they are the features of the unzoomed texture, at twice their place. Off (or a grid zoomed no more than
+// the limit), the grid itself is described, as before the option.
+TEST(RegionFeatures, SiftMaxZoomDescribesTheGridAtThatZoom) {
+  const cv::Mat texture = Texture({200, 160}, 73, 1.5);
+  cv::Mat grid;
+  cv::resize(texture, grid, cv::Size(), 2.0, 2.0, cv::INTER_LINEAR);
+  const std::vector<AffineView> views{{1.0, 0.0}};
+  FeatureOptions o;
+  AsiftOptions single = o.asift;
+  single.num_threads = 1;
+  const FeatureSet plain = DetectAsift(grid, cv::Mat(), views, single);
+  const FeatureSet off = DetectOnGrid(grid, cv::Mat(), views, 2.0, o);
+  EXPECT_EQ(off.size(), plain.size());
+  o.sift_max_zoom = 2.0;
+  EXPECT_EQ(DetectOnGrid(grid, cv::Mat(), views, 2.0, o).size(), plain.size()) << "not zoomed beyond the limit";
+  o.sift_max_zoom = 1.0;
+  const FeatureSet reduced = DetectOnGrid(grid, cv::Mat(), views, 2.0, o);
+  const FeatureSet at_one = DetectAsift(texture, cv::Mat(), views, single);
+  ASSERT_GT(at_one.size(), 50u);
+  EXPECT_LT(reduced.size(), plain.size()) << "the grid's own upsampled octave finds more";
+  EXPECT_NEAR(static_cast<double>(reduced.size()), static_cast<double>(at_one.size()), 0.15 * at_one.size());
+  int near = 0;
+  for (const Eigen::Vector2d& p : reduced.points) {
+    EXPECT_TRUE(p.x() > -1 && p.y() > -1 && p.x() < grid.cols && p.y() < grid.rows);
+    for (const Eigen::Vector2d& q : at_one.points)
+      if ((p - (2.0 * q + Eigen::Vector2d(0.5, 0.5))).norm() < 1.0) {
+        ++near;
+        break;
+      }
+  }
+  EXPECT_GT(near, 0.8 * reduced.size()) << "features of the texture at its zoom 1, mapped onto the grid";
+}
+
 // ---- input and preparation
 
 TEST(PrepareImages, InputSortedCheckedAndUndistorted) {
