@@ -24,6 +24,7 @@ void HeightGraphOptions::Visit(OptionsReader& r) {
   r.Optional("sigma", &sigma, "log 1-sigma of one height ratio", Positive());
   r.Optional("outlier_sigmas", &outlier_sigmas, "ties beyond this many sigmas of the solution dropped", Above(1.0));
   r.Optional("max_disagreement", &max_disagreement, "log: ties farther than this from the chain not added", Positive());
+  r.Optional("window", &window, "frames a solve moves (the newest; older ones held; 0 = all)", InRange(0, 1000000));
 }
 
 bool HeightGraphOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
@@ -48,31 +49,51 @@ bool HeightGraph::AddTie(int64_t from, int64_t to, double log_ratio, double sigm
 }
 
 bool HeightGraph::Solve() {
-  if (chained_.empty() || !SolveActive()) return false;
+  const int n = static_cast<int>(chained_.size());
+  const int first = options_.window > 0 && n > options_.window ? n - options_.window : 0;
+  windowed_ = windowed_ || first > 0;
+  return SolveFrom(first);
+}
+
+bool HeightGraph::SolveAll() { return SolveFrom(0); }
+
+bool HeightGraph::SolveFrom(int first) {
+  if (chained_.empty() || !SolveActive(first)) return false;
   // The worst tie at a time: a gross one pulls its neighbours' residuals up with it.
-  for (int round = 0; round < kMaxDropsPerSolve && DropWorstOutlier(); ++round)
-    if (!SolveActive()) return false;
+  for (int round = 0; round < kMaxDropsPerSolve && DropWorstOutlier(first); ++round)
+    if (!SolveActive(first)) return false;
   return true;
 }
 
-bool HeightGraph::SolveActive() {
-  const int n = static_cast<int>(chained_.size());
+// Least squares over frames first ... n - 1; a tie to an older (fixed) frame pulls its free frame towards the fixed
+// frame's solution plus the ratio.
+bool HeightGraph::SolveActive(int first) {
+  const int n = static_cast<int>(chained_.size()) - first;
   std::vector<Eigen::Triplet<double>> entries;
   Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
   for (int i = 0; i < n; ++i) {
-    const double w = 1.0 / std::pow(i == 0 ? kAnchorSigma : kPriorSigma, 2);
+    const double w = 1.0 / std::pow(first + i == 0 ? kAnchorSigma : kPriorSigma, 2);
     entries.emplace_back(i, i, w);
-    b[i] += w * chained_[i];
+    b[i] += w * chained_[first + i];
   }
   for (const Tie& t : ties_) {
-    if (!t.active) continue;
+    if (!t.active || (t.from < first && t.to < first)) continue;
     const double w = 1.0 / (t.sigma * t.sigma);
-    entries.emplace_back(t.to, t.to, w);
-    entries.emplace_back(t.from, t.from, w);
-    entries.emplace_back(t.to, t.from, -w);
-    entries.emplace_back(t.from, t.to, -w);
-    b[t.to] += w * t.log_ratio;
-    b[t.from] -= w * t.log_ratio;
+    const int to = t.to - first, from = t.from - first;
+    if (from < 0) {
+      entries.emplace_back(to, to, w);
+      b[to] += w * (t.log_ratio + solved_[t.from]);
+    } else if (to < 0) {
+      entries.emplace_back(from, from, w);
+      b[from] += w * (solved_[t.to] - t.log_ratio);
+    } else {
+      entries.emplace_back(to, to, w);
+      entries.emplace_back(from, from, w);
+      entries.emplace_back(to, from, -w);
+      entries.emplace_back(from, to, -w);
+      b[to] += w * t.log_ratio;
+      b[from] -= w * t.log_ratio;
+    }
   }
   Eigen::SparseMatrix<double> A(n, n);
   A.setFromTriplets(entries.begin(), entries.end());
@@ -80,15 +101,15 @@ bool HeightGraph::SolveActive() {
   if (solver.info() != Eigen::Success) return false;
   const Eigen::VectorXd x = solver.solve(b);
   if (solver.info() != Eigen::Success || !x.allFinite()) return false;
-  for (int i = 0; i < n; ++i) solved_[i] = x[i];
+  for (int i = 0; i < n; ++i) solved_[first + i] = x[i];
   return true;
 }
 
-bool HeightGraph::DropWorstOutlier() {
+bool HeightGraph::DropWorstOutlier(int first) {
   Tie* worst = nullptr;
   double worst_r = options_.outlier_sigmas;
   for (Tie& t : ties_) {
-    if (!t.active) continue;
+    if (!t.active || (t.from < first && t.to < first)) continue;
     const double r = std::abs(solved_[t.to] - solved_[t.from] - t.log_ratio) / t.sigma;
     if (r > worst_r) {
       worst_r = r;

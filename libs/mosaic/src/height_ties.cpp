@@ -102,6 +102,12 @@ std::optional<double> UavMosaicker::GraphScale(int frame_index) const {
   return std::exp(*solved);
 }
 
+void UavMosaicker::FinishHeights() {
+  if (!heights_.Windowed() || !heights_.SolveAll()) return;
+  summary_.height_ties_dropped = heights_.dropped();
+  summary_.height_tie_rms = heights_.ResidualRms();
+}
+
 std::optional<double> UavMosaicker::AdjustedHeight(int frame_index) const {
   const std::optional<double> scale = GraphScale(frame_index);
   if (!scale || !calibrated_) return std::nullopt;

@@ -316,6 +316,7 @@ void SurveyRunner::RegisterAll() {
     RegisterOne(i, std::move(loaded));
   }
   mosaicker_->FlushMosaic();
+  mosaicker_->FinishHeights();
   times_.wall = SecondsSince(t0);
   times_.blending = mosaicker_->summary().blend_seconds;
 }

@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <fstream>
 #include <iostream>
@@ -22,6 +23,7 @@
 
 #include "vloc/common/options.h"
 #include "vloc/mosaic/geotag.h"
+#include "vloc/mosaic/height_graph.h"
 #include "vloc/mosaic/survey_runner.h"
 #include "vloc/mosaic/uav_mosaicker.h"
 
@@ -381,5 +383,42 @@ void BM_StillsStitcherScans(benchmark::State& state) {
   state.counters["joined"] = joined;  // photos in the panorama
 }
 BENCHMARK(BM_StillsStitcherScans)->DenseRange(0, 2)->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
+
+// The height graph of a long survey solved photo by photo, as the mosaicker does: strips of 20 frames, each frame
+// linked to the one before and tied to four earlier ones (three beside it on the strip before, one two strips back). Arg 0: frames; arg 1: the window
+// (height_graph.window; 0 = every frame solved at every photo, the cost growing with the survey). The last solve's
+// time and the whole survey's.
+void BM_HeightGraphSurvey(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0)), per_strip = 20;
+  vm::HeightGraphOptions o;
+  o.window = static_cast<int>(state.range(1));
+  double last_ms = 0;
+  for (auto _ : state) {
+    cv::RNG rng(7);
+    vm::HeightGraph g(o);
+    double chained = 0;
+    g.AddFrame(0, chained);
+    for (int i = 1; i < n; ++i) {
+      const double link = rng.gaussian(0.02);
+      chained += link;
+      g.AddFrame(i, chained);
+      g.AddTie(i - 1, i, link, 0.02);
+      // Ties as seneca's photos make them: the three frames beside on the strip before, one on the strip before that.
+      for (int back = 1; back <= 2; ++back) {
+        if (i < back * per_strip) break;
+        const int beside = (i / per_strip - 1) * per_strip + (per_strip - 1 - i % per_strip) - (back - 1) * per_strip;
+        for (int d = back == 1 ? -1 : 0; d <= (back == 1 ? 1 : 0); ++d)
+          if (beside + d >= 0 && beside + d < i - 1) g.AddTie(beside + d, i, rng.gaussian(0.02), 0.02);
+      }
+      const auto t0 = std::chrono::steady_clock::now();
+      g.Solve();
+      last_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    }
+    if (g.Windowed()) g.SolveAll();
+  }
+  state.counters["last_solve_ms"] = last_ms;
+}
+BENCHMARK(BM_HeightGraphSurvey)->Args({1000, 0})->Args({1000, 600})->Args({3000, 0})->Args({3000, 600})
+    ->Args({10000, 600})->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
 
 BENCHMARK_MAIN();

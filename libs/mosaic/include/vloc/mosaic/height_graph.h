@@ -28,6 +28,9 @@ struct HeightGraphOptions {
                                   // scales as 1/sqrt(matches) (seneca's ties agree to this: residual RMS 1.0)
   double outlier_sigmas = 4.0;    // a tie disagreeing with the solution by more than this is dropped
   double max_disagreement = 0.15; // a tie disagreeing with the chain by more than this (log) is not added
+  int window = 600;               // frames a Solve moves once the graph holds more: the newest `window`, the older
+                                  // ones held at their solution (fixed-lag: a photo's cost stays that of `window`
+                                  // frames; SolveAll moves them all); 0 = every frame at every Solve
   void Visit(OptionsReader& reader);
   bool Check(std::string* error) const;
   double SigmaFor(int matches) const;  // a height ratio's log sigma from the matches behind it (sigma at 100)
@@ -49,6 +52,9 @@ class HeightGraph {
   // the solution is dropped and the rest solved again, until none is (a few
   // per call). False when there is nothing to solve.
   bool Solve();
+  // The same over every frame (the final heights of a survey that outgrew the window).
+  bool SolveAll();
+  bool Windowed() const { return windowed_; }  // a Solve has held older frames fixed
   // The solved log scale (the chained one before the first Solve).
   std::optional<double> LogScale(int64_t key) const;
   double ChainedLogScale(int64_t key) const;  // as added; NaN when unknown
@@ -66,14 +72,16 @@ class HeightGraph {
     double log_ratio, sigma;
     bool active = true;
   };
-  bool SolveActive();
-  bool DropWorstOutlier();  // the tie farthest beyond outlier_sigmas, if any
+  bool SolveFrom(int first);    // frames first ... n - 1 free, the older ones fixed; drops outliers
+  bool SolveActive(int first);
+  bool DropWorstOutlier(int first);  // the tie (with a free frame) farthest beyond outlier_sigmas, if any
 
   HeightGraphOptions options_;
   std::unordered_map<int64_t, int> index_;
   std::vector<double> chained_, solved_;
   std::vector<Tie> ties_;
   int dropped_ = 0;
+  bool windowed_ = false;
 };
 
 }  // namespace vloc::mosaic

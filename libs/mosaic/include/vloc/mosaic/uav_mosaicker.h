@@ -223,6 +223,9 @@ class UavMosaicker {
   // ties so far), by its FrameState::frame_index; none when height_graph.ties
   // is 0 or the frame is not in the graph.
   std::optional<double> AdjustedHeight(int frame_index) const;
+  // The height graph solved over every frame, when its solves have held older frames fixed (a survey longer than
+  // height_graph.window): the final heights. Nothing otherwise.
+  void FinishHeights();
   // From now on every height link and tie is kept with its matched points, for SearchRadialDistortion
   // (lens_search.h); null before this is called.
   void KeepHeightObservations() { observations_.emplace(); }
