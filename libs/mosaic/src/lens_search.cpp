@@ -39,24 +39,34 @@ std::optional<PlaneRatio> PlaneFromHomography(const cv::Matx33d& H, const cv::Ma
 
 namespace {
 
-// The points of `run` (undistorted by it) undistorted by `candidate` instead.
-std::vector<cv::Point2f> Reundistort(const std::vector<cv::Point2f>& points, const PinholeCamera& run,
-                                     const PinholeCamera& candidate) {
+// The raw (distorted) pixels of points `run` undistorted.
+std::vector<Eigen::Vector2d> RawPixels(const std::vector<cv::Point2f>& points, const PinholeCamera& run) {
+  std::vector<Eigen::Vector2d> raw;
+  raw.reserve(points.size());
+  for (const cv::Point2f& p : points)
+    raw.push_back(run.HasDistortion() ? run.Distort(Eigen::Vector2d(p.x, p.y)) : Eigen::Vector2d(p.x, p.y));
+  return raw;
+}
+
+std::vector<cv::Point2f> UndistortedBy(const std::vector<Eigen::Vector2d>& raw, const PinholeCamera& candidate) {
   std::vector<cv::Point2f> out;
-  out.reserve(points.size());
-  for (const cv::Point2f& p : points) {
-    const Eigen::Vector2d raw = run.HasDistortion() ? run.Distort(Eigen::Vector2d(p.x, p.y)) : Eigen::Vector2d(p.x, p.y);
-    const Eigen::Vector2d ideal = candidate.Undistort(raw);
+  out.reserve(raw.size());
+  for (const Eigen::Vector2d& r : raw) {
+    const Eigen::Vector2d ideal = candidate.Undistort(r);
     out.emplace_back(static_cast<float>(ideal.x()), static_cast<float>(ideal.y()));
   }
   return out;
 }
 
+// A pair's points as raw pixels, taken back once for every candidate.
+struct RawPair {
+  std::vector<Eigen::Vector2d> from, to;
+};
+
 // log(h_to / h_from) of one pair under `candidate`; NaN when its plane cannot be decomposed.
-double LogRatioUnder(const HeightObservation& o, const PinholeCamera& run, const PinholeCamera& candidate) {
+double LogRatioUnder(const HeightObservation& o, const RawPair& raw, const PinholeCamera& candidate) {
   if (o.from_px.empty()) return o.log_ratio;
-  const std::vector<cv::Point2f> from = Reundistort(o.from_px, run, candidate), to = Reundistort(o.to_px, run, candidate);
-  const cv::Mat H = cv::findHomography(from, to, 0);
+  const cv::Mat H = cv::findHomography(UndistortedBy(raw.from, candidate), UndistortedBy(raw.to, candidate), 0);
   if (H.empty()) return std::numeric_limits<double>::quiet_NaN();
   const std::optional<PlaneRatio> plane = PlaneFromHomography(cv::Matx33d(H), candidate.K(), o.from_normal);
   return plane ? std::log(plane->height_ratio) : std::numeric_limits<double>::quiet_NaN();
@@ -101,11 +111,14 @@ LensSearch SearchRadialDistortion(const HeightObservations& observations, const 
   const size_t pairs = observations.pairs.size();
   std::vector<std::vector<double>> ratios(k1s.size(), std::vector<double>(pairs));
   std::vector<bool> use(pairs, true);
+  std::vector<RawPair> raw(pairs);
+  for (size_t i = 0; i < pairs; ++i)
+    raw[i] = {RawPixels(observations.pairs[i].from_px, run_camera), RawPixels(observations.pairs[i].to_px, run_camera)};
   for (size_t c = 0; c < k1s.size(); ++c) {
     PinholeCamera candidate = run_camera;
     candidate.k1 = k1s[c];
     for (size_t i = 0; i < pairs; ++i) {
-      ratios[c][i] = LogRatioUnder(observations.pairs[i], run_camera, candidate);
+      ratios[c][i] = LogRatioUnder(observations.pairs[i], raw[i], candidate);
       if (!std::isfinite(ratios[c][i])) use[i] = false;
     }
   }
