@@ -49,6 +49,12 @@ void DenseStereoOptions::Visit(OptionsReader& r) {
   r.Optional("lsm_max_sigma_px", &lsm_max_sigma_px, "px, largest accepted 1-sigma disparity precision", Positive());
   r.Optional("lsm_back_check_px", &lsm_back_check_px, "px, LSM back from the right image must agree (0 = off)");
   r.Optional("lsm_median_tolerance", &lsm_median_tolerance, "px, median test again after LSM (0 = off)");
+  r.Optional("lsm_lattice", &lsm_lattice, "grid points, LSM on this lattice, the points between from its planes",
+             InRange(1, 8));
+  r.Optional("lsm_lattice_min_corners", &lsm_lattice_min_corners, "accepted lattice corners a point between needs",
+             InRange(1, 4));
+  r.Optional("lsm_lattice_agree_px", &lsm_lattice_agree_px, "px, spread of the corners' predictions allowed",
+             NonNegative());
   r.Optional("num_threads", &num_threads, "OpenMP threads", AtLeast(1));
   r.Relation("max_disparity", max_disparity >= min_disparity + 1, "must exceed min_disparity by >= 1");
 }
@@ -599,6 +605,126 @@ void RefinePixels(const LsmImages& im, const DenseStereoOptions& o, const std::v
   }
 }
 
+
+struct LsmPassCounts {
+  long matched = 0, iterations = 0, from_lattice = 0;
+};
+
+// Which grid points a pass refines by LSM: kAll every finite one, kLattice
+// those on the lsm_lattice lattice, kBetween the others (after kLattice).
+enum class LsmPass { kAll, kLattice, kBetween };
+
+bool OnLattice(int gx, int gy, int k) { return gx % k == 0 && gy % k == 0; }
+
+// The lattice's LSM results: disparity and sigma (NaN = not run or
+// rejected), the plane's gradients, and whether LSM ran there.
+struct LatticeResults {
+  cv::Mat d, sigma, ddx, ddy, ran;  // grid-sized; ran: CV_8U
+};
+
+// A between point's disparity and sigma from the planes of the lattice
+// points at the corners of its lattice cell: false when fewer than
+// lsm_lattice_min_corners were accepted, one was rejected, or their
+// predictions spread wider than lsm_lattice_agree_px or leave
+// lsm_max_shift_px of the point's ZNCC disparity.
+bool FromLattice(const LatticeResults& lat, const DenseStereoOptions& o, int gx, int gy, float zncc, float* d,
+                 float* sigma) {
+  const int k = o.lsm_lattice, x0 = gx - gx % k, y0 = gy - gy % k;
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo, sum = 0, weights = 0;
+  float worst = 0;
+  int used = 0;
+  for (const int cy : {y0, y0 + k}) {
+    for (const int cx : {x0, x0 + k}) {
+      if (cx >= lat.d.cols || cy >= lat.d.rows || !lat.ran.at<uchar>(cy, cx)) continue;
+      const float dc = lat.d.at<float>(cy, cx);
+      if (!std::isfinite(dc)) return false;  // rejected next to it: an edge or an occlusion
+      const double p = dc + (lat.ddx.at<float>(cy, cx) * (gx - cx) + lat.ddy.at<float>(cy, cx) * (gy - cy)) * o.step;
+      const double w = (k - std::abs(gx - cx) + 0.5) * (k - std::abs(gy - cy) + 0.5);  // bilinear, never 0
+      lo = std::min(lo, p), hi = std::max(hi, p), sum += w * p, weights += w, ++used;
+      worst = std::max(worst, lat.sigma.at<float>(cy, cx));
+    }
+  }
+  if (used < o.lsm_lattice_min_corners || hi - lo > o.lsm_lattice_agree_px) return false;
+  const double mean = sum / weights;
+  if (std::abs(mean - zncc) > o.lsm_max_shift_px) return false;
+  *d = static_cast<float>(mean);
+  *sigma = worst;
+  return true;
+}
+
+// Step 3 over the grid (`disp`: the ZNCC disparities in, the LSM ones out,
+// NaN = rejected; `sigma` out): LSM on every point, or on the lattice and
+// then between it (lsm_lattice > 1). OpenMP over blocks of 8 grid rows.
+LsmPassCounts RefineDisparities(const LsmImages& images, const DenseStereoOptions& o, cv::Mat* disp, cv::Mat* sigma) {
+  LsmPassCounts total;
+  const bool lattice = o.lsm_lattice > 1;
+  LatticeResults lat;
+  const cv::Mat zncc = lattice ? disp->clone() : cv::Mat();
+  if (lattice) {
+    const cv::Scalar nan(std::numeric_limits<float>::quiet_NaN());
+    lat.d = cv::Mat(disp->size(), CV_32F, nan), lat.sigma = lat.d.clone();
+    lat.ddx = cv::Mat(disp->size(), CV_32F, cv::Scalar(0)), lat.ddy = lat.ddx.clone();
+    lat.ran = cv::Mat(disp->size(), CV_8U, cv::Scalar(0));
+  }
+  for (const LsmPass pass : lattice ? std::vector<LsmPass>{LsmPass::kLattice, LsmPass::kBetween}
+                                    : std::vector<LsmPass>{LsmPass::kAll}) {
+    const int block = 8;  // grid rows per task
+    const int nblocks = (disp->rows + block - 1) / block;
+    long matched = 0, iterations = 0, from_lattice = 0;
+#pragma omp parallel num_threads(o.num_threads) reduction(+ : matched, iterations, from_lattice)
+    {
+      std::vector<internal::RowLsmTask> tasks;
+      std::vector<cv::Point> cells;
+      std::vector<RowLsmResult> results;
+      std::vector<unsigned char> accepted;
+#pragma omp for schedule(dynamic, 1)
+      for (int b = 0; b < nblocks; ++b) {
+        tasks.clear();
+        cells.clear();
+        for (int gy = b * block; gy < std::min(disp->rows, (b + 1) * block); ++gy) {
+          float* row = disp->ptr<float>(gy);
+          for (int gx = 0; gx < disp->cols; ++gx) {
+            if (!std::isfinite(row[gx])) continue;
+            if (pass == LsmPass::kLattice && !OnLattice(gx, gy, o.lsm_lattice)) continue;
+            if (pass == LsmPass::kBetween) {
+              if (OnLattice(gx, gy, o.lsm_lattice)) continue;
+              if (FromLattice(lat, o, gx, gy, zncc.at<float>(gy, gx), &row[gx], &sigma->at<float>(gy, gx))) {
+                ++matched, ++from_lattice;
+                continue;
+              }
+            }
+            internal::RowLsmTask t;
+            t.x = gx * o.step, t.y = gy * o.step, t.initial_disparity = row[gx];
+            tasks.push_back(t);
+            cells.emplace_back(gx, gy);
+          }
+        }
+        RefinePixels(images, o, tasks, &results, &accepted);
+        for (size_t k = 0; k < tasks.size(); ++k) {
+          float& d = disp->at<float>(cells[k]);
+          if (pass == LsmPass::kLattice) lat.ran.at<uchar>(cells[k]) = 1;
+          if (accepted[k]) {
+            d = static_cast<float>(results[k].disparity);
+            sigma->at<float>(cells[k]) = static_cast<float>(results[k].sigma_px);
+            ++matched;
+            iterations += results[k].iterations;
+            if (pass == LsmPass::kLattice) {
+              lat.d.at<float>(cells[k]) = d;
+              lat.sigma.at<float>(cells[k]) = static_cast<float>(results[k].sigma_px);
+              lat.ddx.at<float>(cells[k]) = static_cast<float>(results[k].disparity_dx);
+              lat.ddy.at<float>(cells[k]) = static_cast<float>(results[k].disparity_dy);
+            }
+          } else {
+            d = std::numeric_limits<float>::quiet_NaN();
+          }
+        }
+      }
+    }
+    total.matched += matched, total.iterations += iterations, total.from_lattice += from_lattice;
+  }
+  return total;
+}
+
 }  // namespace
 
 cv::Mat DenseStereo(const cv::Mat& left, const cv::Mat& right, const DenseStereoOptions& o,
@@ -625,45 +751,12 @@ cv::Mat DenseStereo(const cv::Mat& left, const cv::Mat& right, const DenseStereo
   if (o.lsm_enabled) {
     const LsmImages images(left, right, o);
     cv::Mat sigma(disp.size(), CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
-    long matched = 0, iterations = 0;
-    const int block = 8;  // grid rows per task
-    const int nblocks = (disp.rows + block - 1) / block;
-#pragma omp parallel num_threads(o.num_threads) reduction(+ : matched, iterations)
-    {
-      std::vector<internal::RowLsmTask> tasks;
-      std::vector<cv::Point> cells;
-      std::vector<RowLsmResult> results;
-      std::vector<unsigned char> accepted;
-#pragma omp for schedule(dynamic, 1)
-      for (int b = 0; b < nblocks; ++b) {
-        tasks.clear();
-        cells.clear();
-        for (int gy = b * block; gy < std::min(disp.rows, (b + 1) * block); ++gy) {
-          const float* row = disp.ptr<float>(gy);
-          for (int gx = 0; gx < disp.cols; ++gx) {
-            if (!std::isfinite(row[gx])) continue;
-            internal::RowLsmTask t;
-            t.x = gx * o.step, t.y = gy * o.step, t.initial_disparity = row[gx];
-            tasks.push_back(t);
-            cells.emplace_back(gx, gy);
-          }
-        }
-        RefinePixels(images, o, tasks, &results, &accepted);
-        for (size_t k = 0; k < tasks.size(); ++k) {
-          float& d = disp.at<float>(cells[k]);
-          if (accepted[k]) {
-            d = static_cast<float>(results[k].disparity);
-            sigma.at<float>(cells[k]) = static_cast<float>(results[k].sigma_px);
-            ++matched;
-            iterations += results[k].iterations;
-          } else {
-            d = std::numeric_limits<float>::quiet_NaN();
-          }
-        }
-      }
-    }
+    const LsmPassCounts counts = RefineDisparities(images, o, &disp, &sigma);
+    const long matched = counts.matched, iterations = counts.iterations;
+    s.lsm_from_lattice = counts.from_lattice;
     s.lsm_matches = matched;
-    s.lsm_mean_iterations = matched ? static_cast<double>(iterations) / matched : 0.0;
+    const long refined = matched - counts.from_lattice;
+    s.lsm_mean_iterations = refined ? static_cast<double>(iterations) / refined : 0.0;
     if (o.lsm_median_tolerance > 0) s.lsm_matches = MedianTest(o, o.lsm_median_tolerance, 0.0, &disp);
     std::vector<float> sig;
     for (int y = 0; y < sigma.rows; ++y)

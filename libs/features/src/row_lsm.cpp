@@ -313,6 +313,8 @@ bool FinishLsm(const LsmState& s, const DenseStereoOptions& o, const float* T, c
     result->sigma_px = sigma;
     result->correlation = corr;
     result->iterations = s.it;
+    result->disparity_dx = s.gx;
+    result->disparity_dy = s.gy;
   }
   return corr >= o.lsm_min_correlation && sigma <= o.lsm_max_sigma_px;
 }

@@ -87,6 +87,80 @@ TEST(DenseStereo, SlantedPlaneToAFewHundredthsOfAPixel) {
   EXPECT_LE(ours.bad1, peer.bad1);
 }
 
+// LSM on every 3rd point of every 3rd row, the points between from the
+// lattice's disparity planes (lsm_lattice): on the slanted plane most points
+// come from the lattice, as many are matched and as precisely as when
+// every point runs LSM (the planes hold the same surface the windows see).
+TEST(DenseStereo, LatticeKeepsTheSlantedPlanesPrecision) {
+  const PlanePair p = RenderPlane(256, 192, 14.3, 0.03, 0.02, 1.0, 5);
+  DenseStereoOptions o;
+  o.min_disparity = 0;
+  o.max_disparity = 40;
+  DenseStereoSummary every, lattice;
+  const cv::Mat d1 = DenseStereo(p.left, p.right, o, &every);
+  o.lsm_lattice = 3;
+  const cv::Mat d3 = DenseStereo(p.left, p.right, o, &lattice);
+  ASSERT_TRUE(lattice.usable) << lattice.BriefReport();
+  EXPECT_EQ(every.lsm_from_lattice, 0);
+  EXPECT_GT(lattice.lsm_from_lattice, lattice.lsm_matches / 2) << lattice.BriefReport();
+  const testing::DisparityScore s1 = testing::ScoreDisparity(d1, p.truth, 1);
+  const testing::DisparityScore s3 = testing::ScoreDisparity(d3, p.truth, 1);
+  std::cout << "slanted plane: every point " << s1.scored << " matched, median " << s1.median_abs << "; lattice 3 "
+            << s3.scored << " (" << lattice.lsm_from_lattice << " from the planes), median " << s3.median_abs << "\n";
+  EXPECT_GE(s3.scored, 0.99 * s1.scored);
+  EXPECT_LT(s3.median_abs, 1.2 * s1.median_abs);
+  EXPECT_LT(std::abs(s3.mean_signed), 0.01);
+  EXPECT_EQ(s3.bad1, 0);
+}
+
+// A depth step across the rows (disparity 12 px above row 96, 18 px from
+// it on): lattice points whose windows straddle it are rejected or predict
+// different disparities, so the points between there run LSM themselves.
+// Away from the step every point matched both ways agrees with the
+// every-point run within the corners' agreement tolerance; where a window
+// straddles the step (within its half height) a point from the lattice may
+// differ, and is then nearer the truth (its corners' windows straddle
+// less); no more points beside the step are > 0.5 px off.
+TEST(DenseStereo, LatticePointsBesideADepthStepRunTheirOwnLsm) {
+  const int w = 256, h = 192, step_row = 96;
+  const testing::BlobTexture tex(w + 80, h, w * h / 18, 11);
+  const auto disparity = [&](int y) { return y < step_row ? 12.0 : 18.0; };
+  cv::Mat left32 = tex.Render(w, h, [](int x, int y) { return std::make_pair<double, double>(x, y); });
+  cv::Mat right32 = tex.Render(w, h, [&](int x, int y) { return std::make_pair<double, double>(x + disparity(y), y); });
+  cv::Mat left, right;
+  left32.convertTo(left, CV_8U), right32.convertTo(right, CV_8U);
+  DenseStereoOptions o;
+  o.min_disparity = 0;
+  o.max_disparity = 30;
+  DenseStereoSummary every, lattice;
+  const cv::Mat d1 = DenseStereo(left, right, o, &every);
+  o.lsm_lattice = 3;
+  const cv::Mat d3 = DenseStereo(left, right, o, &lattice);
+  ASSERT_TRUE(lattice.usable) << lattice.BriefReport();
+  EXPECT_GT(lattice.lsm_from_lattice, 0);
+  int both = 0, apart_away = 0, apart_near = 0, farther = 0, wrong1 = 0, wrong3 = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const float a = d1.at<float>(y, x), b = d3.at<float>(y, x);
+      const double truth = disparity(y);
+      const bool straddles = y - o.lsm_half_height <= step_row && y + o.lsm_half_height >= step_row - 1;
+      if (straddles && std::isfinite(a) && std::abs(a - truth) > 0.5) ++wrong1;
+      if (straddles && std::isfinite(b) && std::abs(b - truth) > 0.5) ++wrong3;
+      if (!std::isfinite(a) || !std::isfinite(b)) continue;
+      ++both;
+      if (std::abs(a - b) <= o.lsm_lattice_agree_px) continue;
+      ++(straddles ? apart_near : apart_away);
+      if (std::abs(b - truth) > std::abs(a - truth)) ++farther;
+    }
+  std::cout << "depth step: " << both << " points matched both ways; differing by > " << o.lsm_lattice_agree_px
+            << " px: " << apart_near << " where the window straddles the step, " << apart_away << " elsewhere; "
+            << "> 0.5 px off there: every point " << wrong1 << ", lattice " << wrong3 << "\n";
+  EXPECT_GT(both, 0.5 * (w - 30 - 12) * (h - 12));
+  EXPECT_EQ(apart_away, 0);
+  EXPECT_EQ(farther, 0);
+  EXPECT_LE(wrong3, wrong1);
+}
+
 // B-spline interpolation passes through the samples: coefficients filtered
 // back with the (1 4 1) / 6 kernel along both axes give the image again.
 TEST(Lsm, BSplineCoefficientsReproduceTheImage) {

@@ -18,7 +18,11 @@
 //      biases the disparity by up to +-0.02 px with its sub-pixel phase.
 //      8 pixels at a time in the lanes of AVX2 registers where the CPU has
 //      them and FMA (row_lsm.cpp: the scalar code's operations in its
-//      order, the same disparities bit for bit; row_lsm_test).
+//      order, the same disparities bit for bit; row_lsm_test). With
+//      lsm_lattice > 1 LSM runs on a lattice of the grid first, and a
+//      point between takes the lattice's disparity planes around it where
+//      they agree (a window overlaps its neighbours' by most of its area),
+//      running LSM itself only where they do not (depth edges).
 // Options default to the paper's pipeline; lsm_median_tolerance and
 // lsm_back_check_px add filters after LSM (off by default: each trades
 // matched pixels for fewer > 1 px errors). config/stereo_photo.yaml holds
@@ -63,6 +67,15 @@ struct DenseStereoOptions {
   double lsm_max_sigma_px = 0.2;   // px, reject disparities less precise than this (1 sigma)
   double lsm_median_tolerance = 0; // px, the median test again on the LSM disparities (0 = off)
   double lsm_back_check_px = 0;    // px, LSM from the right image back into the left must agree (0 = off)
+  // LSM on a coarser lattice: every lsm_lattice-th grid point of every
+  // lsm_lattice-th row is refined; a point between takes the disparity
+  // planes of the lattice points around it (their LSM windows hold its
+  // own) when at least lsm_lattice_min_corners of them were accepted, none
+  // was rejected and their predictions agree within lsm_lattice_agree_px;
+  // else it runs LSM itself (depth edges, occlusions). 1 = every point.
+  int lsm_lattice = 1;
+  int lsm_lattice_min_corners = 3;
+  double lsm_lattice_agree_px = 0.2;  // px
   int num_threads = 2;             // OpenMP threads over rows
 
   void Visit(OptionsReader& reader);
@@ -77,6 +90,7 @@ struct DenseStereoSummary {
   long zncc_matches = 0;          // unique ZNCC peaks passing the left-right check
   long after_median = 0;          // ... and the median test
   long lsm_matches = 0;           // ... and LSM (the output when lsm_enabled)
+  long lsm_from_lattice = 0;      // of them, taken from the lattice's disparity planes (lsm_lattice > 1)
   double median_sigma_px = 0;     // median LSM 1-sigma disparity precision
   double lsm_mean_iterations = 0; // Gauss-Newton iterations per accepted LSM match
   double zncc_seconds = 0, median_seconds = 0, lsm_seconds = 0, total_seconds = 0;
@@ -103,6 +117,7 @@ struct RowLsmResult {
   double sigma_px = 0;    // px, 1-sigma
   double correlation = 0;
   int iterations = 0;
+  double disparity_dx = 0, disparity_dy = 0;  // the disparity plane's gradients, px per px
 };
 bool RowLeastSquaresMatch(const cv::Mat& left32, const cv::Mat& right32, int x, int y, double initial_disparity,
                           const DenseStereoOptions& options, RowLsmResult* result);
