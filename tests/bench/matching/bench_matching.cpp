@@ -187,8 +187,11 @@ void NavcamSgbm(benchmark::State& state, NavcamCase& c) {
 void NavcamVloc(benchmark::State& state, NavcamCase& c, const char* options_file) {
   if (!c.pair.ok) return state.SkipWithError(("missing " + c.pair.missing).c_str());
   const vloc::DenseStereoOptions o = StereoOptions(c.pair, options_file);
-  for (auto _ : state) c.vloc = vloc::DenseStereo(c.pair.left, c.pair.right, o);
+  vloc::DenseStereoSummary summary;
+  for (auto _ : state) c.vloc = vloc::DenseStereo(c.pair.left, c.pair.right, o, &summary);
   SetSparseCounters(state, c, c.vloc, c.sgbm);
+  state.counters["zncc_s"] = summary.zncc_seconds;
+  state.counters["lsm_s"] = summary.lsm_seconds;
 }
 
 BENCHMARK_CAPTURE(NavcamSgbm, Navcam_OpenCV_SGBM, Navcam())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
