@@ -610,64 +610,74 @@ struct LsmPassCounts {
   long matched = 0, iterations = 0, from_lattice = 0;
 };
 
-// Which grid points a pass refines by LSM: kAll every finite one, kLattice
-// those on the lsm_lattice lattice, kBetween the others (after kLattice).
-enum class LsmPass { kAll, kLattice, kBetween };
+// The lattice's strides, coarse to fine: lsm_lattice, halved while even,
+// then 1 (4: 4, 2, 1; 3: 3, 1; 1: 1). Level 0 runs LSM on its lattice;
+// level i takes the points of its lattice not on level i - 1's from the
+// corners of level i - 1's cells.
+std::vector<int> LatticeStrides(int k) {
+  std::vector<int> strides{k};
+  while (strides.back() > 1) strides.push_back(strides.back() % 2 == 0 ? strides.back() / 2 : 1);
+  return strides;
+}
 
 bool OnLattice(int gx, int gy, int k) { return gx % k == 0 && gy % k == 0; }
 
-// The lattice's LSM results: disparity and sigma (NaN = not run or
-// rejected), the plane's gradients, and whether LSM ran there.
+// The levels' results so far: disparity and sigma (NaN = rejected), the
+// disparity plane's gradients, and whether the point was refined (by LSM
+// or from its corners).
 struct LatticeResults {
-  cv::Mat d, sigma, ddx, ddy, ran;  // grid-sized; ran: CV_8U
+  cv::Mat d, sigma, ddx, ddy, done;  // grid-sized; done: CV_8U
 };
 
-// A between point's disparity and sigma from the planes of the lattice
-// points at the corners of its lattice cell: false when fewer than
+// A point's disparity, sigma and plane from the planes of the refined
+// points at the corners of its cell of side `k`: false when fewer than
 // lsm_lattice_min_corners were accepted, one was rejected, or their
 // predictions spread wider than lsm_lattice_agree_px or leave
 // lsm_max_shift_px of the point's ZNCC disparity.
-bool FromLattice(const LatticeResults& lat, const DenseStereoOptions& o, int gx, int gy, float zncc, float* d,
-                 float* sigma) {
-  const int k = o.lsm_lattice, x0 = gx - gx % k, y0 = gy - gy % k;
-  double lo = std::numeric_limits<double>::infinity(), hi = -lo, sum = 0, weights = 0;
+bool FromLattice(const LatticeResults& lat, const DenseStereoOptions& o, int k, int gx, int gy, float zncc,
+                 LatticeResults* out) {
+  const int x0 = gx - gx % k, y0 = gy - gy % k;
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo, sum = 0, weights = 0, sdx = 0, sdy = 0;
   float worst = 0;
   int used = 0;
   for (const int cy : {y0, y0 + k}) {
     for (const int cx : {x0, x0 + k}) {
-      if (cx >= lat.d.cols || cy >= lat.d.rows || !lat.ran.at<uchar>(cy, cx)) continue;
+      if (cx >= lat.d.cols || cy >= lat.d.rows || !lat.done.at<uchar>(cy, cx)) continue;
       const float dc = lat.d.at<float>(cy, cx);
       if (!std::isfinite(dc)) return false;  // rejected next to it: an edge or an occlusion
-      const double p = dc + (lat.ddx.at<float>(cy, cx) * (gx - cx) + lat.ddy.at<float>(cy, cx) * (gy - cy)) * o.step;
+      const double ddx = lat.ddx.at<float>(cy, cx), ddy = lat.ddy.at<float>(cy, cx);
+      const double p = dc + (ddx * (gx - cx) + ddy * (gy - cy)) * o.step;
       const double w = (k - std::abs(gx - cx) + 0.5) * (k - std::abs(gy - cy) + 0.5);  // bilinear, never 0
       lo = std::min(lo, p), hi = std::max(hi, p), sum += w * p, weights += w, ++used;
+      sdx += w * ddx, sdy += w * ddy;
       worst = std::max(worst, lat.sigma.at<float>(cy, cx));
     }
   }
   if (used < o.lsm_lattice_min_corners || hi - lo > o.lsm_lattice_agree_px) return false;
   const double mean = sum / weights;
   if (std::abs(mean - zncc) > o.lsm_max_shift_px) return false;
-  *d = static_cast<float>(mean);
-  *sigma = worst;
+  out->d.at<float>(gy, gx) = static_cast<float>(mean);
+  out->sigma.at<float>(gy, gx) = worst;
+  out->ddx.at<float>(gy, gx) = static_cast<float>(sdx / weights);
+  out->ddy.at<float>(gy, gx) = static_cast<float>(sdy / weights);
   return true;
 }
 
 // Step 3 over the grid (`disp`: the ZNCC disparities in, the LSM ones out,
-// NaN = rejected; `sigma` out): LSM on every point, or on the lattice and
-// then between it (lsm_lattice > 1). OpenMP over blocks of 8 grid rows.
+// NaN = rejected; `sigma` out): LSM on every point, or level by level of
+// the lattice (lsm_lattice > 1, LatticeStrides). OpenMP over blocks of 8
+// grid rows; a level reads only the levels before it.
 LsmPassCounts RefineDisparities(const LsmImages& images, const DenseStereoOptions& o, cv::Mat* disp, cv::Mat* sigma) {
   LsmPassCounts total;
-  const bool lattice = o.lsm_lattice > 1;
+  const std::vector<int> strides = LatticeStrides(std::max(1, o.lsm_lattice));
+  const cv::Mat zncc = disp->clone();
   LatticeResults lat;
-  const cv::Mat zncc = lattice ? disp->clone() : cv::Mat();
-  if (lattice) {
-    const cv::Scalar nan(std::numeric_limits<float>::quiet_NaN());
-    lat.d = cv::Mat(disp->size(), CV_32F, nan), lat.sigma = lat.d.clone();
-    lat.ddx = cv::Mat(disp->size(), CV_32F, cv::Scalar(0)), lat.ddy = lat.ddx.clone();
-    lat.ran = cv::Mat(disp->size(), CV_8U, cv::Scalar(0));
-  }
-  for (const LsmPass pass : lattice ? std::vector<LsmPass>{LsmPass::kLattice, LsmPass::kBetween}
-                                    : std::vector<LsmPass>{LsmPass::kAll}) {
+  const cv::Scalar nan(std::numeric_limits<float>::quiet_NaN());
+  lat.d = cv::Mat(disp->size(), CV_32F, nan), lat.sigma = lat.d.clone();
+  lat.ddx = cv::Mat(disp->size(), CV_32F, cv::Scalar(0)), lat.ddy = lat.ddx.clone();
+  lat.done = cv::Mat(disp->size(), CV_8U, cv::Scalar(0));
+  for (size_t level = 0; level < strides.size(); ++level) {
+    const int stride = strides[level], coarser = level > 0 ? strides[level - 1] : 0;
     const int block = 8;  // grid rows per task
     const int nblocks = (disp->rows + block - 1) / block;
     long matched = 0, iterations = 0, from_lattice = 0;
@@ -682,13 +692,13 @@ LsmPassCounts RefineDisparities(const LsmImages& images, const DenseStereoOption
         tasks.clear();
         cells.clear();
         for (int gy = b * block; gy < std::min(disp->rows, (b + 1) * block); ++gy) {
-          float* row = disp->ptr<float>(gy);
+          const float* row = zncc.ptr<float>(gy);
           for (int gx = 0; gx < disp->cols; ++gx) {
-            if (!std::isfinite(row[gx])) continue;
-            if (pass == LsmPass::kLattice && !OnLattice(gx, gy, o.lsm_lattice)) continue;
-            if (pass == LsmPass::kBetween) {
-              if (OnLattice(gx, gy, o.lsm_lattice)) continue;
-              if (FromLattice(lat, o, gx, gy, zncc.at<float>(gy, gx), &row[gx], &sigma->at<float>(gy, gx))) {
+            if (!std::isfinite(row[gx]) || !OnLattice(gx, gy, stride)) continue;
+            if (level > 0) {
+              if (OnLattice(gx, gy, coarser)) continue;
+              if (FromLattice(lat, o, coarser, gx, gy, row[gx], &lat)) {
+                lat.done.at<uchar>(gy, gx) = 1;
                 ++matched, ++from_lattice;
                 continue;
               }
@@ -701,27 +711,21 @@ LsmPassCounts RefineDisparities(const LsmImages& images, const DenseStereoOption
         }
         RefinePixels(images, o, tasks, &results, &accepted);
         for (size_t k = 0; k < tasks.size(); ++k) {
-          float& d = disp->at<float>(cells[k]);
-          if (pass == LsmPass::kLattice) lat.ran.at<uchar>(cells[k]) = 1;
-          if (accepted[k]) {
-            d = static_cast<float>(results[k].disparity);
-            sigma->at<float>(cells[k]) = static_cast<float>(results[k].sigma_px);
-            ++matched;
-            iterations += results[k].iterations;
-            if (pass == LsmPass::kLattice) {
-              lat.d.at<float>(cells[k]) = d;
-              lat.sigma.at<float>(cells[k]) = static_cast<float>(results[k].sigma_px);
-              lat.ddx.at<float>(cells[k]) = static_cast<float>(results[k].disparity_dx);
-              lat.ddy.at<float>(cells[k]) = static_cast<float>(results[k].disparity_dy);
-            }
-          } else {
-            d = std::numeric_limits<float>::quiet_NaN();
-          }
+          lat.done.at<uchar>(cells[k]) = 1;
+          if (!accepted[k]) continue;
+          lat.d.at<float>(cells[k]) = static_cast<float>(results[k].disparity);
+          lat.sigma.at<float>(cells[k]) = static_cast<float>(results[k].sigma_px);
+          lat.ddx.at<float>(cells[k]) = static_cast<float>(results[k].disparity_dx);
+          lat.ddy.at<float>(cells[k]) = static_cast<float>(results[k].disparity_dy);
+          ++matched;
+          iterations += results[k].iterations;
         }
       }
     }
     total.matched += matched, total.iterations += iterations, total.from_lattice += from_lattice;
   }
+  lat.d.copyTo(*disp);
+  lat.sigma.copyTo(*sigma);
   return total;
 }
 

@@ -87,8 +87,9 @@ TEST(DenseStereo, SlantedPlaneToAFewHundredthsOfAPixel) {
   EXPECT_LE(ours.bad1, peer.bad1);
 }
 
-// LSM on every 3rd point of every 3rd row, the points between from the
-// lattice's disparity planes (lsm_lattice): on the slanted plane most points
+// LSM on every 4th point of every 4th row, then the points of the 2-lattice
+// and the rest from the disparity planes of their cells' corners
+// (lsm_lattice, config/stereo_jpeg.yaml's): on the slanted plane most points
 // come from the lattice, as many are matched and as precisely as when
 // every point runs LSM (the planes hold the same surface the windows see).
 TEST(DenseStereo, LatticeKeepsTheSlantedPlanesPrecision) {
@@ -98,14 +99,14 @@ TEST(DenseStereo, LatticeKeepsTheSlantedPlanesPrecision) {
   o.max_disparity = 40;
   DenseStereoSummary every, lattice;
   const cv::Mat d1 = DenseStereo(p.left, p.right, o, &every);
-  o.lsm_lattice = 3;
+  o.lsm_lattice = 4;  // levels 4, 2, 1
   const cv::Mat d3 = DenseStereo(p.left, p.right, o, &lattice);
   ASSERT_TRUE(lattice.usable) << lattice.BriefReport();
   EXPECT_EQ(every.lsm_from_lattice, 0);
   EXPECT_GT(lattice.lsm_from_lattice, lattice.lsm_matches / 2) << lattice.BriefReport();
   const testing::DisparityScore s1 = testing::ScoreDisparity(d1, p.truth, 1);
   const testing::DisparityScore s3 = testing::ScoreDisparity(d3, p.truth, 1);
-  std::cout << "slanted plane: every point " << s1.scored << " matched, median " << s1.median_abs << "; lattice 3 "
+  std::cout << "slanted plane: every point " << s1.scored << " matched, median " << s1.median_abs << "; lattice 4 "
             << s3.scored << " (" << lattice.lsm_from_lattice << " from the planes), median " << s3.median_abs << "\n";
   EXPECT_GE(s3.scored, 0.99 * s1.scored);
   EXPECT_LT(s3.median_abs, 1.2 * s1.median_abs);

@@ -19,10 +19,11 @@
 //      8 pixels at a time in the lanes of AVX2 registers where the CPU has
 //      them and FMA (row_lsm.cpp: the scalar code's operations in its
 //      order, the same disparities bit for bit; row_lsm_test). With
-//      lsm_lattice > 1 LSM runs on a lattice of the grid first, and a
-//      point between takes the lattice's disparity planes around it where
-//      they agree (a window overlaps its neighbours' by most of its area),
-//      running LSM itself only where they do not (depth edges).
+//      lsm_lattice > 1 LSM runs on a lattice of the grid first, and the
+//      points of finer lattices take the disparity planes of the refined
+//      points around them where those agree (a window overlaps its
+//      neighbours' by most of its area), running LSM themselves only where
+//      they do not (depth edges).
 // Options default to the paper's pipeline; lsm_median_tolerance and
 // lsm_back_check_px add filters after LSM (off by default: each trades
 // matched pixels for fewer > 1 px errors). config/stereo_photo.yaml holds
@@ -68,11 +69,13 @@ struct DenseStereoOptions {
   double lsm_median_tolerance = 0; // px, the median test again on the LSM disparities (0 = off)
   double lsm_back_check_px = 0;    // px, LSM from the right image back into the left must agree (0 = off)
   // LSM on a coarser lattice: every lsm_lattice-th grid point of every
-  // lsm_lattice-th row is refined; a point between takes the disparity
-  // planes of the lattice points around it (their LSM windows hold its
-  // own) when at least lsm_lattice_min_corners of them were accepted, none
-  // was rejected and their predictions agree within lsm_lattice_agree_px;
-  // else it runs LSM itself (depth edges, occlusions). 1 = every point.
+  // lsm_lattice-th row is refined; then, level by level (the stride halved
+  // while even, then 1), a point of the finer lattice takes the disparity
+  // planes of its coarser cell's corners (their LSM windows hold most of
+  // its own) when at least lsm_lattice_min_corners of them were accepted,
+  // none was rejected and their predictions agree within
+  // lsm_lattice_agree_px; else it runs LSM itself (depth edges,
+  // occlusions). 1 = every point.
   int lsm_lattice = 1;
   int lsm_lattice_min_corners = 3;
   double lsm_lattice_agree_px = 0.2;  // px
