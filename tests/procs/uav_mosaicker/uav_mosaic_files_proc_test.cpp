@@ -1,12 +1,16 @@
 // uav_mosaic_files as a new user runs it: a folder and --out, no other flag.
 // It must read the stills settings (config/procs/uav_mosaic_files.yaml), say
-// so, and register the photos as with --config. Real photos from
+// so, and register the photos as with --config; --self-calibrate refuses
+// what it cannot do in one line, writing no camera. Real photos from
 // ../shared/data (skipped with a message when absent).
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include "vloc/testing/subprocess.h"
 
@@ -58,6 +62,52 @@ TEST(UavMosaicFiles, AFolderAloneGetsTheStillsSettings) {
   EXPECT_EQ(photo_lines(plain.output()), photo_lines(configured.output()));
   EXPECT_FALSE(photo_lines(plain.output()).empty());
   std::filesystem::remove_all(folder);
+}
+
+// Lines of `output` holding `text`.
+int LinesWith(const std::string& output, const std::string& text) {
+  std::istringstream in(output);
+  int n = 0;
+  for (std::string line; std::getline(in, line);) n += line.find(text) != std::string::npos;
+  return n;
+}
+
+// --self-calibrate's refusals, each one line naming the problem, exit 1 and
+// no camera file: with --split (two views have no height ties); a survey
+// of one strip (its links chain the heights exactly: no tie to disagree,
+// nothing to tell a lens by); a camera file that cannot be written (after
+// the search, which a survey over two strips allows).
+TEST(UavMosaicFiles, SelfCalibrateRefusesInOneLine) {
+  if (!std::filesystem::is_directory(kSeneca))
+    GTEST_SKIP() << kSeneca << " absent (real data lives beside the repo, see ../shared/data/README.md): skipped";
+  namespace fs = std::filesystem;
+  const std::string strip = FirstPhotos(kSeneca, 6, "strip");
+  const std::string camera = strip + "/../uav_mosaic_files_cam_" + std::to_string(getpid()) + ".yaml";
+  const std::string out = strip + "/../uav_mosaic_files_sc_" + std::to_string(getpid()) + ".png";
+  std::vector<std::string> photos;
+  for (const auto& e : fs::directory_iterator(strip)) photos.push_back(e.path().string());
+  std::sort(photos.begin(), photos.end());
+
+  Subprocess split({BinPath("uav_mosaic_files"), "--split", "--self-calibrate", camera, "--out", out, photos[0]});
+  EXPECT_EQ(split.WaitExit(60), 1) << split.output();
+  EXPECT_EQ(LinesWith(split.output(), "--self-calibrate needs a survey"), 1) << split.output();
+
+  Subprocess one_strip({BinPath("uav_mosaic_files"), "--self-calibrate", camera, "--out", out, strip});
+  EXPECT_EQ(one_strip.WaitExit(300), 1) << one_strip.output();
+  EXPECT_EQ(LinesWith(one_strip.output(), "the lens cannot be self-calibrated: "), 1) << one_strip.output();
+  EXPECT_FALSE(fs::exists(camera));
+  EXPECT_EQ(one_strip.output().find("registered 6 of 6"), std::string::npos) << "the survey ran after the refusal";
+
+  const std::string strips = FirstPhotos(kSeneca, 40, "strips");
+  const std::string unwritable = strips + "/no_such_folder/cam.yaml";
+  Subprocess cannot_write({BinPath("uav_mosaic_files"), "--self-calibrate", unwritable, "--out", out, strips});
+  EXPECT_EQ(cannot_write.WaitExit(600), 1) << cannot_write.output();
+  EXPECT_EQ(LinesWith(cannot_write.output(), "lens self-calibration: k1 "), 1) << cannot_write.output();
+  EXPECT_EQ(LinesWith(cannot_write.output(), "--self-calibrate: cannot write " + unwritable), 1)
+      << cannot_write.output();
+  EXPECT_FALSE(fs::exists(unwritable));
+  fs::remove_all(strip);
+  fs::remove_all(strips);
 }
 
 }  // namespace
