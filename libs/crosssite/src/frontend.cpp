@@ -1,11 +1,14 @@
 // The cross-site front end as a table of contents: CrossSiteFrontend::Run
-// calls the steps (internal/frontend_steps.h, one file each) in order over
-// one SitePairState, and times each under the name it reports in
-// FRONTEND_STATUS. The options' loading and checking live here too.
+// runs three phases (PredictOverlaps, MatchOverlaps, VerifyTiePoints), each
+// calling its steps (internal/frontend_steps.h, one file each) in order over
+// one SitePairState and timing each under the name it reports in
+// FRONTEND_STATUS; a phase that stops the pair says why. The options'
+// loading and checking live here too.
 #include "vloc/crosssite/frontend.h"
 
 #include <omp.h>
 
+#include <optional>
 #include <sstream>
 
 #include "vloc/common/options.h"
@@ -224,132 +227,169 @@ std::string MatchChain(const std::vector<StageReport>& stages) {
 
 }  // namespace
 
+namespace {
+
+// Where a pair's run stops early, and why (FRONTEND_STATUS's status and message).
+struct Stop {
+  FrontendStatus status;
+  std::string message;
+};
+
+// Paper 2.1 and additions (1)-(4): the images prepared, the ground under both sites, the overlaps the DR
+// predicts and the DR height aligned on the previous site's ground.
+std::optional<Stop> PredictOverlaps(const NavcamModel& navcam, const FrontendOptions& o, StageLog* stages,
+                                    SitePairState* state, TiePointSet* tps) {
+  SitePairState& s = *state;
+  stages->Step("prepare_images", [&] {
+    PrepareImages(navcam, o.vehicle, UsesBspline(o), o.num_threads, &s);
+    return static_cast<int>(2 * (s.previous.pairs.size() + s.current.pairs.size()));
+  });
+  stages->Step("ground_planes",
+               [&] { return FitGroundPlanes(navcam, *tps, o.ground, o.regions, o.stereo.zncc, o.num_threads, &s); });
+  if (o.regions.far_max_range > 0)
+    stages->Step("far_stereo",
+                 [&] { return MeasureFarTerrain(navcam, *tps, o.regions, o.stereo.zncc, o.num_threads, &s); });
+  stages->Step("region_prediction", [&] {
+    s.prediction = PredictRegions(navcam, s.previous.world_from_body, s.current.world_from_body,
+                                  tps->previous_pointing, tps->current_pointing, o.regions, s.ground_planes,
+                                  s.current_far);
+    return static_cast<int>(s.prediction.overlaps.size());
+  });
+  stages->Step("ground_alignment", [&] {
+    return AlignToPreviousGround(navcam, *tps, o.ground_alignment, o.ground, o.regions, o.stereo.zncc, o.num_threads,
+                                 &s);
+  });
+  if (s.prediction.overlaps.empty())
+    return Stop{FrontendStatus::kNoOverlap,
+                "no current image sees ground that a previous image sees within the range limits "
+                "(check the DR poses, mast pointing and regions.max_range_*)"};
+  return std::nullopt;
+}
+
+// Paper 2.2 up to the candidate matches: work regions (Wallis, zoom), ASIFT on the regions and on each forward
+// overlap's warp in one pool, then each forward overlap's matching and grid LSM in parallel, the backward
+// overlaps, and the matches on the rover's own body dropped.
+std::optional<Stop> MatchOverlaps(const NavcamModel& navcam, const FrontendOptions& o, StageLog* stages,
+                                  SitePairState* state, TiePointSet* tps) {
+  SitePairState& s = *state;
+  const bool warp_current = o.warp.warp_current;
+  stages->Step("region_wallis_zoom", [&] { return MakeWorkRegions(o.work_regions, warp_current, o.num_threads, &s); });
+  if (s.largest_region_std < o.work_regions.min_region_std) {
+    std::ostringstream os;
+    os << "the overlap regions are flat (largest grey-level std " << s.largest_region_std << " < min_region_std "
+       << o.work_regions.min_region_std << "): too little texture to match";
+    return Stop{FrontendStatus::kLowTexture, os.str()};
+  }
+  stages->Step("current_wallis", [&] {
+    ChooseOverlaps(o.work_regions, warp_current, o.num_threads, &s);
+    int n = 0;
+    for (const cv::Mat& m : s.current_filtered) n += m.empty() ? 0 : 1;
+    return n;
+  });
+  stages->Step("asift_and_warps",
+               [&] { return DescribeRegionsAndWarpOverlaps(o.features, o.warp, o.gate, o.num_threads, &s); });
+  stages->Step("overlap_matching", [&] {
+    ForEachForwardOverlap(s, o.num_threads, [&](int k) {
+      MatchOverlap(k, s.prediction.overlaps[k], s, o.overlap_matching, o.gate, warp_current, &s.overlaps[k]);
+    });
+    int n = 0;
+    for (const OverlapWork& w : s.overlaps) n += static_cast<int>(w.candidates.size());
+    return n;
+  });
+  stages->Step("overlap_grid_lsm", [&] {
+    int n = 0;
+    ForEachForwardOverlap(s, o.num_threads, [&](int k) {
+      const int refined = RefineOverlapOnGrid(o.grid, warp_current, &s.overlaps[k]);
+#pragma omp atomic
+      n += refined;
+    });
+    return n;
+  });
+  stages->Step("backward_matching", [&] {
+    int n = 0;
+    const BackwardMatchOptions backward = BackwardMatchOptions::Of(o);
+    for (size_t k = 0; k < s.prediction.overlaps.size(); ++k) {
+      if (!s.prediction.overlaps[k].backward) continue;
+      s.overlaps[k].candidates = MatchBackwardOverlap(static_cast<int>(k), navcam, *tps, s, backward);
+      n += static_cast<int>(s.overlaps[k].candidates.size());
+    }
+    return n;
+  });
+  for (OverlapWork& w : s.overlaps) s.candidates.insert(s.candidates.end(), w.candidates.begin(), w.candidates.end());
+  stages->Step("vehicle_mask", [&] {
+    DropVehicleCandidates(&s);
+    return static_cast<int>(s.candidates.size());
+  });
+  if (s.num_current_features < static_cast<size_t>(kMinCurrentFeatures))
+    return Stop{FrontendStatus::kLowTexture, "ASIFT found almost no features in the current regions (" +
+                                                 std::to_string(s.num_current_features) + "): too little texture"};
+  s.overlaps.clear();  // the warped images are no longer needed
+  return std::nullopt;
+}
+
+// Paper 2.2 from the candidates to the tie points: cross-site LSM (with warp_current the grid LSM refined the
+// forward matches: what it did not is dropped), stereo at both sites, the distance and motion consistency, and
+// the tie points checked against the DR.
+std::optional<Stop> VerifyTiePoints(const NavcamModel& navcam, const FrontendOptions& o, StageLog* stages,
+                                    SitePairState* state, TiePointSet* tps) {
+  SitePairState& s = *state;
+  stages->Step("cross_lsm_merge", [&] { return RefineCrossSite(o.cross_site, o.warp.warp_current, o.num_threads, &s); });
+  stages->Step("stereo_zncc", [&] { return CorrelateStereo(navcam, o.stereo, o.num_threads, &s); });
+  stages->Step("median_filter", [&] { return MedianFilterDisparities(o.stereo, &s); });
+  stages->Step("stereo_lsm", [&] { return RefineStereoAndIntersect(navcam, *tps, o.stereo, o.num_threads, &s); });
+  Verification v;
+  stages->Step("distance_consistency", [&] {
+    v = CheckConsistency(s.candidates, o.verification);
+    return v.num_consistent;
+  });
+  stages->Step("motion_consistency", [&] {
+    CheckMotion(s.candidates, o.verification, &v);
+    return v.num_kept;
+  });
+  MakeTiePoints(s.candidates, v, s.prediction, o.verification, tps);
+  std::optional<std::string> dr_problem;
+  stages->Step("dr_check", [&] {
+    RegionPrediction dr;  // the DR itself, not the ground-aligned prediction
+    dr.previous_from_current = s.dr_previous_from_current;
+    dr.relative_sigma = s.prediction.relative_sigma;
+    dr_problem = CheckAgainstDeadReckoning(dr, o.verification, tps);
+    return static_cast<int>(tps->points.size());
+  });
+  if (dr_problem) return Stop{FrontendStatus::kTooFewPoints, *dr_problem};
+  if (static_cast<int>(tps->points.size()) < o.min_tie_points) {
+    std::ostringstream os;
+    os << "only " << tps->points.size() << " verified tie points (need " << o.min_tie_points << "); "
+       << MatchChain(stages->stages());
+    return Stop{FrontendStatus::kTooFewPoints, os.str()};
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
 FrontendResult CrossSiteFrontend::Run(const SiteImages& previous, const SiteImages& current) const {
   FrontendResult result;
-  FrontendSummary& sum = result.summary;
-  TiePointSet& tps = result.tie_points;
-  const FrontendOptions& o = options_;
-  const NavcamModel& navcam = navcam_;
   StageLog stages(&result);
+  SitePairState s;
+  Stop stop{FrontendStatus::kOk, ""};
   try {
-    SitePairState s;
-    if (auto problem = CheckInput(previous, current, navcam, &s))
-      return stages.Finish(FrontendStatus::kMissingInput, *problem);
-    InitTiePointSet(s, &tps);
-    stages.Step("prepare_images", [&] {
-      PrepareImages(navcam, o.vehicle, UsesBspline(o), o.num_threads, &s);
-      return static_cast<int>(2 * (s.previous.pairs.size() + s.current.pairs.size()));
-    });
-    stages.Step("ground_planes",
-                [&] { return FitGroundPlanes(navcam, tps, o.ground, o.regions, o.stereo.zncc, o.num_threads, &s); });
-    if (o.regions.far_max_range > 0)
-      stages.Step("far_stereo", [&] { return MeasureFarTerrain(navcam, tps, o.regions, o.stereo.zncc, o.num_threads, &s); });
-    stages.Step("region_prediction", [&] {
-      s.prediction = PredictRegions(navcam, s.previous.world_from_body, s.current.world_from_body,
-                                    tps.previous_pointing, tps.current_pointing, o.regions, s.ground_planes,
-                                    s.current_far);
-      return static_cast<int>(s.prediction.overlaps.size());
-    });
-    stages.Step("ground_alignment", [&] {
-      return AlignToPreviousGround(navcam, tps, o.ground_alignment, o.ground, o.regions, o.stereo.zncc, o.num_threads,
-                                   &s);
-    });
-    sum.num_overlaps = static_cast<int>(s.prediction.overlaps.size());
-    if (s.prediction.overlaps.empty())
-      return stages.Finish(FrontendStatus::kNoOverlap,
-                    "no current image sees ground that a previous image sees within the range limits "
-                    "(check the DR poses, mast pointing and regions.max_range_*)");
-    const bool warp_current = o.warp.warp_current;
-    stages.Step("region_wallis_zoom", [&] { return MakeWorkRegions(o.work_regions, warp_current, o.num_threads, &s); });
-    if (s.largest_region_std < o.work_regions.min_region_std) {
-      std::ostringstream os;
-      os << "the overlap regions are flat (largest grey-level std " << s.largest_region_std << " < min_region_std "
-         << o.work_regions.min_region_std << "): too little texture to match";
-      return stages.Finish(FrontendStatus::kLowTexture, os.str());
-    }
-    stages.Step("current_wallis", [&] {
-      ChooseOverlaps(o.work_regions, warp_current, o.num_threads, &s);
-      int n = 0;
-      for (const cv::Mat& m : s.current_filtered) n += m.empty() ? 0 : 1;
-      return n;
-    });
-    // ASIFT on the regions and each forward overlap's warp and ASIFT, in one pool; then each forward overlap's
-    // steps over all of them in parallel.
-    stages.Step("asift_and_warps", [&] {
-      return DescribeRegionsAndWarpOverlaps(o.features, o.warp, o.gate, o.num_threads, &s);
-    });
-    stages.Step("overlap_matching", [&] {
-      ForEachForwardOverlap(s, o.num_threads, [&](int k) {
-        MatchOverlap(k, s.prediction.overlaps[k], s, o.overlap_matching, o.gate, warp_current, &s.overlaps[k]);
-      });
-      int n = 0;
-      for (const OverlapWork& w : s.overlaps) n += static_cast<int>(w.candidates.size());
-      return n;
-    });
-    stages.Step("overlap_grid_lsm", [&] {
-      int n = 0;
-      ForEachForwardOverlap(s, o.num_threads, [&](int k) {
-        const int refined = RefineOverlapOnGrid(o.grid, warp_current, &s.overlaps[k]);
-#pragma omp atomic
-        n += refined;
-      });
-      return n;
-    });
-    stages.Step("backward_matching", [&] {
-      int n = 0;
-      const BackwardMatchOptions backward = BackwardMatchOptions::Of(o);
-      for (size_t k = 0; k < s.prediction.overlaps.size(); ++k) {
-        if (!s.prediction.overlaps[k].backward) continue;
-        s.overlaps[k].candidates = MatchBackwardOverlap(static_cast<int>(k), navcam, tps, s, backward);
-        n += static_cast<int>(s.overlaps[k].candidates.size());
+    if (auto problem = CheckInput(previous, current, navcam_, &s)) {
+      stop = {FrontendStatus::kMissingInput, *problem};
+    } else {
+      InitTiePointSet(s, &result.tie_points);
+      for (const auto phase : {PredictOverlaps, MatchOverlaps, VerifyTiePoints}) {
+        if (std::optional<Stop> early = phase(navcam_, options_, &stages, &s, &result.tie_points)) {
+          stop = *early;
+          break;
+        }
       }
-      return n;
-    });
-    for (OverlapWork& w : s.overlaps) s.candidates.insert(s.candidates.end(), w.candidates.begin(), w.candidates.end());
-    stages.Step("vehicle_mask", [&] {
-      DropVehicleCandidates(&s);
-      return static_cast<int>(s.candidates.size());
-    });
-    if (s.num_current_features < static_cast<size_t>(kMinCurrentFeatures))
-      return stages.Finish(FrontendStatus::kLowTexture, "ASIFT found almost no features in the current regions (" +
-                                                     std::to_string(s.num_current_features) + "): too little texture");
-    s.overlaps.clear();  // the warped images are no longer needed
-
-    // With warp_current the grid LSM refined the forward matches: what it did not is dropped.
-    stages.Step("cross_lsm_merge", [&] { return RefineCrossSite(o.cross_site, warp_current, o.num_threads, &s); });
-    stages.Step("stereo_zncc", [&] { return CorrelateStereo(navcam, o.stereo, o.num_threads, &s); });
-    stages.Step("median_filter", [&] { return MedianFilterDisparities(o.stereo, &s); });
-    stages.Step("stereo_lsm", [&] { return RefineStereoAndIntersect(navcam, tps, o.stereo, o.num_threads, &s); });
-    Verification v;
-    stages.Step("distance_consistency", [&] {
-      v = CheckConsistency(s.candidates, o.verification);
-      return v.num_consistent;
-    });
-    stages.Step("motion_consistency", [&] {
-      CheckMotion(s.candidates, o.verification, &v);
-      return v.num_kept;
-    });
-    MakeTiePoints(s.candidates, v, s.prediction, o.verification, &tps);
-    std::optional<std::string> dr_problem;
-    stages.Step("dr_check", [&] {
-      RegionPrediction dr;  // the DR itself, not the ground-aligned prediction
-      dr.previous_from_current = s.dr_previous_from_current;
-      dr.relative_sigma = s.prediction.relative_sigma;
-      dr_problem = CheckAgainstDeadReckoning(dr, o.verification, &tps);
-      return static_cast<int>(tps.points.size());
-    });
-    if (dr_problem) return stages.Finish(FrontendStatus::kTooFewPoints, *dr_problem);
-    if (static_cast<int>(tps.points.size()) < o.min_tie_points) {
-      std::ostringstream os;
-      os << "only " << tps.points.size() << " verified tie points (need " << o.min_tie_points << ")";
-      os << "; " << MatchChain(result.summary.stages);
-      return stages.Finish(FrontendStatus::kTooFewPoints, os.str());
     }
-    return stages.Finish(FrontendStatus::kOk, "");
   } catch (const std::exception& e) {
-    tps.points.clear();
-    return stages.Finish(FrontendStatus::kError, std::string("internal error: ") + e.what());
+    result.tie_points.points.clear();
+    stop = {FrontendStatus::kError, std::string("internal error: ") + e.what()};
   }
+  result.summary.num_overlaps = static_cast<int>(s.prediction.overlaps.size());
+  return stages.Finish(stop.status, stop.message);
 }
 
 }  // namespace vloc

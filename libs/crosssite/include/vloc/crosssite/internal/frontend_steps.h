@@ -147,6 +147,7 @@ class StageLog {
     sum.num_tie_points = static_cast<int>(result_->tie_points.points.size());
     return *result_;
   }
+  const std::vector<StageReport>& stages() const { return result_->summary.stages; }
 
  private:
   FrontendResult* result_;
