@@ -605,7 +605,6 @@ void RefinePixels(const LsmImages& im, const DenseStereoOptions& o, const std::v
   }
 }
 
-
 struct LsmPassCounts {
   long matched = 0, iterations = 0, from_lattice = 0;
 };
