@@ -20,24 +20,36 @@ import sys
 import numpy as np
 
 
+USAGE = "usage: scripts/heights_vs_ground.py REPORT.tsv (a uav_mosaic_files --report)"
+NEED = ("status", "height_m", "gps_height_m", "gps_east_m", "gps_north_m")
+
+
+def read_report(path):
+    """The report's rows, or exits with one line naming the problem."""
+    try:
+        with open(path, newline="") as f:
+            rows = list(csv.DictReader(f, delimiter="\t"))
+    except OSError as e:
+        sys.exit(f"heights_vs_ground.py: {path}: {e.strerror}")
+    except (UnicodeDecodeError, csv.Error) as e:
+        sys.exit(f"heights_vs_ground.py: {path}: not a text report ({e.__class__.__name__})")
+    if not rows or any(k not in rows[0] for k in NEED):
+        sys.exit(f"heights_vs_ground.py: {path}: not a uav_mosaic_files report (needs columns {', '.join(NEED)})")
+    return rows
+
+
+def value(row, key):
+    try:
+        return float(row[key])
+    except (TypeError, ValueError):  # a short row (None) or a word
+        return float("nan")
+
+
 def main():
     if len(sys.argv) != 2:
-        sys.exit(__doc__)
-    try:
-        rows = list(csv.DictReader(open(sys.argv[1]), delimiter="\t"))
-    except OSError as e:
-        sys.exit(f"heights_vs_ground.py: {sys.argv[1]}: {e.strerror}")
-    need = ("status", "height_m", "gps_height_m", "gps_east_m", "gps_north_m")
-    if not rows or any(k not in rows[0] for k in need):
-        sys.exit(f"heights_vs_ground.py: {sys.argv[1]}: not a uav_mosaic_files report (needs columns {', '.join(need)})")
-
-    def value(row, key):
-        try:
-            return float(row[key])
-        except ValueError:
-            return float("nan")
-
-    data = np.array([[value(r, k) for k in need[1:]] for r in rows if r["status"] != "LOST"])
+        sys.exit(USAGE)
+    rows = read_report(sys.argv[1])
+    data = np.array([[value(r, k) for k in NEED[1:]] for r in rows if r["status"] != "LOST"]).reshape(-1, 4)
     data = data[np.all(np.isfinite(data), axis=1)]
     if len(data) < 10:
         sys.exit(f"heights_vs_ground.py: {sys.argv[1]}: only {len(data)} registered photos with a height and GPS")

@@ -46,6 +46,7 @@
 // argument or config, an output not writable, or an error (one line).
 #include <glog/logging.h>
 #include <opencv2/imgcodecs.hpp>
+#include <unistd.h>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -204,7 +205,27 @@ bool SurveyOptionsFrom(const vloc::CommandLine& args, vm::SurveyOptions* o) {
 
 // --self-calibrate CAMERA.yaml: a first run over the photos finds the lens's k1 from the height ties
 // (lens_search.h); the camera is written to CAMERA.yaml and the survey runs with it. False with one line on stderr.
+// Whether `path` can be written without writing it: its folder exists and
+// is writable, and so is the file if it exists (`why` says which not).
+bool CanWrite(const std::string& path, std::string* why) {
+  namespace fs = std::filesystem;
+  const fs::path file(path), folder = file.has_parent_path() ? file.parent_path() : fs::path(".");
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) {
+    *why = "no folder " + folder.string();
+    return false;
+  }
+  const bool writable = fs::exists(file, ec) ? ::access(path.c_str(), W_OK) == 0 : ::access(folder.c_str(), W_OK) == 0;
+  if (!writable) *why = "not writable";
+  return writable;
+}
+
 bool SelfCalibrate(const std::string& camera_path, const std::vector<std::string>& photos, vm::SurveyOptions* o) {
+  std::string why;
+  if (!CanWrite(camera_path, &why)) {  // before the first run, not after it
+    std::cerr << "uav_mosaic_files: --self-calibrate: cannot write " << camera_path << " (" << why << ")\n";
+    return false;
+  }
   std::cout << "lens self-calibration: a first run over the " << photos.size() << " photos\n";
   vloc::PinholeCamera camera;
   vm::LensSearch search;

@@ -233,7 +233,7 @@ int Run(int argc, char** argv) {
   std::cout << "lsm_sigma_median_px: " << summary.median_sigma_px << "\n";
   std::cout << "lsm_mean_iterations: " << summary.lsm_mean_iterations << "\n";
   if (o.lsm_lattice > 1)
-    std::cout << "lsm_from_lattice: " << summary.lsm_from_lattice << "  # of lsm_matches, from the lattice's planes\n";
+    std::cout << "lsm_from_lattice: " << summary.lsm_from_lattice << "  # from the lattice's planes, before the LSM median test\n";
   std::cout << "scale: " << (pfm ? 1.0 : 1.0 / 256.0) << "  # disparity = value * scale\n";
   std::cout << "seconds: " << summary.total_seconds << "  # zncc " << summary.zncc_seconds << ", median "
             << summary.median_seconds << ", lsm " << summary.lsm_seconds << "\n";

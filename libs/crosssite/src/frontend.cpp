@@ -225,10 +225,6 @@ std::string MatchChain(const std::vector<StageReport>& stages) {
   return os.str();
 }
 
-}  // namespace
-
-namespace {
-
 // Where a pair's run stops early, and why (FRONTEND_STATUS's status and message).
 struct Stop {
   FrontendStatus status;

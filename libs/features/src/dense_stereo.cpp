@@ -629,8 +629,10 @@ struct LatticeResults {
 };
 
 // A point's disparity, sigma and plane from the planes of the refined
-// points at the corners of its cell of side `k`: false when fewer than
-// lsm_lattice_min_corners were accepted, one was rejected, or their
+// points at the corners of its cell of side `k` (tent weights: the nearer
+// a corner, the more it counts): false when a corner inside the grid has no
+// ZNCC match or was rejected by LSM, when fewer than lsm_lattice_min_corners
+// were accepted (the grid's last row and column lack some), or when their
 // predictions spread wider than lsm_lattice_agree_px or leave
 // lsm_max_shift_px of the point's ZNCC disparity.
 bool FromLattice(const LatticeResults& lat, const DenseStereoOptions& o, int k, int gx, int gy, float zncc,
@@ -641,12 +643,13 @@ bool FromLattice(const LatticeResults& lat, const DenseStereoOptions& o, int k, 
   int used = 0;
   for (const int cy : {y0, y0 + k}) {
     for (const int cx : {x0, x0 + k}) {
-      if (cx >= lat.d.cols || cy >= lat.d.rows || !lat.done.at<uchar>(cy, cx)) continue;
+      if (cx >= lat.d.cols || cy >= lat.d.rows) continue;  // past the grid's last row or column
+      if (!lat.done.at<uchar>(cy, cx)) return false;       // no ZNCC match there: an occlusion, no texture
       const float dc = lat.d.at<float>(cy, cx);
-      if (!std::isfinite(dc)) return false;  // rejected next to it: an edge or an occlusion
+      if (!std::isfinite(dc)) return false;                // rejected by LSM: an edge
       const double ddx = lat.ddx.at<float>(cy, cx), ddy = lat.ddy.at<float>(cy, cx);
       const double p = dc + (ddx * (gx - cx) + ddy * (gy - cy)) * o.step;
-      const double w = (k - std::abs(gx - cx) + 0.5) * (k - std::abs(gy - cy) + 0.5);  // bilinear, never 0
+      const double w = (k - std::abs(gx - cx) + 0.5) * (k - std::abs(gy - cy) + 0.5);  // tent, never 0
       lo = std::min(lo, p), hi = std::max(hi, p), sum += w * p, weights += w, ++used;
       sdx += w * ddx, sdy += w * ddy;
       worst = std::max(worst, lat.sigma.at<float>(cy, cx));

@@ -68,17 +68,18 @@ struct DenseStereoOptions {
   double lsm_max_sigma_px = 0.2;   // px, reject disparities less precise than this (1 sigma)
   double lsm_median_tolerance = 0; // px, the median test again on the LSM disparities (0 = off)
   double lsm_back_check_px = 0;    // px, LSM from the right image back into the left must agree (0 = off)
-  // LSM on a coarser lattice: every lsm_lattice-th grid point of every
-  // lsm_lattice-th row is refined; then, level by level (the stride halved
-  // while even, then 1), a point of the finer lattice takes the disparity
-  // planes of its coarser cell's corners (their LSM windows hold most of
-  // its own) when at least lsm_lattice_min_corners of them were accepted,
-  // none was rejected and their predictions agree within
-  // lsm_lattice_agree_px; else it runs LSM itself (depth edges,
-  // occlusions). 1 = every point.
+  // LSM on a coarser lattice (grid points): every lsm_lattice-th point of
+  // every lsm_lattice-th row is refined; then, level by level (the stride
+  // halved while even, then 1), a point of the finer lattice takes the
+  // mean of the disparity planes of its coarser cell's refined corners,
+  // weighted by nearness (the nearest LSM windows hold most of its own),
+  // when enough were accepted, none was rejected by LSM or had no ZNCC
+  // match, and their predictions agree; else it runs LSM itself (depth
+  // edges, occlusions). A point from the planes skips lsm_back_check_px
+  // and takes its corners' largest sigma. 1 = every point (the paper's).
   int lsm_lattice = 1;
-  int lsm_lattice_min_corners = 3;
-  double lsm_lattice_agree_px = 0.2;  // px
+  int lsm_lattice_min_corners = 3;    // accepted corners a point from the planes needs (of 4)
+  double lsm_lattice_agree_px = 0.2;  // px, largest spread of the corners' predictions
   int num_threads = 2;             // OpenMP threads over rows
 
   void Visit(OptionsReader& reader);
@@ -93,7 +94,8 @@ struct DenseStereoSummary {
   long zncc_matches = 0;          // unique ZNCC peaks passing the left-right check
   long after_median = 0;          // ... and the median test
   long lsm_matches = 0;           // ... and LSM (the output when lsm_enabled)
-  long lsm_from_lattice = 0;      // of them, taken from the lattice's disparity planes (lsm_lattice > 1)
+  long lsm_from_lattice = 0;      // points taken from the lattice's planes (lsm_lattice > 1), before
+                                  // the LSM median test (lsm_median_tolerance)
   double median_sigma_px = 0;     // median LSM 1-sigma disparity precision
   double lsm_mean_iterations = 0; // Gauss-Newton iterations per accepted LSM match
   double zncc_seconds = 0, median_seconds = 0, lsm_seconds = 0, total_seconds = 0;
