@@ -628,15 +628,16 @@ struct LatticeResults {
   cv::Mat d, sigma, ddx, ddy, done;  // grid-sized; done: CV_8U
 };
 
-// A point's disparity, sigma and plane from the planes of the refined
-// points at the corners of its cell of side `k` (tent weights: the nearer
-// a corner, the more it counts): false when a corner inside the grid has no
-// ZNCC match or was rejected by LSM, when fewer than lsm_lattice_min_corners
-// were accepted (the grid's last row and column lack some), or when their
-// predictions spread wider than lsm_lattice_agree_px or leave
-// lsm_max_shift_px of the point's ZNCC disparity.
-bool FromLattice(const LatticeResults& lat, const DenseStereoOptions& o, int k, int gx, int gy, float zncc,
-                 LatticeResults* out) {
+// A point's disparity, sigma and plane (written into `lattice`, the point
+// then refined) from the planes of the refined points at the corners of its
+// cell of side `k` (tent weights: the nearer a corner, the more it counts):
+// false when a corner inside the grid has no ZNCC match or was rejected by
+// LSM, when fewer than lsm_lattice_min_corners were accepted (the grid's
+// last row and column lack some), or when their predictions spread wider
+// than lsm_lattice_agree_px or leave lsm_max_shift_px of the point's ZNCC
+// disparity.
+bool FromLattice(const DenseStereoOptions& o, int k, int gx, int gy, float zncc, LatticeResults* lattice) {
+  LatticeResults& lat = *lattice;
   const int x0 = gx - gx % k, y0 = gy - gy % k;
   double lo = std::numeric_limits<double>::infinity(), hi = -lo, sum = 0, weights = 0, sdx = 0, sdy = 0;
   float worst = 0;
@@ -658,10 +659,11 @@ bool FromLattice(const LatticeResults& lat, const DenseStereoOptions& o, int k, 
   if (used < o.lsm_lattice_min_corners || hi - lo > o.lsm_lattice_agree_px) return false;
   const double mean = sum / weights;
   if (std::abs(mean - zncc) > o.lsm_max_shift_px) return false;
-  out->d.at<float>(gy, gx) = static_cast<float>(mean);
-  out->sigma.at<float>(gy, gx) = worst;
-  out->ddx.at<float>(gy, gx) = static_cast<float>(sdx / weights);
-  out->ddy.at<float>(gy, gx) = static_cast<float>(sdy / weights);
+  lat.d.at<float>(gy, gx) = static_cast<float>(mean);
+  lat.sigma.at<float>(gy, gx) = worst;
+  lat.ddx.at<float>(gy, gx) = static_cast<float>(sdx / weights);
+  lat.ddy.at<float>(gy, gx) = static_cast<float>(sdy / weights);
+  lat.done.at<uchar>(gy, gx) = 1;
   return true;
 }
 
@@ -699,8 +701,7 @@ LsmPassCounts RefineDisparities(const LsmImages& images, const DenseStereoOption
             if (!std::isfinite(row[gx]) || !OnLattice(gx, gy, stride)) continue;
             if (level > 0) {
               if (OnLattice(gx, gy, coarser)) continue;
-              if (FromLattice(lat, o, coarser, gx, gy, row[gx], &lat)) {
-                lat.done.at<uchar>(gy, gx) = 1;
+              if (FromLattice(o, coarser, gx, gy, row[gx], &lat)) {
                 ++matched, ++from_lattice;
                 continue;
               }
