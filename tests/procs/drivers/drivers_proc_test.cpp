@@ -25,6 +25,7 @@ namespace vloc {
 namespace {
 
 using testing::BinPath;
+using testing::CountOccurrences;
 using testing::Subprocess;
 
 // The messages of an LCM log, per channel, in order.
@@ -44,12 +45,6 @@ Msg DecodeOrFail(const std::vector<uint8_t>& bytes) {
   Msg msg;
   EXPECT_TRUE(Decode(bytes.data(), bytes.size(), &msg));
   return msg;
-}
-
-int CountLines(const std::string& output, const std::string& text) {
-  int n = 0;
-  for (size_t pos = output.find(text); pos != std::string::npos; pos = output.find(text, pos + 1)) ++n;
-  return n;
 }
 
 std::string FileUrl(const std::string& log) { return "file://" + log + "?mode=w"; }
@@ -77,10 +72,10 @@ TEST(NavcamDriver, PublishesTheGoodPairsWithSiteEventsAndNamesTheBadRows) {
                      "--speed", "0", "--lcm-url", FileUrl(log)});
   ASSERT_EQ(driver.WaitExit(60), 0) << driver.output();
   const std::string& out = driver.output();
-  EXPECT_EQ(CountLines(out, "tilt 120.000000 out of range"), 1) << out;
-  EXPECT_EQ(CountLines(out, "site1/R2.png missing; row skipped"), 1) << out;
-  EXPECT_EQ(CountLines(out, "row 7: missing 'time'"), 1) << out;
-  EXPECT_EQ(CountLines(out, "site 0 pair 2: left image"), 1) << out;
+  EXPECT_EQ(CountOccurrences(out, "tilt 120.000000 out of range"), 1) << out;
+  EXPECT_EQ(CountOccurrences(out, "site1/R2.png missing; row skipped"), 1) << out;
+  EXPECT_EQ(CountOccurrences(out, "row 7: missing 'time'"), 1) << out;
+  EXPECT_EQ(CountOccurrences(out, "site 0 pair 2: left image"), 1) << out;
   EXPECT_NE(out.find("2 sites, 3 pairs published, 4 skipped"), std::string::npos) << out;
 
   auto messages = ReadLog(log);
@@ -145,7 +140,7 @@ TEST(NavcamDriver, APairIndexBeyondTheSiteIsRefusedNamingItsManifestLine) {
   Subprocess driver({BinPath("navcam_driver"), "--manifest", dir + "/manifest.yaml", "--speed", "0", "--lcm-url",
                      FileUrl(log)});
   ASSERT_EQ(driver.WaitExit(60), 0) << driver.output();
-  EXPECT_EQ(CountLines(driver.output(), "manifest.yaml line 7, row 6 (site 0 pair 99): pair index 99 is not below "
+  EXPECT_EQ(CountOccurrences(driver.output(), "manifest.yaml line 7, row 6 (site 0 pair 99): pair index 99 is not below "
                                         "num_pairs 6"),
             1)
       << driver.output();
@@ -162,7 +157,7 @@ TEST(NavcamDriver, APairIndexBeyondTheSiteIsRefusedNamingItsManifestLine) {
 TEST(NavcamDriver, MissingManifestStopsWithOneLine) {
   Subprocess driver({BinPath("navcam_driver"), "--manifest", "/nonexistent/m.yaml", "--lcm-url", "memq://"});
   EXPECT_EQ(driver.WaitExit(30), 1);
-  EXPECT_EQ(CountLines(driver.output(), "/nonexistent/m.yaml cannot be read"), 1) << driver.output();
+  EXPECT_EQ(CountOccurrences(driver.output(), "/nonexistent/m.yaml cannot be read"), 1) << driver.output();
 }
 
 // Issue 33: a folder of PDS3 products, no manifest (procs/navcam_driver/
@@ -191,8 +186,8 @@ TEST(NavcamDriver, PdsFolderWithoutManifestOverRealLcm) {
   ASSERT_TRUE(code.has_value()) << driver.output();
   ASSERT_EQ(*code, 0) << driver.output();
   const std::string& out = driver.output();
-  for (const std::string& problem : testing::kPdsFixtureProblems) EXPECT_EQ(CountLines(out, problem), 1) << problem << "\n" << out;
-  EXPECT_EQ(CountLines(out, "PDS site 0: SITE 3 DRIVE 10 (sol 100): 2 stereo pair(s) of 5 frame(s)"), 1) << out;
+  for (const std::string& problem : testing::kPdsFixtureProblems) EXPECT_EQ(CountOccurrences(out, problem), 1) << problem << "\n" << out;
+  EXPECT_EQ(CountOccurrences(out, "PDS site 0: SITE 3 DRIVE 10 (sol 100): 2 stereo pair(s) of 5 frame(s)"), 1) << out;
   EXPECT_NE(out.find("2 sites, 4 pairs published, 9 skipped"), std::string::npos) << out;
 
   ASSERT_EQ(stereo.size(), 4u) << out;
@@ -274,9 +269,9 @@ TEST(ImuOdometryDriver, PublishesTheGoodSamplesOverRealLcm) {
   EXPECT_EQ(wheel[3].utime, 10080000);
   EXPECT_NEAR(wheel[3].distance, 0.004, 1e-12);
   const std::string& out = driver.output();
-  EXPECT_EQ(CountLines(out, "column 'gx' value 'abc' is not a number; row skipped"), 1) << out;
-  EXPECT_EQ(CountLines(out, "column 'gz' = 50 rad/s out of range"), 1) << out;
-  EXPECT_EQ(CountLines(out, "column 'speed' = 99 m/s out of range"), 1) << out;
+  EXPECT_EQ(CountOccurrences(out, "column 'gx' value 'abc' is not a number; row skipped"), 1) << out;
+  EXPECT_EQ(CountOccurrences(out, "column 'gz' = 50 rad/s out of range"), 1) << out;
+  EXPECT_EQ(CountOccurrences(out, "column 'speed' = 99 m/s out of range"), 1) << out;
   std::filesystem::remove_all(dir);
 }
 
@@ -288,8 +283,8 @@ TEST(UavVideoDriver, PublishesFramesAndTelemetryInTimeOrder) {
                      "--telemetry", telemetry, "--fps", "5", "--speed", "0", "--lcm-url", FileUrl(log)});
   ASSERT_EQ(driver.WaitExit(60), 0) << driver.output();
   const std::string& out = driver.output();
-  EXPECT_EQ(CountLines(out, "frame_2.png cannot be decoded"), 1) << out;
-  EXPECT_EQ(CountLines(out, "column 'latitude' = 95.0 out of range"), 1) << out;
+  EXPECT_EQ(CountOccurrences(out, "frame_2.png cannot be decoded"), 1) << out;
+  EXPECT_EQ(CountOccurrences(out, "column 'latitude' = 95.0 out of range"), 1) << out;
   // Read back in log order: GPS and frames interleaved by time.
   lcm::LogFile file(log, "r");
   ASSERT_TRUE(file.good());
@@ -327,7 +322,7 @@ TEST(UavVideoDriver, PublishesFramesAndTelemetryInTimeOrder) {
 TEST(UavVideoDriver, MissingVideoStopsWithOneLine) {
   Subprocess driver({BinPath("uav_video_driver"), "--video", "/nonexistent/flight.mp4", "--lcm-url", "memq://"});
   EXPECT_EQ(driver.WaitExit(30), 1);
-  EXPECT_EQ(CountLines(driver.output(), "video /nonexistent/flight.mp4 missing"), 1) << driver.output();
+  EXPECT_EQ(CountOccurrences(driver.output(), "video /nonexistent/flight.mp4 missing"), 1) << driver.output();
 }
 
 }  // namespace

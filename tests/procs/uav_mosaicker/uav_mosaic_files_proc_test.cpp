@@ -8,7 +8,6 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -18,6 +17,7 @@ namespace vloc {
 namespace {
 
 using testing::BinPath;
+using testing::CountOccurrences;
 using testing::Subprocess;
 
 const char* kSeneca = "../shared/data/real/uav_seneca/images";
@@ -64,14 +64,6 @@ TEST(UavMosaicFiles, AFolderAloneGetsTheStillsSettings) {
   std::filesystem::remove_all(folder);
 }
 
-// Lines of `output` holding `text`.
-int LinesWith(const std::string& output, const std::string& text) {
-  std::istringstream in(output);
-  int n = 0;
-  for (std::string line; std::getline(in, line);) n += line.find(text) != std::string::npos;
-  return n;
-}
-
 // --self-calibrate's refusals, each one line naming the problem, exit 1 and
 // no camera file: with --split (two views have no height ties); a survey
 // of one strip (its links chain the heights exactly: no tie to disagree,
@@ -90,19 +82,19 @@ TEST(UavMosaicFiles, SelfCalibrateRefusesInOneLine) {
 
   Subprocess split({BinPath("uav_mosaic_files"), "--split", "--self-calibrate", camera, "--out", out, photos[0]});
   EXPECT_EQ(split.WaitExit(60), 1) << split.output();
-  EXPECT_EQ(LinesWith(split.output(), "--self-calibrate needs a survey"), 1) << split.output();
+  EXPECT_EQ(CountOccurrences(split.output(), "--self-calibrate needs a survey"), 1) << split.output();
 
   Subprocess one_strip({BinPath("uav_mosaic_files"), "--self-calibrate", camera, "--out", out, strip});
   EXPECT_EQ(one_strip.WaitExit(300), 1) << one_strip.output();
-  EXPECT_EQ(LinesWith(one_strip.output(), "the lens cannot be self-calibrated: "), 1) << one_strip.output();
-  EXPECT_EQ(LinesWith(one_strip.output(), "registered "), 0) << "the survey ran after the refusal";
+  EXPECT_EQ(CountOccurrences(one_strip.output(), "the lens cannot be self-calibrated: "), 1) << one_strip.output();
+  EXPECT_EQ(CountOccurrences(one_strip.output(), "registered "), 0) << "the survey ran after the refusal";
 
   const std::string unwritable = strip + "/no_such_folder/cam.yaml";
   Subprocess cannot_write({BinPath("uav_mosaic_files"), "--self-calibrate", unwritable, "--out", out, strip});
   EXPECT_EQ(cannot_write.WaitExit(60), 1) << cannot_write.output();
-  EXPECT_EQ(LinesWith(cannot_write.output(), "--self-calibrate: cannot write " + unwritable), 1)
+  EXPECT_EQ(CountOccurrences(cannot_write.output(), "--self-calibrate: cannot write " + unwritable), 1)
       << cannot_write.output();
-  EXPECT_EQ(LinesWith(cannot_write.output(), "lens self-calibration: a first run"), 0) << "refused after the run";
+  EXPECT_EQ(CountOccurrences(cannot_write.output(), "lens self-calibration: a first run"), 0) << "refused after the run";
   EXPECT_FALSE(fs::exists(camera));
   EXPECT_FALSE(fs::exists(unwritable));
   fs::remove_all(strip);

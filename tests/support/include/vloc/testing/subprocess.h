@@ -40,6 +40,14 @@ inline std::vector<std::string> ErrorLines(const std::string& output) {
   return lines;
 }
 
+// How many times `text` occurs in a process's output (a message said once
+// is one line naming it).
+inline int CountOccurrences(const std::string& output, const std::string& text) {
+  int n = 0;
+  for (size_t pos = output.find(text); pos != std::string::npos; pos = output.find(text, pos + 1)) ++n;
+  return n;
+}
+
 // A field of a running process's /proc/<pid>/status in MB (VmRSS: resident
 // now, VmHWM: peak); -1 if there is none.
 inline double ProcStatusMb(pid_t pid, const std::string& field) {
