@@ -14,7 +14,8 @@
 //   and sky coverage, errors at SIFT check points.
 // Each pair with the default options, the photograph settings
 // (config/stereo_photo.yaml: depth edges) and the JPEG settings
-// (config/stereo_jpeg.yaml: compressed images, weak texture).
+// (config/stereo_jpeg.yaml: compressed images, weak texture); each stage's
+// seconds and counts as counters.
 //   build/bench/bench_matching --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
 // (2 threads for both sides; skips with a message when opencv-doc or python3-skimage is absent)
 #include <benchmark/benchmark.h>
@@ -108,6 +109,18 @@ void SetStereoCounters(benchmark::State& state, const StereoCase& c, const cv::M
   state.counters["both_median_gt+0.25"] = o.median_abs;
 }
 
+// Each stage's seconds and what it kept: the points the ZNCC and median
+// tests keep (after_median), those taken from the LSM lattice's planes
+// (from_lattice; the rest ran LSM) and the output (lsm_matches).
+void SetStageCounters(benchmark::State& state, const vloc::DenseStereoSummary& s) {
+  state.counters["zncc_s"] = s.zncc_seconds;
+  state.counters["median_s"] = s.median_seconds;
+  state.counters["lsm_s"] = s.lsm_seconds;
+  state.counters["after_median"] = static_cast<double>(s.after_median);
+  state.counters["from_lattice"] = static_cast<double>(s.lsm_from_lattice);
+  state.counters["lsm_matches"] = static_cast<double>(s.lsm_matches);
+}
+
 void StereoSgbm(benchmark::State& state, StereoCase& c) {
   if (!c.pair.ok) return state.SkipWithError(("missing " + c.pair.missing).c_str());
   cv::setNumThreads(kThreads);
@@ -131,8 +144,7 @@ void StereoVloc(benchmark::State& state, StereoCase& c, const char* options_file
   vloc::DenseStereoSummary s;
   for (auto _ : state) c.vloc = vloc::DenseStereo(c.pair.left, c.pair.right, o, &s);
   SetStereoCounters(state, c, c.vloc, c.sgbm);
-  state.counters["zncc_s"] = s.zncc_seconds;
-  state.counters["lsm_s"] = s.lsm_seconds;
+  SetStageCounters(state, s);
 }
 
 // Per pair: SGBM first, vloc (scored on both), SGBM again (scored on both).
@@ -190,13 +202,14 @@ void NavcamVloc(benchmark::State& state, NavcamCase& c, const char* options_file
   vloc::DenseStereoSummary summary;
   for (auto _ : state) c.vloc = vloc::DenseStereo(c.pair.left, c.pair.right, o, &summary);
   SetSparseCounters(state, c, c.vloc, c.sgbm);
-  state.counters["zncc_s"] = summary.zncc_seconds;
-  state.counters["lsm_s"] = summary.lsm_seconds;
+  SetStageCounters(state, summary);
 }
 
 BENCHMARK_CAPTURE(NavcamSgbm, Navcam_OpenCV_SGBM, Navcam())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(NavcamVloc, Navcam_Vloc, Navcam(), nullptr)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(NavcamSgbm, Navcam_OpenCV_SGBM_checked_on_both, Navcam())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(NavcamVloc, Navcam_Vloc_photo, Navcam(), kPhoto)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(NavcamSgbm, Navcam_OpenCV_SGBM_checked_on_both_photo, Navcam())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(NavcamVloc, Navcam_Vloc_jpeg, Navcam(), kJpeg)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(NavcamSgbm, Navcam_OpenCV_SGBM_checked_on_both_jpeg, Navcam())->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 
