@@ -4,7 +4,8 @@
 //   uav_mosaic_files [--config config/procs/uav_mosaic_files.yaml] [--calibration CAMERA.yaml]
 //                    [--focal F] [--height H] [--no-gps] [--drop-gps A-B]
 //                    [--geotiff OUT.tif] [--geojson OUT.geojson] [--report OUT.tsv] [--reference ORTHO.jpg]
-//                    [--self-calibrate CAMERA_OUT.yaml] --out out/mosaic.png (FOLDER | IMAGE...)
+//                    [--height-reference HEIGHTS.tsv] [--self-calibrate CAMERA_OUT.yaml]
+//                    --out out/mosaic.png (FOLDER | IMAGE...)
 // The survey itself runs in vloc::mosaic::SurveyRunner (survey_runner.h);
 // this tool parses the arguments and calls its steps. Settings: --config,
 // else the stills settings config/procs/uav_mosaic_files.yaml of the source
@@ -21,7 +22,10 @@
 // of frames A..B (0-based): a simulated GPS drop-out, held out of the fit.
 // A photo tagged with the previous photo's fix (same GPS time) gets no GPS.
 // --reference compares the route and the GPS with a reference orthomosaic
-// of the same flight made by another tool (e.g. OpenDroneMap's).
+// of the same flight made by another tool (e.g. OpenDroneMap's);
+// --height-reference the heights and the altitude tags with another tool's
+// heights above the ground (scripts/survey_reference.py: COLMAP), read and
+// checked before the run.
 // --self-calibrate CAMERA_OUT.yaml: for a camera without a calibration, a
 // first run finds the lens's radial distortion k1 from the height ties (the
 // k1 under which they agree best, lens_search.h; no GPS used), writes the
@@ -170,7 +174,8 @@ bool WritePreview(const std::string& mosaic_path, const std::string& preview_pat
 const char* kUsage =
     "usage: uav_mosaic_files [--config config/procs/uav_mosaic_files.yaml] [--calibration CAMERA.yaml] "
     "[--focal F] [--height H] [--no-gps] [--drop-gps A-B] [--gps-sigma M] [--geotiff OUT.tif] "
-    "[--geojson OUT.geojson] [--report OUT.tsv] [--reference ORTHO.jpg] [--preview P.png --preview-side N] "
+    "[--geojson OUT.geojson] [--report OUT.tsv] [--reference ORTHO.jpg] [--height-reference HEIGHTS.tsv] "
+    "[--preview P.png --preview-side N] "
     "[--no-oblique] [--self-calibrate CAMERA_OUT.yaml] --out OUT.png (FOLDER | IMAGE IMAGE...)\n"
     "       uav_mosaic_files --split [--angle DEG] [--zoom Z] --out OUT.png IMAGE\n";
 
@@ -252,7 +257,7 @@ int Run(int argc, char** argv) {
   if (!args.Parse(argc, argv,
                   {"config", "calibration", "height", "focal", "out", "help", "split", "angle", "zoom", "preview",
                    "preview-side", "no-oblique", "no-gps", "drop-gps", "geotiff", "geojson", "report", "gps-sigma",
-                   "reference", "self-calibrate"},
+                   "reference", "height-reference", "self-calibrate"},
                   &error) ||
       args.Has("help") || args.positional().empty() || !args.Has("out")) {
     std::cerr << (error.empty() ? "" : "uav_mosaic_files: " + error + "\n") << kUsage;
@@ -272,6 +277,12 @@ int Run(int argc, char** argv) {
   }
   vm::SurveyOptions options;
   if (!SurveyOptionsFrom(args, &options)) return 1;
+  vm::SurveyReferences references;
+  references.orthomosaic = args.Has("reference") ? args.Get("reference") : "";
+  if (args.Has("height-reference") && !vm::ReadReferenceHeights(args.Get("height-reference"), &references.heights, &error)) {
+    std::cerr << "uav_mosaic_files: " << error << "\n";
+    return 1;
+  }
   if (split && args.Has("self-calibrate")) {
     std::cerr << "uav_mosaic_files: --self-calibrate needs a survey (its height ties), not --split's two views\n";
     return 1;
@@ -306,7 +317,7 @@ int Run(int argc, char** argv) {
     return 1;
   }
   runner.PrintSummary(out);
-  runner.Evaluate(args.Has("reference") ? args.Get("reference") : "");
+  runner.Evaluate(references);
   if (args.Has("report") && !runner.WriteReport(args.Get("report"))) return 1;
   if (args.Has("geotiff") && !runner.WriteGeoTiff(args.Get("geotiff"))) return 1;
   if (args.Has("geojson") && !runner.WriteGeoJson(args.Get("geojson"))) return 1;

@@ -7,7 +7,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <fstream>
 #include <limits>
+#include <sstream>
 #include <stdexcept>
 
 namespace vloc::mosaic {
@@ -120,6 +123,46 @@ HeightComparison CompareHeights(const std::vector<double>& height, const std::ve
   h.rms_percent = mean_ref > 0 ? 100.0 * h.rms_m / mean_ref : std::numeric_limits<double>::quiet_NaN();
   h.ok = true;
   return h;
+}
+
+bool ReadReferenceHeights(const std::string& path, std::map<std::string, double>* heights, std::string* error) {
+  heights->clear();
+  std::ifstream in(path);
+  auto fail = [&](const std::string& why) {
+    *error = "height reference " + path + ": " + why;
+    heights->clear();
+    return false;
+  };
+  if (!in) return fail("cannot be read");
+  std::string line;
+  int name_col = -1, height_col = -1, columns = 0, line_number = 0;
+  while (std::getline(in, line)) {
+    ++line_number;
+    if (line.empty() || line[0] == '#') continue;
+    std::vector<std::string> fields;
+    std::stringstream ss(line);
+    for (std::string f; std::getline(ss, f, '\t');) fields.push_back(f);
+    if (name_col < 0) {  // the header
+      for (size_t k = 0; k < fields.size(); ++k) {
+        if (fields[k] == "name") name_col = static_cast<int>(k);
+        if (fields[k] == "height_m") height_col = static_cast<int>(k);
+      }
+      if (name_col < 0 || height_col < 0) return fail("no tab-separated header with the columns name and height_m");
+      columns = static_cast<int>(fields.size());
+      continue;
+    }
+    const std::string where = "line " + std::to_string(line_number);
+    if (static_cast<int>(fields.size()) != columns) return fail(where + " has " + std::to_string(fields.size()) +
+                                                                " fields, the header " + std::to_string(columns));
+    char* end = nullptr;
+    const double h = std::strtod(fields[height_col].c_str(), &end);
+    if (end == fields[height_col].c_str() || *end != '\0' || !(h > 0 && h < 1e5))
+      return fail(where + ": height_m \"" + fields[height_col] + "\" is not a height in (0, 100 km)");
+    if (!heights->emplace(fields[name_col], h).second) return fail(where + ": photo " + fields[name_col] + " twice");
+  }
+  if (name_col < 0) return fail("no tab-separated header with the columns name and height_m");
+  if (heights->empty()) return fail("no photo");
+  return true;
 }
 
 struct ReferenceLocator::Impl {

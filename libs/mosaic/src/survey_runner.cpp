@@ -411,7 +411,7 @@ void SurveyRunner::PrintSummary(const std::string& png_path) const {
         << " s, blending " << times_.blending << " s)\n";
 }
 
-void SurveyRunner::Evaluate(const std::string& reference_path) {
+void SurveyRunner::Evaluate(const SurveyReferences& references) {
   if (!origin_ || !views_.empty()) return;
   SurveyFigures& fig = figures_;
   fig.evaluated = true;
@@ -457,8 +457,9 @@ void SurveyRunner::Evaluate(const std::string& reference_path) {
     Out() << "heights on the GPS track's scale: first height " << options_.mosaicker.calibration.height * fig.height_scale
           << " m (x " << fig.height_scale << ")\n";
   }
-  if (rc.ok && !reference_path.empty()) CompareWithReference(reference_path);
+  if (rc.ok && !references.orthomosaic.empty()) CompareWithReference(references.orthomosaic);
   CompareHeightsWithTags();
+  if (!references.heights.empty()) CompareHeightsWithReference(references.heights);
 }
 
 // Vision heights (the tags withheld after the first height) against the
@@ -482,6 +483,35 @@ void SurveyRunner::CompareHeightsWithTags() {
   if (fc.ok)
     Out() << "height vs GPS " << against << " over " << fc.pairs << " frames: RMS " << fc.rms_m << " m = "
           << fc.rms_percent << " % (fused)\n";
+}
+
+// The vision heights, the fused ones and the altitude tags against another
+// tool's heights above the ground, each with a constant offset fitted (the
+// tags' ground level is unknown, and so compared as against the tags);
+// the vision heights also without it.
+void SurveyRunner::CompareHeightsWithReference(const std::map<std::string, double>& reference) {
+  SurveyFigures& fig = figures_;
+  std::vector<double> truth(frames_.size(), std::nan(""));
+  for (size_t i = 0; i < frames_.size(); ++i) {
+    const auto it = reference.find(std::filesystem::path(frames_[i].name).filename().string());
+    if (it != reference.end()) truth[i] = it->second;
+  }
+  fig.reference_vision = CompareHeights(fig.heights, truth, true);
+  if (!fig.reference_vision.ok) {
+    Err() << "uav_mosaic_files: no registered photo of the survey is in the height reference\n";
+    return;
+  }
+  fig.reference_vision_raw = CompareHeights(fig.heights, truth, false);
+  // The tags as the reference is compared with them: altitude minus a fitted ground level, as a percentage of it.
+  fig.reference_tags = CompareHeights(truth, fig.gps_heights, true);
+  if (fig.fusion.fused) fig.reference_fused = CompareHeights(fig.fusion.height_m, truth, true);
+  const HeightComparison& v = fig.reference_vision;
+  Out() << "height vs the reference heights above the ground over " << v.pairs << " frames (an offset fitted, "
+        << v.offset_m << " m): RMS " << v.rms_m << " m = " << v.rms_percent << " % (vision only; "
+        << fig.reference_vision_raw.rms_percent << " % without the offset)";
+  if (fig.reference_fused.ok) Out() << ", " << fig.reference_fused.rms_percent << " % (fused)";
+  if (fig.reference_tags.ok) Out() << "; the altitude tags " << fig.reference_tags.rms_percent << " %";
+  Out() << "\n";
 }
 
 // Route and GPS against a reference orthomosaic of the same flight made by

@@ -1,7 +1,8 @@
 // uav_mosaic_files as a new user runs it: a folder and --out, no other flag.
 // It must read the stills settings (config/procs/uav_mosaic_files.yaml), say
 // so, and register the photos as with --config; --self-calibrate refuses
-// what it cannot do in one line, writing no camera. Real photos from
+// what it cannot do in one line, writing no camera; --height-reference is
+// checked before the run. Real photos from
 // ../shared/data (skipped with a message when absent).
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -100,6 +101,34 @@ TEST(UavMosaicFiles, SelfCalibrateRefusesInOneLine) {
   fs::remove_all(strip);
   fs::remove(camera);
   fs::remove(out);
+}
+
+// --height-reference: read before the survey runs (a bad file is one line,
+// exit 1, no survey); a good one prints the heights and the altitude tags
+// against it.
+TEST(UavMosaicFiles, HeightReferenceIsCheckedBeforeTheRunAndCompared) {
+  if (!std::filesystem::is_directory(kSeneca))
+    GTEST_SKIP() << kSeneca << " absent (real data lives beside the repo, see ../shared/data/README.md): skipped";
+  namespace fs = std::filesystem;
+  const std::string folder = FirstPhotos(kSeneca, 8, "reference");
+  const std::string out = folder + "/../uav_mosaic_files_ref_" + std::to_string(getpid()) + ".png";
+  const std::string missing = folder + "/no_such_heights.tsv";
+  Subprocess bad({BinPath("uav_mosaic_files"), "--height-reference", missing, "--out", out, folder});
+  EXPECT_EQ(bad.WaitExit(60), 1) << bad.output();
+  EXPECT_EQ(CountOccurrences(bad.output(), "height reference " + missing + ": cannot be read"), 1) << bad.output();
+  EXPECT_EQ(CountOccurrences(bad.output(), "registered "), 0) << "the survey ran before the refusal";
+  EXPECT_FALSE(fs::exists(out));
+
+  Subprocess good({BinPath("uav_mosaic_files"), "--height-reference",
+                   "tests/data/mosaic/uav_seneca_reference_heights.tsv", "--out", out, folder});
+  ASSERT_EQ(good.WaitExit(300), 0) << good.output();
+  // The first photo (a cropped frame) is not in the reference: 7 of the 8.
+  EXPECT_EQ(CountOccurrences(good.output(), "height vs the reference heights above the ground over 7 frames"), 1)
+      << good.output();
+  EXPECT_EQ(CountOccurrences(good.output(), "; the altitude tags "), 1) << good.output();
+  fs::remove_all(folder);
+  fs::remove(out);
+  fs::remove(fs::path(out).replace_extension(".pgw"));
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
 #include <sstream>
 
@@ -209,6 +210,49 @@ TEST(SurveyEval, HeightsWithAndWithoutAFittedGround) {
   const HeightComparison b = CompareHeights(h, {41, 49, 60, 1}, false);
   EXPECT_NEAR(b.rms_m, std::sqrt(2.0 / 3), 1e-9);
   EXPECT_NEAR(b.rms_percent, 100 * std::sqrt(2.0 / 3) / 50.0, 1e-9);  // mean reference 50 m
+}
+
+// Another tool's heights (scripts/survey_reference.py's TSV): comments
+// skipped, the columns found by name; each kind of bad file refused in one
+// line naming the file and the problem, nothing kept.
+TEST(SurveyEval, ReferenceHeightsReadByColumnNameAndRefusedInOneLine) {
+  auto write = [](const std::string& name, const std::string& text) {
+    const std::string path = TempPath(name);
+    std::ofstream(path) << text;
+    return path;
+  };
+  std::map<std::string, double> heights;
+  std::string error;
+  const std::string good = write("good.tsv", "# made by a tool\nname\theight_m\teast_m\nA.jpg\t63.5\t1\nB.jpg\t64.25\t2\n");
+  ASSERT_TRUE(ReadReferenceHeights(good, &heights, &error)) << error;
+  ASSERT_EQ(heights.size(), 2u);
+  EXPECT_EQ(heights.at("A.jpg"), 63.5);
+  EXPECT_EQ(heights.at("B.jpg"), 64.25);
+  const std::string swapped = write("swapped.tsv", "height_m\tname\n70\tC.jpg\n");
+  ASSERT_TRUE(ReadReferenceHeights(swapped, &heights, &error)) << error;
+  EXPECT_EQ(heights.at("C.jpg"), 70);
+
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"no_columns.tsv", "name\theight\nA.jpg\t63\n"},
+      {"word.tsv", "name\theight_m\nA.jpg\thigh\n"},
+      {"negative.tsv", "name\theight_m\nA.jpg\t-3\n"},
+      {"short.tsv", "name\theight_m\teast_m\nA.jpg\t63\n"},
+      {"twice.tsv", "name\theight_m\nA.jpg\t63\nA.jpg\t64\n"},
+      {"empty.tsv", "# nothing\n"},
+      {"header_only.tsv", "name\theight_m\n"}};
+  const std::vector<std::string> why = {"columns name and height_m", "is not a height", "is not a height",
+                                        "fields, the header 3", "twice", "no tab-separated header", "no photo"};
+  for (size_t k = 0; k < bad.size(); ++k) {
+    const std::string path = write(bad[k].first, bad[k].second);
+    heights = {{"kept?", 1.0}};
+    EXPECT_FALSE(ReadReferenceHeights(path, &heights, &error)) << bad[k].first;
+    EXPECT_TRUE(heights.empty()) << bad[k].first;
+    EXPECT_EQ(error.find("height reference " + path + ": "), 0u) << error;
+    EXPECT_NE(error.find(why[k]), std::string::npos) << bad[k].first << ": " << error;
+    EXPECT_EQ(error.find('\n'), std::string::npos) << error;
+  }
+  EXPECT_FALSE(ReadReferenceHeights(TempPath("no_such.tsv"), &heights, &error));
+  EXPECT_NE(error.find("cannot be read"), std::string::npos) << error;
 }
 
 }  // namespace

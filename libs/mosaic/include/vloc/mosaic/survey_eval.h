@@ -4,9 +4,11 @@
 // similarity (the mosaic has no absolute position, heading or scale of its
 // own) and the horizontal residual is reported per frame, as RMS and as a
 // percentage of the path length. Heights are compared with a GPS height
-// (relative altitude, or altitude minus a fitted ground level).
+// (relative altitude, or altitude minus a fitted ground level), or with
+// another tool's heights above the ground (ReadReferenceHeights).
 
 #include <opencv2/core.hpp>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -62,6 +64,15 @@ struct HeightComparison {
 // reference is gps - ground with the ground level fitted (mean difference),
 // for GPS altitudes above sea level over unknown ground.
 HeightComparison CompareHeights(const std::vector<double>& height, const std::vector<double>& gps, bool fit_offset);
+
+// Heights above the ground per photo from another tool's reconstruction of
+// the same flight (scripts/survey_reference.py: COLMAP's bundle adjustment,
+// aligned to the GPS): a tab-separated file with a header naming the
+// columns "name" and "height_m" (others ignored); lines starting with '#'
+// skipped. False with one line in *error naming the file and the problem
+// (unreadable, no such columns, a line without a positive height, a photo
+// twice, no photo).
+bool ReadReferenceHeights(const std::string& path, std::map<std::string, double>* heights, std::string* error);
 
 // Where the photos lie in a reference orthomosaic made by another tool
 // (e.g. OpenDroneMap's): an independent check of the route where the

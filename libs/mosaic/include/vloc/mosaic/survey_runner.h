@@ -31,6 +31,7 @@
 #include <future>
 #include <cstdint>
 #include <iosfwd>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -88,6 +89,16 @@ struct SurveyFigures {
   HeightComparison height;             // vision heights (altitude tags withheld) against the tags
   AltitudeFusion fusion;               // the tags fused with the vision heights, or why not
   HeightComparison fused_height;       // fused heights against the tags (when fused)
+  // Against another tool's heights above the ground (SurveyReferences::heights), with a constant offset fitted as
+  // against the altitude tags (and the vision heights without it); reference_tags: the reference against the tags
+  // minus a fitted ground level, i.e. the tags' own error. pairs = 0 when not compared.
+  HeightComparison reference_vision, reference_vision_raw, reference_fused, reference_tags;
+};
+
+// References made by other tools for the same flight, for Evaluate.
+struct SurveyReferences {
+  std::string orthomosaic;                // an orthomosaic (e.g. OpenDroneMap's): the route and the GPS against it
+  std::map<std::string, double> heights;  // photo file name -> height above the ground, m (ReadReferenceHeights)
 };
 
 // Seconds over the survey. With prefetch, decoding and features overlap registration: wall < the sum.
@@ -119,10 +130,11 @@ class SurveyRunner {
   bool WriteMosaic(const std::string& png_path);
   // The mosaicker's summary and the timing line.
   void PrintSummary(const std::string& png_path) const;
-  // Route and heights against the GPS (when tagged); with a reference
-  // orthomosaic of the same flight (another tool's), the route and the GPS
-  // against it too.
-  void Evaluate(const std::string& reference_path = "");
+  // Route and heights against the GPS (when tagged); with references of the
+  // same flight made by other tools, the route and the GPS against an
+  // orthomosaic, the heights and the altitude tags against heights above
+  // the ground.
+  void Evaluate(const SurveyReferences& references = {});
   const ReferenceComparison& reference() const { return reference_; }
   bool WriteReport(const std::string& tsv_path);
   bool WriteGeoTiff(const std::string& tif_path);
@@ -153,6 +165,7 @@ class SurveyRunner {
   bool WriteObliqueMosaic(const std::string& png_path);
   void CompareWithReference(const std::string& reference_path);
   void CompareHeightsWithTags();
+  void CompareHeightsWithReference(const std::map<std::string, double>& reference);
   double FusedHeight(size_t i) const;  // m, NaN when the tags were not fused
   std::ostream& Out() const;
   std::ostream& Err() const;
