@@ -16,7 +16,10 @@ neither.
 
 --exclude leaves photos out (COLMAP's one camera cannot hold a photo of
 another field of view at the same pixel size, e.g. uav_seneca's cropped
-IMG_0446.jpg). Installs colmap with apt-get when it is missing (as root).
+IMG_0446.jpg). --level-gps aligns on the GPS east/north with every photo at
+one altitude, for a GPS altitude that drifts (uav_caliterra's climbs 113 m
+while the photos keep their scale): the heights then rest on the horizontal
+track's scale. Installs colmap with apt-get when it is missing (as root).
 uav_seneca (166 photos, 960 px) on 2 cores: about 12 min.
 """
 import argparse
@@ -74,8 +77,9 @@ def largest_model(sparse):
     return os.path.join(sparse, max(counts, key=counts.get))
 
 
-def write_gps_enu(database, path):
-    """The GPS COLMAP read from the photos' EXIF, as east/north/up metres from the first photo (by name)."""
+def write_gps_enu(database, path, level):
+    """The GPS COLMAP read from the photos' EXIF, as east/north/up metres from the first photo (by name);
+    level: up 0 for every photo (a GPS altitude not to be trusted)."""
     rows = sqlite3.connect(database).execute(
         "select name, prior_tx, prior_ty, prior_tz from images order by name").fetchall()
     rows = [r for r in rows if all(v is not None and np.isfinite(v) for v in r[1:])]
@@ -89,7 +93,8 @@ def write_gps_enu(database, path):
     origin = ecef(lat0, lon0, alt0)
     with open(path, "w") as f:
         for name, lat, lon, alt in rows:
-            e, n, u = enu_from_ecef @ (ecef(lat, lon, alt) - origin)
+            e, n, u = enu_from_ecef @ (ecef(lat, lon, alt0 if level else alt) - origin)
+            u = 0.0 if level else u
             f.write(f"{name} {e:.4f} {n:.4f} {u:.4f}\n")
     return len(rows)
 
@@ -139,6 +144,8 @@ def main():
     p.add_argument("images")
     p.add_argument("out")
     p.add_argument("--exclude", action="append", default=[], help="photo left out (file name)")
+    p.add_argument("--level-gps", action="store_true",
+                   help="align on the GPS east/north only, every photo at one altitude (a GPS altitude that drifts)")
     p.add_argument("--threads", type=int, default=2)
     a = p.parse_args()
     if not os.path.isdir(a.images):
@@ -173,7 +180,7 @@ def main():
            "--Mapper.num_threads", t, "--Mapper.ba_refine_principal_point", "0")
     model = largest_model(sparse)
     gps = os.path.join(a.out, "gps_enu.txt")
-    tagged = write_gps_enu(db, gps)
+    tagged = write_gps_enu(db, gps, a.level_gps)
     aligned = os.path.join(a.out, "aligned")
     os.makedirs(aligned, exist_ok=True)
     colmap(log, "model_aligner", "--input_path", model, "--output_path", aligned, "--ref_images_path", gps,
