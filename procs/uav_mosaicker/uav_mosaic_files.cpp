@@ -250,6 +250,25 @@ bool SelfCalibrate(const std::string& camera_path, const std::vector<std::string
   return true;
 }
 
+// The references --reference and --height-reference name; the heights are
+// read and checked now, before the survey runs. False with one line on stderr.
+bool ReferencesFrom(const vloc::CommandLine& args, bool split, vm::SurveyReferences* references) {
+  references->orthomosaic = args.Has("reference") ? args.Get("reference") : "";
+  if (!args.Has("height-reference")) return true;
+  if (split || args.Has("no-gps")) {
+    std::cerr << "uav_mosaic_files: --height-reference needs a geotagged survey (its heights' metric scale), not "
+              << (split ? "--split's two views" : "--no-gps") << "\n";
+    return false;
+  }
+  references->heights_path = args.Get("height-reference");
+  std::string error;
+  if (!vm::ReadReferenceHeights(references->heights_path, &references->heights, &error)) {
+    std::cerr << "uav_mosaic_files: " << error << "\n";
+    return false;
+  }
+  return true;
+}
+
 // The tool; main() turns any exception into one line and exit code 1.
 int Run(int argc, char** argv) {
   vloc::CommandLine args;
@@ -278,11 +297,7 @@ int Run(int argc, char** argv) {
   vm::SurveyOptions options;
   if (!SurveyOptionsFrom(args, &options)) return 1;
   vm::SurveyReferences references;
-  references.orthomosaic = args.Has("reference") ? args.Get("reference") : "";
-  if (args.Has("height-reference") && !vm::ReadReferenceHeights(args.Get("height-reference"), &references.heights, &error)) {
-    std::cerr << "uav_mosaic_files: " << error << "\n";
-    return 1;
-  }
+  if (!ReferencesFrom(args, split, &references)) return 1;
   if (split && args.Has("self-calibrate")) {
     std::cerr << "uav_mosaic_files: --self-calibrate needs a survey (its height ties), not --split's two views\n";
     return 1;

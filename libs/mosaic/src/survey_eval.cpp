@@ -6,11 +6,11 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <limits>
-#include <sstream>
 #include <stdexcept>
 
 namespace vloc::mosaic {
@@ -125,42 +125,68 @@ HeightComparison CompareHeights(const std::vector<double>& height, const std::ve
   return h;
 }
 
+namespace {
+
+// The tab-separated fields of a line (n tabs: n + 1 fields, empty ones kept).
+std::vector<std::string> SplitTabs(const std::string& line) {
+  std::vector<std::string> fields;
+  size_t from = 0;
+  for (size_t tab; (tab = line.find('\t', from)) != std::string::npos; from = tab + 1)
+    fields.push_back(line.substr(from, tab - from));
+  fields.push_back(line.substr(from));
+  return fields;
+}
+
+// A field of a hostile file quoted for one error line: at most 40 characters, no control characters.
+std::string Quoted(const std::string& field) {
+  std::string q;
+  for (char c : field.substr(0, 40)) q += std::iscntrl(static_cast<unsigned char>(c)) ? '?' : c;
+  return "\"" + q + (field.size() > 40 ? "...\"" : "\"");
+}
+
+}  // namespace
+
 bool ReadReferenceHeights(const std::string& path, std::map<std::string, double>* heights, std::string* error) {
   heights->clear();
-  std::ifstream in(path);
   auto fail = [&](const std::string& why) {
     *error = "height reference " + path + ": " + why;
     heights->clear();
     return false;
   };
+  std::ifstream in(path);
   if (!in) return fail("cannot be read");
+  const std::string no_header = "no tab-separated header with the columns name and height_m";
   std::string line;
-  int name_col = -1, height_col = -1, columns = 0, line_number = 0;
+  int name_col = -1, height_col = -1, line_number = 0;
+  size_t columns = 0;
   while (std::getline(in, line)) {
     ++line_number;
+    if (line_number == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);  // a UTF-8 byte-order mark
+    if (!line.empty() && line.back() == '\r') line.pop_back();                       // CRLF line ends
     if (line.empty() || line[0] == '#') continue;
-    std::vector<std::string> fields;
-    std::stringstream ss(line);
-    for (std::string f; std::getline(ss, f, '\t');) fields.push_back(f);
+    const std::vector<std::string> fields = SplitTabs(line);
     if (name_col < 0) {  // the header
       for (size_t k = 0; k < fields.size(); ++k) {
-        if (fields[k] == "name") name_col = static_cast<int>(k);
-        if (fields[k] == "height_m") height_col = static_cast<int>(k);
+        if (fields[k] == "name" && name_col < 0) name_col = static_cast<int>(k);
+        if (fields[k] == "height_m" && height_col < 0) height_col = static_cast<int>(k);
       }
-      if (name_col < 0 || height_col < 0) return fail("no tab-separated header with the columns name and height_m");
-      columns = static_cast<int>(fields.size());
+      if (name_col < 0 || height_col < 0) return fail(no_header);
+      columns = fields.size();
       continue;
     }
     const std::string where = "line " + std::to_string(line_number);
-    if (static_cast<int>(fields.size()) != columns) return fail(where + " has " + std::to_string(fields.size()) +
-                                                                " fields, the header " + std::to_string(columns));
+    if (fields.size() != columns)
+      return fail(where + " has " + std::to_string(fields.size()) + " fields, the header " + std::to_string(columns));
+    const std::string& name = fields[name_col];
+    const std::string& value = fields[height_col];
+    if (name.empty()) return fail(where + ": no photo name");
     char* end = nullptr;
-    const double h = std::strtod(fields[height_col].c_str(), &end);
-    if (end == fields[height_col].c_str() || *end != '\0' || !(h > 0 && h < 1e5))
-      return fail(where + ": height_m \"" + fields[height_col] + "\" is not a height in (0, 100 km)");
-    if (!heights->emplace(fields[name_col], h).second) return fail(where + ": photo " + fields[name_col] + " twice");
+    const double h = std::strtod(value.c_str(), &end);
+    if (end == value.c_str() || *end != '\0' || !(h > 0 && h < 1e5))
+      return fail(where + ": height_m " + Quoted(value) + " is not a height in (0, 100 km)");
+    if (!heights->emplace(name, h).second) return fail(where + ": photo " + Quoted(name) + " twice");
   }
-  if (name_col < 0) return fail("no tab-separated header with the columns name and height_m");
+  if (name_col < 0) return fail(no_header);
   if (heights->empty()) return fail("no photo");
   return true;
 }

@@ -412,7 +412,12 @@ void SurveyRunner::PrintSummary(const std::string& png_path) const {
 }
 
 void SurveyRunner::Evaluate(const SurveyReferences& references) {
-  if (!origin_ || !views_.empty()) return;
+  if (!origin_ || !views_.empty()) {
+    if (!references.heights.empty())
+      Err() << "uav_mosaic_files: the height reference is not compared: no photo carries GPS (the heights have no "
+               "metric scale)\n";
+    return;
+  }
   SurveyFigures& fig = figures_;
   fig.evaluated = true;
   std::vector<cv::Point2d> route, enu;
@@ -459,7 +464,7 @@ void SurveyRunner::Evaluate(const SurveyReferences& references) {
   }
   if (rc.ok && !references.orthomosaic.empty()) CompareWithReference(references.orthomosaic);
   CompareHeightsWithTags();
-  if (!references.heights.empty()) CompareHeightsWithReference(references.heights);
+  if (!references.heights.empty()) CompareHeightsWithReference(references);
 }
 
 // Vision heights (the tags withheld after the first height) against the
@@ -486,19 +491,20 @@ void SurveyRunner::CompareHeightsWithTags() {
 }
 
 // The vision heights, the fused ones and the altitude tags against another
-// tool's heights above the ground, each with a constant offset fitted (the
-// tags' ground level is unknown, and so compared as against the tags);
-// the vision heights also without it.
-void SurveyRunner::CompareHeightsWithReference(const std::map<std::string, double>& reference) {
+// tool's heights above the ground, over the registered frames it holds
+// (matched by file name), each with a constant offset fitted; the vision
+// heights also without it.
+void SurveyRunner::CompareHeightsWithReference(const SurveyReferences& references) {
   SurveyFigures& fig = figures_;
   std::vector<double> truth(frames_.size(), std::nan(""));
   for (size_t i = 0; i < frames_.size(); ++i) {
-    const auto it = reference.find(std::filesystem::path(frames_[i].name).filename().string());
-    if (it != reference.end()) truth[i] = it->second;
+    const auto it = references.heights.find(std::filesystem::path(frames_[i].name).filename().string());
+    if (it != references.heights.end() && std::isfinite(fig.heights[i])) truth[i] = it->second;
   }
   fig.reference_vision = CompareHeights(fig.heights, truth, true);
   if (!fig.reference_vision.ok) {
-    Err() << "uav_mosaic_files: no registered photo of the survey is in the height reference\n";
+    Err() << "uav_mosaic_files: the height reference " << references.heights_path
+          << " names no registered photo of the survey (photos are matched by file name)\n";
     return;
   }
   fig.reference_vision_raw = CompareHeights(fig.heights, truth, false);

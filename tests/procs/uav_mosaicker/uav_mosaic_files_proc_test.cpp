@@ -103,25 +103,29 @@ TEST(UavMosaicFiles, SelfCalibrateRefusesInOneLine) {
   fs::remove(out);
 }
 
-// --height-reference: read before the survey runs (a bad file is one line,
-// exit 1, no survey); a good one prints the heights and the altitude tags
-// against it.
+// --height-reference: read before the survey runs (a bad file, or --split's
+// two views without a metric scale: one line, exit 1, no survey); a good one
+// prints the heights and the altitude tags against it.
 TEST(UavMosaicFiles, HeightReferenceIsCheckedBeforeTheRunAndCompared) {
   if (!std::filesystem::is_directory(kSeneca))
     GTEST_SKIP() << kSeneca << " absent (real data lives beside the repo, see ../shared/data/README.md): skipped";
   namespace fs = std::filesystem;
   const std::string folder = FirstPhotos(kSeneca, 8, "reference");
   const std::string out = folder + "/../uav_mosaic_files_ref_" + std::to_string(getpid()) + ".png";
+  const std::string reference = VLOC_SOURCE_DIR "/tests/data/mosaic/uav_seneca_reference_heights.tsv";
   const std::string missing = folder + "/no_such_heights.tsv";
   Subprocess bad({BinPath("uav_mosaic_files"), "--height-reference", missing, "--out", out, folder});
   EXPECT_EQ(bad.WaitExit(60), 1) << bad.output();
   EXPECT_EQ(CountOccurrences(bad.output(), "height reference " + missing + ": cannot be read"), 1) << bad.output();
   EXPECT_EQ(CountOccurrences(bad.output(), "registered "), 0) << "the survey ran before the refusal";
+  Subprocess split({BinPath("uav_mosaic_files"), "--split", "--height-reference", reference, "--out", out,
+                    folder + "/IMG_0447.jpg"});
+  EXPECT_EQ(split.WaitExit(60), 1) << split.output();
+  EXPECT_EQ(CountOccurrences(split.output(), "--height-reference needs a geotagged survey"), 1) << split.output();
   EXPECT_FALSE(fs::exists(out));
 
-  Subprocess good({BinPath("uav_mosaic_files"), "--height-reference",
-                   "tests/data/mosaic/uav_seneca_reference_heights.tsv", "--out", out, folder});
-  ASSERT_EQ(good.WaitExit(300), 0) << good.output();
+  Subprocess good({BinPath("uav_mosaic_files"), "--height-reference", reference, "--out", out, folder});
+  EXPECT_EQ(good.WaitExit(300), 0) << good.output();
   // The first photo (a cropped frame) is not in the reference: 7 of the 8.
   EXPECT_EQ(CountOccurrences(good.output(), "height vs the reference heights above the ground over 7 frames"), 1)
       << good.output();

@@ -231,6 +231,10 @@ TEST(SurveyEval, ReferenceHeightsReadByColumnNameAndRefusedInOneLine) {
   const std::string swapped = write("swapped.tsv", "height_m\tname\n70\tC.jpg\n");
   ASSERT_TRUE(ReadReferenceHeights(swapped, &heights, &error)) << error;
   EXPECT_EQ(heights.at("C.jpg"), 70);
+  // Written on Windows: a byte-order mark, CRLF line ends, a trailing empty field.
+  const std::string crlf = write("crlf.tsv", "\xEF\xBB\xBFname\theight_m\tnote\r\nD.jpg\t71.5\t\r\n");
+  ASSERT_TRUE(ReadReferenceHeights(crlf, &heights, &error)) << error;
+  EXPECT_EQ(heights.at("D.jpg"), 71.5);
 
   const std::vector<std::pair<std::string, std::string>> bad = {
       {"no_columns.tsv", "name\theight\nA.jpg\t63\n"},
@@ -238,10 +242,13 @@ TEST(SurveyEval, ReferenceHeightsReadByColumnNameAndRefusedInOneLine) {
       {"negative.tsv", "name\theight_m\nA.jpg\t-3\n"},
       {"short.tsv", "name\theight_m\teast_m\nA.jpg\t63\n"},
       {"twice.tsv", "name\theight_m\nA.jpg\t63\nA.jpg\t64\n"},
+      {"no_name.tsv", "name\theight_m\n\t63\n"},
+      {"long.tsv", "name\theight_m\nA.jpg\t" + std::string(100000, '9') + "\x01\n"},
       {"empty.tsv", "# nothing\n"},
       {"header_only.tsv", "name\theight_m\n"}};
   const std::vector<std::string> why = {"columns name and height_m", "is not a height", "is not a height",
-                                        "fields, the header 3", "twice", "no tab-separated header", "no photo"};
+                                        "fields, the header 3", "twice", "no photo name", "\"9999", "no tab-separated header",
+                                        "no photo"};
   for (size_t k = 0; k < bad.size(); ++k) {
     const std::string path = write(bad[k].first, bad[k].second);
     heights = {{"kept?", 1.0}};
@@ -250,6 +257,7 @@ TEST(SurveyEval, ReferenceHeightsReadByColumnNameAndRefusedInOneLine) {
     EXPECT_EQ(error.find("height reference " + path + ": "), 0u) << error;
     EXPECT_NE(error.find(why[k]), std::string::npos) << bad[k].first << ": " << error;
     EXPECT_EQ(error.find('\n'), std::string::npos) << error;
+    EXPECT_LT(error.size(), 200 + path.size()) << "a hostile field is quoted short";
   }
   EXPECT_FALSE(ReadReferenceHeights(TempPath("no_such.tsv"), &heights, &error));
   EXPECT_NE(error.find("cannot be read"), std::string::npos) << error;

@@ -29,10 +29,10 @@ namespace {
 
 const char* kCaliterra = "../shared/data/real/uav_caliterra/images";
 const char* kCaliterraReference = "../shared/data/real/uav_caliterra/reference_orthomosaic.jpg";
-const char* kCaliterraHeights = "tests/data/mosaic/uav_caliterra_reference_heights.tsv";
+const std::string kCaliterraHeights = VLOC_SOURCE_DIR "/tests/data/mosaic/uav_caliterra_reference_heights.tsv";
 const char* kSeneca = "../shared/data/real/uav_seneca/images";
 // Heights above the ground from COLMAP's reconstruction of the same photos (scripts/survey_reference.py).
-const char* kSenecaHeights = "tests/data/mosaic/uav_seneca_reference_heights.tsv";
+const std::string kSenecaHeights = VLOC_SOURCE_DIR "/tests/data/mosaic/uav_seneca_reference_heights.tsv";
 
 // Every photo through the survey runner (what uav_mosaic_files runs) with
 // the stills settings, GPS tags of frames [drop_a, drop_b] withheld.
@@ -122,8 +122,8 @@ TEST(RealSurvey, CaliterraEveryFrameRegisteredRouteFollowsGpsThroughADropOut) {
   EXPECT_LT(route.rms_m, 0.015 * run.route.path_m);
 
   // The heights against COLMAP's reconstruction of the same photos, aligned to the GPS east/north (its altitude
-  // drifts: scripts/survey_reference.py --level-gps): measured 0.62 % with an offset fitted (1.29 % without);
-  // the tags, 113 m of climb, are nowhere near.
+  // drifts: scripts/survey_reference.py --level-gps; two reconstructions aligned differently agree to 0.47 % after a
+  // scale): measured 0.94 % with an offset fitted (6.1 % without); the tags, 113 m of climb, 65 %.
   const SurveyFigures& fig = run.figures;
   ASSERT_TRUE(fig.reference_vision.ok && fig.reference_tags.ok);
   std::cout << "uav_caliterra heights against the reference over " << fig.reference_vision.pairs << " photos: vision only "
@@ -183,7 +183,7 @@ TEST(RealSurvey, SenecaNinetyPercentRegisteredTheRestLostWithAReason) {
             << vision.rms_percent << " % (" << fig.reference_vision_raw.rms_percent << " % without the offset), fused "
             << fig.reference_fused.rms_percent << " %, the altitude tags " << fig.reference_tags.rms_percent << " %\n";
   EXPECT_GE(vision.pairs, 160);
-  EXPECT_LT(vision.rms_percent, 2.0);
+  EXPECT_LT(vision.rms_percent, 2.0);  // 2 %: the target (the reference's own noise is ~0.02 %)
   EXPECT_LT(fig.reference_fused.rms_percent, 2.0);
   EXPECT_LT(vision.rms_percent, 0.7 * fig.reference_tags.rms_percent);
   // The compact camera's lens from the height ties alone (lens_search.h): measured k1 -0.028 (residual 0.77 sigmas

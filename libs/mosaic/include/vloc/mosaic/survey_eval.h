@@ -67,11 +67,12 @@ HeightComparison CompareHeights(const std::vector<double>& height, const std::ve
 
 // Heights above the ground per photo from another tool's reconstruction of
 // the same flight (scripts/survey_reference.py: COLMAP's bundle adjustment,
-// aligned to the GPS): a tab-separated file with a header naming the
-// columns "name" and "height_m" (others ignored); lines starting with '#'
-// skipped. False with one line in *error naming the file and the problem
-// (unreadable, no such columns, a line without a positive height, a photo
-// twice, no photo).
+// aligned to the GPS): a tab-separated file (LF or CRLF) with a header
+// naming the columns "name" (the photo's file name) and "height_m" (others
+// ignored); lines starting with '#' skipped. False with one line in *error
+// naming the file and the problem (unreadable, no such header, a line with
+// another number of fields than the header, without a name or a height in
+// (0, 100 km), a photo twice, no photo).
 bool ReadReferenceHeights(const std::string& path, std::map<std::string, double>* heights, std::string* error);
 
 // Where the photos lie in a reference orthomosaic made by another tool

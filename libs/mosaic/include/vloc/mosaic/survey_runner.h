@@ -89,9 +89,10 @@ struct SurveyFigures {
   HeightComparison height;             // vision heights (altitude tags withheld) against the tags
   AltitudeFusion fusion;               // the tags fused with the vision heights, or why not
   HeightComparison fused_height;       // fused heights against the tags (when fused)
-  // Against another tool's heights above the ground (SurveyReferences::heights), with a constant offset fitted as
-  // against the altitude tags (and the vision heights without it); reference_tags: the reference against the tags
-  // minus a fitted ground level, i.e. the tags' own error. pairs = 0 when not compared.
+  // Against another tool's heights above the ground (SurveyReferences::heights) over the registered frames it holds,
+  // with a constant offset fitted (the vision heights also without it: the two tools' absolute levels can differ by
+  // a few %, README); reference_tags: the reference against the tags minus a fitted ground level, i.e. the tags' own
+  // error. pairs = 0 when not compared.
   HeightComparison reference_vision, reference_vision_raw, reference_fused, reference_tags;
 };
 
@@ -99,6 +100,7 @@ struct SurveyFigures {
 struct SurveyReferences {
   std::string orthomosaic;                // an orthomosaic (e.g. OpenDroneMap's): the route and the GPS against it
   std::map<std::string, double> heights;  // photo file name -> height above the ground, m (ReadReferenceHeights)
+  std::string heights_path;               // where they were read (for messages)
 };
 
 // Seconds over the survey. With prefetch, decoding and features overlap registration: wall < the sum.
@@ -165,7 +167,7 @@ class SurveyRunner {
   bool WriteObliqueMosaic(const std::string& png_path);
   void CompareWithReference(const std::string& reference_path);
   void CompareHeightsWithTags();
-  void CompareHeightsWithReference(const std::map<std::string, double>& reference);
+  void CompareHeightsWithReference(const SurveyReferences& references);
   double FusedHeight(size_t i) const;  // m, NaN when the tags were not fused
   std::ostream& Out() const;
   std::ostream& Err() const;
