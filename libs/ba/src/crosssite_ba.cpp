@@ -122,6 +122,30 @@ struct PassResult {
   std::string message;
 };
 
+// The reprojection residuals of the inlier points' observations: the
+// previous site's cameras fixed, the current site's through the body pose
+// `pose` (translation, rotation update about R0); a Huber loss when
+// `robust`.
+void AddObservations(const Network& net, const Eigen::Matrix3d& R0, bool robust, const CrossSiteBaOptions& options,
+                     std::vector<BaPoint>* points, double* pose, ceres::Problem* problem) {
+  for (auto& p : *points) {
+    if (!p.inlier) continue;
+    for (const auto& o : p.previous) {
+      const PinholeCamera& k = net.Intrinsics(o.camera);
+      problem->AddResidualBlock(
+          internal::FixedCameraReprojection::Create(net.PreviousCamera(o), k.fx, k.fy, k.cx, k.cy, o.uv, o.sigma),
+          robust ? new ceres::HuberLoss(options.huber_sigmas) : nullptr, p.p_world.data());
+    }
+    for (const auto& o : p.current) {
+      const PinholeCamera& k = net.Intrinsics(o.camera);
+      problem->AddResidualBlock(internal::BodyCameraReprojection::Create(R0, net.BodyFromCurrentCamera(o), k.fx, k.fy,
+                                                                         k.cx, k.cy, o.uv, o.sigma),
+                                robust ? new ceres::HuberLoss(options.huber_sigmas) : nullptr, pose,
+                                p.p_world.data());
+    }
+  }
+}
+
 // One Ceres solve over the inlier points; updates `world_from_current` and the points.
 PassResult SolvePass(const Network& net, std::vector<BaPoint>* points, Pose3* world_from_current, bool robust,
                      const CrossSiteBaOptions& options) {
@@ -129,22 +153,7 @@ PassResult SolvePass(const Network& net, std::vector<BaPoint>* points, Pose3* wo
   double pose[6] = {world_from_current->translation().x(), world_from_current->translation().y(),
                     world_from_current->translation().z(), 0, 0, 0};
   ceres::Problem problem;
-  for (auto& p : *points) {
-    if (!p.inlier) continue;
-    for (const auto& o : p.previous) {
-      const PinholeCamera& k = net.Intrinsics(o.camera);
-      problem.AddResidualBlock(
-          internal::FixedCameraReprojection::Create(net.PreviousCamera(o), k.fx, k.fy, k.cx, k.cy, o.uv, o.sigma),
-          robust ? new ceres::HuberLoss(options.huber_sigmas) : nullptr, p.p_world.data());
-    }
-    for (const auto& o : p.current) {
-      const PinholeCamera& k = net.Intrinsics(o.camera);
-      problem.AddResidualBlock(internal::BodyCameraReprojection::Create(R0, net.BodyFromCurrentCamera(o), k.fx, k.fy,
-                                                                        k.cx, k.cy, o.uv, o.sigma),
-                               robust ? new ceres::HuberLoss(options.huber_sigmas) : nullptr, pose,
-                               p.p_world.data());
-    }
-  }
+  AddObservations(net, R0, robust, options, points, pose, &problem);
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::DENSE_SCHUR;
   so.max_num_iterations = options.max_iterations;
@@ -236,21 +245,7 @@ bool PoseCovariance(const Network& net, std::vector<BaPoint> points, const Pose3
   double pose[6] = {world_from_current.translation().x(), world_from_current.translation().y(),
                     world_from_current.translation().z(), 0, 0, 0};
   ceres::Problem problem;
-  for (auto& p : points) {
-    if (!p.inlier) continue;
-    for (const auto& o : p.previous) {
-      const PinholeCamera& k = net.Intrinsics(o.camera);
-      problem.AddResidualBlock(
-          internal::FixedCameraReprojection::Create(net.PreviousCamera(o), k.fx, k.fy, k.cx, k.cy, o.uv, o.sigma),
-          nullptr, p.p_world.data());
-    }
-    for (const auto& o : p.current) {
-      const PinholeCamera& k = net.Intrinsics(o.camera);
-      problem.AddResidualBlock(internal::BodyCameraReprojection::Create(R0, net.BodyFromCurrentCamera(o), k.fx, k.fy,
-                                                                        k.cx, k.cy, o.uv, o.sigma),
-                               nullptr, pose, p.p_world.data());
-    }
-  }
+  AddObservations(net, R0, /*robust=*/false, options, &points, pose, &problem);
   ceres::Covariance::Options co;
   co.algorithm_type = ceres::SPARSE_QR;
   co.num_threads = options.num_threads;
@@ -270,59 +265,29 @@ bool PoseCovariance(const Network& net, std::vector<BaPoint> points, const Pose3
   return true;
 }
 
-}  // namespace
-
-CrossSiteBaSummary SolveCrossSiteBa(const TiePointSet& set, const NavcamModel& navcam,
-                                    const CrossSiteBaOptions& options) {
-  const auto t0 = std::chrono::steady_clock::now();
-  CrossSiteBaSummary s;
-  s.previous_site_id = set.previous_site_id;
-  s.current_site_id = set.current_site_id;
-  s.num_tie_points_in = static_cast<int>(set.points.size());
-  s.world_from_current = set.current_site_pose_dr;
-  s.world_from_current_initial = set.current_site_pose_dr.pose;
-  auto finish = [&](CrossSiteBaStatus status, const std::string& message) {
-    s.status = status;
-    s.usable = status == CrossSiteBaStatus::kOk;
-    s.message = message;
-    if (!s.usable) s.world_from_current = set.current_site_pose_dr;
-    s.world_from_current.utime = set.current_site_pose_dr.utime;
-    const Pose3 previous_from_world = set.previous_site_pose.pose.inverse();
-    s.previous_from_current.utime = s.world_from_current.utime;
-    s.previous_from_current.pose = previous_from_world * s.world_from_current.pose;
-    if (s.usable) {
-      s.previous_from_current.covariance = ComposeCovariance(previous_from_world, Matrix6d::Zero(),
-                                                             s.world_from_current.pose, s.world_from_current.covariance);
-    } else {
-      // Dead reckoning: the relative covariance is unknown here beyond the DR one.
-      s.previous_from_current.covariance = s.world_from_current.covariance;
-    }
-    SiteCameraPoses(set.previous_site_pose.pose, set.previous_pointing, navcam, &s.world_from_left_previous,
-                    &s.world_from_right_previous);
-    SiteCameraPoses(s.world_from_current.pose, set.current_pointing, navcam, &s.world_from_left_current,
-                    &s.world_from_right_current);
-    s.solve_seconds = SecondsSince(t0);
-    return s;
-  };
-
+// Why the input cannot be adjusted (one line), or "" when it can.
+std::string InputError(const TiePointSet& set, const NavcamModel& navcam, const CrossSiteBaOptions& options) {
   std::string error;
-  if (!options.Check(&error)) return finish(CrossSiteBaStatus::kBadInput, "bad BA options: " + error);
-  if (!navcam.Check(&error)) return finish(CrossSiteBaStatus::kBadInput, "bad Navcam model: " + error);
+  if (!options.Check(&error)) return "bad BA options: " + error;
+  if (!navcam.Check(&error)) return "bad Navcam model: " + error;
   if (set.previous_site_id == set.current_site_id || set.previous_site_id < 0 || set.current_site_id < 0)
-    return finish(CrossSiteBaStatus::kBadInput, "previous site " + std::to_string(set.previous_site_id) +
-                                                    " and current site " + std::to_string(set.current_site_id) +
-                                                    " must be two different non-negative ids");
+    return "previous site " + std::to_string(set.previous_site_id) + " and current site " +
+           std::to_string(set.current_site_id) + " must be two different non-negative ids";
   if (!PoseIsValid(set.previous_site_pose.pose))
-    return finish(CrossSiteBaStatus::kBadInput, "previous site pose is not a finite rigid pose; check the tie-point message");
+    return "previous site pose is not a finite rigid pose; check the tie-point message";
   if (!PoseIsValid(set.current_site_pose_dr.pose))
-    return finish(CrossSiteBaStatus::kBadInput, "dead-reckoning pose of the current site is not a finite rigid pose");
+    return "dead-reckoning pose of the current site is not a finite rigid pose";
   if (set.previous_pointing.empty() || set.current_pointing.empty())
-    return finish(CrossSiteBaStatus::kBadInput, "no mast pointing for the previous or current site's pairs");
+    return "no mast pointing for the previous or current site's pairs";
   for (const auto* list : {&set.previous_pointing, &set.current_pointing})
     for (const auto& p : *list)
       if (!(std::abs(p.pan) <= kMaxMastAngleRad) || !(std::abs(p.tilt) <= kMaxMastAngleRad))
-        return finish(CrossSiteBaStatus::kBadInput, "a mast pan/tilt is not finite or beyond 100 rad");
+        return "a mast pan/tilt is not finite or beyond 100 rad";
+  return "";
+}
 
+// The previous site's cameras in the world, the current site's on the body.
+Network MakeNetwork(const TiePointSet& set, const NavcamModel& navcam) {
   Network net;
   net.navcam = &navcam;
   SiteCameraPoses(set.previous_site_pose.pose, set.previous_pointing, navcam, &net.prev_left, &net.prev_right);
@@ -330,8 +295,14 @@ CrossSiteBaSummary SolveCrossSiteBa(const TiePointSet& set, const NavcamModel& n
     net.body_from_left.push_back(navcam.mast.BodyFromLeft(p.pan, p.tilt, navcam.rig));
     net.body_from_right.push_back(net.body_from_left.back() * navcam.rig.left_from_right);
   }
+  return net;
+}
 
-  // Validate observations and intersect the points from the previous site.
+// The tie points with valid observations, seen at least twice from the
+// previous site and once from the current, intersected from the previous
+// site; counts the bad observations and unusable points into `s`.
+std::vector<BaPoint> IntersectFromPreviousSite(const TiePointSet& set, const Network& net,
+                                               const CrossSiteBaOptions& options, CrossSiteBaSummary* s) {
   std::vector<BaPoint> points;
   for (const auto& tp : set.points) {
     BaPoint bp;
@@ -340,13 +311,13 @@ CrossSiteBaSummary SolveCrossSiteBa(const TiePointSet& set, const NavcamModel& n
       const size_t pairs = o.site == SiteRole::kPrevious ? set.previous_pointing.size() : set.current_pointing.size();
       if (o.pair_index < 0 || o.pair_index >= static_cast<int>(pairs) || !(o.sigma > 0) ||
           !(o.sigma <= kMaxObservationSigmaPx) || !(o.uv.cwiseAbs().maxCoeff() <= kMaxImageCoordinatePx)) {
-        ++s.num_bad_observations;
+        ++s->num_bad_observations;
         continue;
       }
       (o.site == SiteRole::kPrevious ? bp.previous : bp.current).push_back(o);
     }
     if (bp.previous.size() < 2 || bp.current.empty()) {
-      ++s.num_tie_points_unusable;
+      ++s->num_tie_points_unusable;
       continue;
     }
     std::vector<CameraView> views;
@@ -359,27 +330,26 @@ CrossSiteBaSummary SolveCrossSiteBa(const TiePointSet& set, const NavcamModel& n
     }
     const IntersectionResult ir = IntersectPoint(views, uv, sigma, options.min_intersection_parallax_rad);
     if (!ir.ok) {
-      ++s.num_tie_points_unusable;
+      ++s->num_tie_points_unusable;
       continue;
     }
     bp.p_world = ir.p_world;
     points.push_back(bp);
   }
-  const int usable = static_cast<int>(points.size());
-  if (usable < options.min_tie_points) {
-    return finish(CrossSiteBaStatus::kTooFewPoints,
-                  std::to_string(usable) + " tie points seen from both sites and intersectable, need " +
-                      std::to_string(options.min_tie_points));
-  }
+  return points;
+}
 
-  // Resection of the current site from the intersected points.
+// The current site's pose resected from the intersected points (dead
+// reckoning when the resection fails); its iterations into `s`.
+Pose3 ResectCurrentSite(const TiePointSet& set, const Network& net, const std::vector<BaPoint>& points,
+                        const CrossSiteBaOptions& options, CrossSiteBaSummary* s) {
   std::vector<Pose3> body_from_camera;
   std::vector<PinholeCamera> intrinsics;
   for (size_t i = 0; i < net.body_from_left.size(); ++i) {
     body_from_camera.push_back(net.body_from_left[i]);
-    intrinsics.push_back(navcam.rig.left);
+    intrinsics.push_back(net.navcam->rig.left);
     body_from_camera.push_back(net.body_from_right[i]);
-    intrinsics.push_back(navcam.rig.right);
+    intrinsics.push_back(net.navcam->rig.right);
   }
   std::vector<ResectionObservation> robs;
   for (const auto& p : points) {
@@ -395,44 +365,44 @@ CrossSiteBaSummary SolveCrossSiteBa(const TiePointSet& set, const NavcamModel& n
   ResectionOptions ro;
   ro.huber_px = options.huber_sigmas;
   const ResectionResult rr = ResectBody(body_from_camera, intrinsics, robs, set.current_site_pose_dr.pose, ro);
-  Pose3 world_from_current = rr.ok ? rr.world_from_body : set.current_site_pose_dr.pose;
-  s.world_from_current_initial = world_from_current;
-  s.iterations += rr.iterations;
-  s.initial_rms_px = ComputeResiduals(net, points, world_from_current).rms_px;
+  s->iterations += rr.iterations;
+  return rr.ok ? rr.world_from_body : set.current_site_pose_dr.pose;
+}
 
-  // Robust passes with outlier rejection, then a plain least-squares pass.
+// Robust passes, each followed by the outlier rejection, until one rejects
+// none (at most options.rejection_rounds): "" or why too few points are
+// left.
+std::string AdjustRejectingOutliers(const Network& net, const CrossSiteBaOptions& options,
+                                    std::vector<BaPoint>* points, Pose3* world_from_current, CrossSiteBaSummary* s) {
   for (int round = 0; round < options.rejection_rounds; ++round) {
-    const PassResult pr = SolvePass(net, &points, &world_from_current, /*robust=*/true, options);
-    s.iterations += pr.iterations;
-    const int rejected = RejectOutliers(net, &points, world_from_current, options);
-    s.num_tie_points_rejected += rejected;
-    if (CountInliers(points) < options.min_tie_points) {
-      return finish(CrossSiteBaStatus::kTooFewPoints,
-                    std::to_string(CountInliers(points)) + " tie points left after rejecting " +
-                        std::to_string(s.num_tie_points_rejected) + " outliers, need " +
-                        std::to_string(options.min_tie_points));
+    const PassResult pr = SolvePass(net, points, world_from_current, /*robust=*/true, options);
+    s->iterations += pr.iterations;
+    const int rejected = RejectOutliers(net, points, *world_from_current, options);
+    s->num_tie_points_rejected += rejected;
+    if (CountInliers(*points) < options.min_tie_points) {
+      return std::to_string(CountInliers(*points)) + " tie points left after rejecting " +
+             std::to_string(s->num_tie_points_rejected) + " outliers, need " + std::to_string(options.min_tie_points);
     }
     if (rejected == 0) break;
   }
-  const PassResult final_pass = SolvePass(net, &points, &world_from_current, /*robust=*/false, options);
-  s.iterations += final_pass.iterations;
-  const Residuals res = ComputeResiduals(net, points, world_from_current);
-  s.num_tie_points_used = res.points;
-  s.num_observations = res.observations;
-  s.final_rms_px = res.rms_px;
-  s.final_normalised_rms = res.normalised_rms;
-  s.world_from_current.pose = world_from_current;
+  return "";
+}
 
-  // Covariance and conditioning of the site pose.
-  Matrix6d cov;
-  std::string why;
-  if (!PoseCovariance(net, points, world_from_current, options, &cov, &why)) {
-    s.condition_number = std::numeric_limits<double>::infinity();
-    return finish(CrossSiteBaStatus::kIllConditioned, why);
-  }
+// The pose covariance as reported (options.inflate_by_variance_factor,
+// options.max_independent_points) and its condition number with the
+// rotation scaled by the points' mean range (metres both).
+struct ScaledCovariance {
+  Matrix6d covariance;
+  double variance_factor = 1;
+  double condition_number = std::numeric_limits<double>::infinity();
+};
+ScaledCovariance ScaleCovariance(const Matrix6d& plain, const Residuals& res, const std::vector<BaPoint>& points,
+                                 const Pose3& world_from_current, const CrossSiteBaOptions& options) {
+  ScaledCovariance out;
+  Matrix6d cov = plain;
   const int dof = 2 * res.observations - 6 - 3 * res.points;
-  const double variance_factor = dof > 0 ? res.chi2 / dof : 1.0;
-  if (options.inflate_by_variance_factor) cov *= std::max(1.0, variance_factor);
+  out.variance_factor = dof > 0 ? res.chi2 / dof : 1.0;
+  if (options.inflate_by_variance_factor) cov *= std::max(1.0, out.variance_factor);
   if (options.max_independent_points > 0)
     cov *= std::max(1.0, static_cast<double>(res.points) / options.max_independent_points);
   double mean_range = 0;
@@ -444,31 +414,123 @@ CrossSiteBaSummary SolveCrossSiteBa(const TiePointSet& set, const NavcamModel& n
   const Matrix6d scaled = scale.asDiagonal() * cov * scale.asDiagonal();
   const Eigen::SelfAdjointEigenSolver<Matrix6d> eig(scaled);
   const double lmin = eig.eigenvalues()(0), lmax = eig.eigenvalues()(5);
-  s.condition_number = lmin > 0 ? lmax / lmin : std::numeric_limits<double>::infinity();
-  s.world_from_current.covariance = cov;
+  out.condition_number = lmin > 0 ? lmax / lmin : std::numeric_limits<double>::infinity();
+  out.covariance = cov;
+  return out;
+}
 
+struct Verdict {
+  CrossSiteBaStatus status;
+  std::string message;
+};
+
+// Whether the adjusted pose may replace dead reckoning, and why.
+Verdict Judge(const PassResult& final_pass, const Residuals& res, const ScaledCovariance& cov,
+              const Pose3& world_from_current, const TiePointSet& set, const CrossSiteBaOptions& options) {
   std::ostringstream msg;
   if (!final_pass.converged) {
     msg << "adjustment did not converge: " << final_pass.message;
-    return finish(CrossSiteBaStatus::kNotConverged, msg.str());
+    return {CrossSiteBaStatus::kNotConverged, msg.str()};
   }
   if (res.normalised_rms > options.max_final_rms_sigmas) {
     msg << "final reprojection RMS " << res.normalised_rms << " sigmas exceeds " << options.max_final_rms_sigmas;
-    return finish(CrossSiteBaStatus::kNotConverged, msg.str());
+    return {CrossSiteBaStatus::kNotConverged, msg.str()};
   }
   const double correction = (world_from_current.translation() - set.current_site_pose_dr.pose.translation()).norm();
   if (correction > options.max_correction_m) {
     msg << "solution moved " << correction << " m from dead reckoning, more than " << options.max_correction_m;
-    return finish(CrossSiteBaStatus::kNotConverged, msg.str());
+    return {CrossSiteBaStatus::kNotConverged, msg.str()};
   }
-  if (!(s.condition_number <= options.max_condition_number)) {
-    msg << "pose covariance condition number " << s.condition_number << " exceeds " << options.max_condition_number
+  if (!(cov.condition_number <= options.max_condition_number)) {
+    msg << "pose covariance condition number " << cov.condition_number << " exceeds " << options.max_condition_number
         << " (tie points too few, clustered or collinear)";
-    return finish(CrossSiteBaStatus::kIllConditioned, msg.str());
+    return {CrossSiteBaStatus::kIllConditioned, msg.str()};
   }
   msg << "adjusted " << res.points << " tie points, moved " << correction << " m from dead reckoning, position sigma "
-      << std::sqrt(cov.block<3, 3>(0, 0).trace()) << " m, variance factor " << variance_factor;
-  return finish(CrossSiteBaStatus::kOk, msg.str());
+      << std::sqrt(cov.covariance.block<3, 3>(0, 0).trace()) << " m, variance factor " << cov.variance_factor;
+  return {CrossSiteBaStatus::kOk, msg.str()};
+}
+
+// The summary's status and message, its relative pose and the cameras of
+// both sites (dead reckoning's pose and covariance unless `status` is OK).
+CrossSiteBaSummary Finish(const TiePointSet& set, const NavcamModel& navcam, std::chrono::steady_clock::time_point t0,
+                          const Verdict& verdict, CrossSiteBaSummary s) {
+  s.status = verdict.status;
+  s.usable = verdict.status == CrossSiteBaStatus::kOk;
+  s.message = verdict.message;
+  if (!s.usable) s.world_from_current = set.current_site_pose_dr;
+  s.world_from_current.utime = set.current_site_pose_dr.utime;
+  const Pose3 previous_from_world = set.previous_site_pose.pose.inverse();
+  s.previous_from_current.utime = s.world_from_current.utime;
+  s.previous_from_current.pose = previous_from_world * s.world_from_current.pose;
+  if (s.usable) {
+    s.previous_from_current.covariance = ComposeCovariance(previous_from_world, Matrix6d::Zero(),
+                                                           s.world_from_current.pose, s.world_from_current.covariance);
+  } else {
+    // Dead reckoning: the relative covariance is unknown here beyond the DR one.
+    s.previous_from_current.covariance = s.world_from_current.covariance;
+  }
+  SiteCameraPoses(set.previous_site_pose.pose, set.previous_pointing, navcam, &s.world_from_left_previous,
+                  &s.world_from_right_previous);
+  SiteCameraPoses(s.world_from_current.pose, set.current_pointing, navcam, &s.world_from_left_current,
+                  &s.world_from_right_current);
+  s.solve_seconds = SecondsSince(t0);
+  return s;
+}
+
+}  // namespace
+
+// Wan et al. 2.3: the current site's pose (and the tie points) adjusted to
+// both sites' observations, the previous site held fixed.
+CrossSiteBaSummary SolveCrossSiteBa(const TiePointSet& set, const NavcamModel& navcam,
+                                    const CrossSiteBaOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  CrossSiteBaSummary s;
+  s.previous_site_id = set.previous_site_id;
+  s.current_site_id = set.current_site_id;
+  s.num_tie_points_in = static_cast<int>(set.points.size());
+  s.world_from_current = set.current_site_pose_dr;
+  s.world_from_current_initial = set.current_site_pose_dr.pose;
+  auto finish = [&](CrossSiteBaStatus status, const std::string& message) {
+    return Finish(set, navcam, t0, {status, message}, s);
+  };
+  const std::string bad_input = InputError(set, navcam, options);
+  if (!bad_input.empty()) return finish(CrossSiteBaStatus::kBadInput, bad_input);
+
+  const Network net = MakeNetwork(set, navcam);
+  std::vector<BaPoint> points = IntersectFromPreviousSite(set, net, options, &s);
+  const int usable = static_cast<int>(points.size());
+  if (usable < options.min_tie_points) {
+    return finish(CrossSiteBaStatus::kTooFewPoints,
+                  std::to_string(usable) + " tie points seen from both sites and intersectable, need " +
+                      std::to_string(options.min_tie_points));
+  }
+  Pose3 world_from_current = ResectCurrentSite(set, net, points, options, &s);
+  s.world_from_current_initial = world_from_current;
+  s.initial_rms_px = ComputeResiduals(net, points, world_from_current).rms_px;
+
+  const std::string too_few = AdjustRejectingOutliers(net, options, &points, &world_from_current, &s);
+  if (!too_few.empty()) return finish(CrossSiteBaStatus::kTooFewPoints, too_few);
+  const PassResult final_pass = SolvePass(net, &points, &world_from_current, /*robust=*/false, options);
+  s.iterations += final_pass.iterations;
+  const Residuals res = ComputeResiduals(net, points, world_from_current);
+  s.num_tie_points_used = res.points;
+  s.num_observations = res.observations;
+  s.final_rms_px = res.rms_px;
+  s.final_normalised_rms = res.normalised_rms;
+  s.world_from_current.pose = world_from_current;
+
+  Matrix6d plain;
+  std::string why;
+  if (!PoseCovariance(net, points, world_from_current, options, &plain, &why)) {
+    s.condition_number = std::numeric_limits<double>::infinity();
+    return finish(CrossSiteBaStatus::kIllConditioned, why);
+  }
+  const ScaledCovariance cov = ScaleCovariance(plain, res, points, world_from_current, options);
+  s.condition_number = cov.condition_number;
+  s.world_from_current.covariance = cov.covariance;
+  const Verdict verdict = Judge(final_pass, res, cov, world_from_current, set, options);
+  return finish(verdict.status, verdict.message);
 }
 
 }  // namespace vloc
