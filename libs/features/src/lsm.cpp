@@ -123,6 +123,149 @@ inline void SampleCubic(const cv::Mat& img, double x, double y, double* value, d
 bool Inside(const cv::Mat& m, const Eigen::Vector2d& p, double margin_x, double margin_y) {
   return p.x() >= margin_x && p.y() >= margin_y && p.x() <= m.cols - 1 - margin_x && p.y() <= m.rows - 1 - margin_y;
 }
+
+// The template window resampled about its centre, row by row, with its
+// mean and standard deviation.
+struct Template {
+  std::vector<float> T;
+  double mean = 0, std = 0;
+};
+Template SampleTemplate(const cv::Mat& img, const Eigen::Vector2d& centre, int h, int hy, bool bspline) {
+  Template tpl;
+  const int n = (2 * h + 1) * (2 * hy + 1);
+  tpl.T.resize(n);
+  double sum = 0, sum2 = 0;
+  for (int r = -hy, i = 0; r <= hy; ++r) {
+    for (int c = -h; c <= h; ++c, ++i) {
+      double v, unused_x, unused_y;
+      SampleCubic(img, centre.x() + c, centre.y() + r, &v, &unused_x, &unused_y, bspline);
+      tpl.T[i] = static_cast<float>(v);
+      sum += tpl.T[i];
+      sum2 += static_cast<double>(tpl.T[i]) * tpl.T[i];
+    }
+  }
+  tpl.mean = sum / n;
+  tpl.std = std::sqrt(std::max(sum2 / n - tpl.mean * tpl.mean, 0.0));
+  return tpl;
+}
+
+// The 8 parameters: the window centre t (2), the affine shape A (4,
+// row-major) and the radiometry r0 + r1 g. Without affine estimation the 4
+// shape parameters get zero Jacobians and a unit diagonal, so their update
+// is zero.
+constexpr int kParams = 8;
+using Mat8 = Eigen::Matrix<double, kParams, kParams>;
+using Vec8 = Eigen::Matrix<double, kParams, 1>;
+struct WindowParams {
+  Eigen::Vector2d t;
+  Eigen::Matrix2d A;
+  double r0 = 0, r1 = 1;
+};
+
+// The normal equations N dx = b at `p` (N's lower triangle) and the sum of
+// squared residuals; G: the resampled target window.
+struct NormalEquations {
+  Mat8 N;
+  Vec8 b;
+  double ssr = 0;
+  std::vector<float> G;
+};
+void Linearise(const cv::Mat& target_img, const Template& tpl, const WindowParams& p, int h, int hy,
+               const LsmOptions& o, NormalEquations* eq) {
+  Mat8& N = eq->N;
+  Vec8& b = eq->b;
+  Vec8 J = Vec8::Zero();
+  N.setZero();
+  b.setZero();
+  eq->ssr = 0;
+  for (int r = -hy, i = 0; r <= hy; ++r) {
+    for (int c = -h; c <= h; ++c, ++i) {
+      const double x = p.t.x() + p.A(0, 0) * c + p.A(0, 1) * r;
+      const double y = p.t.y() + p.A(1, 0) * c + p.A(1, 1) * r;
+      double g, gx, gy;
+      SampleCubic(target_img, x, y, &g, &gx, &gy, o.bspline);
+      gx *= p.r1;
+      gy *= p.r1;
+      eq->G[i] = static_cast<float>(g);
+      const double resid = tpl.T[i] - (p.r0 + p.r1 * g);
+      eq->ssr += resid * resid;
+      J(0) = gx;
+      J(1) = gy;
+      if (o.estimate_affine) {
+        J(2) = gx * c;
+        J(3) = gx * r;
+        J(4) = gy * c;
+        J(5) = gy * r;
+      }
+      J(kParams - 2) = 1;
+      J(kParams - 1) = g;
+      // N's lower triangle += J J^T, b += J resid: rankUpdate's
+      // operations (each N(k, l) += J(l) J(k)) inline; the call per
+      // pixel was a fifth of this function's time.
+      for (int l = 0; l < kParams; ++l) {
+        for (int k = l; k < kParams; ++k) N(k, l) += J(l) * J(k);
+        b(l) += J(l) * resid;
+      }
+    }
+  }
+}
+
+// The update dx from eq (N made whole and, without affine estimation, its
+// shape block regularised, as the precision then uses it): false when
+// singular.
+bool SolveNormalEquations(const LsmOptions& o, NormalEquations* eq, Vec8* dx) {
+  Mat8& N = eq->N;
+  N.triangularView<Eigen::StrictlyUpper>() = N.transpose();
+  if (!o.estimate_affine) N.block<4, 4>(2, 2).diagonal().array() += 1.0;
+  Eigen::LDLT<Mat8> ldlt(N);
+  if (ldlt.info() != Eigen::Success) return false;
+  *dx = ldlt.solve(eq->b);
+  return dx->allFinite();
+}
+
+// Moves `p` by dx: why the match fails there, or nullptr.
+const char* Update(const Vec8& dx, const Eigen::Vector2d& initial_target, const LsmOptions& o, WindowParams* p) {
+  p->t += dx.head<2>();
+  if (o.estimate_affine) {
+    p->A(0, 0) += dx(2);
+    p->A(0, 1) += dx(3);
+    p->A(1, 0) += dx(4);
+    p->A(1, 1) += dx(5);
+  }
+  p->r0 += dx(kParams - 2);
+  p->r1 += dx(kParams - 1);
+  if ((p->t - initial_target).norm() > o.max_shift_px) return "moved beyond max_shift_px";
+  const double det = p->A.determinant();
+  if (!(det > 0.01 && det < 100) || p->r1 <= 0.05) return "degenerate shape or radiometry";
+  return nullptr;
+}
+
+// Precision from the last linearisation (at the previous step's values,
+// a negligible difference at convergence).
+void Precision(const NormalEquations& eq, int n, int n_estimated, LsmResult* res) {
+  const double sigma0_sq = eq.ssr / std::max(1, n - n_estimated);
+  const Mat8 Ninv = Eigen::LDLT<Mat8>(eq.N).solve(Mat8::Identity());
+  res->sigma0 = std::sqrt(sigma0_sq);
+  res->sigma_px = std::sqrt(sigma0_sq * 0.5 * (Ninv(0, 0) + Ninv(1, 1)));
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(sigma0_sq * Ninv.block<2, 2>(0, 0));
+  res->sigma_max_px = std::sqrt(std::max(es.eigenvalues()(1), 0.0));
+}
+
+// Correlation of the template and the last resampled window.
+double WindowCorrelation(const Template& tpl, const std::vector<float>& G) {
+  const int n = static_cast<int>(G.size());
+  double gm = 0;
+  for (float v : G) gm += v;
+  gm /= n;
+  double stg = 0, sgg = 0, stt = 0;
+  for (int i = 0; i < n; ++i) {
+    stg += (tpl.T[i] - tpl.mean) * (G[i] - gm);
+    sgg += (G[i] - gm) * (G[i] - gm);
+    stt += (tpl.T[i] - tpl.mean) * (tpl.T[i] - tpl.mean);
+  }
+  return stg / std::sqrt(std::max(sgg * stt, 1e-12));
+}
+
 }  // namespace
 
 LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& template_px, const LsmImage& target,
@@ -140,110 +283,33 @@ LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& templa
     res.why = "lsm.bspline needs images made by MakeLsmImage(gray, true)";
     return res;
   }
-  const cv::Mat& templ_img = bs ? templ.bspline : templ.gray;
-  const cv::Mat& target_img = bs ? target.bspline : target.gray;
-  std::vector<float> T(n);
-  double sum = 0, sum2 = 0;
-  for (int r = -hy, i = 0; r <= hy; ++r) {
-    for (int c = -h; c <= h; ++c, ++i) {
-      double v, unused_x, unused_y;
-      SampleCubic(templ_img, template_px.x() + c, template_px.y() + r, &v, &unused_x, &unused_y, bs);
-      T[i] = static_cast<float>(v);
-      sum += T[i];
-      sum2 += static_cast<double>(T[i]) * T[i];
-    }
-  }
-  const double tmean = sum / n;
-  const double tstd = std::sqrt(std::max(sum2 / n - tmean * tmean, 0.0));
-  if (tstd < o.min_template_std) {
+  const Template tpl = SampleTemplate(bs ? templ.bspline : templ.gray, template_px, h, hy, bs);
+  if (tpl.std < o.min_template_std) {
     res.why = "too little texture";
     return res;
   }
-  // Parameters: t (2), A (4, row-major), r0, r1.
-  Eigen::Vector2d t = initial_target;
-  Eigen::Matrix2d A = initial_affine;
-  double r0 = 0, r1 = 1;
-  // Fixed 8 parameters; without affine estimation the 4 shape parameters
-  // get zero Jacobians and a unit diagonal, so their update is zero.
-  constexpr int np = 8;
-  const int n_estimated = o.estimate_affine ? 8 : 4;
-  using Mat8 = Eigen::Matrix<double, 8, 8>;
-  using Vec8 = Eigen::Matrix<double, 8, 1>;
-  Mat8 N;
-  Vec8 b, J = Vec8::Zero();
-  std::vector<float> G(n);
+  const cv::Mat& target_img = bs ? target.bspline : target.gray;
+  WindowParams p{initial_target, initial_affine};
+  NormalEquations eq;
+  eq.G.resize(n);
   bool converged = false;
-  double ssr = 0;
   int it = 0;
   for (; it < o.max_iterations; ++it) {
     // Bounding margin of the warped window.
-    const double reach_x = h * std::abs(A(0, 0)) + hy * std::abs(A(0, 1)) + 3;
-    const double reach_y = h * std::abs(A(1, 0)) + hy * std::abs(A(1, 1)) + 3;
-    if (!Inside(target.gray, t, reach_x, reach_y)) {
+    const double reach_x = h * std::abs(p.A(0, 0)) + hy * std::abs(p.A(0, 1)) + 3;
+    const double reach_y = h * std::abs(p.A(1, 0)) + hy * std::abs(p.A(1, 1)) + 3;
+    if (!Inside(target.gray, p.t, reach_x, reach_y)) {
       res.why = "window left the target image";
       return res;
     }
-    N.setZero();
-    b.setZero();
-    ssr = 0;
-    for (int r = -hy, i = 0; r <= hy; ++r) {
-      for (int c = -h; c <= h; ++c, ++i) {
-        const double x = t.x() + A(0, 0) * c + A(0, 1) * r;
-        const double y = t.y() + A(1, 0) * c + A(1, 1) * r;
-        double g, gx, gy;
-        SampleCubic(target_img, x, y, &g, &gx, &gy, bs);
-        gx *= r1;
-        gy *= r1;
-        G[i] = static_cast<float>(g);
-        const double resid = T[i] - (r0 + r1 * g);
-        ssr += resid * resid;
-        J(0) = gx;
-        J(1) = gy;
-        if (o.estimate_affine) {
-          J(2) = gx * c;
-          J(3) = gx * r;
-          J(4) = gy * c;
-          J(5) = gy * r;
-        }
-        J(np - 2) = 1;
-        J(np - 1) = g;
-        // N's lower triangle += J J^T, b += J resid: rankUpdate's
-        // operations (each N(k, l) += J(l) J(k)) inline; the call per
-        // pixel was a fifth of this function's time.
-        for (int l = 0; l < np; ++l) {
-          for (int k = l; k < np; ++k) N(k, l) += J(l) * J(k);
-          b(l) += J(l) * resid;
-        }
-      }
-    }
-    N.triangularView<Eigen::StrictlyUpper>() = N.transpose();
-    if (!o.estimate_affine) N.block<4, 4>(2, 2).diagonal().array() += 1.0;
-    Eigen::LDLT<Mat8> ldlt(N);
-    if (ldlt.info() != Eigen::Success) {
+    Linearise(target_img, tpl, p, h, hy, o, &eq);
+    Vec8 dx;
+    if (!SolveNormalEquations(o, &eq, &dx)) {
       res.why = "singular normal equations";
       return res;
     }
-    const Vec8 dx = ldlt.solve(b);
-    if (!dx.allFinite()) {
-      res.why = "singular normal equations";
-      return res;
-    }
-    t += dx.head<2>();
-    if (o.estimate_affine) {
-      A(0, 0) += dx(2);
-      A(0, 1) += dx(3);
-      A(1, 0) += dx(4);
-      A(1, 1) += dx(5);
-    }
-    r0 += dx(np - 2);
-    r1 += dx(np - 1);
-    if ((t - initial_target).norm() > o.max_shift_px) {
-      res.why = "moved beyond max_shift_px";
-      return res;
-    }
-    const double det = A.determinant();
-    if (!(det > 0.01 && det < 100) || r1 <= 0.05) {
-      res.why = "degenerate shape or radiometry";
+    if (const char* why = Update(dx, initial_target, o, &p)) {
+      res.why = why;
       return res;
     }
     if (dx.head<2>().norm() < o.convergence_px) {
@@ -257,31 +323,12 @@ LsmResult LeastSquaresMatch(const LsmImage& templ, const Eigen::Vector2d& templa
     res.why = "did not converge";
     return res;
   }
-  // Precision from the last linearisation (at the previous step's values,
-  // a negligible difference at convergence).
-  const double sigma0_sq = ssr / std::max(1, n - n_estimated);
-  const Mat8 Ninv = Eigen::LDLT<Mat8>(N).solve(Mat8::Identity());
-  res.sigma0 = std::sqrt(sigma0_sq);
-  res.sigma_px = std::sqrt(sigma0_sq * 0.5 * (Ninv(0, 0) + Ninv(1, 1)));
-  {
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(sigma0_sq * Ninv.block<2, 2>(0, 0));
-    res.sigma_max_px = std::sqrt(std::max(es.eigenvalues()(1), 0.0));
-  }
-  // Correlation of template and the last resampled window.
-  double gm = 0;
-  for (float v : G) gm += v;
-  gm /= n;
-  double stg = 0, sgg = 0, stt = 0;
-  for (int i = 0; i < n; ++i) {
-    stg += (T[i] - tmean) * (G[i] - gm);
-    sgg += (G[i] - gm) * (G[i] - gm);
-    stt += (T[i] - tmean) * (T[i] - tmean);
-  }
-  res.correlation = stg / std::sqrt(std::max(sgg * stt, 1e-12));
-  res.target = t;
-  res.affine = A;
-  res.r0 = r0;
-  res.r1 = r1;
+  Precision(eq, n, o.estimate_affine ? 8 : 4, &res);
+  res.correlation = WindowCorrelation(tpl, eq.G);
+  res.target = p.t;
+  res.affine = p.A;
+  res.r0 = p.r0;
+  res.r1 = p.r1;
   if (res.correlation < o.min_correlation) {
     res.why = "correlation below min_correlation";
     return res;
