@@ -162,7 +162,7 @@ TEST(RealSurvey, SenecaNinetyPercentRegisteredTheRestLostWithAReason) {
   EXPECT_LT(run.route.rms_percent(), 1.0) << "route RMS " << run.route.rms_m << " m over " << run.route.path_m << " m";
   // Heights against the GPS altitude minus a fitted ground: vision only (measured 3.14 % with 284 height ties to the
   // adjacent strips, 4.79 % from the chain of 146 keyframes alone; the GPS altitude's own frame-to-frame noise,
-  // estimated from the ties, the chain and the GPS together, is 1.7-1.9 %) and fused with the tags (1.72 %; the
+  // estimated from the ties, the chain and the GPS together, is 1.7-1.9 %) and fused with the tags (2.11 %; the
   // tags' own sigma, 3 m, is 4.6 % of 65 m).
   const SurveyFigures& fig = run.figures;
   ASSERT_TRUE(fig.height.ok && fig.fusion.fused) << fig.fusion.why;
@@ -170,11 +170,11 @@ TEST(RealSurvey, SenecaNinetyPercentRegisteredTheRestLostWithAReason) {
             << " % (" << fig.fusion.why << ")\n";
   EXPECT_LT(fig.height.rms_percent, 3.8);
   EXPECT_GE(run.summary.height_ties, 200) << "height ties to the adjacent strips (measured 284)";
-  EXPECT_LT(fig.fused_height.rms_percent, 0.7 * fig.height.rms_percent);
+  EXPECT_LT(fig.fused_height.rms_percent, fig.height.rms_percent);  // the fusion follows the tags (0.67x)
   EXPECT_LT(fig.fused_height.rms_percent, 100 * 3.0 / 65);
   // Against a better truth than the tags: COLMAP's reconstruction of the same photos (bundle adjustment, aligned to
   // the GPS; heights above the ground each photo sees, reproduced by a second run to 0.011 m RMS). The tags
-  // (altitude minus a fitted level) are 2.67 % off it, the vision heights 1.30 % (fused 1.65 %): what keeps the figure
+  // (altitude minus a fitted level) are 2.67 % off it, the vision heights 1.30 %, fused 1.19 %: what keeps the figure
   // against the tags above 2 % is the tags. An offset is fitted as against the tags (a nadir survey's absolute
   // height trades against the focal length: COLMAP self-calibrates 680.6 px, the EXIF says 669; without it 4.30 %).
   const HeightComparison& vision = fig.reference_vision;
@@ -186,6 +186,11 @@ TEST(RealSurvey, SenecaNinetyPercentRegisteredTheRestLostWithAReason) {
   EXPECT_LT(vision.rms_percent, 2.0);  // 2 %: the target (the reference's own noise is ~0.02 %)
   EXPECT_LT(fig.reference_fused.rms_percent, 2.0);
   EXPECT_LT(vision.rms_percent, 0.7 * fig.reference_tags.rms_percent);
+  // Fused with the tags, the heights are nearer the truth than either alone (the fusion takes the tags' slow
+  // wander, 5.5 % peak to peak against the reference, for no drift of the chain's, 2.2 %; a bias drift of 0.004 /
+  // s^0.5 took it for one: fused 1.65 %). The reference's own noise, ~0.02 %, is well inside the 0.1 % margin.
+  EXPECT_LT(fig.reference_fused.rms_percent, vision.rms_percent);
+  EXPECT_LT(fig.reference_fused.rms_percent, fig.reference_tags.rms_percent);
   // The compact camera's lens from the height ties alone (lens_search.h): measured k1 -0.028 (residual 0.77 sigmas
   // against 0.91 without; full runs at steps of 0.02 put it at -0.04); its curve is shallow near the minimum, steep
   // beyond +-0.04 of it (1.4 sigmas at -0.08 and +0.03 -> 1.2).
