@@ -163,9 +163,12 @@ LogData ReadLog(const std::string& path, bool progress) {
   return d;
 }
 
-Summary Evaluate(const LogData& d) {
-  Summary s;
-  // Sites with ground truth, in id order; distance driven along them.
+namespace {
+
+// The sites with ground truth, in id order, with the distance driven along
+// them and their dead-reckoning and optimised errors.
+std::vector<SiteRow> SiteRows(const LogData& d) {
+  std::vector<SiteRow> sites;
   double dist = 0;
   const Pose3* prev = nullptr;
   for (const auto& [id, gt] : d.gt) {
@@ -188,9 +191,14 @@ Summary Evaluate(const LogData& d) {
       r.opt_err = (r.opt.translation() - r.gt.translation()).norm();
       r.opt_heading_err = HeadingError(r.opt, r.gt);
     }
-    s.sites.push_back(r);
+    sites.push_back(r);
   }
-  // Visual: the BA's own world pose per site (last OK result), and per pair.
+  return sites;
+}
+
+// The visual pairs against the truth (new-site error, NEES), and each
+// site's chained visual pose (the BA's own world pose, last OK result).
+void EvaluatePairs(const LogData& d, Summary* s) {
   std::vector<double> pcts;
   double nees_sum = 0;
   int nees_n = 0;
@@ -216,12 +224,12 @@ Summary Evaluate(const LogData& d) {
           nees_sum += row.nees;
           ++nees_n;
         }
-        ++s.pairs_ok;
+        ++s->pairs_ok;
       }
     }
-    s.pairs.push_back(row);
+    s->pairs.push_back(row);
     if (p.status == 0)
-      for (SiteRow& r : s.sites)
+      for (SiteRow& r : s->sites)
         if (r.site == p.site) {
           r.has_visual = true;
           r.visual = p.pose.pose;
@@ -229,167 +237,188 @@ Summary Evaluate(const LogData& d) {
           r.vis_heading_err = HeadingError(r.visual, r.gt);
         }
   }
-  if (!pcts.empty()) s.pair_median_pct = Median(pcts);
-  if (nees_n) s.pair_mean_nees = nees_sum / nees_n;
+  if (!pcts.empty()) s->pair_median_pct = Median(pcts);
+  if (nees_n) s->pair_mean_nees = nees_sum / nees_n;
+}
+
+// The errors at the last site with ground truth.
+void EndOfTraverse(Summary* s) {
+  if (s->sites.empty()) return;
+  const SiteRow& last = s->sites.back();
+  s->distance = last.distance;
+  s->dr_end = last.dr_err;
+  s->vis_end = last.vis_err;
+  s->opt_end = last.opt_err;
+  s->dr_end_heading = last.dr_heading_err;
+  s->vis_end_heading = last.vis_heading_err;
+  s->opt_end_heading = last.opt_heading_err;
+  if (last.has_dr) s->dr_end_vertical = VerticalError(last.dr, last.gt), s->dr_end_tilt = TiltError(last.dr, last.gt);
+  if (last.has_visual)
+    s->vis_end_vertical = VerticalError(last.visual, last.gt), s->vis_end_tilt = TiltError(last.visual, last.gt);
+  if (last.has_opt) s->opt_end_vertical = VerticalError(last.opt, last.gt), s->opt_end_tilt = TiltError(last.opt, last.gt);
+}
+
+// The UAV: each state matched to the ground truth nearest in time (none
+// further than 0.1 s), the height and route errors.
+void EvaluateUav(const LogData& d, Summary* s) {
+  if (d.uav_gt.empty() || d.uav_state.empty()) return;
+  std::vector<double> flown(d.uav_gt.size(), 0.0);
+  for (size_t i = 1; i < d.uav_gt.size(); ++i)
+    flown[i] = flown[i - 1] + (d.uav_gt[i].second.translation() - d.uav_gt[i - 1].second.translation()).head<2>().norm();
+  const Eigen::Vector2d takeoff = d.uav_gt.front().second.translation().head<2>();
+  const int64_t t0 = d.uav_gt.front().first;
+  double sq = 0, sq_pct = 0;
+  int height_samples = 0;
+  for (const UavSample& u : d.uav_state) {
+    auto it = std::lower_bound(d.uav_gt.begin(), d.uav_gt.end(), u.utime,
+                               [](const auto& a, int64_t t) { return a.first < t; });
+    if (it == d.uav_gt.end()) --it;
+    if (it != d.uav_gt.begin() && std::llabs(std::prev(it)->first - u.utime) < std::llabs(it->first - u.utime)) --it;
+    if (std::llabs(it->first - u.utime) > 100000) continue;  // no truth within 0.1 s
+    UavRow r;
+    r.utime = u.utime;
+    r.t = 1e-6 * static_cast<double>(u.utime - t0);
+    r.height = u.height;
+    r.gt_height = it->second.translation().z();
+    r.east = u.east;
+    r.north = u.north;
+    r.gt_east = it->second.translation().x() - takeoff.x();
+    r.gt_north = it->second.translation().y() - takeoff.y();
+    r.flown = flown[static_cast<size_t>(it - d.uav_gt.begin())];
+    // While calibrating on the marker the mosaicker has no height yet;
+    // every later frame counts (a lost frame keeps its last height).
+    if (u.status != uav_state_t::STATUS_CALIBRATING && std::isfinite(r.height) && r.gt_height > 0) {
+      ++height_samples;
+      sq += (r.height - r.gt_height) * (r.height - r.gt_height);
+      sq_pct += std::pow(100.0 * (r.height - r.gt_height) / r.gt_height, 2);
+    }
+    s->uav.push_back(r);
+  }
+  if (s->uav.empty()) return;
+  s->uav_height_rms = std::sqrt(sq / std::max(1, height_samples));
+  s->uav_height_rms_pct = std::sqrt(sq_pct / std::max(1, height_samples));
+  const UavRow& e = s->uav.back();
+  s->uav_flown = e.flown;
+  s->uav_route_end = std::hypot(e.east - e.gt_east, e.north - e.gt_north);
+  s->uav_route_end_pct = Pct(s->uav_route_end, e.flown);
+}
+
+// `dir`/`name` opened for writing, numbers with 10 digits.
+std::ofstream OpenOutput(const std::string& dir, const std::string& name) {
+  std::ofstream f(dir + "/" + name);
+  if (!f) throw std::runtime_error("cannot write " + dir + "/" + name);
+  f << std::setprecision(10);
+  return f;
+}
+
+void WriteSites(const Summary& s, std::ofstream& f) {
+  f << "site,distance_m,gt_x,gt_y,gt_z,gt_heading_deg,dr_x,dr_y,dr_err_m,dr_err_pct,dr_heading_err_deg,"
+       "vis_x,vis_y,vis_err_m,vis_err_pct,vis_heading_err_deg,opt_x,opt_y,opt_err_m,opt_err_pct,"
+       "opt_heading_err_deg,opt_cov_xx,opt_cov_xy,opt_cov_yy,opt_z,opt_tilt_err_deg,opt_sigma_z,dr_tilt_err_deg,"
+       "dr_up_err_x,dr_up_err_y\n";
+  for (const SiteRow& r : s.sites) {
+    auto xy = [&](bool has, const Pose3& p) {
+      return has ? std::to_string(p.translation().x()) + "," + std::to_string(p.translation().y()) : ",";
+    };
+    auto num = [](double v) { return std::isfinite(v) ? std::to_string(v) : std::string(); };
+    f << r.site << ',' << r.distance << ',' << r.gt.translation().x() << ',' << r.gt.translation().y() << ','
+      << r.gt.translation().z() << ',' << Deg(Heading(r.gt)) << ',' << xy(r.has_dr, r.dr) << ',' << num(r.dr_err)
+      << ',' << num(Pct(r.dr_err, r.distance)) << ',' << num(r.dr_heading_err) << ',' << xy(r.has_visual, r.visual)
+      << ',' << num(r.vis_err) << ',' << num(Pct(r.vis_err, r.distance)) << ',' << num(r.vis_heading_err) << ','
+      << xy(r.has_opt, r.opt) << ',' << num(r.opt_err) << ',' << num(Pct(r.opt_err, r.distance)) << ','
+      << num(r.opt_heading_err) << ',' << r.opt_cov(0, 0) << ',' << r.opt_cov(0, 1) << ',' << r.opt_cov(1, 1);
+    // The DR's up-axis error in the body frame (x, y): what an accelerometer bias fixed to the body leaves.
+    const Eigen::Vector3d dr_up_err = (r.dr.linear().row(2) - r.gt.linear().row(2)).transpose();
+    for (const double v : {r.has_opt ? r.opt.translation().z() : NAN, r.has_opt ? TiltError(r.opt, r.gt) : NAN,
+                           r.has_opt ? std::sqrt(r.opt_cov(2, 2)) : NAN, r.has_dr ? TiltError(r.dr, r.gt) : NAN,
+                           r.has_dr ? dr_up_err.x() : NAN, r.has_dr ? dr_up_err.y() : NAN}) {
+      f << ',';
+      if (std::isfinite(v)) f << v;
+    }
+    f << '\n';
+  }
+}
+
+void WritePairs(const Summary& s, std::ofstream& f) {
+  f << "reference,site,status,spacing_m,err_m,err_pct,nees,err_x,err_y,err_z,sigma_x,sigma_y,sigma_z\n";
+  for (const PairRow& p : s.pairs) {
+    f << p.reference << ',' << p.site << ',' << p.status << ',' << p.spacing << ',' << F(p.err, 6) << ','
+      << F(p.err_pct, 6) << ',' << F(p.nees, 6);
+    for (int i = 0; i < 3; ++i) f << ',' << F(p.err_xyz[i], 6);
+    for (int i = 0; i < 3; ++i) f << ',' << F(p.sigma_xyz[i], 6);
+    f << '\n';
+  }
+}
+
+void WriteFixes(const Summary& s, std::ofstream& f) {
+  f << "site,x,y,heading_deg,sigma_x,sigma_y,sigma_heading_deg,err_x,err_y,err_xy,heading_err_deg,nees_xy,nees_xyh\n";
+  for (const FixRow& r : s.fixes)
+    f << r.site << ',' << r.x << ',' << r.y << ',' << r.heading_deg << ',' << r.sigma_x << ',' << r.sigma_y << ','
+      << r.sigma_heading_deg << ',' << r.err_x << ',' << r.err_y << ',' << r.err_xy << ',' << r.heading_err_deg << ','
+      << F(r.nees_xy, 4) << ',' << F(r.nees_xyh, 4) << '\n';
+}
+
+void WriteUav(const Summary& s, std::ofstream& f) {
+  f << "utime,t_s,height_m,gt_height_m,height_err_m,east_m,north_m,gt_east_m,gt_north_m,route_err_m,flown_m\n";
+  for (const UavRow& u : s.uav)
+    f << u.utime << ',' << u.t << ',' << u.height << ',' << u.gt_height << ',' << u.height - u.gt_height << ','
+      << u.east << ',' << u.north << ',' << u.gt_east << ',' << u.gt_north << ','
+      << std::hypot(u.east - u.gt_east, u.north - u.gt_north) << ',' << u.flown << '\n';
+}
+
+// report.md: the short table, then per site, per map fix and per pair.
+void WriteReport(const Summary& s, std::ofstream& f) {
+  f << "# vloc evaluation\n\n" << ShortTable(s) << "\n";
   if (!s.sites.empty()) {
-    const SiteRow& last = s.sites.back();
-    s.distance = last.distance;
-    s.dr_end = last.dr_err;
-    s.vis_end = last.vis_err;
-    s.opt_end = last.opt_err;
-    s.dr_end_heading = last.dr_heading_err;
-    s.vis_end_heading = last.vis_heading_err;
-    s.opt_end_heading = last.opt_heading_err;
-    if (last.has_dr) s.dr_end_vertical = VerticalError(last.dr, last.gt), s.dr_end_tilt = TiltError(last.dr, last.gt);
-    if (last.has_visual)
-      s.vis_end_vertical = VerticalError(last.visual, last.gt), s.vis_end_tilt = TiltError(last.visual, last.gt);
-    if (last.has_opt) s.opt_end_vertical = VerticalError(last.opt, last.gt), s.opt_end_tilt = TiltError(last.opt, last.gt);
+    f << "## Per site\n\n| site | distance m | DR err m | DR % | DR heading deg | visual err m | visual % | "
+         "optimised err m | optimised % | optimised heading deg |\n|---|---|---|---|---|---|---|---|---|---|\n";
+    for (const SiteRow& r : s.sites)
+      f << "| " << r.site << " | " << F(r.distance, 1) << " | " << F(r.dr_err) << " | "
+        << F(Pct(r.dr_err, r.distance), 2) << " | " << F(r.dr_heading_err, 2) << " | " << F(r.vis_err) << " | "
+        << F(Pct(r.vis_err, r.distance), 2) << " | " << F(r.opt_err) << " | " << F(Pct(r.opt_err, r.distance), 2)
+        << " | " << F(r.opt_heading_err, 2) << " |\n";
+    f << "\n";
   }
+  if (!s.fixes.empty()) {
+    f << "## Absolute fixes against the map (SITE_POSE_FIX)\n\n| site | error m | error x m | error y m | "
+         "sigma x / y m | heading error deg | sigma deg | NEES xy (2) | NEES xyh (3) |\n"
+         "|---|---|---|---|---|---|---|---|---|\n";
+    for (const FixRow& r : s.fixes)
+      f << "| " << r.site << " | " << F(r.err_xy) << " | " << F(r.err_x) << " | " << F(r.err_y) << " | "
+        << F(r.sigma_x) << " / " << F(r.sigma_y) << " | " << F(r.heading_err_deg, 2) << " | "
+        << F(r.sigma_heading_deg, 2) << " | " << F(r.nees_xy, 2) << " | " << F(r.nees_xyh, 2) << " |\n";
+    f << "\n";
+  }
+  if (!s.pairs.empty()) {
+    f << "## Visual localization per pair\n\n| reference | site | status | spacing m | error m | error % of "
+         "spacing | NEES (3 dof) |\n|---|---|---|---|---|---|---|\n";
+    for (const PairRow& p : s.pairs)
+      f << "| " << p.reference << " | " << p.site << " | " << p.status << " | " << F(p.spacing, 2) << " | "
+        << F(p.err, 4) << " | " << F(p.err_pct, 3) << " | " << F(p.nees, 2) << " |\n";
+    f << "\n";
+  }
+}
+
+}  // namespace
+
+Summary Evaluate(const LogData& d) {
+  Summary s;
+  s.sites = SiteRows(d);
+  EvaluatePairs(d, &s);
+  EndOfTraverse(&s);
   EvaluateFixes(d, &s);
-  // UAV: each state matched to the ground truth nearest in time.
-  if (!d.uav_gt.empty() && !d.uav_state.empty()) {
-    std::vector<double> flown(d.uav_gt.size(), 0.0);
-    for (size_t i = 1; i < d.uav_gt.size(); ++i)
-      flown[i] = flown[i - 1] + (d.uav_gt[i].second.translation() - d.uav_gt[i - 1].second.translation()).head<2>().norm();
-    const Eigen::Vector2d takeoff = d.uav_gt.front().second.translation().head<2>();
-    const int64_t t0 = d.uav_gt.front().first;
-    double sq = 0, sq_pct = 0;
-    int height_samples = 0;
-    for (const UavSample& u : d.uav_state) {
-      auto it = std::lower_bound(d.uav_gt.begin(), d.uav_gt.end(), u.utime,
-                                 [](const auto& a, int64_t t) { return a.first < t; });
-      if (it == d.uav_gt.end()) --it;
-      if (it != d.uav_gt.begin() && std::llabs(std::prev(it)->first - u.utime) < std::llabs(it->first - u.utime)) --it;
-      if (std::llabs(it->first - u.utime) > 100000) continue;  // no truth within 0.1 s
-      UavRow r;
-      r.utime = u.utime;
-      r.t = 1e-6 * static_cast<double>(u.utime - t0);
-      r.height = u.height;
-      r.gt_height = it->second.translation().z();
-      r.east = u.east;
-      r.north = u.north;
-      r.gt_east = it->second.translation().x() - takeoff.x();
-      r.gt_north = it->second.translation().y() - takeoff.y();
-      r.flown = flown[static_cast<size_t>(it - d.uav_gt.begin())];
-      // While calibrating on the marker the mosaicker has no height yet;
-      // every later frame counts (a lost frame keeps its last height).
-      if (u.status != uav_state_t::STATUS_CALIBRATING && std::isfinite(r.height) && r.gt_height > 0) {
-        ++height_samples;
-        sq += (r.height - r.gt_height) * (r.height - r.gt_height);
-        sq_pct += std::pow(100.0 * (r.height - r.gt_height) / r.gt_height, 2);
-      }
-      s.uav.push_back(r);
-    }
-    if (!s.uav.empty()) {
-      s.uav_height_rms = std::sqrt(sq / std::max(1, height_samples));
-      s.uav_height_rms_pct = std::sqrt(sq_pct / std::max(1, height_samples));
-      const UavRow& e = s.uav.back();
-      s.uav_flown = e.flown;
-      s.uav_route_end = std::hypot(e.east - e.gt_east, e.north - e.gt_north);
-      s.uav_route_end_pct = Pct(s.uav_route_end, e.flown);
-    }
-  }
+  EvaluateUav(d, &s);
   return s;
 }
 
 void WriteOutputs(const Summary& s, const std::string& dir) {
   std::filesystem::create_directories(dir);
-  auto open = [&](const std::string& name) {
-    std::ofstream f(dir + "/" + name);
-    if (!f) throw std::runtime_error("cannot write " + dir + "/" + name);
-    f << std::setprecision(10);
-    return f;
-  };
-  {
-    auto f = open("sites.csv");
-    f << "site,distance_m,gt_x,gt_y,gt_z,gt_heading_deg,dr_x,dr_y,dr_err_m,dr_err_pct,dr_heading_err_deg,"
-         "vis_x,vis_y,vis_err_m,vis_err_pct,vis_heading_err_deg,opt_x,opt_y,opt_err_m,opt_err_pct,"
-         "opt_heading_err_deg,opt_cov_xx,opt_cov_xy,opt_cov_yy,opt_z,opt_tilt_err_deg,opt_sigma_z,dr_tilt_err_deg,"
-         "dr_up_err_x,dr_up_err_y\n";
-    for (const SiteRow& r : s.sites) {
-      auto xy = [&](bool has, const Pose3& p) {
-        return has ? std::to_string(p.translation().x()) + "," + std::to_string(p.translation().y()) : ",";
-      };
-      auto num = [](double v) { return std::isfinite(v) ? std::to_string(v) : std::string(); };
-      f << r.site << ',' << r.distance << ',' << r.gt.translation().x() << ',' << r.gt.translation().y() << ','
-        << r.gt.translation().z() << ',' << Deg(Heading(r.gt)) << ',' << xy(r.has_dr, r.dr) << ',' << num(r.dr_err)
-        << ',' << num(Pct(r.dr_err, r.distance)) << ',' << num(r.dr_heading_err) << ',' << xy(r.has_visual, r.visual)
-        << ',' << num(r.vis_err) << ',' << num(Pct(r.vis_err, r.distance)) << ',' << num(r.vis_heading_err) << ','
-        << xy(r.has_opt, r.opt) << ',' << num(r.opt_err) << ',' << num(Pct(r.opt_err, r.distance)) << ','
-        << num(r.opt_heading_err) << ',' << r.opt_cov(0, 0) << ',' << r.opt_cov(0, 1) << ',' << r.opt_cov(1, 1);
-      // The DR's up-axis error in the body frame (x, y): what an accelerometer bias fixed to the body leaves.
-      const Eigen::Vector3d dr_up_err = (r.dr.linear().row(2) - r.gt.linear().row(2)).transpose();
-      for (const double v : {r.has_opt ? r.opt.translation().z() : NAN, r.has_opt ? TiltError(r.opt, r.gt) : NAN,
-                             r.has_opt ? std::sqrt(r.opt_cov(2, 2)) : NAN, r.has_dr ? TiltError(r.dr, r.gt) : NAN,
-                             r.has_dr ? dr_up_err.x() : NAN, r.has_dr ? dr_up_err.y() : NAN}) {
-        f << ',';
-        if (std::isfinite(v)) f << v;
-      }
-      f << '\n';
-    }
-  }
-  {
-    auto f = open("pairs.csv");
-    f << "reference,site,status,spacing_m,err_m,err_pct,nees,err_x,err_y,err_z,sigma_x,sigma_y,sigma_z\n";
-    for (const PairRow& p : s.pairs) {
-      f << p.reference << ',' << p.site << ',' << p.status << ',' << p.spacing << ',' << F(p.err, 6) << ','
-        << F(p.err_pct, 6) << ',' << F(p.nees, 6);
-      for (int i = 0; i < 3; ++i) f << ',' << F(p.err_xyz[i], 6);
-      for (int i = 0; i < 3; ++i) f << ',' << F(p.sigma_xyz[i], 6);
-      f << '\n';
-    }
-  }
-  {
-    auto f = open("fixes.csv");
-    f << "site,x,y,heading_deg,sigma_x,sigma_y,sigma_heading_deg,err_x,err_y,err_xy,heading_err_deg,nees_xy,nees_xyh\n";
-    for (const FixRow& r : s.fixes)
-      f << r.site << ',' << r.x << ',' << r.y << ',' << r.heading_deg << ',' << r.sigma_x << ',' << r.sigma_y << ','
-        << r.sigma_heading_deg << ',' << r.err_x << ',' << r.err_y << ',' << r.err_xy << ',' << r.heading_err_deg << ','
-        << F(r.nees_xy, 4) << ',' << F(r.nees_xyh, 4) << '\n';
-  }
-  {
-    auto f = open("uav.csv");
-    f << "utime,t_s,height_m,gt_height_m,height_err_m,east_m,north_m,gt_east_m,gt_north_m,route_err_m,flown_m\n";
-    for (const UavRow& u : s.uav)
-      f << u.utime << ',' << u.t << ',' << u.height << ',' << u.gt_height << ',' << u.height - u.gt_height << ','
-        << u.east << ',' << u.north << ',' << u.gt_east << ',' << u.gt_north << ','
-        << std::hypot(u.east - u.gt_east, u.north - u.gt_north) << ',' << u.flown << '\n';
-  }
-  {
-    auto f = open("summary.md");
-    f << ShortTable(s);
-  }
-  {
-    auto f = open("report.md");
-    f << "# vloc evaluation\n\n" << ShortTable(s) << "\n";
-    if (!s.sites.empty()) {
-      f << "## Per site\n\n| site | distance m | DR err m | DR % | DR heading deg | visual err m | visual % | "
-           "optimised err m | optimised % | optimised heading deg |\n|---|---|---|---|---|---|---|---|---|---|\n";
-      for (const SiteRow& r : s.sites)
-        f << "| " << r.site << " | " << F(r.distance, 1) << " | " << F(r.dr_err) << " | "
-          << F(Pct(r.dr_err, r.distance), 2) << " | " << F(r.dr_heading_err, 2) << " | " << F(r.vis_err) << " | "
-          << F(Pct(r.vis_err, r.distance), 2) << " | " << F(r.opt_err) << " | " << F(Pct(r.opt_err, r.distance), 2)
-          << " | " << F(r.opt_heading_err, 2) << " |\n";
-      f << "\n";
-    }
-    if (!s.fixes.empty()) {
-      f << "## Absolute fixes against the map (SITE_POSE_FIX)\n\n| site | error m | error x m | error y m | "
-           "sigma x / y m | heading error deg | sigma deg | NEES xy (2) | NEES xyh (3) |\n"
-           "|---|---|---|---|---|---|---|---|---|\n";
-      for (const FixRow& r : s.fixes)
-        f << "| " << r.site << " | " << F(r.err_xy) << " | " << F(r.err_x) << " | " << F(r.err_y) << " | "
-          << F(r.sigma_x) << " / " << F(r.sigma_y) << " | " << F(r.heading_err_deg, 2) << " | "
-          << F(r.sigma_heading_deg, 2) << " | " << F(r.nees_xy, 2) << " | " << F(r.nees_xyh, 2) << " |\n";
-      f << "\n";
-    }
-    if (!s.pairs.empty()) {
-      f << "## Visual localization per pair\n\n| reference | site | status | spacing m | error m | error % of "
-           "spacing | NEES (3 dof) |\n|---|---|---|---|---|---|---|\n";
-      for (const PairRow& p : s.pairs)
-        f << "| " << p.reference << " | " << p.site << " | " << p.status << " | " << F(p.spacing, 2) << " | "
-          << F(p.err, 4) << " | " << F(p.err_pct, 3) << " | " << F(p.nees, 2) << " |\n";
-      f << "\n";
-    }
+  const std::pair<const char*, void (*)(const Summary&, std::ofstream&)> files[] = {
+      {"sites.csv", WriteSites}, {"pairs.csv", WritePairs}, {"fixes.csv", WriteFixes}, {"uav.csv", WriteUav},
+      {"summary.md", [](const Summary& sum, std::ofstream& f) { f << ShortTable(sum); }}, {"report.md", WriteReport}};
+  for (const auto& [name, write] : files) {
+    std::ofstream f = OpenOutput(dir, name);
+    write(s, f);
   }
 }
 
