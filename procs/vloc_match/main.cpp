@@ -152,6 +152,161 @@ void PrintRowError(const vloc::HomographyMatchResult& result) {
             << "}  # |row 1 - row 2| of the refined inliers (rectified pair)\n";
 }
 
+// What the command line asks for, checked.
+struct Settings {
+  vloc::HomographyMatchOptions hm;
+  vloc::AsiftOptions asift;  // the features' (full-size with a prior, else hm.asift)
+  bool have_prior = false, have_truth = false;
+  cv::Matx33d prior = cv::Matx33d::eye(), truth;
+  int threads = 2;
+};
+
+// The settings from `args`: false after one line on stderr.
+bool ReadSettings(const vloc::CommandLine& args, Settings* s) {
+  s->threads = std::max(1, args.GetInt("threads", 2));
+  vloc::HomographyMatchOptions& hm = s->hm;
+  hm.num_threads = s->threads;
+  hm.ratio = args.GetDouble("ratio", 0.8);
+  hm.coarse_scale = args.GetDouble("coarse-scale", hm.coarse_scale);
+  hm.refine_rounds = args.GetInt("refine-rounds", hm.refine_rounds);
+  s->have_prior = args.Has("homography");
+  s->have_truth = args.Has("truth");
+  // With a prior, the full-size images are matched: ASIFT's defaults.
+  s->asift = s->have_prior ? vloc::AsiftOptions() : hm.asift;
+  s->asift.num_threads = s->threads;
+  try {
+    if (args.Has("tilts")) s->asift.tilts = ParseList(args.Get("tilts"));
+  } catch (const std::exception&) {
+    std::cerr << "vloc_match: --tilts must be a comma-separated list of numbers >= 1, e.g. 1,1.41,2\n";
+    return false;
+  }
+  hm.asift = s->asift;
+  std::string check_error;
+  if (!hm.Check(&check_error)) {
+    std::cerr << "vloc_match: " << check_error << "\n";
+    return false;
+  }
+  for (const bool is_truth : {false, true}) {
+    if (!(is_truth ? s->have_truth : s->have_prior)) continue;
+    const std::string path = args.Get(is_truth ? "truth" : "homography");
+    try {
+      (is_truth ? s->truth : s->prior) = ReadHomography(path);
+    } catch (const std::exception& e) {
+      std::cerr << "vloc_match: " << path << ": " << e.what() << "\n";
+      return false;
+    }
+  }
+  return true;
+}
+
+// The match and the counts it printed before refinement.
+struct Match {
+  vloc::HomographyMatchResult result;
+  int features[2] = {0, 0}, matches = 0, inliers = 0;
+};
+
+// With --homography: full-size ASIFT gated around the prior's prediction
+// (--gate px), RANSAC, then the refinement rounds (none: the RANSAC
+// homography and its inliers).
+Match MatchWithPrior(const cv::Mat& a, const cv::Mat& b, const Settings& s, double gate_px) {
+  Match m;
+  const vloc::FeatureSet fa = vloc::DetectAsift(a, cv::Mat(), s.asift);
+  const vloc::FeatureSet fb = vloc::DetectAsift(b, cv::Mat(), s.asift);
+  m.features[0] = static_cast<int>(fa.size());
+  m.features[1] = static_cast<int>(fb.size());
+  std::vector<Eigen::Vector2d> predicted;
+  for (const auto& p : fa.points) {
+    const cv::Vec3d q = s.prior * cv::Vec3d(p.x(), p.y(), 1);
+    predicted.emplace_back(q[0] / q[2], q[1] / q[2]);
+  }
+  vloc::GatedMatchOptions g;
+  g.gate_radius = gate_px;
+  g.ratio = s.hm.ratio;
+  g.num_threads = s.threads;
+  const std::vector<vloc::FeatureMatch> matches = vloc::GatedMatch(fa, predicted, fb, g);
+  m.matches = static_cast<int>(matches.size());
+  std::vector<cv::Point2f> pa, pb;
+  for (const auto& fm : matches) {
+    pa.emplace_back(static_cast<float>(fa.points[fm.query].x()), static_cast<float>(fa.points[fm.query].y()));
+    pb.emplace_back(static_cast<float>(fb.points[fm.train].x()), static_cast<float>(fb.points[fm.train].y()));
+  }
+  std::vector<uchar> inliers;
+  cv::Mat H;
+  if (pa.size() >= 4) H = cv::findHomography(pa, pb, cv::RANSAC, 5.0, inliers);
+  m.inliers = static_cast<int>(std::count(inliers.begin(), inliers.end(), 1));
+  if (H.empty()) {
+    m.result.summary.message = "too few gated matches agree on a homography";
+    return m;
+  }
+  if (s.hm.refine_rounds > 0) {
+    m.result = vloc::RefineHomography(a, b, cv::Matx33d(H.ptr<double>()), s.hm);
+    return m;
+  }
+  m.result.b_from_a = cv::Matx33d(H.ptr<double>());
+  m.result.summary.usable = true;
+  for (size_t k = 0; k < pa.size(); ++k)
+    if (inliers[k]) m.result.inliers_a.emplace_back(pa[k].x, pa[k].y), m.result.inliers_b.emplace_back(pb[k].x, pb[k].y);
+  return m;
+}
+
+// Without a prior: vloc::MatchHomography (coarse ASIFT, RANSAC, refinement).
+Match MatchWithoutPrior(const cv::Mat& a, const cv::Mat& b, const Settings& s) {
+  Match m;
+  m.result = vloc::MatchHomography(a, b, s.hm);
+  m.features[0] = m.result.summary.features_a;
+  m.features[1] = m.result.summary.features_b;
+  m.matches = m.result.summary.coarse_matches;
+  m.inliers = m.result.summary.coarse_inliers;
+  return m;
+}
+
+// The YAML on stdout (without the seconds); the corner errors against --truth.
+void PrintMatch(const Match& m, const Settings& s, const cv::Size& size_a) {
+  const vloc::HomographyMatchSummary& sum = m.result.summary;
+  std::cout << std::setprecision(10);
+  std::cout << "features: [" << m.features[0] << ", " << m.features[1] << "]\n";
+  std::cout << "views: " << s.asift.Views().size() << "\n";
+  std::cout << "matches: " << m.matches << "\n";
+  std::cout << "inliers: " << m.inliers << "  # ASIFT matches on the RANSAC homography\n";
+  std::cout << "refined_inliers: " << sum.refine_inliers << "  # LSM correspondences on the final homography\n";
+  std::cout << "refined_rms_px: " << sum.rms_px << "\n";
+  if (!sum.usable) {
+    std::cout << "homography: null\n";
+    std::cout << "message: \"" << sum.message << "\"\n";
+    return;
+  }
+  std::cout << "homography: [";
+  for (int k = 0; k < 9; ++k) std::cout << (k ? ", " : "") << m.result.b_from_a(k / 3, k % 3);
+  std::cout << "]\n";
+  if (!s.have_truth) return;
+  double worst = 0, total = 0;
+  const double w = size_a.width - 1, h = size_a.height - 1;
+  for (const cv::Vec3d& c : {cv::Vec3d(0, 0, 1), cv::Vec3d(w, 0, 1), cv::Vec3d(w, h, 1), cv::Vec3d(0, h, 1)}) {
+    const cv::Vec3d p = m.result.b_from_a * c, q = s.truth * c;
+    const double e = std::hypot(p[0] / p[2] - q[0] / q[2], p[1] / p[2] - q[1] / q[2]);
+    worst = std::max(worst, e);
+    total += e;
+  }
+  std::cout << "corner_error_px: {mean: " << total / 4 << ", max: " << worst << "}  # against --truth\n";
+}
+
+// The two images side by side, each inlier joined by a green line.
+bool WriteOverlay(const cv::Mat& a, const cv::Mat& b, const vloc::HomographyMatchResult& result,
+                  const std::string& path) {
+  cv::Mat ca, cb;
+  cv::cvtColor(a, ca, cv::COLOR_GRAY2BGR);
+  cv::cvtColor(b, cb, cv::COLOR_GRAY2BGR);
+  cv::Mat canvas = cv::Mat::zeros(std::max(a.rows, b.rows), a.cols + b.cols, CV_8UC3);
+  ca.copyTo(canvas(cv::Rect(0, 0, a.cols, a.rows)));
+  cb.copyTo(canvas(cv::Rect(a.cols, 0, b.cols, b.rows)));
+  for (size_t k = 0; k < result.inliers_a.size(); ++k) {
+    const cv::Point2f pa(static_cast<float>(result.inliers_a[k].x()), static_cast<float>(result.inliers_a[k].y()));
+    const cv::Point2f pb(static_cast<float>(result.inliers_b[k].x()), static_cast<float>(result.inliers_b[k].y()));
+    cv::line(canvas, pa, pb + cv::Point2f(static_cast<float>(a.cols), 0), cv::Scalar(0, 220, 0), 1, cv::LINE_AA);
+  }
+  return cv::imwrite(path, canvas);
+}
+
 // The tool; main() turns any exception into one line and exit code 1.
 int Run(int argc, char** argv) {
   vloc::CommandLine args;
@@ -170,139 +325,18 @@ int Run(int argc, char** argv) {
   }
   cv::Mat a, b;
   if (!ReadPair(args, &a, &b)) return 1;
-  const int threads = std::max(1, args.GetInt("threads", 2));
-  vloc::HomographyMatchOptions hm;
-  hm.num_threads = threads;
-  hm.ratio = args.GetDouble("ratio", 0.8);
-  hm.coarse_scale = args.GetDouble("coarse-scale", hm.coarse_scale);
-  hm.refine_rounds = args.GetInt("refine-rounds", hm.refine_rounds);
-  const bool have_prior = args.Has("homography");
-  // With a prior, the full-size images are matched: ASIFT's defaults.
-  vloc::AsiftOptions options = have_prior ? vloc::AsiftOptions() : hm.asift;
-  options.num_threads = threads;
-  try {
-    if (args.Has("tilts")) options.tilts = ParseList(args.Get("tilts"));
-  } catch (const std::exception&) {
-    std::cerr << "vloc_match: --tilts must be a comma-separated list of numbers >= 1, e.g. 1,1.41,2\n";
-    return 1;
-  }
-  hm.asift = options;
-  std::string check_error;
-  if (!hm.Check(&check_error)) {
-    std::cerr << "vloc_match: " << check_error << "\n";
-    return 1;
-  }
-  cv::Matx33d prior = cv::Matx33d::eye(), truth;
-  const bool have_truth = args.Has("truth");
-  for (const bool is_truth : {false, true}) {
-    if (!(is_truth ? have_truth : have_prior)) continue;
-    const std::string path = args.Get(is_truth ? "truth" : "homography");
-    try {
-      (is_truth ? truth : prior) = ReadHomography(path);
-    } catch (const std::exception& e) {
-      std::cerr << "vloc_match: " << path << ": " << e.what() << "\n";
-      return 1;
-    }
-  }
+  Settings settings;
+  if (!ReadSettings(args, &settings)) return 1;
   const auto t0 = std::chrono::steady_clock::now();
-  vloc::HomographyMatchResult result;
-  int features[2] = {0, 0}, num_matches = 0, num_inliers = 0;
-  if (have_prior) {
-    const vloc::FeatureSet fa = vloc::DetectAsift(a, cv::Mat(), options);
-    const vloc::FeatureSet fb = vloc::DetectAsift(b, cv::Mat(), options);
-    features[0] = static_cast<int>(fa.size());
-    features[1] = static_cast<int>(fb.size());
-    std::vector<Eigen::Vector2d> predicted;
-    for (const auto& p : fa.points) {
-      const cv::Vec3d q = prior * cv::Vec3d(p.x(), p.y(), 1);
-      predicted.emplace_back(q[0] / q[2], q[1] / q[2]);
-    }
-    vloc::GatedMatchOptions g;
-    g.gate_radius = args.GetDouble("gate", 40);
-    g.ratio = hm.ratio;
-    g.num_threads = threads;
-    const std::vector<vloc::FeatureMatch> matches = vloc::GatedMatch(fa, predicted, fb, g);
-    num_matches = static_cast<int>(matches.size());
-    std::vector<cv::Point2f> pa, pb;
-    for (const auto& m : matches) {
-      pa.emplace_back(static_cast<float>(fa.points[m.query].x()), static_cast<float>(fa.points[m.query].y()));
-      pb.emplace_back(static_cast<float>(fb.points[m.train].x()), static_cast<float>(fb.points[m.train].y()));
-    }
-    std::vector<uchar> inliers;
-    cv::Mat H;
-    if (pa.size() >= 4) H = cv::findHomography(pa, pb, cv::RANSAC, 5.0, inliers);
-    num_inliers = static_cast<int>(std::count(inliers.begin(), inliers.end(), 1));
-    if (!H.empty()) {
-      result = hm.refine_rounds > 0 ? vloc::RefineHomography(a, b, cv::Matx33d(H.ptr<double>()), hm) : result;
-      if (hm.refine_rounds == 0) {
-        result.b_from_a = cv::Matx33d(H.ptr<double>());
-        result.summary.usable = true;
-        for (size_t k = 0; k < pa.size(); ++k)
-          if (inliers[k]) result.inliers_a.emplace_back(pa[k].x, pa[k].y), result.inliers_b.emplace_back(pb[k].x, pb[k].y);
-      }
-    } else {
-      result.summary.message = "too few gated matches agree on a homography";
-    }
-  } else {
-    result = vloc::MatchHomography(a, b, hm);
-    features[0] = result.summary.features_a;
-    features[1] = result.summary.features_b;
-    num_matches = result.summary.coarse_matches;
-    num_inliers = result.summary.coarse_inliers;
-  }
+  const Match match = settings.have_prior ? MatchWithPrior(a, b, settings, args.GetDouble("gate", 40))
+                                          : MatchWithoutPrior(a, b, settings);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const vloc::HomographyMatchSummary& s = result.summary;
-  std::cout << std::setprecision(10);
-  std::cout << "features: [" << features[0] << ", " << features[1] << "]\n";
-  std::cout << "views: " << options.Views().size() << "\n";
-  std::cout << "matches: " << num_matches << "\n";
-  std::cout << "inliers: " << num_inliers << "  # ASIFT matches on the RANSAC homography\n";
-  std::cout << "refined_inliers: " << s.refine_inliers << "  # LSM correspondences on the final homography\n";
-  std::cout << "refined_rms_px: " << s.rms_px << "\n";
-  if (!s.usable) {
-    std::cout << "homography: null\n";
-    std::cout << "message: \"" << s.message << "\"\n";
-  } else {
-    std::cout << "homography: [";
-    for (int k = 0; k < 9; ++k) std::cout << (k ? ", " : "") << result.b_from_a(k / 3, k % 3);
-    std::cout << "]\n";
-    if (have_truth) {
-      double worst = 0, sum = 0;
-      for (const cv::Vec3d& c : {cv::Vec3d(0, 0, 1), cv::Vec3d(a.cols - 1, 0, 1), cv::Vec3d(a.cols - 1, a.rows - 1, 1),
-                                cv::Vec3d(0, a.rows - 1, 1)}) {
-        const cv::Vec3d p = result.b_from_a * c, q = truth * c;
-        const double e = std::hypot(p[0] / p[2] - q[0] / q[2], p[1] / p[2] - q[1] / q[2]);
-        worst = std::max(worst, e);
-        sum += e;
-      }
-      std::cout << "corner_error_px: {mean: " << sum / 4 << ", max: " << worst << "}  # against --truth\n";
-    }
-  }
-  if (args.Has("rectify")) PrintRowError(result);
+  PrintMatch(match, settings, a.size());
+  if (args.Has("rectify")) PrintRowError(match.result);
   std::cout << "seconds: " << seconds << "\n";
-  std::vector<cv::Point2f> pa, pb;
-  for (size_t k = 0; k < result.inliers_a.size(); ++k) {
-    pa.emplace_back(static_cast<float>(result.inliers_a[k].x()), static_cast<float>(result.inliers_a[k].y()));
-    pb.emplace_back(static_cast<float>(result.inliers_b[k].x()), static_cast<float>(result.inliers_b[k].y()));
-  }
-  const std::vector<uchar> inliers(pa.size(), 1);
-  if (args.Has("out")) {
-    cv::Mat ca, cb, canvas;
-    cv::cvtColor(a, ca, cv::COLOR_GRAY2BGR);
-    cv::cvtColor(b, cb, cv::COLOR_GRAY2BGR);
-    const int h = std::max(a.rows, b.rows);
-    canvas = cv::Mat::zeros(h, a.cols + b.cols, CV_8UC3);
-    ca.copyTo(canvas(cv::Rect(0, 0, a.cols, a.rows)));
-    cb.copyTo(canvas(cv::Rect(a.cols, 0, b.cols, b.rows)));
-    for (size_t k = 0; k < pa.size(); ++k) {
-      const bool in = k < inliers.size() && inliers[k];
-      const cv::Scalar colour = in ? cv::Scalar(0, 220, 0) : cv::Scalar(0, 0, 220);
-      cv::line(canvas, pa[k], pb[k] + cv::Point2f(static_cast<float>(a.cols), 0), colour, 1, cv::LINE_AA);
-    }
-    if (!cv::imwrite(args.Get("out"), canvas)) {
-      std::cerr << "vloc_match: cannot write " << args.Get("out") << " (check the folder and the extension)\n";
-      return 1;
-    }
+  if (args.Has("out") && !WriteOverlay(a, b, match.result, args.Get("out"))) {
+    std::cerr << "vloc_match: cannot write " << args.Get("out") << " (check the folder and the extension)\n";
+    return 1;
   }
   return 0;
 }

@@ -132,6 +132,95 @@ bool ReadPair(const vloc::CommandLine& args, cv::Mat* left, cv::Mat* right) {
   return true;
 }
 
+// The matching options: --config, then the flags, the disparity range
+// from --auto-range's pair check; the check's row offset absorbed into
+// `right8`. False after one line on stderr.
+bool ReadStereoOptions(const vloc::CommandLine& args, const cv::Mat& left8, cv::Mat* right8,
+                       vloc::DenseStereoOptions* options) {
+  vloc::DenseStereoOptions& o = *options;
+  if (args.Has("config")) {
+    try {
+      o = vloc::LoadOptionsFile<vloc::DenseStereoOptions>(args.Get("config"));
+    } catch (const std::exception& e) {
+      std::cerr << "vloc_stereo: " << e.what() << "\n";
+      return false;
+    }
+  }
+  double dmin = args.GetDouble("min-disp", o.min_disparity), dmax = args.GetDouble("max-disp", o.max_disparity);
+  const bool auto_range = args.Has("auto-range");
+  if (auto_range && (args.Has("min-disp") || args.Has("max-disp"))) {
+    std::cerr << "vloc_stereo: --auto-range chooses the disparities: drop --min-disp / --max-disp\n";
+    return false;
+  }
+  if (auto_range && args.Has("no-pair-check")) {
+    std::cerr << "vloc_stereo: --auto-range needs the pair check: drop --no-pair-check\n";
+    return false;
+  }
+  double row_offset = 0;
+  if (!args.Has("no-pair-check") && !CheckPair(left8, *right8, auto_range, &dmin, &dmax, &row_offset)) return false;
+  *right8 = vloc::AlignRows(*right8, row_offset);
+  std::cout << "row_offset_px: " << row_offset << "\n";
+  const int step = std::max(1, args.GetInt("step", args.Has("config") ? o.step : 4));
+  const int threads = std::max(1, args.GetInt("threads", o.num_threads));
+  if (!(dmax > dmin && dmin >= 0)) {
+    std::cerr << "vloc_stereo: need 0 <= --min-disp < --max-disp\n";
+    return false;
+  }
+  o.min_disparity = dmin;
+  o.max_disparity = dmax;
+  o.step = step;
+  o.num_threads = threads;
+  if (args.Has("no-lsm")) o.lsm_enabled = false;
+  std::string check_error;
+  if (!o.Check(&check_error)) {
+    std::cerr << "vloc_stereo: " << check_error << "\n";
+    return false;
+  }
+  return true;
+}
+
+// The map as PFM (float, NaN = no match) or 16-bit PNG (value / 256, 0 =
+// no match); false when it cannot be written.
+bool WriteDisparities(const std::string& out, bool pfm, const cv::Mat& disp) {
+  if (pfm) return WritePfm(out, disp);
+  cv::Mat png(disp.rows, disp.cols, CV_16U, cv::Scalar(0));
+  for (int y = 0; y < disp.rows; ++y)
+    for (int x = 0; x < disp.cols; ++x) {
+      const float v = disp.at<float>(y, x);
+      if (std::isfinite(v) && v > 0) png.at<uint16_t>(y, x) = cv::saturate_cast<uint16_t>(v * 256.0f);
+    }
+  return cv::imwrite(out, png);
+}
+
+// The median of the matched disparities (NaN when none).
+double MedianDisparity(const cv::Mat& disp) {
+  std::vector<double> d;
+  for (int y = 0; y < disp.rows; ++y)
+    for (int x = 0; x < disp.cols; ++x)
+      if (std::isfinite(disp.at<float>(y, x))) d.push_back(disp.at<float>(y, x));
+  if (d.empty()) return NAN * 1.0;
+  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+  return d[d.size() / 2];
+}
+
+// The statistics as YAML.
+void PrintSummary(const vloc::DenseStereoSummary& summary, const vloc::DenseStereoOptions& o, const cv::Mat& disp,
+                  bool pfm) {
+  std::cout << "grid: [" << disp.cols << ", " << disp.rows << "]  # step " << o.step << " px\n";
+  std::cout << "points: " << summary.points << "\n";
+  std::cout << "zncc_matches: " << summary.zncc_matches << "  # unique peaks passing the left-right check\n";
+  std::cout << "after_median: " << summary.after_median << "\n";
+  std::cout << "lsm_matches: " << (o.lsm_enabled ? summary.lsm_matches : 0) << "\n";
+  std::cout << "disparity_median_px: " << MedianDisparity(disp) << "\n";
+  std::cout << "lsm_sigma_median_px: " << summary.median_sigma_px << "\n";
+  std::cout << "lsm_mean_iterations: " << summary.lsm_mean_iterations << "\n";
+  if (o.lsm_lattice > 1)
+    std::cout << "lsm_from_lattice: " << summary.lsm_from_lattice << "  # from the lattice's planes, before the LSM median test\n";
+  std::cout << "scale: " << (pfm ? 1.0 : 1.0 / 256.0) << "  # disparity = value * scale\n";
+  std::cout << "seconds: " << summary.total_seconds << "  # zncc " << summary.zncc_seconds << ", median "
+            << summary.median_seconds << ", lsm " << summary.lsm_seconds << "\n";
+}
+
 // The tool; main() turns any exception into one line and exit code 1.
 int Run(int argc, char** argv) {
   vloc::CommandLine args;
@@ -156,87 +245,16 @@ int Run(int argc, char** argv) {
     return 1;
   }
   vloc::DenseStereoOptions o;
-  if (args.Has("config")) {
-    try {
-      o = vloc::LoadOptionsFile<vloc::DenseStereoOptions>(args.Get("config"));
-    } catch (const std::exception& e) {
-      std::cerr << "vloc_stereo: " << e.what() << "\n";
-      return 1;
-    }
-  }
-  double dmin = args.GetDouble("min-disp", o.min_disparity), dmax = args.GetDouble("max-disp", o.max_disparity);
-  const bool auto_range = args.Has("auto-range");
-  if (auto_range && (args.Has("min-disp") || args.Has("max-disp"))) {
-    std::cerr << "vloc_stereo: --auto-range chooses the disparities: drop --min-disp / --max-disp\n";
-    return 1;
-  }
-  if (auto_range && args.Has("no-pair-check")) {
-    std::cerr << "vloc_stereo: --auto-range needs the pair check: drop --no-pair-check\n";
-    return 1;
-  }
-  double row_offset = 0;
-  if (!args.Has("no-pair-check") && !CheckPair(left8, right8, auto_range, &dmin, &dmax, &row_offset)) return 1;
-  right8 = vloc::AlignRows(right8, row_offset);
-  std::cout << "row_offset_px: " << row_offset << "\n";
-  const int step = std::max(1, args.GetInt("step", args.Has("config") ? o.step : 4));
-  const int threads = std::max(1, args.GetInt("threads", o.num_threads));
-  if (!(dmax > dmin && dmin >= 0)) {
-    std::cerr << "vloc_stereo: need 0 <= --min-disp < --max-disp\n";
-    return 1;
-  }
+  if (!ReadStereoOptions(args, left8, &right8, &o)) return 1;
   const std::string out = args.Get("out");
   const bool pfm = out.size() > 4 && out.substr(out.size() - 4) == ".pfm";
-  o.min_disparity = dmin;
-  o.max_disparity = dmax;
-  o.step = step;
-  o.num_threads = threads;
-  if (args.Has("no-lsm")) o.lsm_enabled = false;
-  std::string check_error;
-  if (!o.Check(&check_error)) {
-    std::cerr << "vloc_stereo: " << check_error << "\n";
-    return 1;
-  }
   vloc::DenseStereoSummary summary;
   const cv::Mat disp = vloc::DenseStereo(left8, right8, o, &summary);
-  const int gw = disp.cols, gh = disp.rows;
-  std::vector<double> d;
-  for (int y = 0; y < gh; ++y)
-    for (int x = 0; x < gw; ++x)
-      if (std::isfinite(disp.at<float>(y, x))) d.push_back(disp.at<float>(y, x));
-  auto median = [](std::vector<double> v) {
-    if (v.empty()) return NAN * 1.0;
-    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-    return v[v.size() / 2];
-  };
-  bool written;
-  if (pfm) {
-    written = WritePfm(out, disp);
-  } else {
-    cv::Mat png(gh, gw, CV_16U, cv::Scalar(0));
-    for (int y = 0; y < gh; ++y)
-      for (int x = 0; x < gw; ++x) {
-        const float v = disp.at<float>(y, x);
-        if (std::isfinite(v) && v > 0) png.at<uint16_t>(y, x) = cv::saturate_cast<uint16_t>(v * 256.0f);
-      }
-    written = cv::imwrite(out, png);
-  }
-  if (!written) {
+  if (!WriteDisparities(out, pfm, disp)) {
     std::cerr << "vloc_stereo: cannot write " << out << " (check the folder; use .png or .pfm)\n";
     return 1;
   }
-  std::cout << "grid: [" << gw << ", " << gh << "]  # step " << step << " px\n";
-  std::cout << "points: " << summary.points << "\n";
-  std::cout << "zncc_matches: " << summary.zncc_matches << "  # unique peaks passing the left-right check\n";
-  std::cout << "after_median: " << summary.after_median << "\n";
-  std::cout << "lsm_matches: " << (o.lsm_enabled ? summary.lsm_matches : 0) << "\n";
-  std::cout << "disparity_median_px: " << median(d) << "\n";
-  std::cout << "lsm_sigma_median_px: " << summary.median_sigma_px << "\n";
-  std::cout << "lsm_mean_iterations: " << summary.lsm_mean_iterations << "\n";
-  if (o.lsm_lattice > 1)
-    std::cout << "lsm_from_lattice: " << summary.lsm_from_lattice << "  # from the lattice's planes, before the LSM median test\n";
-  std::cout << "scale: " << (pfm ? 1.0 : 1.0 / 256.0) << "  # disparity = value * scale\n";
-  std::cout << "seconds: " << summary.total_seconds << "  # zncc " << summary.zncc_seconds << ", median "
-            << summary.median_seconds << ", lsm " << summary.lsm_seconds << "\n";
+  PrintSummary(summary, o, disp, pfm);
   return 0;
 }
 
