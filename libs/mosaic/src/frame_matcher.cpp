@@ -228,6 +228,110 @@ std::vector<bool> ForegroundFilter(const std::vector<cv::Point2f>& from, const s
   return fg;
 }
 
+namespace {
+
+// The two nearest descriptors of each `from` feature in `to` (gated around
+// the prior's prediction when there is one) and the ratio to test them by.
+std::vector<std::vector<cv::DMatch>> NearestDescriptors(const FrameFeatures& from, const FrameFeatures& to,
+                                                        const MatcherOptions& options, const MotionPrior* prior,
+                                                        double* ratio) {
+  const int norm = from.descriptors.depth() == CV_32F ? cv::NORM_L2 : cv::NORM_HAMMING;
+  std::vector<std::vector<cv::DMatch>> knn;
+  *ratio = options.ratio;
+  if (prior) {
+    knn = GatedKnn(from, to, *prior, norm);
+    *ratio = options.guided_ratio;
+  } else {
+    cv::BFMatcher(norm).knnMatch(from.descriptors, to.descriptors, knn, 2);
+  }
+  return knn;
+}
+
+// The plane's homography from the matches (a -> b) that pass the ratio
+// test: RANSAC, then Levenberg-Marquardt over its inliers (OpenCV does
+// both); where that finds too few, a looser ratio with MAGSAC++. Fills
+// m's matches, inliers, homography and `loose`; "" or why it fails.
+std::string FitPlane(const std::vector<std::vector<cv::DMatch>>& knn, const FrameFeatures& from,
+                     const FrameFeatures& to, double ratio, const MatcherOptions& options, std::vector<cv::Point2f>* a,
+                     std::vector<cv::Point2f>* b, MotionEstimate* m) {
+  RatioMatches(knn, from, to, ratio, a, b);
+  m->num_matches = static_cast<int>(a->size());
+  const bool loose_allowed = options.loose_ratio > ratio;
+  if (m->num_matches < options.min_inliers && !loose_allowed)
+    return "too few matches (" + std::to_string(m->num_matches) + ")";
+  if (m->num_matches >= options.min_inliers)
+    m->num_inliers = FitHomography(*a, *b, cv::RANSAC, options.ransac_threshold, &m->homography);
+  if (m->num_inliers < options.min_inliers && loose_allowed) {
+    // Low texture: few distinctive matches. A looser ratio test keeps more candidates, and MAGSAC++ (which
+    // scores by likelihood, not by a count inside one threshold) still finds the plane among them.
+    std::vector<cv::Point2f> a2, b2;
+    RatioMatches(knn, from, to, options.loose_ratio, &a2, &b2);
+    cv::Matx33d H2;
+    const int n2 = FitHomography(a2, b2, cv::USAC_MAGSAC, options.ransac_threshold, &H2);
+    if (n2 > m->num_inliers) {
+      a->swap(a2);
+      b->swap(b2);
+      m->num_matches = static_cast<int>(a->size());
+      m->num_inliers = n2;
+      m->homography = H2;
+      m->loose = true;
+    }
+  }
+  if (m->num_matches < options.min_inliers) return "too few matches (" + std::to_string(m->num_matches) + ")";
+  if (m->num_inliers == 0) return "no homography (matches inconsistent)";
+  if (m->num_inliers < options.min_inliers)
+    return "too few RANSAC inliers (" + std::to_string(m->num_inliers) + " of " + std::to_string(m->num_matches) + ")";
+  return "";
+}
+
+// The foreground filter (equation 2): the matches that move with the
+// plane are the background, kept in m; "" or why too few are left.
+std::string SplitBackground(const std::vector<cv::Point2f>& a, const std::vector<cv::Point2f>& b,
+                            const MatcherOptions& options, MotionEstimate* m) {
+  const std::vector<bool> fg = ForegroundFilter(a, b, m->homography, options.foreground_rho, options.foreground_rule);
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (fg[i]) {
+      ++m->num_foreground;
+    } else {
+      m->from_background.push_back(a[i]);
+      m->to_background.push_back(b[i]);
+    }
+  }
+  m->num_background = static_cast<int>(m->from_background.size());
+  if (m->num_background < options.min_inliers)
+    return "too few background matches (" + std::to_string(m->num_background) + ")";
+  return "";
+}
+
+// Equation 3 by least squares over all background matches: the scale
+// change lambda by options.scale_model; "" or why it fails.
+std::string FitScaleChange(const MatcherOptions& options, MotionEstimate* m) {
+  double rms = 0;
+  if (!FitSimilarity(m->from_background, m->to_background, &m->similarity, &rms)) return "degenerate scale fit";
+  const AxisScaleFit axis = FitAxisScale(m->from_background, m->to_background);
+  if (axis.ok) {
+    m->lambda_x = axis.lambda_x;
+    m->lambda_y = axis.lambda_y;
+  }
+  if (options.scale_model == "similarity") {
+    m->lambda = m->similarity.Scale();
+    m->fit_rms = rms;
+  } else if (options.scale_model == "axis_scale") {
+    if (!axis.ok) return "degenerate axis-scale fit";
+    m->lambda = 0.5 * (axis.lambda_x + axis.lambda_y);
+    m->fit_rms = axis.rms;
+  } else {
+    cv::Matx23d A;
+    if (!FitAffine(m->from_background, m->to_background, &A, &m->fit_rms)) return "degenerate affine fit";
+    m->lambda = std::sqrt(std::abs(A(0, 0) * A(1, 1) - A(0, 1) * A(1, 0)));
+  }
+  if (!(m->lambda > 1.0 / options.max_scale_change && m->lambda < options.max_scale_change))
+    return "implausible scale change " + std::to_string(m->lambda);
+  return "";
+}
+
+}  // namespace
+
 MotionEstimate EstimateMotion(const FrameFeatures& from, const FrameFeatures& to, const MatcherOptions& options,
                               const MotionPrior* prior) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -243,84 +347,17 @@ MotionEstimate EstimateMotion(const FrameFeatures& from, const FrameFeatures& to
                 "): blank, blurred or featureless frame");
   if (from.descriptors.type() != to.descriptors.type())
     return fail("descriptors of different kinds (detector changed between frames)");
-  const int norm = from.descriptors.depth() == CV_32F ? cv::NORM_L2 : cv::NORM_HAMMING;
-  std::vector<std::vector<cv::DMatch>> knn;
-  double ratio = options.ratio;
-  if (prior) {
-    knn = GatedKnn(from, to, *prior, norm);
-    ratio = options.guided_ratio;
-    m.guided = true;
-  } else {
-    cv::BFMatcher(norm).knnMatch(from.descriptors, to.descriptors, knn, 2);
-  }
+  double ratio = 0;
+  const std::vector<std::vector<cv::DMatch>> knn = NearestDescriptors(from, to, options, prior, &ratio);
+  m.guided = prior != nullptr;
   std::vector<cv::Point2f> a, b;
-  RatioMatches(knn, from, to, ratio, &a, &b);
-  m.num_matches = static_cast<int>(a.size());
-  const bool loose_allowed = options.loose_ratio > ratio;
-  if (m.num_matches < options.min_inliers && !loose_allowed)
-    return fail("too few matches (" + std::to_string(m.num_matches) + ")");
-  // RANSAC, then Levenberg-Marquardt refinement of the inliers' reprojection error (OpenCV does both).
-  if (m.num_matches >= options.min_inliers)
-    m.num_inliers = FitHomography(a, b, cv::RANSAC, options.ransac_threshold, &m.homography);
-  if (m.num_inliers < options.min_inliers && loose_allowed) {
-    // Low texture: few distinctive matches. A looser ratio test keeps more candidates, and MAGSAC++ (which
-    // scores by likelihood, not by a count inside one threshold) still finds the plane among them.
-    std::vector<cv::Point2f> a2, b2;
-    RatioMatches(knn, from, to, options.loose_ratio, &a2, &b2);
-    cv::Matx33d H2;
-    const int n2 = FitHomography(a2, b2, cv::USAC_MAGSAC, options.ransac_threshold, &H2);
-    if (n2 > m.num_inliers) {
-      a.swap(a2);
-      b.swap(b2);
-      m.num_matches = static_cast<int>(a.size());
-      m.num_inliers = n2;
-      m.homography = H2;
-      m.loose = true;
-    }
-  }
-  if (m.num_matches < options.min_inliers) return fail("too few matches (" + std::to_string(m.num_matches) + ")");
-  if (m.num_inliers == 0) return fail("no homography (matches inconsistent)");
-  if (m.num_inliers < options.min_inliers)
-    return fail("too few RANSAC inliers (" + std::to_string(m.num_inliers) + " of " + std::to_string(m.num_matches) + ")");
-  const std::vector<bool> fg = ForegroundFilter(a, b, m.homography, options.foreground_rho, options.foreground_rule);
-  for (size_t i = 0; i < a.size(); ++i) {
-    if (fg[i]) {
-      ++m.num_foreground;
-    } else {
-      m.from_background.push_back(a[i]);
-      m.to_background.push_back(b[i]);
-    }
-  }
-  m.num_background = static_cast<int>(m.from_background.size());
-  if (m.num_background < options.min_inliers)
-    return fail("too few background matches (" + std::to_string(m.num_background) + ")");
-  // Equation 3 by least squares over all background matches.
-  double rms = 0;
-  if (!FitSimilarity(m.from_background, m.to_background, &m.similarity, &rms)) return fail("degenerate scale fit");
-  const AxisScaleFit axis = FitAxisScale(m.from_background, m.to_background);
-  if (axis.ok) {
-    m.lambda_x = axis.lambda_x;
-    m.lambda_y = axis.lambda_y;
-  }
-  if (options.scale_model == "similarity") {
-    m.lambda = m.similarity.Scale();
-    m.fit_rms = rms;
-  } else if (options.scale_model == "axis_scale") {
-    if (!axis.ok) return fail("degenerate axis-scale fit");
-    m.lambda = 0.5 * (axis.lambda_x + axis.lambda_y);
-    m.fit_rms = axis.rms;
-  } else {
-    cv::Matx23d A;
-    if (!FitAffine(m.from_background, m.to_background, &A, &m.fit_rms)) return fail("degenerate affine fit");
-    m.lambda = std::sqrt(std::abs(A(0, 0) * A(1, 1) - A(0, 1) * A(1, 0)));
-  }
-  if (!(m.lambda > 1.0 / options.max_scale_change && m.lambda < options.max_scale_change))
-    return fail("implausible scale change " + std::to_string(m.lambda));
-  {
-    std::vector<cv::Point2f> hull;
-    cv::convexHull(m.to_background, hull);
-    m.spread = cv::contourArea(hull) / std::max(1.0, static_cast<double>(to.size.area()));
-  }
+  std::string why = FitPlane(knn, from, to, ratio, options, &a, &b, &m);
+  if (why.empty()) why = SplitBackground(a, b, options, &m);
+  if (why.empty()) why = FitScaleChange(options, &m);
+  if (!why.empty()) return fail(why);
+  std::vector<cv::Point2f> hull;
+  cv::convexHull(m.to_background, hull);
+  m.spread = cv::contourArea(hull) / std::max(1.0, static_cast<double>(to.size.area()));
   m.ok = true;
   m.seconds = Seconds(t0);
   return m;
