@@ -126,6 +126,107 @@ double KnownSensorWidth(const std::string& make, const std::string& model) {
   return std::numeric_limits<double>::quiet_NaN();
 }
 
+namespace {
+
+// GPS latitude, longitude (with their hemispheres) and altitude.
+void ReadGpsPosition(const Exiv2::ExifData& exif, ImageGeotag* tag) {
+  const double lat = ExifDegrees(exif, "Exif.GPSInfo.GPSLatitude");
+  const double lon = ExifDegrees(exif, "Exif.GPSInfo.GPSLongitude");
+  if (std::isfinite(lat) && std::isfinite(lon)) {
+    const std::string lat_ref = ExifString(exif, "Exif.GPSInfo.GPSLatitudeRef");
+    const std::string lon_ref = ExifString(exif, "Exif.GPSInfo.GPSLongitudeRef");
+    tag->latitude = (!lat_ref.empty() && (lat_ref[0] == 'S' || lat_ref[0] == 's')) ? -lat : lat;
+    tag->longitude = (!lon_ref.empty() && (lon_ref[0] == 'W' || lon_ref[0] == 'w')) ? -lon : lon;
+    RequireRange("Exif.GPSInfo.GPSLatitude", -90, 90, "deg", &tag->latitude, tag);
+    RequireRange("Exif.GPSInfo.GPSLongitude", -180, 180, "deg", &tag->longitude, tag);
+    tag->has_gps = std::isfinite(tag->latitude) && std::isfinite(tag->longitude);
+    if (!tag->has_gps) tag->latitude = tag->longitude = ImageGeotag::kNaN;
+  }
+  tag->altitude = ExifNumber(exif, "Exif.GPSInfo.GPSAltitude");
+  if (std::isfinite(tag->altitude) && ExifNumber(exif, "Exif.GPSInfo.GPSAltitudeRef") == 1) tag->altitude = -tag->altitude;
+  RequireRange("Exif.GPSInfo.GPSAltitude", GeotagRanges::kMinAltitude, GeotagRanges::kMaxAltitude, "m", &tag->altitude,
+               tag);
+}
+
+// The GPS fix's UTC time and the camera's capture time (with its sub-seconds).
+void ReadTimes(const Exiv2::ExifData& exif, ImageGeotag* tag) {
+  const double gps_hours = ExifDegrees(exif, "Exif.GPSInfo.GPSTimeStamp");  // h, m, s rationals read as h + m/60 + s/3600
+  int64_t gps_day = 0;
+  if (std::isfinite(gps_hours) && gps_hours >= 0 && gps_hours < 24.0 &&
+      ParseExifDateTime(ExifString(exif, "Exif.GPSInfo.GPSDateStamp") + " 00:00:00", &gps_day)) {
+    tag->has_gps_time = true;
+    tag->gps_utime = gps_day + static_cast<int64_t>(std::llround(gps_hours * 3600.0 * 1e6));
+  }
+  std::string when = ExifString(exif, "Exif.Photo.DateTimeOriginal");
+  if (when.empty()) when = ExifString(exif, "Exif.Image.DateTime");
+  tag->has_time = ParseExifDateTime(when, &tag->utime);
+  if (tag->has_time) {
+    const double sub = ExifNumber(exif, "Exif.Photo.SubSecTimeOriginal");
+    if (std::isfinite(sub)) {
+      const std::string digits = ExifString(exif, "Exif.Photo.SubSecTimeOriginal");
+      tag->utime += static_cast<int64_t>(std::llround(std::atof(("0." + digits).c_str()) * 1e6));
+    }
+  }
+}
+
+// The lens and sensor: focal length (and its 35 mm equivalent), the EXIF
+// width, the sensor width from the focal plane resolution or the camera
+// table.
+void ReadCamera(const Exiv2::ExifData& exif, ImageGeotag* tag) {
+  tag->focal_mm = ExifNumber(exif, "Exif.Photo.FocalLength");
+  RequireRange("Exif.Photo.FocalLength", GeotagRanges::kMinFocal, GeotagRanges::kMaxFocal, "mm", &tag->focal_mm, tag);
+  tag->focal_35mm = ExifNumber(exif, "Exif.Photo.FocalLengthIn35mmFilm");
+  if (tag->focal_35mm == 0) tag->focal_35mm = ImageGeotag::kNaN;  // 0: "unknown" in EXIF
+  RequireRange("Exif.Photo.FocalLengthIn35mmFilm", GeotagRanges::kMinFocal35, GeotagRanges::kMaxFocal35, "mm",
+               &tag->focal_35mm, tag);
+  double px_w = ExifNumber(exif, "Exif.Photo.PixelXDimension");
+  RequireRange("Exif.Photo.PixelXDimension", 1, GeotagRanges::kMaxExifWidth, "px", &px_w, tag);
+  tag->exif_width = std::isfinite(px_w) ? static_cast<int>(px_w) : 0;
+  // Focal plane resolution: pixels per unit (2 = inch, 3 = cm, 4 = mm).
+  const double fpx = ExifNumber(exif, "Exif.Photo.FocalPlaneXResolution");
+  const double unit = ExifNumber(exif, "Exif.Photo.FocalPlaneResolutionUnit");
+  const double unit_mm = unit == 3 ? 10.0 : unit == 4 ? 1.0 : 25.4;
+  if (fpx > 0 && tag->exif_width > 0) {
+    tag->sensor_width_mm = tag->exif_width / fpx * unit_mm;
+    tag->sensor_width_source = "exif focal plane resolution";
+    RequireRange("Exif.Photo.FocalPlaneXResolution (sensor width)", GeotagRanges::kMinSensorWidth,
+                 GeotagRanges::kMaxSensorWidth, "mm", &tag->sensor_width_mm, tag);
+  }
+  if (!std::isfinite(tag->sensor_width_mm)) {
+    tag->sensor_width_mm = KnownSensorWidth(tag->make, tag->model);
+    if (std::isfinite(tag->sensor_width_mm)) tag->sensor_width_source = "camera table";
+  }
+}
+
+// DJI's XMP: relative altitude, gimbal and aircraft attitude, and the
+// absolute altitude where EXIF has none.
+void ReadDjiXmp(const Exiv2::XmpData& xmp, ImageGeotag* tag) {
+  tag->relative_altitude = XmpNumber(xmp, "Xmp.drone-dji.RelativeAltitude", tag);
+  tag->gimbal_pitch = XmpNumber(xmp, "Xmp.drone-dji.GimbalPitchDegree", tag);
+  tag->gimbal_roll = XmpNumber(xmp, "Xmp.drone-dji.GimbalRollDegree", tag);
+  tag->gimbal_yaw = XmpNumber(xmp, "Xmp.drone-dji.GimbalYawDegree", tag);
+  tag->flight_pitch = XmpNumber(xmp, "Xmp.drone-dji.FlightPitchDegree", tag);
+  tag->flight_roll = XmpNumber(xmp, "Xmp.drone-dji.FlightRollDegree", tag);
+  tag->flight_yaw = XmpNumber(xmp, "Xmp.drone-dji.FlightYawDegree", tag);
+  RequireRange("Xmp.drone-dji.RelativeAltitude", GeotagRanges::kMinAltitude, GeotagRanges::kMaxAltitude, "m",
+               &tag->relative_altitude, tag);
+  const double a = GeotagRanges::kMaxAngle;
+  RequireRange("Xmp.drone-dji.GimbalPitchDegree", -a, a, "deg", &tag->gimbal_pitch, tag);
+  RequireRange("Xmp.drone-dji.GimbalRollDegree", -a, a, "deg", &tag->gimbal_roll, tag);
+  RequireRange("Xmp.drone-dji.GimbalYawDegree", -a, a, "deg", &tag->gimbal_yaw, tag);
+  RequireRange("Xmp.drone-dji.FlightPitchDegree", -a, a, "deg", &tag->flight_pitch, tag);
+  RequireRange("Xmp.drone-dji.FlightRollDegree", -a, a, "deg", &tag->flight_roll, tag);
+  RequireRange("Xmp.drone-dji.FlightYawDegree", -a, a, "deg", &tag->flight_yaw, tag);
+  if (!std::isfinite(tag->altitude)) {
+    double abs_alt = XmpNumber(xmp, "Xmp.drone-dji.AbsoluteAltitude", tag);
+    RequireRange("Xmp.drone-dji.AbsoluteAltitude", GeotagRanges::kMinAltitude, GeotagRanges::kMaxAltitude, "m",
+                 &abs_alt, tag);
+    if (std::isfinite(abs_alt)) tag->altitude = abs_alt;
+  }
+}
+
+}  // namespace
+
 bool ReadGeotag(const std::string& path, ImageGeotag* tag, std::string* error) {
   InitExiv2Once();
   *tag = ImageGeotag();
@@ -139,85 +240,10 @@ bool ReadGeotag(const std::string& path, ImageGeotag* tag, std::string* error) {
     const Exiv2::ExifData& exif = image->exifData();
     tag->make = ExifString(exif, "Exif.Image.Make");
     tag->model = ExifString(exif, "Exif.Image.Model");
-    const double lat = ExifDegrees(exif, "Exif.GPSInfo.GPSLatitude");
-    const double lon = ExifDegrees(exif, "Exif.GPSInfo.GPSLongitude");
-    if (std::isfinite(lat) && std::isfinite(lon)) {
-      const std::string lat_ref = ExifString(exif, "Exif.GPSInfo.GPSLatitudeRef");
-      const std::string lon_ref = ExifString(exif, "Exif.GPSInfo.GPSLongitudeRef");
-      tag->latitude = (!lat_ref.empty() && (lat_ref[0] == 'S' || lat_ref[0] == 's')) ? -lat : lat;
-      tag->longitude = (!lon_ref.empty() && (lon_ref[0] == 'W' || lon_ref[0] == 'w')) ? -lon : lon;
-      RequireRange("Exif.GPSInfo.GPSLatitude", -90, 90, "deg", &tag->latitude, tag);
-      RequireRange("Exif.GPSInfo.GPSLongitude", -180, 180, "deg", &tag->longitude, tag);
-      tag->has_gps = std::isfinite(tag->latitude) && std::isfinite(tag->longitude);
-      if (!tag->has_gps) tag->latitude = tag->longitude = ImageGeotag::kNaN;
-    }
-    tag->altitude = ExifNumber(exif, "Exif.GPSInfo.GPSAltitude");
-    if (std::isfinite(tag->altitude) && ExifNumber(exif, "Exif.GPSInfo.GPSAltitudeRef") == 1) tag->altitude = -tag->altitude;
-    RequireRange("Exif.GPSInfo.GPSAltitude", GeotagRanges::kMinAltitude, GeotagRanges::kMaxAltitude, "m",
-                 &tag->altitude, tag);
-    const double gps_hours = ExifDegrees(exif, "Exif.GPSInfo.GPSTimeStamp");  // h, m, s rationals read as h + m/60 + s/3600
-    int64_t gps_day = 0;
-    if (std::isfinite(gps_hours) && gps_hours >= 0 && gps_hours < 24.0 &&
-        ParseExifDateTime(ExifString(exif, "Exif.GPSInfo.GPSDateStamp") + " 00:00:00", &gps_day)) {
-      tag->has_gps_time = true;
-      tag->gps_utime = gps_day + static_cast<int64_t>(std::llround(gps_hours * 3600.0 * 1e6));
-    }
-    std::string when = ExifString(exif, "Exif.Photo.DateTimeOriginal");
-    if (when.empty()) when = ExifString(exif, "Exif.Image.DateTime");
-    tag->has_time = ParseExifDateTime(when, &tag->utime);
-    if (tag->has_time) {
-      const double sub = ExifNumber(exif, "Exif.Photo.SubSecTimeOriginal");
-      if (std::isfinite(sub)) {
-        const std::string digits = ExifString(exif, "Exif.Photo.SubSecTimeOriginal");
-        tag->utime += static_cast<int64_t>(std::llround(std::atof(("0." + digits).c_str()) * 1e6));
-      }
-    }
-    tag->focal_mm = ExifNumber(exif, "Exif.Photo.FocalLength");
-    RequireRange("Exif.Photo.FocalLength", GeotagRanges::kMinFocal, GeotagRanges::kMaxFocal, "mm", &tag->focal_mm, tag);
-    tag->focal_35mm = ExifNumber(exif, "Exif.Photo.FocalLengthIn35mmFilm");
-    if (tag->focal_35mm == 0) tag->focal_35mm = ImageGeotag::kNaN;  // 0: "unknown" in EXIF
-    RequireRange("Exif.Photo.FocalLengthIn35mmFilm", GeotagRanges::kMinFocal35, GeotagRanges::kMaxFocal35, "mm",
-                 &tag->focal_35mm, tag);
-    double px_w = ExifNumber(exif, "Exif.Photo.PixelXDimension");
-    RequireRange("Exif.Photo.PixelXDimension", 1, GeotagRanges::kMaxExifWidth, "px", &px_w, tag);
-    tag->exif_width = std::isfinite(px_w) ? static_cast<int>(px_w) : 0;
-    // Focal plane resolution: pixels per unit (2 = inch, 3 = cm, 4 = mm).
-    const double fpx = ExifNumber(exif, "Exif.Photo.FocalPlaneXResolution");
-    const double unit = ExifNumber(exif, "Exif.Photo.FocalPlaneResolutionUnit");
-    const double unit_mm = unit == 3 ? 10.0 : unit == 4 ? 1.0 : 25.4;
-    if (fpx > 0 && tag->exif_width > 0) {
-      tag->sensor_width_mm = tag->exif_width / fpx * unit_mm;
-      tag->sensor_width_source = "exif focal plane resolution";
-      RequireRange("Exif.Photo.FocalPlaneXResolution (sensor width)", GeotagRanges::kMinSensorWidth,
-                   GeotagRanges::kMaxSensorWidth, "mm", &tag->sensor_width_mm, tag);
-    }
-    if (!std::isfinite(tag->sensor_width_mm)) {
-      tag->sensor_width_mm = KnownSensorWidth(tag->make, tag->model);
-      if (std::isfinite(tag->sensor_width_mm)) tag->sensor_width_source = "camera table";
-    }
-    const Exiv2::XmpData& xmp = image->xmpData();
-    tag->relative_altitude = XmpNumber(xmp, "Xmp.drone-dji.RelativeAltitude", tag);
-    tag->gimbal_pitch = XmpNumber(xmp, "Xmp.drone-dji.GimbalPitchDegree", tag);
-    tag->gimbal_roll = XmpNumber(xmp, "Xmp.drone-dji.GimbalRollDegree", tag);
-    tag->gimbal_yaw = XmpNumber(xmp, "Xmp.drone-dji.GimbalYawDegree", tag);
-    tag->flight_pitch = XmpNumber(xmp, "Xmp.drone-dji.FlightPitchDegree", tag);
-    tag->flight_roll = XmpNumber(xmp, "Xmp.drone-dji.FlightRollDegree", tag);
-    tag->flight_yaw = XmpNumber(xmp, "Xmp.drone-dji.FlightYawDegree", tag);
-    RequireRange("Xmp.drone-dji.RelativeAltitude", GeotagRanges::kMinAltitude, GeotagRanges::kMaxAltitude, "m",
-                 &tag->relative_altitude, tag);
-    const double a = GeotagRanges::kMaxAngle;
-    RequireRange("Xmp.drone-dji.GimbalPitchDegree", -a, a, "deg", &tag->gimbal_pitch, tag);
-    RequireRange("Xmp.drone-dji.GimbalRollDegree", -a, a, "deg", &tag->gimbal_roll, tag);
-    RequireRange("Xmp.drone-dji.GimbalYawDegree", -a, a, "deg", &tag->gimbal_yaw, tag);
-    RequireRange("Xmp.drone-dji.FlightPitchDegree", -a, a, "deg", &tag->flight_pitch, tag);
-    RequireRange("Xmp.drone-dji.FlightRollDegree", -a, a, "deg", &tag->flight_roll, tag);
-    RequireRange("Xmp.drone-dji.FlightYawDegree", -a, a, "deg", &tag->flight_yaw, tag);
-    if (!std::isfinite(tag->altitude)) {
-      double abs_alt = XmpNumber(xmp, "Xmp.drone-dji.AbsoluteAltitude", tag);
-      RequireRange("Xmp.drone-dji.AbsoluteAltitude", GeotagRanges::kMinAltitude, GeotagRanges::kMaxAltitude, "m",
-                   &abs_alt, tag);
-      if (std::isfinite(abs_alt)) tag->altitude = abs_alt;
-    }
+    ReadGpsPosition(exif, tag);
+    ReadTimes(exif, tag);
+    ReadCamera(exif, tag);
+    ReadDjiXmp(image->xmpData(), tag);
   } catch (const std::exception& e) {
     if (error) *error = path + ": cannot read its metadata (" + e.what() + ")";
     return false;
