@@ -71,18 +71,19 @@ bool LatLonToProjected(int epsg, const std::vector<cv::Point2d>& lat_lon, std::v
   return true;
 }
 
-bool WriteGeoTiff(const cv::Mat& bgra, const std::function<cv::Point2d(const cv::Point2d&)>& lat_lon_of_pixel, int epsg,
-                  const std::string& path, std::string* error) {
-  InitGdalOnce();
-  if (bgra.empty() || bgra.type() != CV_8UC4) {
-    if (error) *error = "GeoTIFF: the mosaic must be a non-empty BGRA image";
-    return false;
-  }
-  // Affine pixel -> projected from three corners (exact for a similarity over a small area).
-  const std::vector<cv::Point2d> px = {{0, 0}, {double(bgra.cols), 0}, {0, double(bgra.rows)}};
-  std::vector<cv::Point2d> ll, en;
-  for (const auto& p : px) ll.push_back(lat_lon_of_pixel(p));
-  if (!LatLonToProjected(epsg, ll, &en, error)) return false;
+namespace {
+
+// The mosaic resampled north up in the projected system at its own ground
+// resolution, and that raster's GDAL geotransform.
+struct NorthUpRaster {
+  cv::Mat bgra;
+  double geotransform[6] = {0, 0, 0, 0, 0, 0};
+};
+
+// `bgra` resampled north up from its corners' projected coordinates `en`
+// (top left, top right, bottom left): false with *error when the
+// georeferencing is degenerate or the output implausibly large.
+bool NorthUp(const cv::Mat& bgra, const std::vector<cv::Point2d>& en, NorthUpRaster* out, std::string* error) {
   const cv::Point2d o = en[0], ax = (en[1] - en[0]) / bgra.cols, ay = (en[2] - en[0]) / bgra.rows;
   // en(c, r) = o + c ax + r ay. North-up output at the same ground resolution.
   const double res = std::sqrt(std::abs(ax.x * ay.y - ax.y * ay.x));
@@ -105,9 +106,15 @@ bool WriteGeoTiff(const cv::Mat& bgra, const std::function<cv::Point2d(const cv:
   const cv::Matx22d Ai = A.inv();
   const cv::Vec2d t0 = Ai * cv::Vec2d(e0 - o.x, n1 - o.y);
   const cv::Matx23d input_from_output(Ai(0, 0) * res, -Ai(0, 1) * res, t0[0], Ai(1, 0) * res, -Ai(1, 1) * res, t0[1]);
-  cv::Mat north_up;
-  cv::warpAffine(bgra, north_up, input_from_output, cv::Size(W, H), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
+  cv::warpAffine(bgra, out->bgra, input_from_output, cv::Size(W, H), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
                  cv::BORDER_CONSTANT, cv::Scalar(0, 0, 0, 0));
+  const double gt[6] = {e0, res, 0.0, n1, 0.0, -res};
+  std::copy(gt, gt + 6, out->geotransform);
+  return true;
+}
+
+// The raster as a tiled, deflated RGBA GeoTIFF in EPSG `epsg`.
+bool WriteGdalRgba(const NorthUpRaster& raster, int epsg, const std::string& path, std::string* error) {
   std::error_code ec;
   const std::filesystem::path p(path);
   if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path(), ec);
@@ -121,13 +128,15 @@ bool WriteGeoTiff(const cv::Mat& bgra, const std::function<cv::Point2d(const cv:
   create_options = CSLSetNameValue(create_options, "TILED", "YES");
   create_options = CSLSetNameValue(create_options, "PHOTOMETRIC", "RGB");
   create_options = CSLSetNameValue(create_options, "ALPHA", "YES");
+  const int W = raster.bgra.cols, H = raster.bgra.rows;
   GDALDataset* ds = driver->Create(path.c_str(), W, H, 4, GDT_Byte, create_options);
   CSLDestroy(create_options);
   if (!ds) {
     if (error) *error = "cannot create GeoTIFF " + path + " (folder writable?)";
     return false;
   }
-  double gt[6] = {e0, res, 0.0, n1, 0.0, -res};
+  double gt[6];
+  std::copy(raster.geotransform, raster.geotransform + 6, gt);
   ds->SetGeoTransform(gt);
   OGRSpatialReference srs;
   srs.importFromEPSG(epsg);
@@ -136,7 +145,7 @@ bool WriteGeoTiff(const cv::Mat& bgra, const std::function<cv::Point2d(const cv:
   ds->SetProjection(wkt);
   CPLFree(wkt);
   std::vector<cv::Mat> channels;
-  cv::split(north_up, channels);  // B G R A
+  cv::split(raster.bgra, channels);  // B G R A
   const int order[4] = {2, 1, 0, 3};
   bool ok = true;
   for (int b = 0; b < 4 && ok; ++b) {
@@ -147,6 +156,24 @@ bool WriteGeoTiff(const cv::Mat& bgra, const std::function<cv::Point2d(const cv:
   GDALClose(ds);
   if (!ok && error) *error = "cannot write the pixels of GeoTIFF " + path;
   return ok;
+}
+
+}  // namespace
+
+bool WriteGeoTiff(const cv::Mat& bgra, const std::function<cv::Point2d(const cv::Point2d&)>& lat_lon_of_pixel, int epsg,
+                  const std::string& path, std::string* error) {
+  InitGdalOnce();
+  if (bgra.empty() || bgra.type() != CV_8UC4) {
+    if (error) *error = "GeoTIFF: the mosaic must be a non-empty BGRA image";
+    return false;
+  }
+  // Affine pixel -> projected from three corners (exact for a similarity over a small area).
+  const std::vector<cv::Point2d> px = {{0, 0}, {double(bgra.cols), 0}, {0, double(bgra.rows)}};
+  std::vector<cv::Point2d> ll, en;
+  for (const auto& p : px) ll.push_back(lat_lon_of_pixel(p));
+  if (!LatLonToProjected(epsg, ll, &en, error)) return false;
+  NorthUpRaster raster;
+  return NorthUp(bgra, en, &raster, error) && WriteGdalRgba(raster, epsg, path, error);
 }
 
 bool WriteRouteGeoJson(const std::vector<GeoFrame>& frames, const std::string& path, std::string* error) {
