@@ -504,6 +504,105 @@ bool PreconditionedCg(const Eigen::SparseMatrix<double>& A, const Eigen::VectorX
 }
 
 // Levenberg-Marquardt (Nielsen's damping update) from the current poses.
+// Levenberg-Marquardt's state between iterations.
+struct LmState {
+  double cost = 0;
+  double lambda = 0, nu = 2.0;
+  bool linearise = true;
+  double factor_lambda = -1.0;  // damping of the last successful factorisation
+  bool factor_current = false;  // the last step was solved by that factorisation (not by CG)
+  bool converged = false;       // stopped on an accepted step below the tolerance
+  double t_linearise = 0, t_factorise = 0, t_solve = 0, t_cost = 0;
+  // A rejected step (or a failed factorisation): more damping; false when
+  // it has grown past any use.
+  bool Damp() {
+    lambda *= nu;
+    nu *= 2.0;
+    return lambda <= 1e16;
+  }
+};
+
+// A = H + lambda max(diag H, 1e-12) on the diagonal (A has H's pattern);
+// returns that diagonal term.
+template <int D>
+Eigen::VectorXd DampedNormalMatrix(const NormalEquations<D>& normal, double lambda, Eigen::SparseMatrix<double>* A) {
+  std::copy(normal.H().valuePtr(), normal.H().valuePtr() + normal.H().nonZeros(), A->valuePtr());
+  Eigen::VectorXd scaled_diagonal(normal.size());
+  for (int c = 0; c < normal.size(); ++c) {
+    double& d = A->valuePtr()[normal.diagonal_positions()[static_cast<size_t>(c)]];
+    scaled_diagonal[c] = lambda * std::max(d, 1e-12);
+    d += scaled_diagonal[c];
+  }
+  return scaled_diagonal;
+}
+
+// A step: by conjugate gradients preconditioned with the last factor when
+// there is one to reuse, else (or when CG does not converge) by a new
+// factorisation; false when that factorisation fails.
+template <int D>
+bool DampedStep(const Eigen::SparseMatrix<double>& A, const NormalEquations<D>& normal, const SolverOptions& options,
+                LinearSolver* solver, LmState* st, SolverSummary* summary, Eigen::VectorXd* step) {
+  const Stopwatch sol;
+  const bool reuse = st->factor_lambda >= 0 && options.reuse_factorisation > 0;
+  if (reuse && PreconditionedCg(A, normal.g(), *solver, options, step, &summary->cg_iterations)) {
+    st->factor_current = false;
+    st->t_solve += sol.Seconds();
+    return true;
+  }
+  st->factor_lambda = -1.0;
+  const Stopwatch fac;
+  const bool factorised = solver->Factorise(A);
+  st->t_factorise += fac.Seconds();
+  ++summary->factorisations;
+  if (!factorised) return false;
+  st->factor_lambda = st->lambda;
+  st->factor_current = true;
+  const Stopwatch solve;
+  *step = -solver->Solve(normal.g());
+  st->t_solve += solve.Seconds();
+  return true;
+}
+
+// The model's decrease -2 g.s - s^T H s: s.(lambda D s - g) for an exact
+// solve of A s = -g; for a CG step from s^T H s = s^T A s - lambda s^T D s.
+double PredictedDecrease(const Eigen::VectorXd& step, const Eigen::VectorXd& scaled_diagonal, const Eigen::VectorXd& g,
+                         const Eigen::SparseMatrix<double>& A, bool exact_solve) {
+  double predicted = step.dot(scaled_diagonal.cwiseProduct(step) - g);
+  if (!exact_solve) {
+    const Eigen::VectorXd As = A.selfadjointView<Eigen::Upper>() * step;
+    predicted = -2.0 * step.dot(g) - (step.dot(As) - step.dot(scaled_diagonal.cwiseProduct(step)));
+  }
+  return predicted;
+}
+
+// The marginal information of every free pose. At convergence the last
+// factorisation (H + lambda diag(H), lambda <= 1e-6, one converged step
+// before the optimum) is the Hessian's to that precision: its selected
+// inverse serves; otherwise relinearise at the optimum and factorise H
+// again.
+template <int D>
+void Marginals(PoseGraphProblem<D>* problem, const SolverOptions& options, const std::vector<int>& free_index,
+               const LmState& st, NormalEquations<D>* normal, LinearSolver* solver, SolverSummary* summary,
+               std::vector<typename PoseGraphProblem<D>::Information>* marginals) {
+  constexpr int K = PoseGraphProblem<D>::kTangent;
+  const Stopwatch marginal;
+  std::vector<Eigen::MatrixXd> blocks;
+  marginals->assign(problem->poses.size(), PoseGraphProblem<D>::Information::Zero());
+  const bool reuse = st.converged && st.factor_current && st.factor_lambda >= 0 && st.factor_lambda <= 1e-6;
+  summary->marginals_valid = reuse && solver->BlockDiagonalOfInverse(K, &blocks);
+  if (!summary->marginals_valid) {
+    if (st.linearise || !st.factor_current) normal->Linearise(*problem, options);
+    summary->marginals_valid = InverseBlocks(*normal, &blocks);
+  }
+  if (summary->marginals_valid) {
+    for (size_t p = 0; p < problem->poses.size(); ++p)
+      if (free_index[p] >= 0) (*marginals)[p] = blocks[static_cast<size_t>(free_index[p])];
+  } else {
+    summary->message = "the Hessian at the optimum is singular: no marginal covariances";
+  }
+  summary->marginal_seconds = marginal.Seconds();
+}
+
 template <int D>
 bool Minimise(PoseGraphProblem<D>* problem, const SolverOptions& options, SolverSummary* summary,
               std::vector<typename PoseGraphProblem<D>::Information>* marginals) {
@@ -520,56 +619,24 @@ bool Minimise(PoseGraphProblem<D>* problem, const SolverOptions& options, Solver
   if (options.verbose) std::printf("[vloc posegraph] pattern %.3f ms\n", 1e3 * watch.Seconds());
   LinearSolver solver(options.linear_solver);
   Eigen::SparseMatrix<double> A = normal.H();
-  double cost = Cost(*problem, &options);
-  double lambda = options.initial_lambda, nu = 2.0;
-  bool linearise = true;
-  double factor_lambda = -1.0;  // damping of the last successful factorisation
-  bool factor_current = false;  // the last step was solved by that factorisation (not by CG)
-  bool converged = false;       // stopped on an accepted step below the tolerance
+  LmState st;
+  st.cost = Cost(*problem, &options);
+  st.lambda = options.initial_lambda;
   std::vector<typename PoseGraphProblem<D>::Pose> backup;
-  double t_linearise = 0, t_factorise = 0, t_solve = 0, t_cost = 0;
   for (int iter = 0; iter < options.max_iterations; ++iter) {
-    if (linearise) {
+    if (st.linearise) {
       const Stopwatch lin;
       normal.Linearise(*problem, options);
-      t_linearise += lin.Seconds();
+      st.t_linearise += lin.Seconds();
       if (normal.g().template lpNorm<Eigen::Infinity>() <= options.gradient_tolerance) break;
-      linearise = false;
+      st.linearise = false;
     }
     ++summary->iterations;
-    std::copy(normal.H().valuePtr(), normal.H().valuePtr() + normal.H().nonZeros(), A.valuePtr());
-    Eigen::VectorXd scaled_diagonal(normal.size());
-    for (int c = 0; c < normal.size(); ++c) {
-      double& d = A.valuePtr()[normal.diagonal_positions()[static_cast<size_t>(c)]];
-      scaled_diagonal[c] = lambda * std::max(d, 1e-12);
-      d += scaled_diagonal[c];
-    }
-    // A step: by conjugate gradients preconditioned with the last factor
-    // when there is one to reuse, else (or when CG does not converge) by a
-    // new factorisation.
+    const Eigen::VectorXd scaled_diagonal = DampedNormalMatrix(normal, st.lambda, &A);
     Eigen::VectorXd step;
-    const Stopwatch sol;
-    const bool reuse = factor_lambda >= 0 && options.reuse_factorisation > 0;
-    if (reuse && PreconditionedCg(A, normal.g(), solver, options, &step, &summary->cg_iterations)) {
-      factor_current = false;
-      t_solve += sol.Seconds();
-    } else {
-      factor_lambda = -1.0;
-      const Stopwatch fac;
-      const bool factorised = solver.Factorise(A);
-      t_factorise += fac.Seconds();
-      ++summary->factorisations;
-      if (!factorised) {
-        lambda *= nu;
-        nu *= 2.0;
-        if (lambda > 1e16) return Fail(&summary->message, "the damped normal equations stay singular");
-        continue;
-      }
-      factor_lambda = lambda;
-      factor_current = true;
-      const Stopwatch solve;
-      step = -solver.Solve(normal.g());
-      t_solve += solve.Seconds();
+    if (!DampedStep(A, normal, options, &solver, &st, summary, &step)) {
+      if (!st.Damp()) return Fail(&summary->message, "the damped normal equations stay singular");
+      continue;
     }
     if (!step.allFinite()) return Fail(&summary->message, "the linear solve gave a non-finite step");
     backup = problem->poses;
@@ -578,59 +645,30 @@ bool Minimise(PoseGraphProblem<D>* problem, const SolverOptions& options, Solver
         Retract<D>(&problem->poses[p], step.template segment<K>(K * free_index[p]));
     const Stopwatch cos;
     const double new_cost = Cost(*problem, &options);
-    t_cost += cos.Seconds();
-    // The model's decrease -2 g.s - s^T H s: s.(lambda D s - g) for an exact
-    // solve of A s = -g; for a CG step from s^T H s = s^T A s - lambda s^T D s.
-    double predicted = step.dot(scaled_diagonal.cwiseProduct(step) - normal.g());
-    if (!factor_current) {
-      const Eigen::VectorXd As = A.selfadjointView<Eigen::Upper>() * step;
-      predicted = -2.0 * step.dot(normal.g()) - (step.dot(As) - step.dot(scaled_diagonal.cwiseProduct(step)));
-    }
-    const double rho = predicted > 0 ? (cost - new_cost) / predicted : -1.0;
+    st.t_cost += cos.Seconds();
+    const double predicted = PredictedDecrease(step, scaled_diagonal, normal.g(), A, st.factor_current);
+    const double rho = predicted > 0 ? (st.cost - new_cost) / predicted : -1.0;
     if (options.verbose)
-      std::printf("[vloc posegraph] iter %d cost %.9g -> %.9g lambda %.3g |step| %.3g (%.3f ms)\n", iter, cost, new_cost,
-                  lambda, step.norm(), 1e3 * watch.Seconds());
-    if (std::isfinite(new_cost) && new_cost < cost) {
-      converged = cost - new_cost <= options.relative_cost_tolerance * cost;
-      cost = new_cost;
-      lambda *= std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3));
-      lambda = std::max(lambda, 1e-15);
-      nu = 2.0;
-      linearise = true;
-      if (converged) break;
+      std::printf("[vloc posegraph] iter %d cost %.9g -> %.9g lambda %.3g |step| %.3g (%.3f ms)\n", iter, st.cost,
+                  new_cost, st.lambda, step.norm(), 1e3 * watch.Seconds());
+    if (std::isfinite(new_cost) && new_cost < st.cost) {
+      st.converged = st.cost - new_cost <= options.relative_cost_tolerance * st.cost;
+      st.cost = new_cost;
+      st.lambda *= std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3));
+      st.lambda = std::max(st.lambda, 1e-15);
+      st.nu = 2.0;
+      st.linearise = true;
+      if (st.converged) break;
     } else {
       problem->poses.swap(backup);
-      lambda *= nu;
-      nu *= 2.0;
-      if (lambda > 1e16) break;
+      if (!st.Damp()) break;
     }
   }
   if (options.verbose)
     std::printf("[vloc posegraph] linearise %.1f ms, factorise %.1f ms (%d), solve %.1f ms (%d CG iterations), cost %.1f ms\n",
-                1e3 * t_linearise, 1e3 * t_factorise, summary->factorisations, 1e3 * t_solve, summary->cg_iterations,
-                1e3 * t_cost);
-  if (marginals) {
-    // At convergence the last factorisation (H + lambda diag(H), lambda <=
-    // 1e-6, one converged step before the optimum) is the Hessian's to that
-    // precision: its selected inverse serves; otherwise relinearise at the
-    // optimum and factorise H again.
-    const Stopwatch marginal;
-    std::vector<Eigen::MatrixXd> blocks;
-    marginals->assign(problem->poses.size(), PoseGraphProblem<D>::Information::Zero());
-    const bool reuse = converged && factor_current && factor_lambda >= 0 && factor_lambda <= 1e-6;
-    summary->marginals_valid = reuse && solver.BlockDiagonalOfInverse(K, &blocks);
-    if (!summary->marginals_valid) {
-      if (linearise || !factor_current) normal.Linearise(*problem, options);
-      summary->marginals_valid = InverseBlocks(normal, &blocks);
-    }
-    if (summary->marginals_valid) {
-      for (size_t p = 0; p < problem->poses.size(); ++p)
-        if (free_index[p] >= 0) (*marginals)[p] = blocks[static_cast<size_t>(free_index[p])];
-    } else {
-      summary->message = "the Hessian at the optimum is singular: no marginal covariances";
-    }
-    summary->marginal_seconds = marginal.Seconds();
-  }
+                1e3 * st.t_linearise, 1e3 * st.t_factorise, summary->factorisations, 1e3 * st.t_solve,
+                summary->cg_iterations, 1e3 * st.t_cost);
+  if (marginals) Marginals(problem, options, free_index, st, &normal, &solver, summary, marginals);
   return true;
 }
 
