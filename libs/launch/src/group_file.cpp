@@ -232,7 +232,10 @@ std::string SignalName(int signal_number) {
   return "signal " + std::to_string(signal_number);
 }
 
-GroupFile ParseGroupYaml(const YAML::Node& root, const std::string& context, const VariableLookup& lookup) {
+namespace {
+
+// The top-level keys are known ones.
+void CheckTopKeys(const YAML::Node& root, const std::string& context) {
   if (!root.IsMap()) throw ConfigError(context + ": expected a map with a 'processes' list");
   static const std::set<std::string> kTopKeys = {"group", "env", "defaults", "processes"};
   for (const auto& kv : root) {
@@ -241,97 +244,107 @@ GroupFile ParseGroupYaml(const YAML::Node& root, const std::string& context, con
       throw ConfigError(context + ": unknown top-level key '" + key +
                         "'; known keys: group, env, defaults, processes");
   }
-  std::string default_group = root["group"] ? root["group"].as<std::string>("") : "";
-  if (default_group.empty()) default_group = "default";
-  const auto top_env = ReadEnv(root["env"], context);
+}
 
-  // Defaults: the same keys as a process except name and command.
-  YAML::Node defaults = root["defaults"] ? root["defaults"] : YAML::Node(YAML::NodeType::Map);
-  if (!defaults.IsMap()) throw ConfigError(context + ".defaults: expected a map of process keys");
-  YAML::Node default_env;
-  {
-    YAML::Node d = YAML::Clone(defaults);
-    default_env = d["env"];
-    d.remove("env");
-    RawProcess check;
-    OptionsReader reader(d, context + ".defaults");
-    check.Visit(reader, /*is_defaults=*/true);
-    reader.Finish();
+// What every process starts from: the file's group, its env, and the
+// defaults (the keys of a process but name and command, checked here; their
+// env apart).
+struct FileDefaults {
+  std::string group;
+  std::map<std::string, std::string> env;
+  YAML::Node keys, env_node;
+};
+FileDefaults ReadDefaults(const YAML::Node& root, const std::string& context) {
+  FileDefaults d;
+  d.group = root["group"] ? root["group"].as<std::string>("") : "";
+  if (d.group.empty()) d.group = "default";
+  d.env = ReadEnv(root["env"], context);
+  d.keys = root["defaults"] ? root["defaults"] : YAML::Node(YAML::NodeType::Map);
+  if (!d.keys.IsMap()) throw ConfigError(context + ".defaults: expected a map of process keys");
+  YAML::Node checked = YAML::Clone(d.keys);
+  d.env_node = checked["env"];
+  checked.remove("env");
+  RawProcess check;
+  OptionsReader reader(checked, context + ".defaults");
+  check.Visit(reader, /*is_defaults=*/true);
+  reader.Finish();
+  return d;
+}
+
+// The checks of one process's values, its restart policy and stop signal
+// resolved into `spec`.
+void CheckProcess(const RawProcess& raw, const GroupFile& file, const std::string& default_group,
+                  const std::string& where, ProcessSpec* spec) {
+  if (spec->name.empty()) throw ConfigError(where + ": no 'name'; give every process a unique name");
+  if (spec->name.find('/') != std::string::npos || spec->name.find(' ') != std::string::npos ||
+      HasControlCharacters(spec->name))
+    throw ConfigError(where + ": name must not contain '/', spaces or control characters (it names the log file)");
+  if (file.Find(spec->name)) throw ConfigError(where + ": duplicate name; process names must be unique");
+  if (spec->command.empty())
+    throw ConfigError(where + ": no 'command'; add command: <program path or name on PATH>");
+  if (spec->group.empty()) spec->group = default_group;
+  if (HasControlCharacters(spec->group))
+    throw ConfigError(where + ".group: '" + PrintableName(spec->group) + "' must not contain control characters");
+  if (spec->host.find_first_of(" /,") != std::string::npos)
+    throw ConfigError(where + ".host: '" + spec->host + "' must not contain spaces, '/' or ','");
+  if (raw.restart == "never") spec->restart = RestartPolicy::kNever;
+  else if (raw.restart == "on-failure") spec->restart = RestartPolicy::kOnFailure;
+  else if (raw.restart == "always") spec->restart = RestartPolicy::kAlways;
+  else
+    throw ConfigError(where + ".restart: '" + raw.restart + "' is not never, on-failure or always");
+  spec->stop_signal = ParseSignalName(raw.stop_signal);
+  if (spec->stop_signal <= 0)
+    throw ConfigError(where + ".stop_signal: unknown signal '" + raw.stop_signal + "'; use SIGINT or SIGTERM");
+  if (spec->max_restarts < -1) throw ConfigError(where + ".max_restarts: must be -1 (no limit) or >= 0");
+  if (!(spec->start_delay >= 0)) throw ConfigError(where + ".start_delay: must be >= 0 s");
+  if (!(spec->backoff_initial > 0)) throw ConfigError(where + ".backoff_initial: must be > 0 s");
+  if (!(spec->backoff_max >= spec->backoff_initial))
+    throw ConfigError(where + ".backoff_max: must be >= backoff_initial");
+  if (!(spec->exit_grace >= 0)) throw ConfigError(where + ".exit_grace: must be >= 0 s");
+  if (!(spec->stop_timeout > 0)) throw ConfigError(where + ".stop_timeout: must be > 0 s");
+}
+
+// Process `index` of the list: the defaults under its own keys, its env
+// over the defaults' over the file's, checked, its ${VARIABLES} expanded.
+ProcessSpec ReadProcess(const YAML::Node& entry, size_t index, const FileDefaults& defaults, const GroupFile& file,
+                        const std::string& context, const VariableLookup& lookup) {
+  const std::string where = ProcessContext(context, index, entry);
+  if (!entry.IsMap()) throw ConfigError(where + ": expected a map with name and command");
+  YAML::Node merged = YAML::Clone(defaults.keys);
+  merged.remove("env");
+  for (const auto& kv : entry) {
+    const std::string key = kv.first.as<std::string>();
+    if (key != "env") merged[key] = kv.second;
   }
+  RawProcess raw;
+  raw.spec.group = defaults.group;
+  OptionsReader reader(merged, where);
+  raw.Visit(reader, /*is_defaults=*/false);
+  reader.Finish();
+  ProcessSpec spec = raw.spec;
+  spec.env = defaults.env;
+  for (const auto& [k, v] : ReadEnv(defaults.env_node, where)) spec.env[k] = v;
+  for (const auto& [k, v] : ReadEnv(entry["env"], where)) spec.env[k] = v;
+  CheckProcess(raw, file, defaults.group, where, &spec);
+  Expand(&spec.command, lookup, where + ".command");
+  for (auto& a : spec.args) Expand(&a, lookup, where + ".args");
+  for (auto& [k, v] : spec.env) Expand(&v, lookup, where + ".env." + k);
+  Expand(&spec.working_dir, lookup, where + ".working_dir");
+  return spec;
+}
 
-  const YAML::Node list = root["processes"];
-  if (!list || !list.IsSequence() || list.size() == 0)
-    throw ConfigError(context + ": 'processes' must be a non-empty list of processes");
-
-  GroupFile file;
-  file.path = context;
-  for (size_t i = 0; i < list.size(); ++i) {
-    const YAML::Node entry = list[i];
-    const std::string where = ProcessContext(context, i, entry);
-    if (!entry.IsMap()) throw ConfigError(where + ": expected a map with name and command");
-    YAML::Node merged = YAML::Clone(defaults);
-    merged.remove("env");
-    for (const auto& kv : entry) {
-      const std::string key = kv.first.as<std::string>();
-      if (key != "env") merged[key] = kv.second;
-    }
-    RawProcess raw;
-    raw.spec.group = default_group;
-    OptionsReader reader(merged, where);
-    raw.Visit(reader, /*is_defaults=*/false);
-    reader.Finish();
-    ProcessSpec spec = raw.spec;
-
-    spec.env = top_env;
-    for (const auto& [k, v] : ReadEnv(default_env, where)) spec.env[k] = v;
-    for (const auto& [k, v] : ReadEnv(entry["env"], where)) spec.env[k] = v;
-
-    if (spec.name.empty()) throw ConfigError(where + ": no 'name'; give every process a unique name");
-    if (spec.name.find('/') != std::string::npos || spec.name.find(' ') != std::string::npos ||
-        HasControlCharacters(spec.name))
-      throw ConfigError(where + ": name must not contain '/', spaces or control characters (it names the log file)");
-    if (file.Find(spec.name)) throw ConfigError(where + ": duplicate name; process names must be unique");
-    if (spec.command.empty())
-      throw ConfigError(where + ": no 'command'; add command: <program path or name on PATH>");
-    if (spec.group.empty()) spec.group = default_group;
-    if (HasControlCharacters(spec.group))
-      throw ConfigError(where + ".group: '" + PrintableName(spec.group) + "' must not contain control characters");
-    if (spec.host.find_first_of(" /,") != std::string::npos)
-      throw ConfigError(where + ".host: '" + spec.host + "' must not contain spaces, '/' or ','");
-
-    if (raw.restart == "never") spec.restart = RestartPolicy::kNever;
-    else if (raw.restart == "on-failure") spec.restart = RestartPolicy::kOnFailure;
-    else if (raw.restart == "always") spec.restart = RestartPolicy::kAlways;
-    else
-      throw ConfigError(where + ".restart: '" + raw.restart + "' is not never, on-failure or always");
-    spec.stop_signal = ParseSignalName(raw.stop_signal);
-    if (spec.stop_signal <= 0)
-      throw ConfigError(where + ".stop_signal: unknown signal '" + raw.stop_signal +
-                        "'; use SIGINT or SIGTERM");
-    if (spec.max_restarts < -1) throw ConfigError(where + ".max_restarts: must be -1 (no limit) or >= 0");
-    if (!(spec.start_delay >= 0)) throw ConfigError(where + ".start_delay: must be >= 0 s");
-    if (!(spec.backoff_initial > 0)) throw ConfigError(where + ".backoff_initial: must be > 0 s");
-    if (!(spec.backoff_max >= spec.backoff_initial))
-      throw ConfigError(where + ".backoff_max: must be >= backoff_initial");
-    if (!(spec.exit_grace >= 0)) throw ConfigError(where + ".exit_grace: must be >= 0 s");
-    if (!(spec.stop_timeout > 0)) throw ConfigError(where + ".stop_timeout: must be > 0 s");
-
-    Expand(&spec.command, lookup, where + ".command");
-    for (auto& a : spec.args) Expand(&a, lookup, where + ".args");
-    for (auto& [k, v] : spec.env) Expand(&v, lookup, where + ".env." + k);
-    Expand(&spec.working_dir, lookup, where + ".working_dir");
-    file.processes.push_back(spec);
-  }
-
-  // Hosts: none (one machine) or every process.
+// Hosts: none (one machine) or every process.
+void CheckHosts(const GroupFile& file, const std::string& context) {
   const auto hosts = file.Hosts();
   for (const auto& p : file.processes) {
     if (!hosts.empty() && p.host.empty())
       throw ConfigError(context + ": process '" + p.name + "' has no 'host' while others have (" + hosts.front() +
                         "); give every process a host, or set defaults.host");
   }
+}
 
-  // Dependencies: known names, no self or cycle.
+// Dependencies: known names, no self or cycle.
+void CheckDependencies(const GroupFile& file, const std::string& context) {
   for (const auto& p : file.processes) {
     for (const auto& d : p.depends_on) {
       if (d == p.name) throw ConfigError(context + ": process '" + p.name + "' depends on itself");
@@ -350,6 +363,21 @@ GroupFile ParseGroupYaml(const YAML::Node& root, const std::string& context, con
     mark[p.name] = 2;
   };
   for (const auto& p : file.processes) visit(p, "");
+}
+
+}  // namespace
+
+GroupFile ParseGroupYaml(const YAML::Node& root, const std::string& context, const VariableLookup& lookup) {
+  CheckTopKeys(root, context);
+  const FileDefaults defaults = ReadDefaults(root, context);
+  const YAML::Node list = root["processes"];
+  if (!list || !list.IsSequence() || list.size() == 0)
+    throw ConfigError(context + ": 'processes' must be a non-empty list of processes");
+  GroupFile file;
+  file.path = context;
+  for (size_t i = 0; i < list.size(); ++i) file.processes.push_back(ReadProcess(list[i], i, defaults, file, context, lookup));
+  CheckHosts(file, context);
+  CheckDependencies(file, context);
   return file;
 }
 
