@@ -153,105 +153,123 @@ struct OverlapGeometry {
   bool backward;
 };
 
+// How far a member sample's projection q into the previous image can move
+// (px, per axis): per perturbed axis the larger of the +/- displacements,
+// summed over the 6 axes (so errors on several axes at once stay inside);
+// far samples add the stereo range's uncertainty as one more axis; at most
+// max_growth_px.
+Eigen::Vector2d ProjectionSpread(const OverlapGeometry& g, const Sample& s, const Eigen::Vector3d& p_cam,
+                                 const Eigen::Vector2d& q, bool far, const RegionOptions& o) {
+  const std::vector<Pose3>& perturbed = g.perturbed;
+  Eigen::Vector2d ext(0, 0);
+  for (size_t k = 1; k + 1 < perturbed.size(); k += 2) {
+    Eigen::Vector2d e(0, 0);
+    for (size_t m = k; m <= k + 1; ++m) {
+      const Eigen::Vector3d pk = g.prev_cam_from_body * (perturbed[m] * s.p_current);
+      const auto qk = pk.z() > 0.3 * p_cam.z() ? g.cam.ProjectIdeal(pk) : std::nullopt;
+      if (!qk) {
+        e = Eigen::Vector2d::Constant(o.max_growth_px);
+        break;
+      }
+      e = e.cwiseMax((*qk - q).cwiseAbs());
+    }
+    ext += e;
+  }
+  if (far) {  // the stereo range's uncertainty, as one more axis
+    Eigen::Vector2d e(0, 0);
+    for (const double sign : {-1.0, 1.0}) {
+      const Eigen::Vector3d pk = g.prev_cam_from_body * (g.prediction.previous_from_current * (s.p_current + sign * s.range_step));
+      const auto qk = pk.z() > 0.3 * p_cam.z() ? g.cam.ProjectIdeal(pk) : std::nullopt;
+      e = qk ? Eigen::Vector2d(e.cwiseMax((*qk - q).cwiseAbs())) : Eigen::Vector2d::Constant(o.max_growth_px);
+      if (!qk) break;
+    }
+    ext += e;
+  }
+  return ext.cwiseMin(o.max_growth_px);
+}
+
+// An axis-aligned box grown point by point.
+struct Box {
+  double x0 = 1e9, y0 = 1e9, x1 = -1e9, y1 = -1e9;
+  void Add(double x, double y) { x0 = std::min(x0, x), y0 = std::min(y0, y), x1 = std::max(x1, x), y1 = std::max(y1, y); }
+};
+
+// The overlap's member samples: in the current image, their projection in
+// the previous one, the boxes they span (the previous one grown by each
+// spread) and their spreads' lengths.
+struct OverlapMembers {
+  std::vector<cv::Point2d> cur_px, prev_px;
+  Box current, previous, ground;
+  std::vector<double> growths;
+};
+
+// A sample belongs to the overlap when the ground point lies within the
+// previous camera's range (not for far samples) and projects into the
+// previous image under the nominal or any perturbed relative pose.
+OverlapMembers MemberSamples(const OverlapGeometry& g, const std::vector<Sample>& samples, bool far,
+                             const RegionOptions& o) {
+  const PinholeCamera& cam_l = g.cam;
+  OverlapMembers m;
+  for (const auto& s : samples) {
+    const Eigen::Vector3d p_prev = g.prediction.previous_from_current * s.p_current;
+    const Eigen::Vector3d p_cam = g.prev_cam_from_body * p_prev;
+    const auto q = cam_l.ProjectIdeal(p_cam);
+    if (!q || (!far && p_cam.norm() > o.max_range_previous)) continue;
+    const Eigen::Vector2d ext = ProjectionSpread(g, s, p_cam, *q, far, o);
+    const Eigen::Vector2d lo = *q - ext, hi = *q + ext;
+    const bool member = hi.x() >= o.image_margin && hi.y() >= o.image_margin &&
+                        lo.x() <= cam_l.width - 1 - o.image_margin && lo.y() <= cam_l.height - 1 - o.image_margin;
+    if (!member) continue;
+    m.growths.push_back(ext.norm());
+    m.cur_px.emplace_back(s.px.x(), s.px.y());
+    m.prev_px.emplace_back(q->x(), q->y());
+    m.current.Add(s.px.x(), s.px.y());
+    m.ground.Add(p_prev.x(), p_prev.y());
+    for (const auto& qi : {lo, hi}) m.previous.Add(qi.x(), qi.y());
+  }
+  return m;
+}
+
 // The overlap the samples make in the previous image, or nullopt with fewer
 // than min_samples members. Ground samples lie within max_range_previous;
 // far samples (far) also grow by their range step, and their homography's
 // fit residual (90th percentile) is added to the gate.
 std::optional<PairOverlap> MakeOverlap(const OverlapGeometry& g, const std::vector<Sample>& samples, bool far,
                                        const RegionOptions& o) {
-  const PinholeCamera& cam_l = g.cam;
-  const std::vector<Pose3>& perturbed = g.perturbed;
   PairOverlap ov;
   ov.far = far;
   ov.current_pair = g.current_pair;
   ov.previous_pair = g.previous_pair;
   ov.backward = g.backward;
-  std::vector<cv::Point2d> cur_px, prev_px;
-  double cx0 = 1e9, cy0 = 1e9, cx1 = -1e9, cy1 = -1e9;
-  double px0 = 1e9, py0 = 1e9, px1 = -1e9, py1 = -1e9;
-  double gx0 = 1e9, gy0 = 1e9, gx1 = -1e9, gy1 = -1e9;
-  std::vector<double> growths;
-  for (const auto& s : samples) {
-    // A sample belongs to the overlap when the ground point lies within
-    // the previous camera's range and projects into the previous image
-    // under the nominal or any perturbed relative pose.
-    const Eigen::Vector3d p_prev = g.prediction.previous_from_current * s.p_current;
-    const Eigen::Vector3d p_cam = g.prev_cam_from_body * p_prev;
-    const auto q = cam_l.ProjectIdeal(p_cam);
-    if (!q || (!far && p_cam.norm() > o.max_range_previous)) continue;
-    // Linearised box of where the point can project: per axis the
-    // larger of the +/- displacements, summed over the 6 axes (so
-    // errors on several axes at once stay inside).
-    Eigen::Vector2d ext(0, 0);
-    for (size_t k = 1; k + 1 < perturbed.size(); k += 2) {
-      Eigen::Vector2d e(0, 0);
-      for (size_t m = k; m <= k + 1; ++m) {
-        const Eigen::Vector3d pk = g.prev_cam_from_body * (perturbed[m] * s.p_current);
-        const auto qk = pk.z() > 0.3 * p_cam.z() ? cam_l.ProjectIdeal(pk) : std::nullopt;
-        if (!qk) {
-          e = Eigen::Vector2d::Constant(o.max_growth_px);
-          break;
-        }
-        e = e.cwiseMax((*qk - *q).cwiseAbs());
-      }
-      ext += e;
-    }
-    if (far) {  // the stereo range's uncertainty, as one more axis
-      Eigen::Vector2d e(0, 0);
-      for (const double sign : {-1.0, 1.0}) {
-        const Eigen::Vector3d pk = g.prev_cam_from_body * (g.prediction.previous_from_current * (s.p_current + sign * s.range_step));
-        const auto qk = pk.z() > 0.3 * p_cam.z() ? cam_l.ProjectIdeal(pk) : std::nullopt;
-        e = qk ? Eigen::Vector2d(e.cwiseMax((*qk - *q).cwiseAbs())) : Eigen::Vector2d::Constant(o.max_growth_px);
-        if (!qk) break;
-      }
-      ext += e;
-    }
-    ext = ext.cwiseMin(o.max_growth_px);
-    const double local_growth = ext.norm();
-    const Eigen::Vector2d lo = *q - ext, hi = *q + ext;
-    const bool member = hi.x() >= o.image_margin && hi.y() >= o.image_margin &&
-                        lo.x() <= cam_l.width - 1 - o.image_margin && lo.y() <= cam_l.height - 1 - o.image_margin;
-    std::vector<Eigen::Vector2d> inside{lo, hi};
-    if (!member) continue;
-    growths.push_back(local_growth);
-    cur_px.emplace_back(s.px.x(), s.px.y());
-    prev_px.emplace_back(q->x(), q->y());
-    cx0 = std::min(cx0, s.px.x()), cy0 = std::min(cy0, s.px.y());
-    cx1 = std::max(cx1, s.px.x()), cy1 = std::max(cy1, s.px.y());
-    gx0 = std::min(gx0, p_prev.x()), gy0 = std::min(gy0, p_prev.y());
-    gx1 = std::max(gx1, p_prev.x()), gy1 = std::max(gy1, p_prev.y());
-    for (const auto& qi : inside) {
-      px0 = std::min(px0, qi.x()), py0 = std::min(py0, qi.y());
-      px1 = std::max(px1, qi.x()), py1 = std::max(py1, qi.y());
-    }
-  }
-  ov.num_samples = static_cast<int>(cur_px.size());
+  OverlapMembers m = MemberSamples(g, samples, far, o);
+  ov.num_samples = static_cast<int>(m.cur_px.size());
   if (ov.num_samples < o.min_samples) return std::nullopt;
   const double half = 0.5 * o.grid_step;
   // The current region reaches a full grid step past the samples (to the
   // image border where the grid ends near it).
-  ov.current_region = ClipRect(cx0 - o.grid_step, cy0 - o.grid_step, cx1 + o.grid_step, cy1 + o.grid_step, cam_l);
-  ov.previous_region = ClipRect(px0 - half, py0 - half, px1 + half, py1 + half, cam_l);
+  const Box& c = m.current;
+  ov.current_region = ClipRect(c.x0 - o.grid_step, c.y0 - o.grid_step, c.x1 + o.grid_step, c.y1 + o.grid_step, g.cam);
+  ov.previous_region = ClipRect(m.previous.x0 - half, m.previous.y0 - half, m.previous.x1 + half, m.previous.y1 + half, g.cam);
   if (ov.current_region.area() == 0 || ov.previous_region.area() == 0) return std::nullopt;
   const double gs = o.sigma_scale * std::max(g.prediction.relative_sigma(0), g.prediction.relative_sigma(1));
-  ov.ground_min = {gx0 - gs, gy0 - gs};
-  ov.ground_max = {gx1 + gs, gy1 + gs};
+  ov.ground_min = {m.ground.x0 - gs, m.ground.y0 - gs};
+  ov.ground_max = {m.ground.x1 + gs, m.ground.y1 + gs};
   // Gate: the 90th percentile of the samples' growth (a few grazing
   // samples near the horizon would otherwise open it to the whole image).
-  std::sort(growths.begin(), growths.end());
-  ov.growth_px = growths[static_cast<size_t>(0.9 * (growths.size() - 1))];
-  cv::Mat H = cv::findHomography(cur_px, prev_px, 0);
+  std::sort(m.growths.begin(), m.growths.end());
+  ov.growth_px = m.growths[static_cast<size_t>(0.9 * (m.growths.size() - 1))];
+  cv::Mat H = cv::findHomography(m.cur_px, m.prev_px, 0);
   if (H.empty()) return std::nullopt;
   ov.previous_from_current = cv::Matx33d(H);
   if (far) {  // far terrain is no plane: the homography's own miss widens the gate
     std::vector<double> miss;
-    for (size_t k = 0; k < cur_px.size(); ++k)
-      miss.push_back((ApplyHomography(ov.previous_from_current, Eigen::Vector2d(cur_px[k].x, cur_px[k].y)) -
-                      Eigen::Vector2d(prev_px[k].x, prev_px[k].y)).norm());
+    for (size_t k = 0; k < m.cur_px.size(); ++k)
+      miss.push_back((ApplyHomography(ov.previous_from_current, Eigen::Vector2d(m.cur_px[k].x, m.cur_px[k].y)) -
+                      Eigen::Vector2d(m.prev_px[k].x, m.prev_px[k].y)).norm());
     std::sort(miss.begin(), miss.end());
     ov.growth_px = std::min(ov.growth_px + miss[static_cast<size_t>(0.9 * (miss.size() - 1))], o.max_growth_px);
   }
-  SetViewpointChange(cur_px, &ov);
+  SetViewpointChange(m.cur_px, &ov);
   return ov;
 }
 
