@@ -104,25 +104,50 @@ cv::Matx33d Orthomap::DetailPixelFromWorld(int level) const {
   return cv::Matx33d(s * c, s * sn, -0.5, s * sn, -s * c, -0.5, 0, 0, 1);
 }
 
-void Orthomap::BuildProcedural() {
-  std::mt19937 rng(static_cast<uint32_t>(options_.seed));
-  std::uniform_real_distribution<double> u01(0.0, 1.0);
-  // Square map whose side is a multiple of 32 px so pyramid levels line up.
-  int n = static_cast<int>(std::ceil(options_.size / mpp_ / 32.0)) * 32;
-  const double side = n * mpp_;
-  min_ = options_.centre - Eigen::Vector2d(0.5 * side, 0.5 * side);
-  max_ = options_.centre + Eigen::Vector2d(0.5 * side, 0.5 * side);
-  auto px = [&](const Eigen::Vector2d& w) {
-    return cv::Point2d((w.x() - min_.x()) / mpp_ - 0.5, (max_.y() - w.y()) / mpp_ - 0.5);
-  };
-  auto ipx = [&](const Eigen::Vector2d& w) {
-    const cv::Point2d p = px(w);
-    return cv::Point(static_cast<int>(std::lround(p.x)), static_cast<int>(std::lround(p.y)));
-  };
-  const double m = 1.0 / mpp_;  // px per metre
-  cv::Mat map(n, n, CV_8UC3, cv::Scalar(70, 120, 100));
+namespace {
 
-  // 1. Fields on a jittered grid.
+// The procedural map being drawn: its pixels (n x n, BGR) and the world
+// <-> pixel mapping (m/px, north up).
+struct MapCanvas {
+  cv::Mat map;
+  Eigen::Vector2d min, max;
+  double mpp = 0.1, side = 0, m = 10;  // m/px, m, px per metre
+  int n = 0;
+  cv::Point2d Px(const Eigen::Vector2d& w) const {
+    return cv::Point2d((w.x() - min.x()) / mpp - 0.5, (max.y() - w.y()) / mpp - 0.5);
+  }
+  cv::Point IPx(const Eigen::Vector2d& w) const {
+    const cv::Point2d p = Px(w);
+    return cv::Point(static_cast<int>(std::lround(p.x)), static_cast<int>(std::lround(p.y)));
+  }
+};
+
+// Crop rows / ploughing furrows inside a field's polygon.
+void DrawFurrows(MapCanvas& c, const std::vector<cv::Point>& poly, const cv::Scalar& colour, std::mt19937& rng) {
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  cv::Rect box = cv::boundingRect(poly) & cv::Rect(0, 0, c.n, c.n);
+  if (box.area() <= 0) return;
+  cv::Mat mask(box.size(), CV_8U, cv::Scalar(0));
+  std::vector<cv::Point> local;
+  for (const auto& p : poly) local.push_back(p - box.tl());
+  cv::fillPoly(mask, std::vector<std::vector<cv::Point>>{local}, cv::Scalar(255));
+  cv::Mat stripes(box.size(), CV_8UC3, colour);
+  const double angle = u01(rng) * M_PI;
+  const double spacing = (0.6 + u01(rng) * 1.4) * c.m;
+  const cv::Point2d dir(std::cos(angle), std::sin(angle)), normal(-dir.y, dir.x);
+  const double reach = box.width + box.height;
+  const cv::Scalar dark = colour * (0.7 + 0.15 * u01(rng));
+  const int thickness = std::max(1, static_cast<int>(spacing * 0.35));
+  for (double o = -reach; o <= reach; o += spacing) {
+    const cv::Point2d centre = cv::Point2d(box.width / 2.0, box.height / 2.0) + normal * o;
+    cv::line(stripes, centre - dir * reach, centre + dir * reach, dark, thickness);
+  }
+  stripes.copyTo(c.map(box), mask);
+}
+
+// 1. Fields on a jittered grid; returns the forests' polygons.
+std::vector<std::vector<cv::Point>> DrawFields(MapCanvas& c, const OrthomapOptions& o, std::mt19937& rng) {
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
   const cv::Scalar palette[] = {
       {60, 140, 90},   // green crop
       {80, 170, 200},  // ripe wheat
@@ -131,160 +156,175 @@ void Orthomap::BuildProcedural() {
       {40, 80, 45},    // forest floor
       {95, 150, 120},  // pale grass
   };
-  const int g = static_cast<int>(std::ceil(side / options_.field_size)) + 1;
+  const int g = static_cast<int>(std::ceil(c.side / o.field_size)) + 1;
   std::vector<Eigen::Vector2d> grid(static_cast<size_t>((g + 1) * (g + 1)));
   for (int j = 0; j <= g; ++j)
     for (int i = 0; i <= g; ++i) {
-      Eigen::Vector2d p = min_ + Eigen::Vector2d(i, j) * options_.field_size;
-      p += Eigen::Vector2d(u01(rng) - 0.5, u01(rng) - 0.5) * 0.5 * options_.field_size;
+      Eigen::Vector2d p = c.min + Eigen::Vector2d(i, j) * o.field_size;
+      p += Eigen::Vector2d(u01(rng) - 0.5, u01(rng) - 0.5) * 0.5 * o.field_size;
       grid[static_cast<size_t>(j * (g + 1) + i)] = p;
     }
   std::vector<std::vector<cv::Point>> forests;
   for (int j = 0; j < g; ++j)
     for (int i = 0; i < g; ++i) {
-      std::vector<cv::Point> poly = {ipx(grid[static_cast<size_t>(j * (g + 1) + i)]),
-                                     ipx(grid[static_cast<size_t>(j * (g + 1) + i + 1)]),
-                                     ipx(grid[static_cast<size_t>((j + 1) * (g + 1) + i + 1)]),
-                                     ipx(grid[static_cast<size_t>((j + 1) * (g + 1) + i)])};
+      std::vector<cv::Point> poly = {c.IPx(grid[static_cast<size_t>(j * (g + 1) + i)]),
+                                     c.IPx(grid[static_cast<size_t>(j * (g + 1) + i + 1)]),
+                                     c.IPx(grid[static_cast<size_t>((j + 1) * (g + 1) + i + 1)]),
+                                     c.IPx(grid[static_cast<size_t>((j + 1) * (g + 1) + i)])};
       const int type = static_cast<int>(u01(rng) * 6) % 6;
       const cv::Scalar colour = Jitter(palette[type], 0.15, rng);
-      cv::fillPoly(map, std::vector<std::vector<cv::Point>>{poly}, colour);
+      cv::fillPoly(c.map, std::vector<std::vector<cv::Point>>{poly}, colour);
       if (type == 4) forests.push_back(poly);
-      if (type <= 2) {
-        // Crop rows / ploughing furrows inside the field.
-        cv::Rect box = cv::boundingRect(poly) & cv::Rect(0, 0, n, n);
-        if (box.area() <= 0) continue;
-        cv::Mat mask(box.size(), CV_8U, cv::Scalar(0));
-        std::vector<cv::Point> local;
-        for (const auto& p : poly) local.push_back(p - box.tl());
-        cv::fillPoly(mask, std::vector<std::vector<cv::Point>>{local}, cv::Scalar(255));
-        cv::Mat stripes(box.size(), CV_8UC3, colour);
-        const double angle = u01(rng) * M_PI;
-        const double spacing = (0.6 + u01(rng) * 1.4) * m;
-        const cv::Point2d dir(std::cos(angle), std::sin(angle)), normal(-dir.y, dir.x);
-        const double reach = box.width + box.height;
-        const cv::Scalar dark = colour * (0.7 + 0.15 * u01(rng));
-        const int thickness = std::max(1, static_cast<int>(spacing * 0.35));
-        for (double o = -reach; o <= reach; o += spacing) {
-          const cv::Point2d c = cv::Point2d(box.width / 2.0, box.height / 2.0) + normal * o;
-          cv::line(stripes, c - dir * reach, c + dir * reach, dark, thickness);
-        }
-        stripes.copyTo(map(box), mask);
-      }
+      if (type <= 2) DrawFurrows(c, poly, colour, rng);
     }
+  return forests;
+}
 
-  // 2. Roads: gently curving polylines; road 0 passes through the map centre.
-  for (int r = 0; r < options_.num_roads; ++r) {
-    Eigen::Vector2d p = options_.centre + Eigen::Vector2d(u01(rng) - 0.5, u01(rng) - 0.5) * (r == 0 ? 20.0 : side * 0.8);
-    double heading = u01(rng) * 2 * M_PI;
-    GroundPath forward, backward;
-    for (int dir = 0; dir < 2; ++dir) {
-      Eigen::Vector2d q = p;
-      double h = heading + dir * M_PI;
-      GroundPath& path = dir == 0 ? forward : backward;
-      std::normal_distribution<double> turn(0.0, 0.06);
-      while (q.x() > min_.x() - 20 && q.x() < max_.x() + 20 && q.y() > min_.y() - 20 && q.y() < max_.y() + 20) {
-        path.push_back(q);
-        h += turn(rng);
-        q += 10.0 * Eigen::Vector2d(std::cos(h), std::sin(h));
-      }
+// A gently curving polyline through p, both ways to 20 m past the map.
+GroundPath CurvingRoad(const MapCanvas& c, const Eigen::Vector2d& p, double heading, std::mt19937& rng) {
+  GroundPath forward, backward;
+  for (int dir = 0; dir < 2; ++dir) {
+    Eigen::Vector2d q = p;
+    double h = heading + dir * M_PI;
+    GroundPath& path = dir == 0 ? forward : backward;
+    std::normal_distribution<double> turn(0.0, 0.06);
+    while (q.x() > c.min.x() - 20 && q.x() < c.max.x() + 20 && q.y() > c.min.y() - 20 && q.y() < c.max.y() + 20) {
       path.push_back(q);
+      h += turn(rng);
+      q += 10.0 * Eigen::Vector2d(std::cos(h), std::sin(h));
     }
-    GroundPath road(backward.rbegin(), backward.rend());
-    road.insert(road.end(), forward.begin() + 1, forward.end());
-    roads_.push_back(road);
+    path.push_back(q);
+  }
+  GroundPath road(backward.rbegin(), backward.rend());
+  road.insert(road.end(), forward.begin() + 1, forward.end());
+  return road;
+}
+
+// 2. Roads, paved (a dashed centre line) or dirt; road 0 passes through the
+// map centre. Returns their centre lines.
+std::vector<GroundPath> DrawRoads(MapCanvas& c, const OrthomapOptions& o, std::mt19937& rng) {
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::vector<GroundPath> roads;
+  const double m = c.m;
+  for (int r = 0; r < o.num_roads; ++r) {
+    Eigen::Vector2d p = o.centre + Eigen::Vector2d(u01(rng) - 0.5, u01(rng) - 0.5) * (r == 0 ? 20.0 : c.side * 0.8);
+    const double heading = u01(rng) * 2 * M_PI;
+    const GroundPath road = CurvingRoad(c, p, heading, rng);
+    roads.push_back(road);
     std::vector<cv::Point> line;
-    for (const auto& w : road) line.push_back(ipx(w));
+    for (const auto& w : road) line.push_back(c.IPx(w));
     const bool paved = r % 3 != 2;
     const double width = paved ? 7.0 : 3.5;
-    cv::polylines(map, std::vector<std::vector<cv::Point>>{line}, false,
+    cv::polylines(c.map, std::vector<std::vector<cv::Point>>{line}, false,
                   paved ? cv::Scalar(150, 150, 150) : cv::Scalar(120, 160, 185), static_cast<int>((width + 1.0) * m));
-    cv::polylines(map, std::vector<std::vector<cv::Point>>{line}, false,
+    cv::polylines(c.map, std::vector<std::vector<cv::Point>>{line}, false,
                   paved ? cv::Scalar(85, 85, 88) : cv::Scalar(95, 130, 155), static_cast<int>(width * m));
-    if (paved) {
-      // Dashed centre line: 3 m dashes every 9 m.
-      for (size_t k = 0; k + 1 < road.size(); ++k) {
-        const Eigen::Vector2d a = road[k], b = road[k + 1];
-        const Eigen::Vector2d d = (b - a).normalized();
-        for (double s = 0; s < (b - a).norm(); s += 9.0)
-          cv::line(map, px(a + d * s), px(a + d * std::min(s + 3.0, (b - a).norm())), cv::Scalar(235, 235, 235),
-                   std::max(1, static_cast<int>(0.15 * m)));
-      }
+    if (!paved) continue;
+    // Dashed centre line: 3 m dashes every 9 m.
+    for (size_t k = 0; k + 1 < road.size(); ++k) {
+      const Eigen::Vector2d a = road[k], b = road[k + 1];
+      const Eigen::Vector2d d = (b - a).normalized();
+      for (double s = 0; s < (b - a).norm(); s += 9.0)
+        cv::line(c.map, c.Px(a + d * s), c.Px(a + d * std::min(s + 3.0, (b - a).norm())), cv::Scalar(235, 235, 235),
+                 std::max(1, static_cast<int>(0.15 * m)));
     }
   }
+  return roads;
+}
 
-  // 3. Buildings: roofs with a ridge and a shadow towards the north-east.
-  for (int b = 0; b < options_.num_buildings; ++b) {
-    const Eigen::Vector2d c = min_ + Eigen::Vector2d(u01(rng), u01(rng)) * side;
+// The distance from c to the nearest road centre line.
+double RoadClearance(const Eigen::Vector2d& c, const std::vector<GroundPath>& roads) {
+  double clearance = 1e300;
+  for (const GroundPath& road : roads)
+    for (size_t k = 0; k + 1 < road.size(); ++k) {
+      const Eigen::Vector2d d = road[k + 1] - road[k];
+      const double f = std::clamp((c - road[k]).dot(d) / std::max(d.squaredNorm(), 1e-9), 0.0, 1.0);
+      clearance = std::min(clearance, (c - road[k] - f * d).norm());
+    }
+  return clearance;
+}
+
+// 3. Buildings off the roads: roofs with a ridge and a shadow towards the
+// north-east.
+void DrawBuildings(MapCanvas& c, const OrthomapOptions& o, const std::vector<GroundPath>& roads, std::mt19937& rng) {
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  const double m = c.m;
+  for (int b = 0; b < o.num_buildings; ++b) {
+    const Eigen::Vector2d centre = c.min + Eigen::Vector2d(u01(rng), u01(rng)) * c.side;
     const double w = 6 + u01(rng) * 14, l = 8 + u01(rng) * 22, a = u01(rng) * M_PI;
-    // Keep roofs (and their shadows) off the roads.
-    double clearance = 1e300;
-    for (const GroundPath& road : roads_)
-      for (size_t k = 0; k + 1 < road.size(); ++k) {
-        const Eigen::Vector2d d = road[k + 1] - road[k];
-        const double f = std::clamp((c - road[k]).dot(d) / std::max(d.squaredNorm(), 1e-9), 0.0, 1.0);
-        clearance = std::min(clearance, (c - road[k] - f * d).norm());
-      }
-    if (clearance < 0.5 * std::hypot(w, l) + 8.0) continue;
-    const cv::RotatedRect roof(px(c), cv::Size2f(static_cast<float>(l * m), static_cast<float>(w * m)),
+    if (RoadClearance(centre, roads) < 0.5 * std::hypot(w, l) + 8.0) continue;
+    const cv::RotatedRect roof(c.Px(centre), cv::Size2f(static_cast<float>(l * m), static_cast<float>(w * m)),
                                static_cast<float>(a * 180 / M_PI));
     cv::Point2f corners[4];
     cv::RotatedRect shadow = roof;
     shadow.center += cv::Point2f(static_cast<float>(2.5 * m), static_cast<float>(-2.5 * m));
     shadow.points(corners);
     std::vector<cv::Point> poly(corners, corners + 4);
-    cv::fillConvexPoly(map, poly, cv::Scalar(35, 40, 40));
+    cv::fillConvexPoly(c.map, poly, cv::Scalar(35, 40, 40));
     roof.points(corners);
     poly.assign(corners, corners + 4);
     const cv::Scalar roof_colour =
         u01(rng) < 0.5 ? Jitter(cv::Scalar(60, 80, 170), 0.2, rng) : Jitter(cv::Scalar(150, 150, 155), 0.2, rng);
-    cv::fillConvexPoly(map, poly, roof_colour);
+    cv::fillConvexPoly(c.map, poly, roof_colour);
     // Ridge along the long side; one half of the roof darker.
     const cv::Point2f m01 = (corners[0] + corners[1]) * 0.5f, m23 = (corners[2] + corners[3]) * 0.5f;
     const cv::Point2f m12 = (corners[1] + corners[2]) * 0.5f, m30 = (corners[3] + corners[0]) * 0.5f;
     const bool long01 = cv::norm(corners[0] - corners[1]) > cv::norm(corners[1] - corners[2]);
     std::vector<cv::Point> half = long01 ? std::vector<cv::Point>{corners[0], corners[1], m12, m30}
                                          : std::vector<cv::Point>{corners[1], corners[2], m23, m01};
-    cv::fillConvexPoly(map, half, roof_colour * 0.75);
-    cv::line(map, long01 ? m12 : m23, long01 ? m30 : m01, roof_colour * 1.2, std::max(1, static_cast<int>(0.3 * m)));
+    cv::fillConvexPoly(c.map, half, roof_colour * 0.75);
+    cv::line(c.map, long01 ? m12 : m23, long01 ? m30 : m01, roof_colour * 1.2, std::max(1, static_cast<int>(0.3 * m)));
   }
+}
 
-  // 4. Trees: scattered, plus dense stands in forest fields.
+// Where the trees stand: scattered, plus dense stands in the forest fields.
+std::vector<Eigen::Vector2d> TreePositions(const MapCanvas& c, const OrthomapOptions& o,
+                                           const std::vector<std::vector<cv::Point>>& forests, std::mt19937& rng) {
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
   std::vector<Eigen::Vector2d> trees;
-  const int scattered = static_cast<int>(options_.tree_density * side * side);
-  for (int k = 0; k < scattered; ++k) trees.push_back(min_ + Eigen::Vector2d(u01(rng), u01(rng)) * side);
+  const int scattered = static_cast<int>(o.tree_density * c.side * c.side);
+  for (int k = 0; k < scattered; ++k) trees.push_back(c.min + Eigen::Vector2d(u01(rng), u01(rng)) * c.side);
   for (const auto& poly : forests) {
     const cv::Rect box = cv::boundingRect(poly);
-    const double area = box.area() * mpp_ * mpp_;
+    const double area = box.area() * c.mpp * c.mpp;
     const int count = static_cast<int>(area / 16.0);
     for (int k = 0; k < count; ++k) {
       const cv::Point2f p(static_cast<float>(box.x + u01(rng) * box.width), static_cast<float>(box.y + u01(rng) * box.height));
       if (cv::pointPolygonTest(poly, p, false) < 0) continue;
-      trees.push_back(Eigen::Vector2d(min_.x() + (p.x + 0.5) * mpp_, max_.y() - (p.y + 0.5) * mpp_));
+      trees.push_back(Eigen::Vector2d(c.min.x() + (p.x + 0.5) * c.mpp, c.max.y() - (p.y + 0.5) * c.mpp));
     }
   }
-  for (const auto& t : trees) {
-    // A lumpy crown of a few overlapping blobs, its shadow cast to the north-east.
-    const double radius = 1.2 + u01(rng) * 2.5;
-    const cv::Point2d c = px(t);
-    const int lobes = 4 + static_cast<int>(u01(rng) * 4);
-    std::vector<std::pair<cv::Point2d, double>> blobs;
-    for (int k = 0; k < lobes; ++k) {
-      const double a = u01(rng) * 2 * M_PI, d = (k == 0 ? 0.0 : 0.35 + 0.2 * u01(rng)) * radius;
-      blobs.push_back({c + cv::Point2d(std::cos(a) * d * m, std::sin(a) * d * m), (0.45 + 0.25 * u01(rng)) * radius * m});
-    }
-    const cv::Point2d shadow(0.5 * radius * m, -0.5 * radius * m);
-    for (const auto& [p, r] : blobs)
-      cv::circle(map, p + shadow, static_cast<int>(r), cv::Scalar(30, 45, 35), cv::FILLED);
-    const cv::Scalar crown = Jitter(cv::Scalar(40, 95, 55), 0.25, rng);
-    for (const auto& [p, r] : blobs) {
-      const cv::Scalar lobe = crown * (0.85 + 0.3 * u01(rng));
-      cv::circle(map, p, static_cast<int>(r), lobe, cv::FILLED);
-      cv::circle(map, p - cv::Point2d(0.3 * r, -0.3 * r), static_cast<int>(0.5 * r), lobe * 1.2, cv::FILLED);
-    }
-  }
+  return trees;
+}
 
-  // 5. Multi-scale brightness variation (60 m down to 0.3 m) and per-pixel grain.
+// 4. A tree: a lumpy crown of a few overlapping blobs, its shadow cast to
+// the north-east.
+void DrawTree(MapCanvas& c, const Eigen::Vector2d& t, std::mt19937& rng) {
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  const double m = c.m;
+  const double radius = 1.2 + u01(rng) * 2.5;
+  const cv::Point2d centre = c.Px(t);
+  const int lobes = 4 + static_cast<int>(u01(rng) * 4);
+  std::vector<std::pair<cv::Point2d, double>> blobs;
+  for (int k = 0; k < lobes; ++k) {
+    const double a = u01(rng) * 2 * M_PI, d = (k == 0 ? 0.0 : 0.35 + 0.2 * u01(rng)) * radius;
+    blobs.push_back({centre + cv::Point2d(std::cos(a) * d * m, std::sin(a) * d * m), (0.45 + 0.25 * u01(rng)) * radius * m});
+  }
+  const cv::Point2d shadow(0.5 * radius * m, -0.5 * radius * m);
+  for (const auto& [p, r] : blobs)
+    cv::circle(c.map, p + shadow, static_cast<int>(r), cv::Scalar(30, 45, 35), cv::FILLED);
+  const cv::Scalar crown = Jitter(cv::Scalar(40, 95, 55), 0.25, rng);
+  for (const auto& [p, r] : blobs) {
+    const cv::Scalar lobe = crown * (0.85 + 0.3 * u01(rng));
+    cv::circle(c.map, p, static_cast<int>(r), lobe, cv::FILLED);
+    cv::circle(c.map, p - cv::Point2d(0.3 * r, -0.3 * r), static_cast<int>(0.5 * r), lobe * 1.2, cv::FILLED);
+  }
+}
+
+// 5. Multi-scale brightness variation (60 m down to 0.3 m) and per-pixel grain.
+void VaryBrightness(MapCanvas& c, std::mt19937& rng) {
+  const int n = c.n;
+  const double m = c.m;
   cv::Mat coarse = ValueNoise(n / 8, {{60.0 * m / 8, 0.10}, {15.0 * m / 8, 0.08}, {4.0 * m / 8, 0.07}}, rng);
   cv::Mat noise;
   cv::resize(coarse, noise, cv::Size(n, n), 0, 0, cv::INTER_LINEAR);
@@ -297,13 +337,33 @@ void Orthomap::BuildProcedural() {
   for (int row = 0; row < n; ++row) {
     cv::RNG row_rng(grain_rng.state + static_cast<uint64_t>(row) * 7919u);
     const float* f = noise.ptr<float>(row);
-    cv::Vec3b* p = map.ptr<cv::Vec3b>(row);
+    cv::Vec3b* p = c.map.ptr<cv::Vec3b>(row);
     for (int col = 0; col < n; ++col) {
       const float k = 1.0f + f[col] + static_cast<float>(row_rng.gaussian(0.06));
       for (int ch = 0; ch < 3; ++ch) p[col][ch] = cv::saturate_cast<uchar>(p[col][ch] * k);
     }
   }
-  levels_.push_back(map);
+}
+
+}  // namespace
+
+void Orthomap::BuildProcedural() {
+  std::mt19937 rng(static_cast<uint32_t>(options_.seed));
+  MapCanvas c;
+  // Square map whose side is a multiple of 32 px so pyramid levels line up.
+  c.n = static_cast<int>(std::ceil(options_.size / mpp_ / 32.0)) * 32;
+  c.mpp = mpp_;
+  c.side = c.n * mpp_;
+  c.m = 1.0 / mpp_;
+  min_ = c.min = options_.centre - Eigen::Vector2d(0.5 * c.side, 0.5 * c.side);
+  max_ = c.max = options_.centre + Eigen::Vector2d(0.5 * c.side, 0.5 * c.side);
+  c.map = cv::Mat(c.n, c.n, CV_8UC3, cv::Scalar(70, 120, 100));
+  const std::vector<std::vector<cv::Point>> forests = DrawFields(c, options_, rng);
+  roads_ = DrawRoads(c, options_, rng);
+  DrawBuildings(c, options_, roads_, rng);
+  for (const auto& t : TreePositions(c, options_, forests, rng)) DrawTree(c, t, rng);
+  VaryBrightness(c, rng);
+  levels_.push_back(c.map);
 }
 
 void Orthomap::BuildDetail() {

@@ -145,102 +145,128 @@ void AddOffset(const cv::Mat& offset, cv::Mat* image) {
   });
 }
 
+// A tree crown seen from above.
+struct CrownTree {
+  double x = 0, y = 0, height = 0, radius = 0;  // m
+  cv::Mat texture, mask;                        // BGR crown and its disc (kCrownPx square)
+};
+
+// The marker's texture and where its pixels lie on the ground.
+struct MarkerTexture {
+  cv::Mat texture;            // CV_8UC3, 8 x 8 cells (1 white cell around the 6-cell marker)
+  cv::Matx33d world_from_px;  // texture pixel -> world metres
+};
+
+// Distortion: the ideal canvas (with margins) every raw pixel falls in,
+// and the raw -> canvas maps (empty without distortion).
+struct DistortionCanvas {
+  cv::Size size;
+  double margin_x = 0, margin_y = 0;
+  cv::Mat map_x, map_y;
+};
+
 }  // namespace
 
 struct UavWorld::Impl {
-  cv::Mat marker_texture;               // CV_8UC3, 8 x 8 cells (1 white cell around the 6-cell marker)
-  cv::Matx33d world_from_marker_px;     // marker texture pixel -> world metres
+  MarkerTexture marker;                 // empty texture without a marker
   std::vector<MovingObject> objects;
   cv::Mat noise_bank;                   // CV_8UC3, 128 + N(0, sigma), larger than a frame
-  // Distortion: canvas (ideal image with margins) and raw -> canvas maps.
-  cv::Size canvas;
-  double margin_x = 0, margin_y = 0;
-  cv::Mat map_x, map_y;
+  DistortionCanvas distortion;
   // Per detail level: the periodic tile repeated to cover a whole frame footprint.
   std::vector<cv::Mat> detail_tiled;
   // Tree crowns, lowest first (drawn in that order: higher crowns hide lower ones).
-  struct Tree {
-    double x = 0, y = 0, height = 0, radius = 0;  // m
-    cv::Mat texture, mask;                        // BGR crown and its disc (kCrownPx square)
-  };
-  std::vector<Tree> trees;
+  std::vector<CrownTree> trees;
 };
 
 namespace {
 constexpr int kCrownPx = 256;  // crown texture side
 }
 
-UavWorld::UavWorld(const UavWorldOptions& options)
-    : options_(options), flight_(options.flight), impl_(std::make_unique<Impl>()) {
-  std::string error;
-  if (!options_.Check(&error)) throw std::invalid_argument(error);
-  map_ = std::make_unique<Orthomap>(options_.orthomap);
-  gps_ = std::make_unique<UavGps>(options_.gps, flight_);
-  Impl& im = *impl_;
-  const PinholeCamera& cam = options_.camera;
-
-  // Tree crowns: textured discs (leaf clumps at several scales, darker rim).
-  if (options_.trees.num_trees > 0) {
-    const UavTreesOptions& to = options_.trees;
-    cv::RNG rng(static_cast<uint64_t>(to.seed) * 7919 + 17);
-    for (int i = 0; i < to.num_trees; ++i) {
-      Impl::Tree tree;
-      const double a = rng.uniform(0.0, 2 * M_PI), d = to.area_radius * std::sqrt(rng.uniform(0.0, 1.0));
-      tree.x = to.centre.x() + d * std::cos(a);
-      tree.y = to.centre.y() + d * std::sin(a);
-      tree.height = rng.uniform(to.min_height, to.max_height);
-      tree.radius = rng.uniform(to.min_radius, to.max_radius);
-      cv::Mat tex(kCrownPx, kCrownPx, CV_32F, cv::Scalar(0));
-      for (const int cell : {2, 4, 8, 16, 32}) {
-        cv::Mat n(kCrownPx / cell + 1, kCrownPx / cell + 1, CV_32F);
-        rng.fill(n, cv::RNG::NORMAL, 0.0, 1.0);
-        cv::Mat up;
-        cv::resize(n, up, cv::Size(kCrownPx, kCrownPx), 0, 0, cv::INTER_CUBIC);
-        tex += up * (cell / 32.0);
-      }
-      cv::Mat shade(kCrownPx, kCrownPx, CV_32F);
-      for (int r = 0; r < kCrownPx; ++r)
-        for (int c = 0; c < kCrownPx; ++c) {
-          const double u = (c - kCrownPx / 2.0) / (kCrownPx / 2.0), v = (r - kCrownPx / 2.0) / (kCrownPx / 2.0);
-          shade.at<float>(r, c) = static_cast<float>(1.0 - 0.45 * (u * u + v * v));
-        }
-      const double base = rng.uniform(70.0, 110.0);
-      cv::Mat green = (tex * 22.0 + base).mul(shade);
-      std::vector<cv::Mat> ch = {green * 0.45, green, green * 0.55};
-      cv::Mat bgr;
-      cv::merge(ch, bgr);
-      bgr.convertTo(tree.texture, CV_8UC3);
-      tree.mask = cv::Mat(kCrownPx, kCrownPx, CV_8U, cv::Scalar(0));
-      cv::circle(tree.mask, cv::Point(kCrownPx / 2, kCrownPx / 2), kCrownPx / 2 - 1, cv::Scalar(255), cv::FILLED);
-      im.trees.push_back(std::move(tree));
+// Tree crowns: textured discs (leaf clumps at several scales, darker rim),
+// lowest first.
+std::vector<CrownTree> MakeTrees(const UavTreesOptions& to) {
+  std::vector<CrownTree> trees;
+  cv::RNG rng(static_cast<uint64_t>(to.seed) * 7919 + 17);
+  for (int i = 0; i < to.num_trees; ++i) {
+    CrownTree tree;
+    const double a = rng.uniform(0.0, 2 * M_PI), d = to.area_radius * std::sqrt(rng.uniform(0.0, 1.0));
+    tree.x = to.centre.x() + d * std::cos(a);
+    tree.y = to.centre.y() + d * std::sin(a);
+    tree.height = rng.uniform(to.min_height, to.max_height);
+    tree.radius = rng.uniform(to.min_radius, to.max_radius);
+    cv::Mat tex(kCrownPx, kCrownPx, CV_32F, cv::Scalar(0));
+    for (const int cell : {2, 4, 8, 16, 32}) {
+      cv::Mat n(kCrownPx / cell + 1, kCrownPx / cell + 1, CV_32F);
+      rng.fill(n, cv::RNG::NORMAL, 0.0, 1.0);
+      cv::Mat up;
+      cv::resize(n, up, cv::Size(kCrownPx, kCrownPx), 0, 0, cv::INTER_CUBIC);
+      tex += up * (cell / 32.0);
     }
-    std::sort(im.trees.begin(), im.trees.end(), [](const Impl::Tree& a, const Impl::Tree& b) { return a.height < b.height; });
+    cv::Mat shade(kCrownPx, kCrownPx, CV_32F);
+    for (int r = 0; r < kCrownPx; ++r)
+      for (int c = 0; c < kCrownPx; ++c) {
+        const double u = (c - kCrownPx / 2.0) / (kCrownPx / 2.0), v = (r - kCrownPx / 2.0) / (kCrownPx / 2.0);
+        shade.at<float>(r, c) = static_cast<float>(1.0 - 0.45 * (u * u + v * v));
+      }
+    const double base = rng.uniform(70.0, 110.0);
+    cv::Mat green = (tex * 22.0 + base).mul(shade);
+    std::vector<cv::Mat> ch = {green * 0.45, green, green * 0.55};
+    cv::Mat bgr;
+    cv::merge(ch, bgr);
+    bgr.convertTo(tree.texture, CV_8UC3);
+    tree.mask = cv::Mat(kCrownPx, kCrownPx, CV_8U, cv::Scalar(0));
+    cv::circle(tree.mask, cv::Point(kCrownPx / 2, kCrownPx / 2), kCrownPx / 2 - 1, cv::Scalar(255), cv::FILLED);
+    trees.push_back(std::move(tree));
   }
+  std::sort(trees.begin(), trees.end(),
+            [](const CrownTree& a, const CrownTree& b) { return a.height < b.height; });
+  return trees;
+}
 
-  // Marker texture: 6-cell marker (incl. its black border) in an 8-cell white square.
-  if (options_.marker.enabled) {
-    const int cell = 16;
-    cv::Ptr<cv::aruco::Dictionary> dict =
-        cv::aruco::getPredefinedDictionary(ArucoDictionaryId(options_.marker.dictionary));
-    const int bits = dict->markerSize + 2;
-    cv::Mat marker;
-    cv::aruco::drawMarker(dict, options_.marker.id, bits * cell, marker, 1);
-    cv::Mat texture((bits + 2) * cell, (bits + 2) * cell, CV_8UC1, cv::Scalar(245));
-    marker.copyTo(texture(cv::Rect(cell, cell, bits * cell, bits * cell)));
-    cv::cvtColor(texture, im.marker_texture, cv::COLOR_GRAY2BGR);
-    const double s = options_.marker.size / (bits * cell);  // m per texture px
-    const double half = 0.5 * texture.cols;
-    const double c = std::cos(options_.marker.yaw), sn = std::sin(options_.marker.yaw);
-    const cv::Matx33d local(s, 0, -(half - 0.5) * s, 0, -s, (half - 0.5) * s, 0, 0, 1);
-    const cv::Matx33d rot(c, -sn, options_.marker.position.x(), sn, c, options_.marker.position.y(), 0, 0, 1);
-    im.world_from_marker_px = rot * local;
+// Marker texture: 6-cell marker (incl. its black border) in an 8-cell
+// white square, and its pixels' place on the ground.
+MarkerTexture MakeMarker(const UavMarkerOptions& mo) {
+  MarkerTexture out;
+  const int cell = 16;
+  cv::Ptr<cv::aruco::Dictionary> dict = cv::aruco::getPredefinedDictionary(ArucoDictionaryId(mo.dictionary));
+  const int bits = dict->markerSize + 2;
+  cv::Mat marker;
+  cv::aruco::drawMarker(dict, mo.id, bits * cell, marker, 1);
+  cv::Mat texture((bits + 2) * cell, (bits + 2) * cell, CV_8UC1, cv::Scalar(245));
+  marker.copyTo(texture(cv::Rect(cell, cell, bits * cell, bits * cell)));
+  cv::cvtColor(texture, out.texture, cv::COLOR_GRAY2BGR);
+  const double s = mo.size / (bits * cell);  // m per texture px
+  const double half = 0.5 * texture.cols;
+  const double c = std::cos(mo.yaw), sn = std::sin(mo.yaw);
+  const cv::Matx33d local(s, 0, -(half - 0.5) * s, 0, -s, (half - 0.5) * s, 0, 0, 1);
+  const cv::Matx33d rot(c, -sn, mo.position.x(), sn, c, mo.position.y(), 0, 0, 1);
+  out.world_from_px = rot * local;
+  return out;
+}
+
+// The map's road stretches within `reach` of `home`.
+std::vector<GroundPath> RoadStretchesNear(const std::vector<GroundPath>& roads, const Eigen::Vector2d& home,
+                                          double reach) {
+  std::vector<GroundPath> stretches;
+  for (const auto& road : roads) {
+    GroundPath near;
+    for (const auto& p : road) {
+      if ((p - home).norm() < reach) near.push_back(p);
+      else if (near.size() >= 2) break;
+    }
+    if (near.size() >= 2) stretches.push_back(near);
   }
+  return stretches;
+}
 
-  // Moving objects.
-  std::mt19937 rng(static_cast<uint32_t>(options_.objects.seed));
+// Moving objects: cars on the road stretches near the take-off area (on a
+// random line without one), people walking about, a few of them around
+// the take-off point (visible in the calibration hover).
+std::vector<MovingObject> MakeObjects(const UavWorldOptions& options, const std::vector<GroundPath>& roads) {
+  std::mt19937 rng(static_cast<uint32_t>(options.objects.seed));
   std::uniform_real_distribution<double> u01(0.0, 1.0);
-  const Eigen::Vector2d home = options_.flight.takeoff;
-  const double radius = options_.objects.area_radius;
+  const Eigen::Vector2d home = options.flight.takeoff;
+  const double radius = options.objects.area_radius;
   const cv::Scalar car_colours[] = {{240, 240, 240}, {30, 30, 30},  {40, 40, 200}, {180, 120, 40},
                                     {160, 160, 160}, {30, 160, 220}, {90, 40, 30}};
   const cv::Scalar shirt_colours[] = {{30, 30, 220}, {220, 140, 30}, {30, 220, 230}, {230, 230, 230}, {150, 40, 150}};
@@ -250,19 +276,11 @@ UavWorld::UavWorld(const UavWorldOptions& options)
     const Eigen::Vector2d d(std::cos(a), std::sin(a));
     return GroundPath{c - 0.5 * length * d, c + 0.5 * length * d};
   };
-  // Road stretches near the take-off area.
-  std::vector<GroundPath> stretches;
-  for (const auto& road : map_->roads()) {
-    GroundPath near;
-    for (const auto& p : road) {
-      if ((p - home).norm() < radius + 60) near.push_back(p);
-      else if (near.size() >= 2) break;
-    }
-    if (near.size() >= 2) stretches.push_back(near);
-  }
-  for (int k = 0; k < options_.objects.num_cars + options_.objects.num_people; ++k) {
+  const std::vector<GroundPath> stretches = RoadStretchesNear(roads, home, radius + 60);
+  std::vector<MovingObject> objects;
+  for (int k = 0; k < options.objects.num_cars + options.objects.num_people; ++k) {
     MovingObject o;
-    o.car = k < options_.objects.num_cars;
+    o.car = k < options.objects.num_cars;
     if (o.car) {
       if (!stretches.empty()) {
         const GroundPath& road = stretches[static_cast<size_t>(k) % stretches.size()];
@@ -276,16 +294,15 @@ UavWorld::UavWorld(const UavWorldOptions& options)
       } else {
         o.path = random_line(150.0, radius);
       }
-      o.speed = options_.objects.car_speed * (0.6 + 0.8 * u01(rng));
+      o.speed = options.objects.car_speed * (0.6 + 0.8 * u01(rng));
       o.length = 4.0 + u01(rng);
       o.width = 1.7 + 0.2 * u01(rng);
       o.colour = car_colours[static_cast<size_t>(u01(rng) * 7) % 7];
     } else {
-      // A few people walk around the take-off point (visible in the calibration hover).
-      const int near_count = std::max(1, options_.objects.num_people / 5);
-      const bool near = (k - options_.objects.num_cars) < near_count;
+      const int near_count = std::max(1, options.objects.num_people / 5);
+      const bool near = (k - options.objects.num_cars) < near_count;
       o.path = random_line(10.0 + 20.0 * u01(rng), near ? 8.0 : radius);
-      o.speed = options_.objects.person_speed * (0.7 + 0.6 * u01(rng));
+      o.speed = options.objects.person_speed * (0.7 + 0.6 * u01(rng));
       o.length = 0.45;
       o.width = 0.6;
       o.colour = shirt_colours[static_cast<size_t>(u01(rng) * 5) % 5];
@@ -293,45 +310,68 @@ UavWorld::UavWorld(const UavWorldOptions& options)
     o.cumulative.push_back(0);
     for (size_t i = 1; i < o.path.size(); ++i) o.cumulative.push_back(o.cumulative.back() + (o.path[i] - o.path[i - 1]).norm());
     o.phase = u01(rng) * 2 * o.cumulative.back();
-    im.objects.push_back(o);
+    objects.push_back(o);
   }
+  return objects;
+}
 
-  // Distortion: render an ideal canvas large enough for every raw pixel.
-  im.canvas = cv::Size(cam.width, cam.height);
-  if (cam.HasDistortion()) {
-    im.map_x.create(cam.height, cam.width, CV_32F);
-    im.map_y.create(cam.height, cam.width, CV_32F);
-    double min_x = 0, min_y = 0, max_x = cam.width - 1, max_y = cam.height - 1;
-    for (int v = 0; v < cam.height; ++v)
-      for (int u = 0; u < cam.width; ++u) {
-        const Eigen::Vector2d ideal = cam.Undistort(Eigen::Vector2d(u, v));
-        im.map_x.at<float>(v, u) = static_cast<float>(ideal.x());
-        im.map_y.at<float>(v, u) = static_cast<float>(ideal.y());
-        min_x = std::min(min_x, ideal.x());
-        min_y = std::min(min_y, ideal.y());
-        max_x = std::max(max_x, ideal.x());
-        max_y = std::max(max_y, ideal.y());
-      }
-    im.margin_x = std::ceil(-min_x) + 2;
-    im.margin_y = std::ceil(-min_y) + 2;
-    im.canvas = cv::Size(static_cast<int>(std::ceil(max_x + im.margin_x)) + 3,
-                         static_cast<int>(std::ceil(max_y + im.margin_y)) + 3);
-    im.map_x += static_cast<float>(im.margin_x);
-    im.map_y += static_cast<float>(im.margin_y);
-  }
+// Distortion: an ideal canvas large enough for every raw pixel, and the
+// raw -> canvas maps.
+DistortionCanvas MakeDistortionMaps(const PinholeCamera& cam) {
+  DistortionCanvas d;
+  d.size = cv::Size(cam.width, cam.height);
+  if (!cam.HasDistortion()) return d;
+  d.map_x.create(cam.height, cam.width, CV_32F);
+  d.map_y.create(cam.height, cam.width, CV_32F);
+  double min_x = 0, min_y = 0, max_x = cam.width - 1, max_y = cam.height - 1;
+  for (int v = 0; v < cam.height; ++v)
+    for (int u = 0; u < cam.width; ++u) {
+      const Eigen::Vector2d ideal = cam.Undistort(Eigen::Vector2d(u, v));
+      d.map_x.at<float>(v, u) = static_cast<float>(ideal.x());
+      d.map_y.at<float>(v, u) = static_cast<float>(ideal.y());
+      min_x = std::min(min_x, ideal.x());
+      min_y = std::min(min_y, ideal.y());
+      max_x = std::max(max_x, ideal.x());
+      max_y = std::max(max_y, ideal.y());
+    }
+  d.margin_x = std::ceil(-min_x) + 2;
+  d.margin_y = std::ceil(-min_y) + 2;
+  d.size = cv::Size(static_cast<int>(std::ceil(max_x + d.margin_x)) + 3,
+                    static_cast<int>(std::ceil(max_y + d.margin_y)) + 3);
+  d.map_x += static_cast<float>(d.margin_x);
+  d.map_y += static_cast<float>(d.margin_y);
+  return d;
+}
 
-  // Detail tiles repeated to cover a frame: the chosen level's texel is at
-  // least 0.9 ground sample distance, so a footprint spans at most ~1.2 canvas
-  // diagonals of texels.
-  const double diagonal = std::hypot(im.canvas.width, im.canvas.height) * 1.2;
-  for (int l = 0; l < map_->NumDetailLevels(); ++l) {
-    const cv::Mat& tile = map_->DetailLevel(l);
+// Detail tiles repeated to cover a frame: the chosen level's texel is at
+// least 0.9 ground sample distance, so a footprint spans at most ~1.2
+// canvas diagonals of texels.
+std::vector<cv::Mat> TileDetail(const Orthomap& map, cv::Size canvas) {
+  std::vector<cv::Mat> tiled_levels;
+  const double diagonal = std::hypot(canvas.width, canvas.height) * 1.2;
+  for (int l = 0; l < map.NumDetailLevels(); ++l) {
+    const cv::Mat& tile = map.DetailLevel(l);
     const int n = static_cast<int>(std::ceil((diagonal + tile.cols) / tile.cols));
     cv::Mat tiled;
     cv::repeat(tile, n, n, tiled);
-    im.detail_tiled.push_back(tiled);
+    tiled_levels.push_back(tiled);
   }
+  return tiled_levels;
+}
 
+UavWorld::UavWorld(const UavWorldOptions& options)
+    : options_(options), flight_(options.flight), impl_(std::make_unique<Impl>()) {
+  std::string error;
+  if (!options_.Check(&error)) throw std::invalid_argument(error);
+  map_ = std::make_unique<Orthomap>(options_.orthomap);
+  gps_ = std::make_unique<UavGps>(options_.gps, flight_);
+  Impl& im = *impl_;
+  const PinholeCamera& cam = options_.camera;
+  if (options_.trees.num_trees > 0) im.trees = MakeTrees(options_.trees);
+  if (options_.marker.enabled) im.marker = MakeMarker(options_.marker);
+  im.objects = MakeObjects(options_, map_->roads());
+  im.distortion = MakeDistortionMaps(cam);
+  im.detail_tiled = TileDetail(*map_, im.distortion.size);
   // Sensor noise bank (a frame uses a pseudo-random window of it).
   if (options_.render.noise_sigma > 0) {
     cv::RNG noise_rng(static_cast<uint64_t>(options_.render.seed) * 40503u + 1u);
@@ -412,135 +452,151 @@ cv::Mat UavWorld::RenderGroundOnly(const Pose3& world_from_camera) const {
   return frame;
 }
 
+namespace {
+
+// The ground texture at the pyramid level just finer than the ground
+// sample distance, warped onto the canvas (hg: canvas from ground).
+cv::Mat RenderGround(const Orthomap& map, const cv::Matx33d& hg, double gsd, cv::Size size) {
+  const int level = std::clamp(PyramidLevel(gsd, map.metres_per_pixel()), 0, map.NumLevels() - 1);
+  cv::Mat canvas;
+  cv::warpPerspective(map.Level(level), canvas, hg * map.PixelFromWorld(level).inv(), size, cv::INTER_LINEAR,
+                      cv::BORDER_REFLECT);
+  return canvas;
+}
+
+// The fine detail texture added to the canvas. It samples the pre-tiled
+// copy, shifted by whole tiles so the frame falls inside it (BORDER_WRAP is
+// the slow per-pixel path of cv::remap); wraps only when the footprint is
+// larger than the copy.
+void AddDetail(const Orthomap& map, const std::vector<cv::Mat>& detail_tiled, const cv::Matx33d& hg, double gsd,
+               cv::Mat* canvas) {
+  const cv::Size size = canvas->size();
+  const int dl = std::clamp(PyramidLevel(gsd, map.detail_metres_per_pixel()), 0, map.NumDetailLevels() - 1);
+  const cv::Matx33d detail_from_canvas = map.DetailPixelFromWorld(dl) * hg.inv();
+  double min_x = 1e300, min_y = 1e300, max_x = -1e300, max_y = -1e300;
+  for (const cv::Vec3d& c : {cv::Vec3d(0, 0, 1), cv::Vec3d(size.width, 0, 1), cv::Vec3d(0, size.height, 1),
+                             cv::Vec3d(size.width, size.height, 1)}) {
+    const cv::Vec3d p = detail_from_canvas * c;
+    min_x = std::min(min_x, p[0] / p[2]);
+    min_y = std::min(min_y, p[1] / p[2]);
+    max_x = std::max(max_x, p[0] / p[2]);
+    max_y = std::max(max_y, p[1] / p[2]);
+  }
+  const cv::Mat& tiled = detail_tiled[static_cast<size_t>(dl)];
+  const double tile = map.DetailLevel(dl).cols;
+  const double sx = -std::floor(min_x / tile) * tile, sy = -std::floor(min_y / tile) * tile;
+  cv::Mat detail;
+  if (max_x + sx < tiled.cols - 2 && max_y + sy < tiled.rows - 2)
+    cv::warpPerspective(tiled, detail, Translation(sx, sy) * detail_from_canvas, size,
+                        cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
+  else
+    cv::warpPerspective(map.DetailLevel(dl), detail, detail_from_canvas, size, cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
+                        cv::BORDER_WRAP);
+  cv::cvtColor(detail, detail, cv::COLOR_GRAY2BGR);
+  AddOffset(detail, canvas);
+}
+
+// The calibration marker (only the part of the canvas it covers).
+void DrawMarker(const MarkerTexture& marker, const cv::Matx33d& hg, cv::Mat* canvas) {
+  const cv::Matx33d m = hg * marker.world_from_px;
+  const float w = static_cast<float>(marker.texture.cols), h = static_cast<float>(marker.texture.rows);
+  std::vector<cv::Point2f> src = {{-0.5f, -0.5f}, {w - 0.5f, -0.5f}, {w - 0.5f, h - 0.5f}, {-0.5f, h - 0.5f}}, dst;
+  cv::perspectiveTransform(src, dst, cv::Mat(m));
+  const cv::Rect roi = cv::boundingRect(dst) & cv::Rect(0, 0, canvas->cols, canvas->rows);
+  if (roi.area() <= 0) return;
+  cv::Mat view = (*canvas)(roi);
+  cv::warpPerspective(marker.texture, view, Translation(-roi.x, -roi.y) * m, roi.size(), cv::INTER_LINEAR,
+                      cv::BORDER_TRANSPARENT);
+}
+
+// A tree crown: a disc in the plane z = its height (m: canvas from crown
+// texture, the camera seen from that plane being the camera lowered by it).
+void DrawCrown(const CrownTree& tree, const cv::Matx33d& m, cv::Mat* canvas) {
+  std::vector<cv::Point2f> src = {{0, 0}, {kCrownPx, 0}, {kCrownPx, kCrownPx}, {0, kCrownPx}}, dst;
+  cv::perspectiveTransform(src, dst, cv::Mat(m));
+  const cv::Rect roi = cv::boundingRect(dst) & cv::Rect(0, 0, canvas->cols, canvas->rows);
+  if (roi.area() <= 0) return;
+  cv::Mat crown, mask;
+  const cv::Matx33d to_roi = Translation(-roi.x, -roi.y) * m;
+  cv::warpPerspective(tree.texture, crown, to_roi, roi.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+  cv::warpPerspective(tree.mask, mask, to_roi, roi.size(), cv::INTER_NEAREST, cv::BORDER_CONSTANT);
+  crown.copyTo((*canvas)(roi), mask);
+}
+
+// Moving objects: cars (with a dark windscreen) and people (a head seen
+// from `height` m by a camera of focal length fx px).
+void DrawObjects(const std::vector<GroundObject>& objects, const cv::Matx33d& hg, double fx, double height,
+                 cv::Mat* canvas) {
+  constexpr int kShift = 4;
+  auto project = [&](const Eigen::Vector2d& g) {
+    const cv::Vec3d p = hg * cv::Vec3d(g.x(), g.y(), 1.0);
+    return cv::Point(static_cast<int>(std::lround(p[0] / p[2] * (1 << kShift))),
+                     static_cast<int>(std::lround(p[1] / p[2] * (1 << kShift))));
+  };
+  const cv::Rect2d bounds(-200, -200, canvas->cols + 400, canvas->rows + 400);
+  for (const GroundObject& o : objects) {
+    std::vector<cv::Point> poly;
+    bool inside = false;
+    for (const auto& c : o.corners) {
+      poly.push_back(project(c));
+      inside = inside || bounds.contains(cv::Point2d(poly.back().x, poly.back().y) / (1 << kShift));
+    }
+    if (!inside) continue;
+    cv::fillConvexPoly(*canvas, poly, o.colour, cv::LINE_8, kShift);
+    const bool car = (o.corners[0] - o.corners[1]).norm() > 1.0;
+    if (car) {
+      // Windscreen: the front quarter of the roof.
+      const Eigen::Vector2d f0 = o.corners[0] + 0.18 * (o.corners[3] - o.corners[0]);
+      const Eigen::Vector2d f1 = o.corners[1] + 0.18 * (o.corners[2] - o.corners[1]);
+      const Eigen::Vector2d b0 = o.corners[0] + 0.38 * (o.corners[3] - o.corners[0]);
+      const Eigen::Vector2d b1 = o.corners[1] + 0.38 * (o.corners[2] - o.corners[1]);
+      const Eigen::Vector2d in = 0.12 * (o.corners[1] - o.corners[0]);
+      std::vector<cv::Point> glass = {project(f0 + in), project(f1 - in), project(b1 - in), project(b0 + in)};
+      cv::fillConvexPoly(*canvas, glass, cv::Scalar(50, 40, 35), cv::LINE_8, kShift);
+    } else {
+      const Eigen::Vector2d c = 0.25 * (o.corners[0] + o.corners[1] + o.corners[2] + o.corners[3]);
+      const cv::Point p = project(c);
+      const int r = static_cast<int>(std::lround(0.12 * fx / height * (1 << kShift)));
+      cv::circle(*canvas, p, std::max(r, 1), cv::Scalar(30, 50, 70), cv::FILLED, cv::LINE_8, kShift);
+    }
+  }
+}
+
+// Sensor noise: a window of the bank chosen by hashing the time (same t,
+// same noise).
+void AddSensorNoise(const cv::Mat& noise_bank, double t, cv::Mat* frame) {
+  uint64_t h = static_cast<uint64_t>(std::llround(t * 1e6)) * 0x9E3779B97F4A7C15ull + 0x632BE59BD9B4E019ull;
+  h ^= h >> 29;
+  h *= 0xBF58476D1CE4E5B9ull;
+  h ^= h >> 32;
+  const int dx = static_cast<int>(h % 256), dy = static_cast<int>((h >> 16) % 256);
+  AddOffset(noise_bank(cv::Rect(dx, dy, frame->cols, frame->rows)), frame);
+}
+
+}  // namespace
+
 cv::Mat UavWorld::Render(const Pose3& world_from_camera, double t) const {
   const Impl& im = *impl_;
-  const cv::Matx33d hg = Translation(im.margin_x, im.margin_y) * ImageFromGround(world_from_camera);
+  const DistortionCanvas& d = im.distortion;
+  const cv::Matx33d hg = Translation(d.margin_x, d.margin_y) * ImageFromGround(world_from_camera);
   const double height = std::max(world_from_camera.translation().z(), 0.1);
   const double gsd = height / options_.camera.fx;  // m per px at the image centre
-
-  // Ground texture at the pyramid level just finer than the ground sample distance.
-  const int level =
-      std::clamp(PyramidLevel(gsd, map_->metres_per_pixel()), 0, map_->NumLevels() - 1);
-  cv::Mat canvas;
-  cv::warpPerspective(map_->Level(level), canvas, hg * map_->PixelFromWorld(level).inv(), im.canvas, cv::INTER_LINEAR,
-                      cv::BORDER_REFLECT);
-  if (map_->NumDetailLevels() > 0) {
-    const int dl = std::clamp(PyramidLevel(gsd, map_->detail_metres_per_pixel()), 0,
-                              map_->NumDetailLevels() - 1);
-    // Sample the pre-tiled copy, shifted by whole tiles so the frame falls
-    // inside it (BORDER_WRAP is the slow per-pixel path of cv::remap); wrap
-    // only when the footprint is larger than the copy.
-    const cv::Matx33d detail_from_canvas = map_->DetailPixelFromWorld(dl) * hg.inv();
-    double min_x = 1e300, min_y = 1e300, max_x = -1e300, max_y = -1e300;
-    for (const cv::Vec3d& c : {cv::Vec3d(0, 0, 1), cv::Vec3d(im.canvas.width, 0, 1),
-                               cv::Vec3d(0, im.canvas.height, 1), cv::Vec3d(im.canvas.width, im.canvas.height, 1)}) {
-      const cv::Vec3d p = detail_from_canvas * c;
-      min_x = std::min(min_x, p[0] / p[2]);
-      min_y = std::min(min_y, p[1] / p[2]);
-      max_x = std::max(max_x, p[0] / p[2]);
-      max_y = std::max(max_y, p[1] / p[2]);
-    }
-    const cv::Mat& tiled = im.detail_tiled[static_cast<size_t>(dl)];
-    const double tile = map_->DetailLevel(dl).cols;
-    const double sx = -std::floor(min_x / tile) * tile, sy = -std::floor(min_y / tile) * tile;
-    cv::Mat detail;
-    if (max_x + sx < tiled.cols - 2 && max_y + sy < tiled.rows - 2)
-      cv::warpPerspective(tiled, detail, Translation(sx, sy) * detail_from_canvas, im.canvas,
-                          cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
-    else
-      cv::warpPerspective(map_->DetailLevel(dl), detail, detail_from_canvas, im.canvas,
-                          cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_WRAP);
-    cv::cvtColor(detail, detail, cv::COLOR_GRAY2BGR);
-    AddOffset(detail, &canvas);
-  }
-
-  // Calibration marker (only the part of the canvas it covers).
-  if (!im.marker_texture.empty()) {
-    const cv::Matx33d m = hg * im.world_from_marker_px;
-    std::vector<cv::Point2f> src = {{-0.5f, -0.5f},
-                                    {im.marker_texture.cols - 0.5f, -0.5f},
-                                    {im.marker_texture.cols - 0.5f, im.marker_texture.rows - 0.5f},
-                                    {-0.5f, im.marker_texture.rows - 0.5f}},
-                             dst;
-    cv::perspectiveTransform(src, dst, cv::Mat(m));
-    const cv::Rect roi = cv::boundingRect(dst) & cv::Rect(0, 0, im.canvas.width, im.canvas.height);
-    if (roi.area() > 0) {
-      cv::Mat view = canvas(roi);
-      cv::warpPerspective(im.marker_texture, view, Translation(-roi.x, -roi.y) * m, roi.size(), cv::INTER_LINEAR,
-                          cv::BORDER_TRANSPARENT);
-    }
-  }
-
-  // Tree crowns: each a disc in the plane z = its height (the camera seen
-  // from that plane is the camera lowered by it).
-  for (const Impl::Tree& tree : im.trees) {
+  cv::Mat canvas = RenderGround(*map_, hg, gsd, d.size);
+  if (map_->NumDetailLevels() > 0) AddDetail(*map_, im.detail_tiled, hg, gsd, &canvas);
+  if (!im.marker.texture.empty()) DrawMarker(im.marker, hg, &canvas);
+  for (const CrownTree& tree : im.trees) {
     Pose3 lowered = world_from_camera;
     lowered.translation().z() -= tree.height;
     if (lowered.translation().z() < 1.0) continue;
     const double k = 2 * tree.radius / kCrownPx;  // m per texture px
     const cv::Matx33d world_from_tex(k, 0, tree.x - tree.radius, 0, -k, tree.y + tree.radius, 0, 0, 1);
-    const cv::Matx33d m = Translation(im.margin_x, im.margin_y) * ImageFromGround(lowered) * world_from_tex;
-    std::vector<cv::Point2f> src = {{0, 0}, {kCrownPx, 0}, {kCrownPx, kCrownPx}, {0, kCrownPx}}, dst;
-    cv::perspectiveTransform(src, dst, cv::Mat(m));
-    const cv::Rect roi = cv::boundingRect(dst) & cv::Rect(0, 0, im.canvas.width, im.canvas.height);
-    if (roi.area() <= 0) continue;
-    cv::Mat crown, mask;
-    const cv::Matx33d to_roi = Translation(-roi.x, -roi.y) * m;
-    cv::warpPerspective(tree.texture, crown, to_roi, roi.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT);
-    cv::warpPerspective(tree.mask, mask, to_roi, roi.size(), cv::INTER_NEAREST, cv::BORDER_CONSTANT);
-    crown.copyTo(canvas(roi), mask);
+    DrawCrown(tree, Translation(d.margin_x, d.margin_y) * ImageFromGround(lowered) * world_from_tex, &canvas);
   }
-
-  // Moving objects: cars (with a dark windscreen) and people.
-  if (options_.render.moving_objects) {
-    constexpr int kShift = 4;
-    auto project = [&](const Eigen::Vector2d& g) {
-      const cv::Vec3d p = hg * cv::Vec3d(g.x(), g.y(), 1.0);
-      return cv::Point(static_cast<int>(std::lround(p[0] / p[2] * (1 << kShift))),
-                       static_cast<int>(std::lround(p[1] / p[2] * (1 << kShift))));
-    };
-    const cv::Rect2d bounds(-200, -200, im.canvas.width + 400, im.canvas.height + 400);
-    for (const GroundObject& o : ObjectsAt(t)) {
-      std::vector<cv::Point> poly;
-      bool inside = false;
-      for (const auto& c : o.corners) {
-        poly.push_back(project(c));
-        inside = inside || bounds.contains(cv::Point2d(poly.back().x, poly.back().y) / (1 << kShift));
-      }
-      if (!inside) continue;
-      cv::fillConvexPoly(canvas, poly, o.colour, cv::LINE_8, kShift);
-      const bool car = (o.corners[0] - o.corners[1]).norm() > 1.0;
-      if (car) {
-        // Windscreen: the front quarter of the roof.
-        const Eigen::Vector2d f0 = o.corners[0] + 0.18 * (o.corners[3] - o.corners[0]);
-        const Eigen::Vector2d f1 = o.corners[1] + 0.18 * (o.corners[2] - o.corners[1]);
-        const Eigen::Vector2d b0 = o.corners[0] + 0.38 * (o.corners[3] - o.corners[0]);
-        const Eigen::Vector2d b1 = o.corners[1] + 0.38 * (o.corners[2] - o.corners[1]);
-        const Eigen::Vector2d in = 0.12 * (o.corners[1] - o.corners[0]);
-        std::vector<cv::Point> glass = {project(f0 + in), project(f1 - in), project(b1 - in), project(b0 + in)};
-        cv::fillConvexPoly(canvas, glass, cv::Scalar(50, 40, 35), cv::LINE_8, kShift);
-      } else {
-        const Eigen::Vector2d c = 0.25 * (o.corners[0] + o.corners[1] + o.corners[2] + o.corners[3]);
-        const cv::Point p = project(c);
-        const int r = static_cast<int>(std::lround(0.12 * options_.camera.fx / height * (1 << kShift)));
-        cv::circle(canvas, p, std::max(r, 1), cv::Scalar(30, 50, 70), cv::FILLED, cv::LINE_8, kShift);
-      }
-    }
-  }
-
+  if (options_.render.moving_objects) DrawObjects(ObjectsAt(t), hg, options_.camera.fx, height, &canvas);
   cv::Mat frame;
-  if (!im.map_x.empty()) cv::remap(canvas, frame, im.map_x, im.map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  if (!d.map_x.empty()) cv::remap(canvas, frame, d.map_x, d.map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
   else frame = canvas;
-
-  if (!im.noise_bank.empty()) {
-    // Window chosen by hashing the time: same t, same noise.
-    uint64_t h = static_cast<uint64_t>(std::llround(t * 1e6)) * 0x9E3779B97F4A7C15ull + 0x632BE59BD9B4E019ull;
-    h ^= h >> 29;
-    h *= 0xBF58476D1CE4E5B9ull;
-    h ^= h >> 32;
-    const int dx = static_cast<int>(h % 256), dy = static_cast<int>((h >> 16) % 256);
-    AddOffset(im.noise_bank(cv::Rect(dx, dy, frame.cols, frame.rows)), &frame);
-  }
+  if (!im.noise_bank.empty()) AddSensorNoise(im.noise_bank, t, &frame);
   return frame;
 }
 
