@@ -99,6 +99,71 @@ double DeckAlbedo(const Eigen::Vector3d& p) {
   return fx < frame || fy < frame ? 0.7 : 0.12;
 }
 
+
+// The terrain's radiance at a hit, summed over `samples` points along the
+// line of sight (divide by it). The pixel's footprint on the ground (m) is
+// range / f across the line of sight, stretched by 1 / cos along it; a long
+// footprint is shaded at several points along the line of sight, each
+// filtered to its part (anisotropic filtering): one isotropic sample either
+// aliases along the view or blurs the far ground across it.
+struct Shading {
+  double radiance = 0;
+  int samples = 1;
+};
+Shading ShadeTerrain(const Terrain& terrain, const NavcamRenderOptions& o, const RayHit& hit,
+                     const Eigen::Vector3d& dir, double ray_norm, double inv_f) {
+  const Eigen::Vector3d& sun = terrain.SunDirection();
+  const double ambient = terrain.options().ambient;
+  const bool lambert = o.photometric == "lambert";
+  const Eigen::Vector3d& p = hit.point;
+  const Eigen::Vector3d n = terrain.Normal(p.x(), p.y());
+  const double cos_view = std::max(0.05, std::abs(dir.dot(n)));
+  const double across = hit.range * ray_norm * inv_f;
+  const double along_length = across / cos_view;
+  Eigen::Vector3d along = dir - dir.dot(n) * n;
+  const double along_norm = along.norm();
+  Shading shade;
+  shade.samples = along_norm > 1e-6 ? std::clamp(static_cast<int>(std::ceil(along_length / (2 * across))), 1,
+                                                 o.max_footprint_samples)
+                                    : 1;
+  const int samples = shade.samples;
+  if (samples > 1) along /= along_norm;
+  const double footprint = std::max(across, along_length / samples);
+  const double visibility = terrain.SunVisibility(p.x(), p.y());
+  for (int k = 0; k < samples; ++k) {
+    const double offset = samples > 1 ? ((k + 0.5) / samples - 0.5) * along_length : 0.0;
+    const double qx = p.x() + offset * along.x(), qy = p.y() + offset * along.y();
+    const double albedo = terrain.Albedo(qx, qy, footprint);
+    const Eigen::Vector3d shading_normal = terrain.ShadingNormal(qx, qy, footprint, n);
+    const double mu0 = std::max(0.0, shading_normal.dot(sun));
+    const double direct =
+        (lambert ? mu0 : Reflectance(o, mu0, -dir.dot(shading_normal), std::acos(std::clamp(-dir.dot(sun), -1.0, 1.0)))) *
+        visibility;
+    shade.radiance += albedo * (ambient + (1.0 - ambient) * direct);
+  }
+  return shade;
+}
+
+// What the sensor makes of `signal` DN at pixel (u, v) (index v * width +
+// u): vignetting, black level, read and shot noise, 12-bit companding,
+// stuck pixels (hot_seed: the sensor's), 8 bits.
+uint8_t SensorValue(const NavcamRenderOptions& o, const PinholeCamera& camera, int u, int v, size_t index,
+                    double signal, uint64_t noise_seed, uint64_t hot_seed) {
+  if (o.vignetting > 0) {
+    const double corner2 = camera.cx * camera.cx + camera.cy * camera.cy;
+    const double r2 = ((u - camera.cx) * (u - camera.cx) + (v - camera.cy) * (v - camera.cy)) / corner2;
+    signal *= 1.0 - o.vignetting * r2;
+  }
+  double dn = o.black_level_dn + signal;
+  if (o.add_noise) {
+    const double sigma = std::sqrt(o.read_noise_dn * o.read_noise_dn + o.shot_noise_dn2_per_dn * signal);
+    dn += sigma * HashToGaussian(Hash3(noise_seed, index, 0xCA3E7AULL));
+  }
+  if (o.adc_bits == 12) dn = 255.0 * std::sqrt(std::clamp(dn, 0.0, 4095.0) / 4095.0);  // companding
+  if (o.hot_pixel_fraction > 0 && HashToUnit(Hash3(hot_seed, index, 0x407ULL)) < o.hot_pixel_fraction) dn = 255;
+  return static_cast<uint8_t>(std::clamp(std::lround(dn), 0L, 255L));
+}
+
 }  // namespace
 
 RenderedImage NavcamRenderer::Render(const PinholeCamera& camera, const Pose3& world_from_camera,
@@ -124,8 +189,6 @@ RenderedImage NavcamRenderer::Render(const PinholeCamera& camera, const Pose3& w
   const Eigen::Vector3d& sun = terrain_.SunDirection();
   const double ambient = terrain_.options().ambient;
   const double inv_f = 1.0 / std::sqrt(camera.fx * camera.fy);
-  const bool lambert = options_.photometric == "lambert";
-  const double corner2 = camera.cx * camera.cx + camera.cy * camera.cy;
   const uint64_t hot_seed = SameCamera(camera, model_.rig.right) ? 2 : 1;  // stuck pixels belong to the sensor
   const bool deck = options_.deck && world_from_body != nullptr;
   const Pose3 body_from_world = deck ? world_from_body->inverse() : Pose3::Identity();
@@ -151,56 +214,14 @@ RenderedImage NavcamRenderer::Render(const PinholeCamera& camera, const Pose3& w
         if (depth_row) depth_row[u] = static_cast<float>(*deck_t / ray_norm);
         out.deck.at<uint8_t>(v, u) = 255;
       } else if (hit) {
-        const Eigen::Vector3d& p = hit->point;
-        const Eigen::Vector3d n = terrain_.Normal(p.x(), p.y());
-        const double cos_view = std::max(0.05, std::abs(dir.dot(n)));
-        // Pixel footprint on the ground (m): range / f across the line of
-        // sight, stretched by 1 / cos along it. A long footprint is shaded at
-        // several points along the line of sight, each filtered to its part
-        // (anisotropic filtering): one isotropic sample either aliases along
-        // the view or blurs the far ground across it.
-        const double across = hit->range * ray_norm * inv_f;
-        const double along_length = across / cos_view;
-        Eigen::Vector3d along = dir - dir.dot(n) * n;
-        const double along_norm = along.norm();
-        const int samples = along_norm > 1e-6 ? std::clamp(static_cast<int>(std::ceil(along_length / (2 * across))), 1,
-                                                           options_.max_footprint_samples)
-                                              : 1;
-        if (samples > 1) along /= along_norm;
-        const double footprint = std::max(across, along_length / samples);
-        const double visibility = terrain_.SunVisibility(p.x(), p.y());
-        double radiance = 0.0;
-        for (int k = 0; k < samples; ++k) {
-          const double offset = samples > 1 ? ((k + 0.5) / samples - 0.5) * along_length : 0.0;
-          const double qx = p.x() + offset * along.x(), qy = p.y() + offset * along.y();
-          const double albedo = terrain_.Albedo(qx, qy, footprint);
-          const Eigen::Vector3d shading_normal = terrain_.ShadingNormal(qx, qy, footprint, n);
-          const double mu0 = std::max(0.0, shading_normal.dot(sun));
-          const double direct =
-              (lambert ? mu0 : Reflectance(options_, mu0, -dir.dot(shading_normal), std::acos(std::clamp(-dir.dot(sun), -1.0, 1.0)))) *
-              visibility;
-          radiance += albedo * (ambient + (1.0 - ambient) * direct);
-        }
-        signal = options_.exposure_gain_dn * gain_factor * radiance / samples;
+        const Shading shade = ShadeTerrain(terrain_, options_, *hit, dir, ray_norm, inv_f);
+        signal = options_.exposure_gain_dn * gain_factor * shade.radiance / shade.samples;
         if (depth_row) depth_row[u] = static_cast<float>(hit->range / ray_norm);
       } else {
         ++sky;
         signal = options_.sky_dn * (options_.adc_bits == 12 ? 16.0 : 1.0) * gain_factor;
       }
-      if (options_.vignetting > 0) {
-        const double r2 = ((u - camera.cx) * (u - camera.cx) + (v - camera.cy) * (v - camera.cy)) / corner2;
-        signal *= 1.0 - options_.vignetting * r2;
-      }
-      double dn = options_.black_level_dn + signal;
-      if (options_.add_noise) {
-        const double sigma = std::sqrt(options_.read_noise_dn * options_.read_noise_dn +
-                                       options_.shot_noise_dn2_per_dn * signal);
-        dn += sigma * HashToGaussian(Hash3(noise_seed, index, 0xCA3E7AULL));
-      }
-      if (options_.adc_bits == 12) dn = 255.0 * std::sqrt(std::clamp(dn, 0.0, 4095.0) / 4095.0);  // companding
-      if (options_.hot_pixel_fraction > 0 && HashToUnit(Hash3(hot_seed, index, 0x407ULL)) < options_.hot_pixel_fraction)
-        dn = 255;
-      row[u] = static_cast<uint8_t>(std::clamp(std::lround(dn), 0L, 255L));
+      row[u] = SensorValue(options_, camera, u, v, index, signal, noise_seed, hot_seed);
     }
   }
   out.sky_pixels = sky;
