@@ -120,6 +120,129 @@ bool FitHomography(const std::vector<cv::Point2f>& pa, const std::vector<cv::Poi
   return true;
 }
 
+// Corners spread evenly: the strongest in each cell of refine_cell_px. A
+// real scene departs from one homography by a few tenths of a px (relief,
+// lens), so the fit must weigh the whole overlap alike, not the most
+// textured part of it.
+std::vector<cv::Point2f> SpreadCorners(const cv::Mat& a, const HomographyMatchOptions& o) {
+  std::vector<cv::Point2f> strong, corners;
+  cv::goodFeaturesToTrack(a, strong, 0, o.refine_corner_quality, o.refine_min_distance, cv::noArray(), 7);
+  const int cell = o.refine_cell_px, gw = (a.cols + cell - 1) / cell;
+  std::vector<char> taken(static_cast<size_t>(gw) * ((a.rows + cell - 1) / cell), 0);
+  for (const auto& c : strong) {  // strongest first
+    char& t = taken[static_cast<int>(c.y) / cell * gw + static_cast<int>(c.x) / cell];
+    if (t) continue;
+    t = 1;
+    corners.push_back(c);
+    if (static_cast<int>(corners.size()) >= o.refine_points) break;
+  }
+  return corners;
+}
+
+// One refinement round's correspondences (pa in a, pb in b) at the corners
+// covered by b warped through h: ZNCC within `radius` px on the warp, then
+// LSM into the original b (no second resampling) from the peak mapped
+// through h with h's local affine shape there.
+void MatchCorners(const cv::Mat& a, const cv::Mat& b, const LsmImage& la, const LsmImage& lb,
+                  const std::vector<cv::Point2f>& corners, const cv::Matx33d& h, int radius,
+                  const HomographyMatchOptions& o, std::vector<cv::Point2f>* pa, std::vector<cv::Point2f>* pb) {
+  const int half = o.lsm.half_window;
+  const cv::Mat ones(b.size(), CV_8U, cv::Scalar(255));
+  cv::Mat warped, coverage;
+  cv::warpPerspective(b, warped, cv::Mat(h), a.size(), cv::INTER_CUBIC | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT, 0);
+  cv::warpPerspective(ones, coverage, cv::Mat(h), a.size(), cv::INTER_NEAREST | cv::WARP_INVERSE_MAP,
+                      cv::BORDER_CONSTANT, 0);
+  cv::erode(coverage, coverage, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * (half + radius) + 7, 2 * (half + radius) + 7)));
+  const int n = static_cast<int>(corners.size());
+  std::vector<Eigen::Vector2d> qa(n), qb(n);
+  std::vector<char> ok(n, 0);
+#pragma omp parallel for schedule(dynamic, 32) num_threads(o.num_threads)
+  for (int k = 0; k < n; ++k) {
+    const cv::Point p(cvRound(corners[k].x), cvRound(corners[k].y));
+    if (!coverage.at<uchar>(p)) continue;
+    Eigen::Vector2d q;
+    if (!ZnccPeak(a, p, warped, radius, half, o.refine_min_zncc, &q)) continue;
+    const Eigen::Vector2d p2(p.x, p.y);
+    const LsmResult r = LeastSquaresMatch(la, p2, lb, Apply(h, q), Jacobian(h, q), o.lsm);
+    if (!r.ok) continue;
+    qa[k] = p2;
+    qb[k] = r.target;
+    ok[k] = 1;
+  }
+  for (int k = 0; k < n; ++k)
+    if (ok[k]) {
+      pa->emplace_back(static_cast<float>(qa[k].x()), static_cast<float>(qa[k].y()));
+      pb->emplace_back(static_cast<float>(qb[k].x()), static_cast<float>(qb[k].y()));
+    }
+}
+
+// The inliers of `refined` among the correspondences (RANSAC's, within
+// refine_ransac_px of the final fit) into res, and their RMS.
+void KeepInliers(const std::vector<cv::Point2f>& pa, const std::vector<cv::Point2f>& pb,
+                 const std::vector<uchar>& inlier, const cv::Matx33d& refined, const HomographyMatchOptions& o,
+                 HomographyMatchResult* res) {
+  res->b_from_a = refined;
+  res->inliers_a.clear();
+  res->inliers_b.clear();
+  double ss = 0;
+  for (size_t k = 0; k < pa.size(); ++k) {
+    if (!inlier[k]) continue;
+    const Eigen::Vector2d ea(pa[k].x, pa[k].y), eb(pb[k].x, pb[k].y);
+    const double e = (Apply(refined, ea) - eb).norm();
+    if (e > o.refine_ransac_px) continue;
+    res->inliers_a.push_back(ea);
+    res->inliers_b.push_back(eb);
+    ss += e * e;
+  }
+  HomographyMatchSummary& s = res->summary;
+  s.refine_inliers = static_cast<int>(res->inliers_a.size());
+  s.rms_px = s.refine_inliers ? std::sqrt(ss / s.refine_inliers) : 0;
+}
+
+// The coarse correspondences (full px) of ASIFT on the images reduced by
+// coarse_scale: FLANN's 4 nearest, the distinct ratio test; counts and the
+// detection's seconds into s, the matching's start into *t1.
+void CoarseMatches(const cv::Mat& a, const cv::Mat& b, const HomographyMatchOptions& o, Clock::time_point t0,
+                   HomographyMatchSummary* s, Clock::time_point* t1, std::vector<cv::Point2f>* pa,
+                   std::vector<cv::Point2f>* pb) {
+  cv::Mat sa = a, sb = b;
+  if (o.coarse_scale < 1) {
+    cv::resize(a, sa, cv::Size(), o.coarse_scale, o.coarse_scale, cv::INTER_AREA);
+    cv::resize(b, sb, cv::Size(), o.coarse_scale, o.coarse_scale, cv::INTER_AREA);
+  }
+  AsiftOptions ao = o.asift;
+  ao.num_threads = o.num_threads;
+  const FeatureSet fa = DetectAsift(sa, cv::Mat(), ao), fb = DetectAsift(sb, cv::Mat(), ao);
+  s->features_a = static_cast<int>(fa.size());
+  s->features_b = static_cast<int>(fb.size());
+  s->detect_seconds = Since(t0);
+  *t1 = Clock::now();
+  if (fa.size() < 4 || fb.size() < 4) return;
+  // FLANN's randomised k-d trees draw from this thread's cv::theRNG():
+  // a fixed seed (restored afterwards) makes the result repeatable.
+  cv::RNG& rng = cv::theRNG();
+  const uint64_t saved_state = rng.state;
+  rng.state = 0x5eed1e55ULL;
+  cv::FlannBasedMatcher flann;
+  std::vector<std::vector<cv::DMatch>> knn;
+  flann.knnMatch(fa.descriptors, fb.descriptors, knn, 4);
+  rng.state = saved_state;
+  // Scale factor from reduced to full px, for the pixel-centre convention of cv::resize.
+  const double fx_a = static_cast<double>(a.cols) / sa.cols, fy_a = static_cast<double>(a.rows) / sa.rows;
+  const double fx_b = static_cast<double>(b.cols) / sb.cols, fy_b = static_cast<double>(b.rows) / sb.rows;
+  for (const auto& m : knn) {
+    if (m.empty()) continue;
+    // The rival is the best candidate at another place: ASIFT repeats a point once per view.
+    std::vector<std::pair<double, int>> cands;
+    for (const auto& c : m) cands.emplace_back(static_cast<double>(c.distance) * c.distance, c.trainIdx);
+    if (!DistinctRatioTest(cands, fb.points, o.ratio, 2.0)) continue;
+    const Eigen::Vector2d& p = fa.points[m[0].queryIdx];
+    const Eigen::Vector2d& q = fb.points[m[0].trainIdx];
+    pa->emplace_back(static_cast<float>((p.x() + 0.5) * fx_a - 0.5), static_cast<float>((p.y() + 0.5) * fy_a - 0.5));
+    pb->emplace_back(static_cast<float>((q.x() + 0.5) * fx_b - 0.5), static_cast<float>((q.y() + 0.5) * fy_b - 0.5));
+  }
+}
+
 }  // namespace
 
 HomographyMatchResult RefineHomography(const cv::Mat& a, const cv::Mat& b, const cv::Matx33d& b_from_a,
@@ -128,61 +251,12 @@ HomographyMatchResult RefineHomography(const cv::Mat& a, const cv::Mat& b, const
   res.b_from_a = b_from_a;
   HomographyMatchSummary& s = res.summary;
   const auto t0 = Clock::now();
-  const int half = o.lsm.half_window;
-  // Corners spread evenly: the strongest in each cell. A real scene departs
-  // from one homography by a few tenths of a px (relief, lens), so the fit
-  // must weigh the whole overlap alike, not the most textured part of it.
-  std::vector<cv::Point2f> strong, corners;
-  cv::goodFeaturesToTrack(a, strong, 0, o.refine_corner_quality, o.refine_min_distance, cv::noArray(), 7);
-  {
-    const int cell = o.refine_cell_px, gw = (a.cols + cell - 1) / cell;
-    std::vector<char> taken(static_cast<size_t>(gw) * ((a.rows + cell - 1) / cell), 0);
-    for (const auto& c : strong) {  // strongest first
-      char& t = taken[static_cast<int>(c.y) / cell * gw + static_cast<int>(c.x) / cell];
-      if (t) continue;
-      t = 1;
-      corners.push_back(c);
-      if (static_cast<int>(corners.size()) >= o.refine_points) break;
-    }
-  }
+  const std::vector<cv::Point2f> corners = SpreadCorners(a, o);
   const LsmImage la = MakeLsmImage(a, o.lsm.bspline), lb = MakeLsmImage(b, o.lsm.bspline);
-  const cv::Mat ones(b.size(), CV_8U, cv::Scalar(255));
   for (int round = 0; round < o.refine_rounds; ++round) {
-    const cv::Matx33d h = res.b_from_a;
-    cv::Mat warped, coverage;
-    cv::warpPerspective(b, warped, cv::Mat(h), a.size(), cv::INTER_CUBIC | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT, 0);
-    cv::warpPerspective(ones, coverage, cv::Mat(h), a.size(), cv::INTER_NEAREST | cv::WARP_INVERSE_MAP,
-                        cv::BORDER_CONSTANT, 0);
-    const int radius = round == 0 ? o.refine_search_px : 2;
-    cv::erode(coverage, coverage, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * (half + radius) + 7, 2 * (half + radius) + 7)));
-    const int n = static_cast<int>(corners.size());
-    std::vector<Eigen::Vector2d> qa(n), qb(n);
-    std::vector<char> ok(n, 0);
-#pragma omp parallel for schedule(dynamic, 32) num_threads(o.num_threads)
-    for (int k = 0; k < n; ++k) {
-      const cv::Point p(cvRound(corners[k].x), cvRound(corners[k].y));
-      if (!coverage.at<uchar>(p)) continue;
-      Eigen::Vector2d q;
-      if (!ZnccPeak(a, p, warped, radius, half, o.refine_min_zncc, &q)) continue;
-      const Eigen::Vector2d pa(p.x, p.y);
-      // LSM into the original second image (no second resampling), from
-      // the peak mapped through h and h's local affine shape there.
-      const Eigen::Vector2d qb0 = Apply(h, q);
-      const LsmResult r = LeastSquaresMatch(la, pa, lb, qb0, Jacobian(h, q), o.lsm);
-      if (!r.ok) continue;
-      qa[k] = pa;
-      qb[k] = r.target;
-      ok[k] = 1;
-    }
     std::vector<cv::Point2f> pa, pb;
-    std::vector<int> idx;
-    for (int k = 0; k < n; ++k)
-      if (ok[k]) {
-        pa.emplace_back(static_cast<float>(qa[k].x()), static_cast<float>(qa[k].y()));
-        pb.emplace_back(static_cast<float>(qb[k].x()), static_cast<float>(qb[k].y()));
-        idx.push_back(k);
-      }
-    s.refine_points = n;
+    MatchCorners(a, b, la, lb, corners, res.b_from_a, round == 0 ? o.refine_search_px : 2, o, &pa, &pb);
+    s.refine_points = static_cast<int>(corners.size());
     s.refine_matches = static_cast<int>(pa.size());
     std::vector<uchar> inlier;
     cv::Matx33d refined;
@@ -191,21 +265,7 @@ HomographyMatchResult RefineHomography(const cv::Mat& a, const cv::Mat& b, const
       s.refine_seconds = Since(t0);
       return res;
     }
-    res.b_from_a = refined;
-    res.inliers_a.clear();
-    res.inliers_b.clear();
-    double ss = 0;
-    for (size_t k = 0; k < pa.size(); ++k) {
-      if (!inlier[k]) continue;
-      const Eigen::Vector2d ea(pa[k].x, pa[k].y), eb(pb[k].x, pb[k].y);
-      const double e = (Apply(refined, ea) - eb).norm();
-      if (e > o.refine_ransac_px) continue;
-      res.inliers_a.push_back(ea);
-      res.inliers_b.push_back(eb);
-      ss += e * e;
-    }
-    s.refine_inliers = static_cast<int>(res.inliers_a.size());
-    s.rms_px = s.refine_inliers ? std::sqrt(ss / s.refine_inliers) : 0;
+    KeepInliers(pa, pb, inlier, refined, o, &res);
   }
   s.refine_seconds = Since(t0);
   s.usable = true;
@@ -220,60 +280,21 @@ HomographyMatchResult MatchHomography(const cv::Mat& a, const cv::Mat& b, const 
     throw std::invalid_argument("MatchHomography needs two non-empty 8-bit grey images");
   const auto t0 = Clock::now();
   HomographyMatchSummary s;
-  // 1. Coarse: ASIFT on reduced images.
-  cv::Mat sa = a, sb = b;
-  if (o.coarse_scale < 1) {
-    cv::resize(a, sa, cv::Size(), o.coarse_scale, o.coarse_scale, cv::INTER_AREA);
-    cv::resize(b, sb, cv::Size(), o.coarse_scale, o.coarse_scale, cv::INTER_AREA);
-  }
-  AsiftOptions ao = o.asift;
-  ao.num_threads = o.num_threads;
-  const FeatureSet fa = DetectAsift(sa, cv::Mat(), ao), fb = DetectAsift(sb, cv::Mat(), ao);
-  s.features_a = static_cast<int>(fa.size());
-  s.features_b = static_cast<int>(fb.size());
-  s.detect_seconds = Since(t0);
-  const auto t1 = Clock::now();
   std::vector<cv::Point2f> pa, pb;
-  if (fa.size() >= 4 && fb.size() >= 4) {
-    // FLANN's randomised k-d trees draw from this thread's cv::theRNG():
-    // a fixed seed (restored afterwards) makes the result repeatable.
-    cv::RNG& rng = cv::theRNG();
-    const uint64_t saved_state = rng.state;
-    rng.state = 0x5eed1e55ULL;
-    cv::FlannBasedMatcher flann;
-    std::vector<std::vector<cv::DMatch>> knn;
-    flann.knnMatch(fa.descriptors, fb.descriptors, knn, 4);
-    rng.state = saved_state;
-    // Scale factor from reduced to full px, for the pixel-centre convention of cv::resize.
-    const double fx_a = static_cast<double>(a.cols) / sa.cols, fy_a = static_cast<double>(a.rows) / sa.rows;
-    const double fx_b = static_cast<double>(b.cols) / sb.cols, fy_b = static_cast<double>(b.rows) / sb.rows;
-    for (const auto& m : knn) {
-      if (m.empty()) continue;
-      // The rival is the best candidate at another place: ASIFT repeats a point once per view.
-      std::vector<std::pair<double, int>> cands;
-      for (const auto& c : m) cands.emplace_back(static_cast<double>(c.distance) * c.distance, c.trainIdx);
-      if (!DistinctRatioTest(cands, fb.points, o.ratio, 2.0)) continue;
-      const Eigen::Vector2d& p = fa.points[m[0].queryIdx];
-      const Eigen::Vector2d& q = fb.points[m[0].trainIdx];
-      pa.emplace_back(static_cast<float>((p.x() + 0.5) * fx_a - 0.5), static_cast<float>((p.y() + 0.5) * fy_a - 0.5));
-      pb.emplace_back(static_cast<float>((q.x() + 0.5) * fx_b - 0.5), static_cast<float>((q.y() + 0.5) * fy_b - 0.5));
-    }
-  }
+  Clock::time_point t1;
+  CoarseMatches(a, b, o, t0, &s, &t1, &pa, &pb);
   s.coarse_matches = static_cast<int>(pa.size());
   HomographyMatchResult res;
   std::vector<uchar> inlier;
-  cv::Matx33d coarse;
-  if (pa.size() < 8 || cv::findHomography(pa, pb, cv::RANSAC, o.coarse_ransac_px, inlier, 5000, 0.9999).empty()) {
+  const cv::Mat h = pa.size() < 8 ? cv::Mat() : cv::findHomography(pa, pb, cv::RANSAC, o.coarse_ransac_px, inlier, 5000, 0.9999);
+  if (h.empty()) {
     s.message = "coarse: too few ASIFT matches agree on a homography (not a planar overlap, or too little texture)";
     s.match_seconds = Since(t1);
     s.total_seconds = Since(t0);
     res.summary = s;
     return res;
   }
-  {
-    const cv::Mat h = cv::findHomography(pa, pb, cv::RANSAC, o.coarse_ransac_px, inlier, 5000, 0.9999);
-    coarse = cv::Matx33d(h.ptr<double>());
-  }
+  const cv::Matx33d coarse(h.ptr<double>());
   s.coarse_inliers = static_cast<int>(std::count(inlier.begin(), inlier.end(), 1));
   s.match_seconds = Since(t1);
   res.b_from_a = coarse;
