@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
+#include <string>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 
@@ -29,34 +31,32 @@ std::optional<Eigen::Vector2d> CameraView::Project(const Eigen::Vector3d& p_worl
   return Eigen::Vector2d(fx * pc.x() / pc.z() + cx, fy * pc.y() / pc.z() + cy);
 }
 
-IntersectionResult IntersectPoint(const std::vector<CameraView>& views, const std::vector<Eigen::Vector2d>& uv,
-                                  const std::vector<double>& sigma_px, double min_parallax_rad) {
-  IntersectionResult res;
+namespace {
+
+// The largest angle between two of the views' rays through their pixels.
+double MaxParallax(const std::vector<CameraView>& views, const std::vector<Eigen::Vector2d>& uv) {
   const size_t n = views.size();
-  if (n < 2 || uv.size() != n || (!sigma_px.empty() && sigma_px.size() != n)) {
-    res.message = "intersection needs at least two views with one pixel each";
-    return res;
-  }
-  // Parallax: the largest angle between two rays.
   std::vector<Eigen::Vector3d> rays(n);
   for (size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d ray_c((uv[i].x() - views[i].cx) / views[i].fx, (uv[i].y() - views[i].cy) / views[i].fy, 1.0);
     rays[i] = (views[i].world_from_camera.linear() * ray_c).normalized();
   }
+  double max_parallax = 0;
   for (size_t i = 0; i < n; ++i)
     for (size_t j = i + 1; j < n; ++j)
-      res.max_parallax_rad = std::max(res.max_parallax_rad, std::acos(std::clamp(rays[i].dot(rays[j]), -1.0, 1.0)));
-  if (res.max_parallax_rad < min_parallax_rad) {
-    res.message = "rays are (nearly) parallel: no intersection";
-    return res;
-  }
-  // Linear solution: for each view, (x r3 - r1) p = t1 - x t3 and (y r3 - r2) p = t2 - y t3
-  // with (R, t) = camera_from_world and (x, y) normalised coordinates.
+      max_parallax = std::max(max_parallax, std::acos(std::clamp(rays[i].dot(rays[j]), -1.0, 1.0)));
+  return max_parallax;
+}
+
+// Linear solution: for each view, (x r3 - r1) p = t1 - x t3 and
+// (y r3 - r2) p = t2 - y t3 with (R, t) = camera_from_world and (x, y)
+// normalised coordinates.
+Eigen::Vector3d LinearIntersection(const std::vector<CameraView>& views, const std::vector<Eigen::Vector2d>& uv,
+                                   const std::vector<Pose3>& camera_from_world) {
+  const size_t n = views.size();
   Eigen::MatrixXd A(2 * n, 3);
   Eigen::VectorXd b(2 * n);
-  std::vector<Pose3> camera_from_world(n);
   for (size_t i = 0; i < n; ++i) {
-    camera_from_world[i] = views[i].world_from_camera.inverse();
     const Eigen::Matrix3d R = camera_from_world[i].linear();
     const Eigen::Vector3d t = camera_from_world[i].translation();
     const double x = (uv[i].x() - views[i].cx) / views[i].fx;
@@ -66,13 +66,20 @@ IntersectionResult IntersectPoint(const std::vector<CameraView>& views, const st
     b(2 * i) = t.x() - x * t.z();
     b(2 * i + 1) = t.y() - y * t.z();
   }
-  Eigen::Vector3d p = A.colPivHouseholderQr().solve(b);
-  // Gauss-Newton on the weighted reprojection error.
+  return A.colPivHouseholderQr().solve(b);
+}
+
+// Gauss-Newton on the reprojection error weighted by 1 / sigma^2 (unit
+// weights without sigmas), from p.
+void RefineIntersection(const std::vector<CameraView>& views, const std::vector<Eigen::Vector2d>& uv,
+                        const std::vector<double>& sigma_px, const std::vector<Pose3>& camera_from_world,
+                        Eigen::Vector3d* p) {
+  const size_t n = views.size();
   for (int iter = 0; iter < 10; ++iter) {
     Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
     Eigen::Vector3d g = Eigen::Vector3d::Zero();
     for (size_t i = 0; i < n; ++i) {
-      const Eigen::Vector3d pc = camera_from_world[i] * p;
+      const Eigen::Vector3d pc = camera_from_world[i] * *p;
       if (pc.z() <= 1e-6) break;
       const double w = sigma_px.empty() ? 1.0 : 1.0 / (sigma_px[i] * sigma_px[i]);
       Eigen::Matrix<double, 2, 3> J;
@@ -86,9 +93,30 @@ IntersectionResult IntersectPoint(const std::vector<CameraView>& views, const st
     }
     const Eigen::Vector3d step = H.ldlt().solve(-g);
     if (!step.allFinite()) break;
-    p += step;
-    if (step.norm() < 1e-10 * (1.0 + p.norm())) break;
+    *p += step;
+    if (step.norm() < 1e-10 * (1.0 + p->norm())) break;
   }
+}
+
+}  // namespace
+
+IntersectionResult IntersectPoint(const std::vector<CameraView>& views, const std::vector<Eigen::Vector2d>& uv,
+                                  const std::vector<double>& sigma_px, double min_parallax_rad) {
+  IntersectionResult res;
+  const size_t n = views.size();
+  if (n < 2 || uv.size() != n || (!sigma_px.empty() && sigma_px.size() != n)) {
+    res.message = "intersection needs at least two views with one pixel each";
+    return res;
+  }
+  res.max_parallax_rad = MaxParallax(views, uv);
+  if (res.max_parallax_rad < min_parallax_rad) {
+    res.message = "rays are (nearly) parallel: no intersection";
+    return res;
+  }
+  std::vector<Pose3> camera_from_world(n);
+  for (size_t i = 0; i < n; ++i) camera_from_world[i] = views[i].world_from_camera.inverse();
+  Eigen::Vector3d p = LinearIntersection(views, uv, camera_from_world);
+  RefineIntersection(views, uv, sigma_px, camera_from_world, &p);
   double sum2 = 0;
   for (size_t i = 0; i < n; ++i) {
     const auto px = views[i].Project(p);
@@ -157,59 +185,71 @@ RefinedStart RefineResection(const std::vector<Pose3>& body_from_camera, const s
 
 }  // namespace
 
+namespace {
+
+// Why the resection's input is unusable ("" when it is), and the number of
+// observations per camera.
+std::string ResectionInputError(const std::vector<Pose3>& body_from_camera,
+                                const std::vector<PinholeCamera>& intrinsics,
+                                const std::vector<ResectionObservation>& observations, const ResectionOptions& options,
+                                std::vector<int>* per_camera) {
+  if (body_from_camera.size() != intrinsics.size()) return "resection: one intrinsics entry per camera needed";
+  per_camera->assign(body_from_camera.size(), 0);
+  for (const auto& o : observations) {
+    if (o.camera < 0 || o.camera >= static_cast<int>(body_from_camera.size()) || !(o.sigma_px > 0) ||
+        !o.uv.allFinite() || !o.p_world.allFinite())
+      return "resection: an observation has a bad camera index, sigma or value";
+    ++(*per_camera)[o.camera];
+  }
+  if (static_cast<int>(observations.size()) < std::max(3, options.min_observations))
+    return "resection: " + std::to_string(observations.size()) + " observations, need " +
+           std::to_string(std::max(3, options.min_observations));
+  return "";
+}
+
+// The body pose from solvePnP (SQPnP) on the camera with the most
+// observations (at least 4), or nullopt.
+std::optional<Pose3> PnpStart(const std::vector<Pose3>& body_from_camera, const std::vector<PinholeCamera>& intrinsics,
+                              const std::vector<ResectionObservation>& observations, const std::vector<int>& per_camera) {
+  const int best = static_cast<int>(std::max_element(per_camera.begin(), per_camera.end()) - per_camera.begin());
+  if (per_camera[best] < 4) return std::nullopt;
+  std::vector<cv::Point3d> object;
+  std::vector<cv::Point2d> image;
+  for (const auto& o : observations) {
+    if (o.camera != best) continue;
+    object.emplace_back(o.p_world.x(), o.p_world.y(), o.p_world.z());
+    image.emplace_back(o.uv.x(), o.uv.y());
+  }
+  cv::Mat rvec, tvec;
+  bool ok = false;
+  try {
+    ok = cv::solvePnP(object, image, cv::Mat(intrinsics[best].K()), cv::Mat(), rvec, tvec, false, cv::SOLVEPNP_SQPNP);
+  } catch (const cv::Exception&) {
+    ok = false;
+  }
+  if (!ok) return std::nullopt;
+  cv::Mat Rcv;
+  cv::Rodrigues(rvec, Rcv);
+  Eigen::Matrix3d R;
+  Eigen::Vector3d t;
+  cv::cv2eigen(Rcv, R);
+  cv::cv2eigen(tvec, t);
+  const Pose3 world_from_camera = MakePose(R, t).inverse();
+  return world_from_camera * body_from_camera[best].inverse();
+}
+
+}  // namespace
+
 ResectionResult ResectBody(const std::vector<Pose3>& body_from_camera, const std::vector<PinholeCamera>& intrinsics,
                            const std::vector<ResectionObservation>& observations,
                            const Pose3& initial_world_from_body, const ResectionOptions& options) {
   ResectionResult res;
-  if (body_from_camera.size() != intrinsics.size()) {
-    res.message = "resection: one intrinsics entry per camera needed";
-    return res;
-  }
-  std::vector<int> per_camera(body_from_camera.size(), 0);
-  for (const auto& o : observations) {
-    if (o.camera < 0 || o.camera >= static_cast<int>(body_from_camera.size()) || !(o.sigma_px > 0) ||
-        !o.uv.allFinite() || !o.p_world.allFinite()) {
-      res.message = "resection: an observation has a bad camera index, sigma or value";
-      return res;
-    }
-    ++per_camera[o.camera];
-  }
-  if (static_cast<int>(observations.size()) < std::max(3, options.min_observations)) {
-    res.message = "resection: " + std::to_string(observations.size()) + " observations, need " +
-                  std::to_string(std::max(3, options.min_observations));
-    return res;
-  }
+  std::vector<int> per_camera;
+  res.message = ResectionInputError(body_from_camera, intrinsics, observations, options, &per_camera);
+  if (!res.message.empty()) return res;
   std::vector<std::pair<Pose3, bool>> starts = {{initial_world_from_body, false}};
-  if (options.try_pnp) {
-    const int best = static_cast<int>(std::max_element(per_camera.begin(), per_camera.end()) - per_camera.begin());
-    if (per_camera[best] >= 4) {
-      std::vector<cv::Point3d> object;
-      std::vector<cv::Point2d> image;
-      for (const auto& o : observations) {
-        if (o.camera != best) continue;
-        object.emplace_back(o.p_world.x(), o.p_world.y(), o.p_world.z());
-        image.emplace_back(o.uv.x(), o.uv.y());
-      }
-      cv::Mat rvec, tvec;
-      bool ok = false;
-      try {
-        ok = cv::solvePnP(object, image, cv::Mat(intrinsics[best].K()), cv::Mat(), rvec, tvec, false,
-                          cv::SOLVEPNP_SQPNP);
-      } catch (const cv::Exception&) {
-        ok = false;
-      }
-      if (ok) {
-        cv::Mat Rcv;
-        cv::Rodrigues(rvec, Rcv);
-        Eigen::Matrix3d R;
-        Eigen::Vector3d t;
-        cv::cv2eigen(Rcv, R);
-        cv::cv2eigen(tvec, t);
-        const Pose3 world_from_camera = MakePose(R, t).inverse();
-        starts.emplace_back(world_from_camera * body_from_camera[best].inverse(), true);
-      }
-    }
-  }
+  if (options.try_pnp)
+    if (const auto pnp = PnpStart(body_from_camera, intrinsics, observations, per_camera)) starts.emplace_back(*pnp, true);
   RefinedStart best;
   for (const auto& [start, from_pnp] : starts) {
     RefinedStart r = RefineResection(body_from_camera, intrinsics, observations, start, options);
