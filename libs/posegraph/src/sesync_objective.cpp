@@ -50,16 +50,19 @@ void UseSeSyncWeights(PoseGraphProblem<D>* problem) {
   }
 }
 
+namespace {
+
+// Columns of the SE-Sync variable X = [t_1 .. t_n | R_1 .. R_n] (D x n(D + 1)).
 template <int D>
-OptimalityCertificate CertifyGlobalOptimum(const PoseGraphProblem<D>& problem, const CertificateOptions& options) {
-  const Stopwatch watch;
-  OptimalityCertificate c;
-  c.objective = SeSyncObjective(problem);
-  const int n = static_cast<int>(problem.poses.size());
-  const int size = n * (D + 1);
-  auto t_col = [](int i) { return i; };
-  auto r_col = [n](int i) { return n + D * i; };
-  // M = sum kappa B B^T + tau b b^T (see the header), as triplets.
+struct Columns {
+  int n;
+  int T(int i) const { return i; }
+  int R(int i) const { return n + D * i; }
+};
+
+// M = sum kappa B B^T + tau b b^T (see the header), as triplets.
+template <int D>
+std::vector<Eigen::Triplet<double>> ConnectionTriplets(const PoseGraphProblem<D>& problem, Columns<D> col) {
   std::vector<Eigen::Triplet<double>> m;
   m.reserve(problem.edges.size() * (4 * D * D + 4 * D + 4));
   for (const auto& e : problem.edges) {
@@ -67,7 +70,7 @@ OptimalityCertificate CertifyGlobalOptimum(const PoseGraphProblem<D>& problem, c
     SeSyncWeights<D>(e.information, &kappa, &tau);
     const Eigen::Matrix<double, D, D>& Rij = e.measurement.R;
     const Eigen::Matrix<double, D, 1>& tij = e.measurement.t;
-    const int ri = r_col(e.i), rj = r_col(e.j), ti = t_col(e.i), tj = t_col(e.j);
+    const int ri = col.R(e.i), rj = col.R(e.j), ti = col.T(e.i), tj = col.T(e.j);
     for (int a = 0; a < D; ++a) {
       m.emplace_back(rj + a, rj + a, kappa);
       m.emplace_back(ri + a, ri + a, kappa);
@@ -86,25 +89,66 @@ OptimalityCertificate CertifyGlobalOptimum(const PoseGraphProblem<D>& problem, c
     m.emplace_back(tj, ti, -tau);
     m.emplace_back(ti, tj, -tau);
   }
+  return m;
+}
+
+// The Lagrange multipliers' block diagonal -Lambda (as triplets) at the
+// poses, and the relative norm of the gradient C X left there
+// (stationarity).
+template <int D>
+std::vector<Eigen::Triplet<double>> NegativeMultipliers(const PoseGraphProblem<D>& problem, Columns<D> col,
+                                                        const std::vector<Eigen::Triplet<double>>& m,
+                                                        double* stationarity) {
+  const int size = col.n * (D + 1);
   Eigen::SparseMatrix<double> M(size, size);
   M.setFromTriplets(m.begin(), m.end());
   Eigen::MatrixXd X = Eigen::MatrixXd::Zero(D, size);
-  for (int i = 0; i < n; ++i) {
-    X.col(t_col(i)) = problem.poses[static_cast<size_t>(i)].t;
-    X.block(0, r_col(i), D, D) = problem.poses[static_cast<size_t>(i)].R;
+  for (int i = 0; i < col.n; ++i) {
+    X.col(col.T(i)) = problem.poses[static_cast<size_t>(i)].t;
+    X.block(0, col.R(i), D, D) = problem.poses[static_cast<size_t>(i)].R;
   }
   const Eigen::MatrixXd XM = (M * X.transpose()).transpose();  // D x size (M symmetric)
   std::vector<Eigen::Triplet<double>> lambda;
   Eigen::MatrixXd CX = XM;
-  for (int i = 0; i < n; ++i) {
+  for (int i = 0; i < col.n; ++i) {
     const Eigen::Matrix<double, D, D> R = problem.poses[static_cast<size_t>(i)].R;
-    const Eigen::Matrix<double, D, D> G = XM.block(0, r_col(i), D, D);
+    const Eigen::Matrix<double, D, D> G = XM.block(0, col.R(i), D, D);
     const Eigen::Matrix<double, D, D> L = 0.5 * (R.transpose() * G + G.transpose() * R);
-    CX.block(0, r_col(i), D, D) -= R * L;
+    CX.block(0, col.R(i), D, D) -= R * L;
     for (int a = 0; a < D; ++a)
-      for (int b = 0; b < D; ++b) lambda.emplace_back(r_col(i) + a, r_col(i) + b, -L(a, b));
+      for (int b = 0; b < D; ++b) lambda.emplace_back(col.R(i) + a, col.R(i) + b, -L(a, b));
   }
-  c.stationarity = CX.norm() / std::max(XM.norm(), 1e-300);
+  *stationarity = CX.norm() / std::max(XM.norm(), 1e-300);
+  return lambda;
+}
+
+// As SE-Sync's fast_verification: whether a supernodal Cholesky of
+// C + eta I = M - Lambda + eta I succeeds (it stops at the first pivot that
+// is not positive).
+bool CholeskyCertifies(const std::vector<Eigen::Triplet<double>>& m, const std::vector<Eigen::Triplet<double>>& lambda,
+                       int size, double eta) {
+  std::vector<Eigen::Triplet<double>> all = m;
+  all.insert(all.end(), lambda.begin(), lambda.end());
+  for (int k = 0; k < size; ++k) all.emplace_back(k, k, eta);
+  Eigen::SparseMatrix<double> C(size, size);
+  C.setFromTriplets(all.begin(), all.end());
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> llt;
+  llt.cholmod().quick_return_if_not_posdef = 1;
+  llt.cholmod().print = 0;
+  llt.compute(C);
+  return llt.info() == Eigen::Success;
+}
+
+}  // namespace
+
+template <int D>
+OptimalityCertificate CertifyGlobalOptimum(const PoseGraphProblem<D>& problem, const CertificateOptions& options) {
+  const Stopwatch watch;
+  OptimalityCertificate c;
+  c.objective = SeSyncObjective(problem);
+  const Columns<D> col{static_cast<int>(problem.poses.size())};
+  const std::vector<Eigen::Triplet<double>> m = ConnectionTriplets(problem, col);
+  const std::vector<Eigen::Triplet<double>> lambda = NegativeMultipliers(problem, col, m, &c.stationarity);
   c.eta = options.min_eig_num_tol;
   std::ostringstream os;
   os.precision(10);
@@ -116,18 +160,7 @@ OptimalityCertificate CertifyGlobalOptimum(const PoseGraphProblem<D>& problem, c
     os << "NOT certified: " << f << " is not at a critical point of F (stationarity " << c.stationarity << " > "
        << options.stationarity_tolerance << ")";
   } else {
-    // As SE-Sync's fast_verification: a supernodal Cholesky of C + eta I,
-    // which stops at the first pivot that is not positive.
-    std::vector<Eigen::Triplet<double>> all = m;
-    all.insert(all.end(), lambda.begin(), lambda.end());
-    for (int k = 0; k < size; ++k) all.emplace_back(k, k, c.eta);
-    Eigen::SparseMatrix<double> C(size, size);
-    C.setFromTriplets(all.begin(), all.end());
-    Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> llt;
-    llt.cholmod().quick_return_if_not_posdef = 1;
-    llt.cholmod().print = 0;
-    llt.compute(C);
-    c.certified = llt.info() == Eigen::Success;
+    c.certified = CholeskyCertifies(m, lambda, col.n * (D + 1), c.eta);
     c.negative_pivots = c.certified ? 0 : 1;
     os << (c.certified ? "certified global optimum: " : "NOT certified: ") << f << ", lambda_min(C) "
        << (c.certified ? "> -" : "< -") << c.eta << " (SE-Sync's min_eig_num_tol)" << ", stationarity "
