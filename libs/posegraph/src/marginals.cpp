@@ -18,16 +18,13 @@ namespace vloc::posegraph {
 
 namespace {
 
-template <class Ordering>
-bool BlockDiagonalOfInverseImpl(const Eigen::SparseMatrix<double>& matrix, int block_size,
-                                std::vector<Eigen::MatrixXd>* blocks) {
-  using SpMat = Eigen::SparseMatrix<double>;
+using SpMat = Eigen::SparseMatrix<double>;
+
+// The lower triangle of `matrix` with every diagonal block structurally
+// dense (explicit zeros), so that the factor's pattern, on which Z is
+// evaluated, covers the blocks we read.
+SpMat LowerWithDenseBlocks(const SpMat& matrix, int block_size) {
   const int n = static_cast<int>(matrix.rows());
-  blocks->clear();
-  if (n == 0) return true;
-  if (matrix.cols() != n || block_size <= 0 || n % block_size != 0) return false;
-  // Make every diagonal block structurally dense (explicit zeros), so that
-  // the factor's pattern, on which Z is evaluated, covers the blocks we read.
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(static_cast<size_t>(matrix.nonZeros()) + static_cast<size_t>(n * block_size));
   for (int c = 0; c < matrix.outerSize(); ++c)
@@ -38,27 +35,21 @@ bool BlockDiagonalOfInverseImpl(const Eigen::SparseMatrix<double>& matrix, int b
       for (int c = 0; c <= r; ++c) triplets.emplace_back(b * block_size + r, b * block_size + c, 0.0);
   SpMat lower(n, n);
   lower.setFromTriplets(triplets.begin(), triplets.end());
-  Eigen::SimplicialLLT<SpMat, Eigen::Lower, Ordering> llt(lower);
-  if (llt.info() != Eigen::Success) return false;
-  const SpMat& L = llt.matrixL().nestedExpression();
+  return lower;
+}
+
+// Z on the pattern of L (z[t] for L's value t), by the recurrence above;
+// false when a diagonal entry of L is missing or not positive. Column j
+// needs Z(i, k) for every pair of rows i >= k > j of its pattern: Z(i, k)
+// lies in column k. Column k's rows are scattered once (row -> position)
+// and all its pairs read in O(1), each pair feeding both rows' sums.
+bool SelectedInverse(const SpMat& L, std::vector<double>* z_out) {
+  const int n = static_cast<int>(L.rows());
   const int* outer = L.outerIndexPtr();
   const int* inner = L.innerIndexPtr();
   const double* values = L.valuePtr();
-  std::vector<double> z(static_cast<size_t>(L.nonZeros()), 0.0);
-
-  // Z(r, c) for r >= c, both in the pattern of L.
-  auto z_at = [&](int r, int c) -> double {
-    if (r < c) std::swap(r, c);
-    const int* begin = inner + outer[c];
-    const int* end = inner + outer[c + 1];
-    const int* it = std::lower_bound(begin, end, r);
-    if (it == end || *it != r) return 0.0;  // outside the pattern: never needed
-    return z[static_cast<size_t>(it - inner)];
-  };
-
-  // Column j needs Z(i, k) for every pair of rows i >= k > j of its pattern:
-  // Z(i, k) lies in column k. Scatter column k's rows once (row -> position)
-  // and read all its pairs in O(1), each pair feeding both rows' sums.
+  std::vector<double>& z = *z_out;
+  z.assign(static_cast<size_t>(L.nonZeros()), 0.0);
   std::vector<int> position(static_cast<size_t>(n), -1);
   std::vector<double> acc;
   for (int j = n - 1; j >= 0; --j) {
@@ -87,7 +78,29 @@ bool BlockDiagonalOfInverseImpl(const Eigen::SparseMatrix<double>& matrix, int b
     }
     z[static_cast<size_t>(begin)] = 1.0 / (ljj * ljj) - sum / ljj;
   }
+  return true;
+}
 
+template <class Ordering>
+bool BlockDiagonalOfInverseImpl(const SpMat& matrix, int block_size, std::vector<Eigen::MatrixXd>* blocks) {
+  const int n = static_cast<int>(matrix.rows());
+  blocks->clear();
+  if (n == 0) return true;
+  if (matrix.cols() != n || block_size <= 0 || n % block_size != 0) return false;
+  Eigen::SimplicialLLT<SpMat, Eigen::Lower, Ordering> llt(LowerWithDenseBlocks(matrix, block_size));
+  if (llt.info() != Eigen::Success) return false;
+  const SpMat& L = llt.matrixL().nestedExpression();
+  std::vector<double> z;
+  if (!SelectedInverse(L, &z)) return false;
+  // Z(r, c) for r >= c, both in the pattern of L.
+  auto z_at = [&](int r, int c) -> double {
+    if (r < c) std::swap(r, c);
+    const int* begin = L.innerIndexPtr() + L.outerIndexPtr()[c];
+    const int* end = L.innerIndexPtr() + L.outerIndexPtr()[c + 1];
+    const int* it = std::lower_bound(begin, end, r);
+    if (it == end || *it != r) return 0.0;  // outside the pattern: never needed
+    return z[static_cast<size_t>(it - L.innerIndexPtr())];
+  };
   const int num_blocks = n / block_size;
   blocks->resize(static_cast<size_t>(num_blocks));
   const bool natural = llt.permutationP().size() == 0;
