@@ -47,46 +47,16 @@ class OdlParser {
       const std::string key = Upper(keyword);
       if (++statements > limits_.max_statements)
         return Err(error, "more than " + std::to_string(limits_.max_statements) + " statements");
-      if (key == "END") {
-        if (stack.size() > 1)
-          return Err(error, "END inside " + stack.back()->kind + " " + stack.back()->name + " (line " +
-                                std::to_string(stack.back()->line) + ")");
-        while (pos_ < s_.size() && s_[pos_] != '\n') ++pos_;
-        if (end_offset) *end_offset = std::min(s_.size(), pos_ + 1);
-        return true;
-      }
+      if (key == "END") return End(stack, error, end_offset);
       if (key == "END_OBJECT" || key == "END_GROUP") {
-        const std::string kind = key.substr(4);
-        std::string name;
-        if (!SkipBlank()) return Err(error, "a comment is not closed (*/)");
-        if (pos_ < s_.size() && s_[pos_] == '=') {
-          ++pos_;
-          SkipBlank();
-          if (!BareToken(&name) || name.empty()) return Err(error, key + " = needs a name");
-        }
-        if (stack.size() == 1) return Err(error, key + " without an open " + kind);
-        OdlBlock* open = stack.back();
-        if (open->kind != kind || (!name.empty() && !SameName(name, open->name)))
-          return Err(error, key + (name.empty() ? "" : " = " + name) + " closes " + open->kind + " " + open->name +
-                                " (line " + std::to_string(open->line) + ")");
-        stack.pop_back();
+        if (!CloseBlock(key, &stack, error)) return false;
         continue;
       }
       if (!SkipBlank()) return Err(error, "a comment is not closed (*/)");
       if (pos_ >= s_.size() || s_[pos_] != '=') return Err(error, keyword + ": '=' expected after the keyword");
       ++pos_;
       if (key == "OBJECT" || key == "GROUP") {
-        SkipBlank();
-        std::string name;
-        if (!BareToken(&name) || name.empty()) return Err(error, key + " = needs a name");
-        if (static_cast<int>(stack.size()) > limits_.max_depth)
-          return Err(error, key + " " + name + " nested deeper than " + std::to_string(limits_.max_depth) + " levels");
-        OdlBlock b;
-        b.kind = key;
-        b.name = Upper(name);
-        b.line = line;
-        stack.back()->children.push_back(std::move(b));
-        stack.push_back(&stack.back()->children.back());
+        if (!OpenBlock(key, line, &stack, error)) return false;
         continue;
       }
       OdlAttribute a;
@@ -108,6 +78,52 @@ class OdlParser {
   bool Err(std::string* error, const std::string& what) const {
     if (error) *error = "line " + std::to_string(line_) + ": " + what;
     return false;
+  }
+
+  // END: the label ends with its line (end_offset: the byte after it).
+  bool End(const std::vector<OdlBlock*>& stack, std::string* error, size_t* end_offset) {
+    if (stack.size() > 1)
+      return Err(error, "END inside " + stack.back()->kind + " " + stack.back()->name + " (line " +
+                            std::to_string(stack.back()->line) + ")");
+    while (pos_ < s_.size() && s_[pos_] != '\n') ++pos_;
+    if (end_offset) *end_offset = std::min(s_.size(), pos_ + 1);
+    return true;
+  }
+
+  // END_OBJECT / END_GROUP [= name]: closes the innermost open block,
+  // which must be of that kind (and name, when one is given).
+  bool CloseBlock(const std::string& key, std::vector<OdlBlock*>* stack, std::string* error) {
+    const std::string kind = key.substr(4);
+    std::string name;
+    if (!SkipBlank()) return Err(error, "a comment is not closed (*/)");
+    if (pos_ < s_.size() && s_[pos_] == '=') {
+      ++pos_;
+      SkipBlank();
+      if (!BareToken(&name) || name.empty()) return Err(error, key + " = needs a name");
+    }
+    if (stack->size() == 1) return Err(error, key + " without an open " + kind);
+    OdlBlock* open = stack->back();
+    if (open->kind != kind || (!name.empty() && !SameName(name, open->name)))
+      return Err(error, key + (name.empty() ? "" : " = " + name) + " closes " + open->kind + " " + open->name +
+                            " (line " + std::to_string(open->line) + ")");
+    stack->pop_back();
+    return true;
+  }
+
+  // OBJECT / GROUP = name: a block opened inside the innermost one.
+  bool OpenBlock(const std::string& key, int line, std::vector<OdlBlock*>* stack, std::string* error) {
+    SkipBlank();
+    std::string name;
+    if (!BareToken(&name) || name.empty()) return Err(error, key + " = needs a name");
+    if (static_cast<int>(stack->size()) > limits_.max_depth)
+      return Err(error, key + " " + name + " nested deeper than " + std::to_string(limits_.max_depth) + " levels");
+    OdlBlock b;
+    b.kind = key;
+    b.name = Upper(name);
+    b.line = line;
+    stack->back()->children.push_back(std::move(b));
+    stack->push_back(&stack->back()->children.back());
+    return true;
   }
 
   void Advance() {
@@ -179,62 +195,75 @@ class OdlParser {
     if (!SkipBlank()) return Err(error, "a comment is not closed (*/)");
     if (pos_ >= s_.size()) return Err(error, keyword + ": the value is missing at the end of the label");
     const char c = s_[pos_];
-    if (c == '(' || c == '{') {
-      const char close = c == '(' ? ')' : '}';
-      v->type = c == '(' ? OdlValue::Type::kSequence : OdlValue::Type::kSet;
-      const int open_line = line_;
+    if (c == '(' || c == '{') return ListValue(v, depth, error, keyword);
+    if (c == '"' || c == '\'') return QuotedValue(v, error, keyword);
+    return BareValue(v, error, keyword);
+  }
+
+  // A sequence ( ... ) or set { ... } of values separated by commas.
+  bool ListValue(OdlValue* v, int depth, std::string* error, const std::string& keyword) {
+    const char c = s_[pos_];
+    const char close = c == '(' ? ')' : '}';
+    v->type = c == '(' ? OdlValue::Type::kSequence : OdlValue::Type::kSet;
+    const int open_line = line_;
+    Advance();
+    SkipBlank();
+    if (pos_ < s_.size() && s_[pos_] == close) {
       Advance();
-      SkipBlank();
-      if (pos_ < s_.size() && s_[pos_] == close) {
+      return true;
+    }
+    while (true) {
+      OdlValue item;
+      if (!Value(&item, depth + 1, error, keyword)) return false;
+      v->items.push_back(std::move(item));
+      if (!SkipBlank()) return Err(error, "a comment is not closed (*/)");
+      if (pos_ >= s_.size())
+        return Err(error, keyword + ": '" + std::string(1, c) + "' of line " + std::to_string(open_line) +
+                              " is not closed");
+      if (s_[pos_] == ',') {
+        Advance();
+        continue;
+      }
+      if (s_[pos_] == close) {
         Advance();
         return true;
       }
-      while (true) {
-        OdlValue item;
-        if (!Value(&item, depth + 1, error, keyword)) return false;
-        v->items.push_back(std::move(item));
-        if (!SkipBlank()) return Err(error, "a comment is not closed (*/)");
-        if (pos_ >= s_.size())
-          return Err(error, keyword + ": '" + std::string(1, c) + "' of line " + std::to_string(open_line) +
-                                " is not closed");
-        if (s_[pos_] == ',') {
-          Advance();
-          continue;
-        }
-        if (s_[pos_] == close) {
-          Advance();
-          return true;
-        }
-        return Err(error, keyword + ": ',' or '" + std::string(1, close) + "' expected, found '" + Printable(s_[pos_]) +
-                              "'");
+      return Err(error, keyword + ": ',' or '" + std::string(1, close) + "' expected, found '" + Printable(s_[pos_]) +
+                            "'");
+    }
+  }
+
+  // A "string" or 'symbol'; a line break and the blanks around it are one space.
+  bool QuotedValue(OdlValue* v, std::string* error, const std::string& keyword) {
+    const char c = s_[pos_];
+    const int open_line = line_;
+    Advance();
+    const size_t end = s_.find(c, pos_);
+    if (end == std::string::npos)
+      return Err(error, keyword + ": the " + std::string(c == '"' ? "string" : "symbol") + " opened on line " +
+                            std::to_string(open_line) + " is not closed");
+    std::string raw = s_.substr(pos_, end - pos_);
+    while (pos_ <= end) Advance();
+    std::string text;
+    for (size_t i = 0; i < raw.size(); ++i) {
+      if (raw[i] == '\r' || raw[i] == '\n') {
+        while (!text.empty() && (text.back() == ' ' || text.back() == '\t')) text.pop_back();
+        size_t j = i;
+        while (j < raw.size() && std::isspace(static_cast<unsigned char>(raw[j]))) ++j;
+        if (!text.empty() && j < raw.size()) text += ' ';
+        i = j - 1;
+      } else {
+        text += raw[i];
       }
     }
-    if (c == '"' || c == '\'') {
-      const int open_line = line_;
-      Advance();
-      const size_t end = s_.find(c, pos_);
-      if (end == std::string::npos)
-        return Err(error, keyword + ": the " + std::string(c == '"' ? "string" : "symbol") + " opened on line " +
-                              std::to_string(open_line) + " is not closed");
-      std::string raw = s_.substr(pos_, end - pos_);
-      while (pos_ <= end) Advance();
-      // A line break and the blanks around it are one space.
-      std::string text;
-      for (size_t i = 0; i < raw.size(); ++i) {
-        if (raw[i] == '\r' || raw[i] == '\n') {
-          while (!text.empty() && (text.back() == ' ' || text.back() == '\t')) text.pop_back();
-          size_t j = i;
-          while (j < raw.size() && std::isspace(static_cast<unsigned char>(raw[j]))) ++j;
-          if (!text.empty() && j < raw.size()) text += ' ';
-          i = j - 1;
-        } else {
-          text += raw[i];
-        }
-      }
-      v->type = c == '"' ? OdlValue::Type::kString : OdlValue::Type::kSymbol;
-      v->text = text;
-      return true;
-    }
+    v->type = c == '"' ? OdlValue::Type::kString : OdlValue::Type::kSymbol;
+    v->text = text;
+    return true;
+  }
+
+  // An identifier, or a number with an optional unit: 12.5 <m>.
+  bool BareValue(OdlValue* v, std::string* error, const std::string& keyword) {
+    const char c = s_[pos_];
     std::string token;
     if (!BareToken(&token)) return Err(error, keyword + ": a value holds a control or non-ASCII byte");
     if (token.empty()) return Err(error, keyword + ": a value was expected, found '" + Printable(c) + "'");
@@ -243,7 +272,6 @@ class OdlParser {
       v->type = OdlValue::Type::kIdentifier;
       return true;
     }
-    // An optional unit: 12.5 <m>.
     const size_t save_pos = pos_;
     const int save_line = line_;
     if (!SkipBlank()) return Err(error, "a comment is not closed (*/)");
