@@ -393,14 +393,75 @@ void Supervisor::Step(int timeout_ms) {
   }
 }
 
+namespace {
+
+// The strings' buffers as a null-terminated array for execve (valid while
+// the strings live unchanged).
+std::vector<char*> NullTerminated(std::vector<std::string>& strings) {
+  std::vector<char*> out;
+  for (auto& s : strings) out.push_back(s.data());
+  out.push_back(nullptr);
+  return out;
+}
+
+// The child's environment: the launcher's, overridden by the process's env,
+// and the owner mark (launcher pid : process index : instance) by which the
+// launcher knows its descendants.
+std::vector<std::string> ChildEnvironment(const std::map<std::string, std::string>& env, const std::string& owner) {
+  std::vector<std::string> env_strings;
+  for (char** e = environ; e && *e; ++e) {
+    const std::string entry = *e;
+    const std::string key = entry.substr(0, entry.find('='));
+    if (!env.count(key)) env_strings.push_back(entry);
+  }
+  for (const auto& [k, v] : env) env_strings.push_back(k + "=" + v);
+  env_strings.push_back(std::string(kOwnerVariable) + "=" + owner);
+  return env_strings;
+}
+
+// In the child after fork: its own process group, dies with the launcher
+// (`parent`), default signals, stdin from /dev/null, stdout and stderr into
+// out_fd, then the program; exit 126 / 127 with one line when it cannot.
+[[noreturn]] void ExecChild(pid_t parent, int out_fd, const char* workdir, char* const* argv, char* const* envp) {
+  setpgid(0, 0);
+  prctl(PR_SET_PDEATHSIG, SIGTERM);
+  if (getppid() != parent) _exit(1);
+  sigset_t none;
+  sigemptyset(&none);
+  sigprocmask(SIG_SETMASK, &none, nullptr);
+  for (int s : {SIGPIPE, SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGCHLD}) signal(s, SIG_DFL);
+  const int devnull = open("/dev/null", O_RDONLY);
+  if (devnull >= 0) dup2(devnull, 0);
+  dup2(out_fd, 1);
+  dup2(out_fd, 2);
+  if (workdir && chdir(workdir) != 0) {
+    dprintf(2, "vloc_launch: cannot enter working_dir %s: %s\n", workdir, std::strerror(errno));
+    _exit(126);
+  }
+  execve(argv[0], argv, envp);
+  dprintf(2, "vloc_launch: cannot run %s: %s\n", argv[0], std::strerror(errno));
+  _exit(127);
+}
+
+}  // namespace
+
+void Supervisor::OpenLog(Proc& p) {
+  if (p.log_opened || options_.log_dir.empty()) return;
+  const std::string path = options_.log_dir + "/" + p.spec.name + ".log";
+  p.log_fd = open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
+  if (p.log_fd < 0) LOG(ERROR) << "cannot write log file " << path << ": " << std::strerror(errno);
+  p.log_opened = true;
+}
+
+void Supervisor::RetryStartLater(Proc& p, Clock::time_point now, const std::string& why) {
+  Note(p, why + "; will retry");
+  p.state = ProcState::kBackoff;
+  p.next_start_at = now + std::chrono::seconds(1);
+}
+
 void Supervisor::Spawn(Proc& p, Clock::time_point now) {
   const ProcessSpec& spec = p.spec;
-  if (!p.log_opened && !options_.log_dir.empty()) {
-    const std::string path = options_.log_dir + "/" + spec.name + ".log";
-    p.log_fd = open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
-    if (p.log_fd < 0) LOG(ERROR) << "cannot write log file " << path << ": " << std::strerror(errno);
-    p.log_opened = true;
-  }
+  OpenLog(p);
   std::string error;
   const std::string program = ResolveProgram(spec, &error);
   if (program.empty() || (!spec.working_dir.empty() && !std::filesystem::is_directory(spec.working_dir))) {
@@ -412,66 +473,25 @@ void Supervisor::Spawn(Proc& p, Clock::time_point now) {
     p.has_exited = true;
     return;
   }
-
   // Everything the child needs is built before fork.
   std::vector<std::string> arg_strings = {program};
   arg_strings.insert(arg_strings.end(), spec.args.begin(), spec.args.end());
-  std::vector<char*> argv;
-  for (auto& a : arg_strings) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  std::vector<std::string> env_strings;
-  for (char** e = environ; e && *e; ++e) {
-    const std::string entry = *e;
-    const std::string key = entry.substr(0, entry.find('='));
-    if (!spec.env.count(key)) env_strings.push_back(entry);
-  }
-  for (const auto& [k, v] : spec.env) env_strings.push_back(k + "=" + v);
+  const std::vector<char*> argv = NullTerminated(arg_strings);
   ++p.instance;
-  env_strings.push_back(std::string(kOwnerVariable) + "=" + std::to_string(self_) + ":" + std::to_string(p.index) + ":" +
-                        std::to_string(p.instance));
-  std::vector<char*> envp;
-  for (auto& e : env_strings) envp.push_back(e.data());
-  envp.push_back(nullptr);
+  std::vector<std::string> env_strings = ChildEnvironment(
+      spec.env, std::to_string(self_) + ":" + std::to_string(p.index) + ":" + std::to_string(p.instance));
+  const std::vector<char*> envp = NullTerminated(env_strings);
   const char* workdir = spec.working_dir.empty() ? nullptr : spec.working_dir.c_str();
-
   int fds[2];
-  if (pipe2(fds, O_CLOEXEC) != 0) {
-    Note(p, std::string("pipe failed: ") + std::strerror(errno) + "; will retry");
-    p.state = ProcState::kBackoff;
-    p.next_start_at = now + std::chrono::seconds(1);
-    return;
-  }
+  if (pipe2(fds, O_CLOEXEC) != 0) return RetryStartLater(p, now, std::string("pipe failed: ") + std::strerror(errno));
   const pid_t parent = getpid();
   const pid_t pid = fork();
   if (pid < 0) {
     close(fds[0]);
     close(fds[1]);
-    Note(p, std::string("fork failed: ") + std::strerror(errno) + "; will retry");
-    p.state = ProcState::kBackoff;
-    p.next_start_at = now + std::chrono::seconds(1);
-    return;
+    return RetryStartLater(p, now, std::string("fork failed: ") + std::strerror(errno));
   }
-  if (pid == 0) {
-    // Child: own process group, dies with the launcher, default signals.
-    setpgid(0, 0);
-    prctl(PR_SET_PDEATHSIG, SIGTERM);
-    if (getppid() != parent) _exit(1);
-    sigset_t none;
-    sigemptyset(&none);
-    sigprocmask(SIG_SETMASK, &none, nullptr);
-    for (int s : {SIGPIPE, SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGCHLD}) signal(s, SIG_DFL);
-    const int devnull = open("/dev/null", O_RDONLY);
-    if (devnull >= 0) dup2(devnull, 0);
-    dup2(fds[1], 1);
-    dup2(fds[1], 2);
-    if (workdir && chdir(workdir) != 0) {
-      dprintf(2, "vloc_launch: cannot enter working_dir %s: %s\n", workdir, std::strerror(errno));
-      _exit(126);
-    }
-    execve(argv[0], argv.data(), envp.data());
-    dprintf(2, "vloc_launch: cannot run %s: %s\n", argv[0], std::strerror(errno));
-    _exit(127);
-  }
+  if (pid == 0) ExecChild(parent, fds[1], workdir, argv.data(), envp.data());
   setpgid(pid, pid);  // also here, so signals to -pid work at once
   close(fds[1]);
   fcntl(fds[0], F_SETFL, fcntl(fds[0], F_GETFL) | O_NONBLOCK);

@@ -148,6 +148,8 @@ class Supervisor {
   void RequestStop(Proc& p, bool restart_after);
   void SendStop(Proc& p, Clock::time_point now);
   void Spawn(Proc& p, Clock::time_point now);
+  void OpenLog(Proc& p);  // once, when options_.log_dir is set
+  void RetryStartLater(Proc& p, Clock::time_point now, const std::string& why);  // in 1 s
   void OnExit(Proc& p, int wait_status, Clock::time_point now);
   void PumpOutput(int timeout_ms);
   void ReadOutput(Proc& p);
