@@ -472,6 +472,27 @@ bool Terrain::IntersectCell(int ci, int cj, double o_x, double o_y, double o_z, 
   return true;
 }
 
+// The part [t0, t1] of the ray (grid coordinates: x, y in cells, z in
+// metres) inside the terrain's box: the grid and below its highest point;
+// false when it misses the box.
+bool Terrain::ClipToTerrainBox(double o_x, double o_y, double o_z, double d_x, double d_y, double d_z, double* t0,
+                               double* t1) const {
+  const double size = cells_;
+  auto clip = [&](double o, double d, double lo, double hi) {
+    if (std::abs(d) < 1e-15) return o >= lo && o <= hi;
+    double ta = (lo - o) / d, tb = (hi - o) / d;
+    if (ta > tb) std::swap(ta, tb);
+    *t0 = std::max(*t0, ta);
+    *t1 = std::min(*t1, tb);
+    return *t0 <= *t1;
+  };
+  const float z_top = max_levels_.back().max_height[0];
+  if (!clip(o_x, d_x, 0.0, size) || !clip(o_y, d_y, 0.0, size)) return false;
+  if (d_z >= 0 && o_z + *t0 * d_z > z_top) return false;
+  if (d_z < 0) *t0 = std::max(*t0, (z_top - o_z) / d_z);
+  return *t0 <= *t1;
+}
+
 std::optional<RayHit> Terrain::Raycast(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                                        double max_range) const {
   // Grid coordinates: x, y in cells, z in metres; t in metres along the ray.
@@ -481,20 +502,7 @@ std::optional<RayHit> Terrain::Raycast(const Eigen::Vector3d& origin, const Eige
   const double d_x = direction.x() * inv_res_, d_y = direction.y() * inv_res_, d_z = direction.z();
   const double size = cells_;
   double t0 = 0.0, t1 = max_range;
-  auto clip = [&](double o, double d, double lo, double hi) {
-    if (std::abs(d) < 1e-15) return o >= lo && o <= hi;
-    double ta = (lo - o) / d, tb = (hi - o) / d;
-    if (ta > tb) std::swap(ta, tb);
-    t0 = std::max(t0, ta);
-    t1 = std::min(t1, tb);
-    return t0 <= t1;
-  };
-  const float z_top = max_levels_.back().max_height[0];
-  if (!clip(o_x, d_x, 0.0, size) || !clip(o_y, d_y, 0.0, size)) return std::nullopt;
-  if (d_z >= 0 && o_z + t0 * d_z > z_top) return std::nullopt;
-  if (d_z < 0) t0 = std::max(t0, (z_top - o_z) / d_z);
-  if (t0 > t1) return std::nullopt;
-
+  if (!ClipToTerrainBox(o_x, o_y, o_z, d_x, d_y, d_z, &t0, &t1)) return std::nullopt;
   const int top = static_cast<int>(max_levels_.size()) - 1;
   const double eps = 1e-6;
   // Reciprocals once per ray (multiplications in the loop, not divisions).

@@ -167,6 +167,8 @@ class Terrain {
   void SunFromOptions();
   void BuildShadowHorizon();
   double Bilinear(const std::vector<float>& field, double x, double y) const;
+  bool ClipToTerrainBox(double o_x, double o_y, double o_z, double d_x, double d_y, double d_z, double* t0,
+                        double* t1) const;
   bool IntersectCell(int ci, int cj, double o_x, double o_y, double o_z, double d_x, double d_y,
                      double d_z, double t_a, double t_b, double* t_hit) const;
 
