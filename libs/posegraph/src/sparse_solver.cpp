@@ -503,7 +503,6 @@ bool PreconditionedCg(const Eigen::SparseMatrix<double>& A, const Eigen::VectorX
   return false;
 }
 
-// Levenberg-Marquardt (Nielsen's damping update) from the current poses.
 // Levenberg-Marquardt's state between iterations.
 struct LmState {
   double cost = 0;
@@ -603,6 +602,7 @@ void Marginals(PoseGraphProblem<D>* problem, const SolverOptions& options, const
   summary->marginal_seconds = marginal.Seconds();
 }
 
+// Levenberg-Marquardt (Nielsen's damping update) from the current poses.
 template <int D>
 bool Minimise(PoseGraphProblem<D>* problem, const SolverOptions& options, SolverSummary* summary,
               std::vector<typename PoseGraphProblem<D>::Information>* marginals) {

@@ -110,11 +110,10 @@ struct Shading {
   double radiance = 0;
   int samples = 1;
 };
-Shading ShadeTerrain(const Terrain& terrain, const NavcamRenderOptions& o, const RayHit& hit,
+Shading ShadeTerrain(const Terrain& terrain, const NavcamRenderOptions& o, bool lambert, const RayHit& hit,
                      const Eigen::Vector3d& dir, double ray_norm, double inv_f) {
   const Eigen::Vector3d& sun = terrain.SunDirection();
   const double ambient = terrain.options().ambient;
-  const bool lambert = o.photometric == "lambert";
   const Eigen::Vector3d& p = hit.point;
   const Eigen::Vector3d n = terrain.Normal(p.x(), p.y());
   const double cos_view = std::max(0.05, std::abs(dir.dot(n)));
@@ -145,12 +144,12 @@ Shading ShadeTerrain(const Terrain& terrain, const NavcamRenderOptions& o, const
 }
 
 // What the sensor makes of `signal` DN at pixel (u, v) (index v * width +
-// u): vignetting, black level, read and shot noise, 12-bit companding,
+// u; corner2: the squared distance of the principal point from the
+// corner): vignetting, black level, read and shot noise, 12-bit companding,
 // stuck pixels (hot_seed: the sensor's), 8 bits.
-uint8_t SensorValue(const NavcamRenderOptions& o, const PinholeCamera& camera, int u, int v, size_t index,
-                    double signal, uint64_t noise_seed, uint64_t hot_seed) {
+uint8_t SensorValue(const NavcamRenderOptions& o, const PinholeCamera& camera, double corner2, int u, int v,
+                    size_t index, double signal, uint64_t noise_seed, uint64_t hot_seed) {
   if (o.vignetting > 0) {
-    const double corner2 = camera.cx * camera.cx + camera.cy * camera.cy;
     const double r2 = ((u - camera.cx) * (u - camera.cx) + (v - camera.cy) * (v - camera.cy)) / corner2;
     signal *= 1.0 - o.vignetting * r2;
   }
@@ -189,6 +188,8 @@ RenderedImage NavcamRenderer::Render(const PinholeCamera& camera, const Pose3& w
   const Eigen::Vector3d& sun = terrain_.SunDirection();
   const double ambient = terrain_.options().ambient;
   const double inv_f = 1.0 / std::sqrt(camera.fx * camera.fy);
+  const bool lambert = options_.photometric == "lambert";
+  const double corner2 = camera.cx * camera.cx + camera.cy * camera.cy;
   const uint64_t hot_seed = SameCamera(camera, model_.rig.right) ? 2 : 1;  // stuck pixels belong to the sensor
   const bool deck = options_.deck && world_from_body != nullptr;
   const Pose3 body_from_world = deck ? world_from_body->inverse() : Pose3::Identity();
@@ -214,14 +215,14 @@ RenderedImage NavcamRenderer::Render(const PinholeCamera& camera, const Pose3& w
         if (depth_row) depth_row[u] = static_cast<float>(*deck_t / ray_norm);
         out.deck.at<uint8_t>(v, u) = 255;
       } else if (hit) {
-        const Shading shade = ShadeTerrain(terrain_, options_, *hit, dir, ray_norm, inv_f);
+        const Shading shade = ShadeTerrain(terrain_, options_, lambert, *hit, dir, ray_norm, inv_f);
         signal = options_.exposure_gain_dn * gain_factor * shade.radiance / shade.samples;
         if (depth_row) depth_row[u] = static_cast<float>(hit->range / ray_norm);
       } else {
         ++sky;
         signal = options_.sky_dn * (options_.adc_bits == 12 ? 16.0 : 1.0) * gain_factor;
       }
-      row[u] = SensorValue(options_, camera, u, v, index, signal, noise_seed, hot_seed);
+      row[u] = SensorValue(options_, camera, corner2, u, v, index, signal, noise_seed, hot_seed);
     }
   }
   out.sky_pixels = sky;

@@ -179,8 +179,8 @@ struct UavWorld::Impl {
 };
 
 namespace {
+
 constexpr int kCrownPx = 256;  // crown texture side
-}
 
 // Tree crowns: textured discs (leaf clumps at several scales, darker rim),
 // lowest first.
@@ -358,6 +358,8 @@ std::vector<cv::Mat> TileDetail(const Orthomap& map, cv::Size canvas) {
   }
   return tiled_levels;
 }
+
+}  // namespace
 
 UavWorld::UavWorld(const UavWorldOptions& options)
     : options_(options), flight_(options.flight), impl_(std::make_unique<Impl>()) {
