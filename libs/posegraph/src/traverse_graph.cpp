@@ -385,6 +385,52 @@ PoseGraph3 TraverseGraph::Problem(std::vector<mrpt::graphs::TNodeID>* ids, const
   return problem;
 }
 
+std::map<mrpt::graphs::TNodeID, Matrix6d> TraverseGraph::MarginalsWithoutLoops() const {
+  std::map<mrpt::graphs::TNodeID, Matrix6d> computed;
+  std::vector<mrpt::graphs::TNodeID> ids;
+  const PoseGraph3 plain = Problem(&ids, nullptr, [](EdgeKind kind) {
+    return kind != EdgeKind::kLoop && kind != EdgeKind::kAbsoluteFix;
+  });
+  std::vector<PoseGraph3::Information> blocks;
+  std::string ignored;
+  if (MarginalCovariances(plain, options_.solver, &blocks, &ignored))
+    for (size_t p = 0; p < ids.size(); ++p)
+      if (!plain.fixed[p]) computed[ids[p]] = blocks[p];
+  return computed;
+}
+
+Matrix6d TraverseGraph::MarginalOrNearest(mrpt::graphs::TNodeID id,
+                                          const std::map<mrpt::graphs::TNodeID, Matrix6d>& prior) const {
+  if (id == graph_.root || prior.empty()) return Matrix6d::Zero();
+  if (const auto it = prior.find(id); it != prior.end()) return it->second;
+  auto nearest = prior.lower_bound(id);
+  if (nearest == prior.end()) --nearest;
+  const auto& a = graph_.nodes.at(id);
+  const auto& b = graph_.nodes.at(nearest->first);
+  const double d = std::sqrt((a.x() - b.x()) * (a.x() - b.x()) + (a.y() - b.y()) * (a.y() - b.y()) +
+                             (a.z() - b.z()) * (a.z() - b.z()));
+  return nearest->second + Diagonal(options_.dr_position_sigma_per_metre * d, options_.dr_position_sigma_per_metre * d,
+                                    options_.dr_vertical_sigma_per_metre * d, options_.dr_tilt_sigma,
+                                    options_.dr_tilt_sigma, options_.dr_heading_sigma_per_metre * d);
+}
+
+double TraverseGraph::LoopKernelScale(const EdgeKey& key, const mrpt::poses::CPose3DPDFGaussianInf& edge,
+                                      const std::map<mrpt::graphs::TNodeID, Matrix6d>& prior) const {
+  const auto i = static_cast<mrpt::graphs::TNodeID>(key.from), j = static_cast<mrpt::graphs::TNodeID>(key.to);
+  if (prior.empty() || !graph_.nodes.count(i) || !graph_.nodes.count(j)) return 1.0;
+  Matrix6d J_i, J_j;
+  const Vector6d e = EdgeResidual<3>(ToSolver(edge.mean), ToSolver(graph_.nodes.at(i)), ToSolver(graph_.nodes.at(j)),
+                                     &J_i, &J_j);
+  const Matrix6d W = edge.cov_inv.asEigen();
+  const Matrix6d S = J_i * MarginalOrNearest(i, prior) * J_i.transpose() +
+                     J_j * MarginalOrNearest(j, prior) * J_j.transpose() + W.inverse();
+  const double own = e.dot(W * e);
+  const double predicted = e.dot(S.ldlt().solve(e));
+  if (!(predicted <= options_.loop_gate_chi2)) return 1e-9;
+  if (predicted > 0 && std::isfinite(own / predicted)) return std::max(1.0, own / predicted);
+  return 1.0;
+}
+
 std::vector<double> TraverseGraph::RobustEdgeScales() const {
   // Per edge (edges_ order): 0
   // for DR and adjacent visual edges. A loop or fix is tested against the
@@ -404,56 +450,17 @@ std::vector<double> TraverseGraph::RobustEdgeScales() const {
   // singular the kernel runs at its plain width. A site without a marginal
   // (added since the last update) takes its nearest site's, grown by the
   // per-metre DR model over the distance between them.
-  std::vector<double> scales;
-  scales.reserve(edges_.size());
   const bool any_robust = std::any_of(edges_.begin(), edges_.end(), [](const auto& entry) {
     return entry.first.kind == EdgeKind::kLoop || entry.first.kind == EdgeKind::kAbsoluteFix;
   });
-  std::map<mrpt::graphs::TNodeID, Matrix6d> computed;
-  if (any_robust && marginals_.empty()) {
-    std::vector<mrpt::graphs::TNodeID> ids;
-    const PoseGraph3 plain = Problem(&ids, nullptr, [](EdgeKind kind) {
-      return kind != EdgeKind::kLoop && kind != EdgeKind::kAbsoluteFix;
-    });
-    std::vector<PoseGraph3::Information> blocks;
-    std::string ignored;
-    if (MarginalCovariances(plain, options_.solver, &blocks, &ignored))
-      for (size_t p = 0; p < ids.size(); ++p)
-        if (!plain.fixed[p]) computed[ids[p]] = blocks[p];
-  }
+  const std::map<mrpt::graphs::TNodeID, Matrix6d> computed =
+      any_robust && marginals_.empty() ? MarginalsWithoutLoops() : std::map<mrpt::graphs::TNodeID, Matrix6d>();
   const std::map<mrpt::graphs::TNodeID, Matrix6d>& prior = marginals_.empty() ? computed : marginals_;
-  auto marginal = [this, &prior](mrpt::graphs::TNodeID id) -> Matrix6d {
-    if (id == graph_.root || prior.empty()) return Matrix6d::Zero();
-    if (const auto it = prior.find(id); it != prior.end()) return it->second;
-    auto nearest = prior.lower_bound(id);
-    if (nearest == prior.end()) --nearest;
-    const auto& a = graph_.nodes.at(id);
-    const auto& b = graph_.nodes.at(nearest->first);
-    const double d = std::sqrt((a.x() - b.x()) * (a.x() - b.x()) + (a.y() - b.y()) * (a.y() - b.y()) +
-                               (a.z() - b.z()) * (a.z() - b.z()));
-    return nearest->second + Diagonal(options_.dr_position_sigma_per_metre * d, options_.dr_position_sigma_per_metre * d,
-                                      options_.dr_vertical_sigma_per_metre * d, options_.dr_tilt_sigma,
-                                      options_.dr_tilt_sigma, options_.dr_heading_sigma_per_metre * d);
-  };
+  std::vector<double> scales;
+  scales.reserve(edges_.size());
   for (const auto& [key, edge] : edges_) {
-    if (key.kind != EdgeKind::kLoop && key.kind != EdgeKind::kAbsoluteFix) {
-      scales.push_back(0.0);
-      continue;
-    }
-    const auto i = static_cast<mrpt::graphs::TNodeID>(key.from), j = static_cast<mrpt::graphs::TNodeID>(key.to);
-    double scale = 1.0;
-    if (!prior.empty() && graph_.nodes.count(i) && graph_.nodes.count(j)) {
-      Matrix6d J_i, J_j;
-      const Vector6d e = EdgeResidual<3>(ToSolver(edge.mean), ToSolver(graph_.nodes.at(i)), ToSolver(graph_.nodes.at(j)),
-                                         &J_i, &J_j);
-      const Matrix6d W = edge.cov_inv.asEigen();
-      const Matrix6d S = J_i * marginal(i) * J_i.transpose() + J_j * marginal(j) * J_j.transpose() + W.inverse();
-      const double own = e.dot(W * e);
-      const double predicted = e.dot(S.ldlt().solve(e));
-      if (!(predicted <= options_.loop_gate_chi2)) scale = 1e-9;
-      else if (predicted > 0 && std::isfinite(own / predicted)) scale = std::max(1.0, own / predicted);
-    }
-    scales.push_back(scale);
+    const bool robust = key.kind == EdgeKind::kLoop || key.kind == EdgeKind::kAbsoluteFix;
+    scales.push_back(robust ? LoopKernelScale(key, edge, prior) : 0.0);
   }
   return scales;
 }

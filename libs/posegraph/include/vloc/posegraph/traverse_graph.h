@@ -197,6 +197,15 @@ class TraverseGraph {
   // The solver's robust-kernel width scale of every edge (edges_ order, 0 =
   // not robust).
   std::vector<double> RobustEdgeScales() const;
+  // The marginals of the graph without its loop and fix edges, at the
+  // current estimate (empty when singular).
+  std::map<mrpt::graphs::TNodeID, Matrix6d> MarginalsWithoutLoops() const;
+  // A site's marginal from `prior`, or its nearest site's grown by the DR
+  // model over the distance between them (zero for the root).
+  Matrix6d MarginalOrNearest(mrpt::graphs::TNodeID id, const std::map<mrpt::graphs::TNodeID, Matrix6d>& prior) const;
+  // A loop or fix edge's kernel scale (RobustEdgeScales).
+  double LoopKernelScale(const EdgeKey& key, const mrpt::poses::CPose3DPDFGaussianInf& edge,
+                         const std::map<mrpt::graphs::TNodeID, Matrix6d>& prior) const;
   void RetryPending();
   // The root's DR covariance carried to a site at world_from_site (zero
   // without one).
