@@ -231,6 +231,13 @@ void DeadReckoning::ApplyImu(const ImuSample& s) {
     return;
   }
   const double dt = (s.utime - imu_utime_) * kMicro;
+  PropagateImu(s, dt);
+  ++stats_.imu_used;
+  UpdateStillness(s, dt);
+  FlushWheel(false);
+}
+
+void DeadReckoning::PropagateImu(const ImuSample& s, double dt) {
   const Eigen::Vector3d rate = s.angular_velocity - gyro_bias_;
   if (dt > options_.max_imu_gap_s) {
     ++stats_.imu_gaps;
@@ -249,9 +256,9 @@ void DeadReckoning::ApplyImu(const ImuSample& s) {
               options_.wheel_wait_s + options_.max_imu_gap_s + 5.0 ||
           attitude_history_.size() > kMaxBufferedSamples))
     attitude_history_.pop_front();
-  ++stats_.imu_used;
+}
 
-  // Gravity-aided roll/pitch once per stop.
+void DeadReckoning::UpdateStillness(const ImuSample& s, double dt) {
   const bool still = s.angular_velocity.norm() < options_.still_gyro_threshold &&
                      std::abs(s.linear_acceleration.norm() - options_.gravity_mps2) < options_.still_accel_tolerance &&
                      std::abs(last_speed_) < options_.still_speed_threshold;
@@ -266,23 +273,23 @@ void DeadReckoning::ApplyImu(const ImuSample& s) {
     still_force_sum_.setZero();
     still_count_ = 0;
     stop_updated_ = false;
-  } else if (!stop_updated_) {
-    still_seconds_ += dt;
-    if (still_seconds_ > options_.still_settle_s) {
-      still_force_sum_ += R_ * s.linear_acceleration;  // world frame: gyro-compensated while settling
-      ++still_count_;
-    }
-    if (still_seconds_ >= options_.still_settle_s + options_.still_duration_s && still_count_ > 0) {
-      const Eigen::Vector3d mean_force_body = R_.transpose() * (still_force_sum_ / still_count_);
-      if (aligned_) {
-        GravityUpdate(mean_force_body);
-      } else {
-        Align(mean_force_body);
-      }
-      stop_updated_ = true;
-    }
+    return;
   }
-  FlushWheel(false);
+  if (stop_updated_) return;
+  still_seconds_ += dt;
+  if (still_seconds_ > options_.still_settle_s) {
+    still_force_sum_ += R_ * s.linear_acceleration;  // world frame: gyro-compensated while settling
+    ++still_count_;
+  }
+  if (still_seconds_ >= options_.still_settle_s + options_.still_duration_s && still_count_ > 0) {
+    const Eigen::Vector3d mean_force_body = R_.transpose() * (still_force_sum_ / still_count_);
+    if (aligned_) {
+      GravityUpdate(mean_force_body);
+    } else {
+      Align(mean_force_body);
+    }
+    stop_updated_ = true;
+  }
 }
 
 void DeadReckoning::GravityUpdate(const Eigen::Vector3d& f) {

@@ -116,6 +116,12 @@ class DeadReckoning {
   void Reset(const char* why);
   void Initialize(const ImuSample& first);
   void ApplyImu(const ImuSample& s);  // after the plausibility and time gates
+  // Attitude over dt (a gap longer than max_imu_gap_s held, its sigma
+  // inflated) and the attitude history wheel samples interpolate in.
+  void PropagateImu(const ImuSample& s, double dt);
+  // Gravity-aided roll/pitch once per stop: the mean specific force of a
+  // settled stop aligns (the first) or corrects roll and pitch.
+  void UpdateStillness(const ImuSample& s, double dt);
   void PropagateAttitude(const Eigen::Vector3d& rate, double dt);
   void IntegrateWheel(const WheelOdometrySample& sample);
   void FlushWheel(bool force_all);
