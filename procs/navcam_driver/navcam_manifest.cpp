@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <optional>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -84,74 +85,86 @@ void RefuseBadPairIndices(const std::string& path, std::vector<NavcamManifestEnt
 
 }  // namespace
 
+namespace {
+
+// The manifest's YAML and its 'pairs' list: false with the problem in out.
+bool LoadManifestYaml(const std::string& path, YAML::Node* root, NavcamManifest* out) {
+  try {
+    *root = YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    out->problems.push_back("manifest " + path + " cannot be read: no such file (give the path of the manifest YAML)");
+    return false;
+  } catch (const YAML::Exception& e) {
+    out->problems.push_back("manifest " + path + " is not valid YAML: " + e.what());
+    return false;
+  }
+  const YAML::Node pairs = (*root)["pairs"];
+  if (!root->IsMap() || !pairs || !pairs.IsSequence()) {
+    out->problems.push_back("manifest " + path + " has no 'pairs' list (see procs/navcam_driver/navcam_manifest.h)");
+    return false;
+  }
+  return true;
+}
+
+// Row `row_number` of the list: its entry (angles in rad, paths beside the
+// manifest), or nullopt with the problem that skips it.
+std::optional<NavcamManifestEntry> ReadRow(const YAML::Node& row, int row_number, const std::string& path,
+                                           double angle_scale, std::vector<std::string>* problems) {
+  NavcamManifestEntry e;
+  e.row = row_number;
+  e.line = row.Mark().line + 1;
+  const std::string where = RowName(path, e.row, e.line);
+  double time = 0, pan = 0, tilt = 0;
+  std::string left, right, error;
+  if (!row.IsMap()) {
+    problems->push_back(where + ": not a map of site/pair/pan/tilt/time/left/right; row skipped");
+    return std::nullopt;
+  }
+  if (!Field(row, "site", &e.site_id, &error) || !Field(row, "pair", &e.pair_index, &error) ||
+      !Field(row, "pan", &pan, &error) || !Field(row, "tilt", &tilt, &error) || !Field(row, "time", &time, &error) ||
+      !Field(row, "left", &left, &error) || !Field(row, "right", &right, &error)) {
+    problems->push_back(where + ": " + error + "; row skipped");
+    return std::nullopt;
+  }
+  e.pan = pan * angle_scale;
+  e.tilt = tilt * angle_scale;
+  if (e.site_id < 0 || e.pair_index < 0) error = "site and pair must be >= 0";
+  else if (!std::isfinite(e.pan) || std::abs(e.pan) > 2 * M_PI) error = "pan " + std::to_string(pan) + " out of range (|pan| <= 360 deg)";
+  else if (!std::isfinite(e.tilt) || std::abs(e.tilt) > M_PI / 2) error = "tilt " + std::to_string(tilt) + " out of range (|tilt| <= 90 deg)";
+  else if (!std::isfinite(time) || time < 0) error = "time " + std::to_string(time) + " must be a finite number of seconds >= 0";
+  const std::string which = where + " (site " + std::to_string(e.site_id) + " pair " + std::to_string(e.pair_index) + ")";
+  if (!error.empty()) {
+    problems->push_back(which + ": " + error + "; row skipped");
+    return std::nullopt;
+  }
+  e.utime = static_cast<int64_t>(std::llround(time * 1e6));
+  const std::filesystem::path dir = std::filesystem::path(path).parent_path();
+  e.left_path = (dir / left).string();
+  e.right_path = (dir / right).string();
+  for (const std::string* p : {&e.left_path, &e.right_path}) {
+    if (!std::filesystem::is_regular_file(*p)) {
+      problems->push_back(which + ": image file " + *p + " missing; row skipped");
+      return std::nullopt;
+    }
+  }
+  return e;
+}
+
+}  // namespace
+
 NavcamManifest ReadNavcamManifest(const std::string& path) {
   NavcamManifest out;
   YAML::Node root;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    out.problems.push_back("manifest " + path + " cannot be read: no such file (give the path of the manifest YAML)");
-    return out;
-  } catch (const YAML::Exception& e) {
-    out.problems.push_back("manifest " + path + " is not valid YAML: " + e.what());
-    return out;
-  }
-  const YAML::Node pairs = root["pairs"];
-  if (!root.IsMap() || !pairs || !pairs.IsSequence()) {
-    out.problems.push_back("manifest " + path + " has no 'pairs' list (see procs/navcam_driver/navcam_manifest.h)");
-    return out;
-  }
+  if (!LoadManifestYaml(path, &root, &out)) return out;
   out.readable = true;
   double angle_scale = 1.0;
   const std::string unit = root["angle_unit"] ? root["angle_unit"].as<std::string>("") : "rad";
   if (unit == "deg") angle_scale = M_PI / 180.0;
   else if (unit != "rad")
     out.problems.push_back("manifest " + path + ": angle_unit '" + unit + "' unknown (use rad or deg); assuming rad");
-  const std::filesystem::path dir = std::filesystem::path(path).parent_path();
   int row_number = 0;
-  for (const YAML::Node& row : pairs) {
-    ++row_number;
-    NavcamManifestEntry e;
-    e.row = row_number;
-    e.line = row.Mark().line + 1;
-    const std::string where = RowName(path, e.row, e.line);
-    double time = 0, pan = 0, tilt = 0;
-    std::string left, right, error;
-    if (!row.IsMap()) {
-      out.problems.push_back(where + ": not a map of site/pair/pan/tilt/time/left/right; row skipped");
-      continue;
-    }
-    if (!Field(row, "site", &e.site_id, &error) || !Field(row, "pair", &e.pair_index, &error) ||
-        !Field(row, "pan", &pan, &error) || !Field(row, "tilt", &tilt, &error) || !Field(row, "time", &time, &error) ||
-        !Field(row, "left", &left, &error) || !Field(row, "right", &right, &error)) {
-      out.problems.push_back(where + ": " + error + "; row skipped");
-      continue;
-    }
-    e.pan = pan * angle_scale;
-    e.tilt = tilt * angle_scale;
-    if (e.site_id < 0 || e.pair_index < 0) error = "site and pair must be >= 0";
-    else if (!std::isfinite(e.pan) || std::abs(e.pan) > 2 * M_PI) error = "pan " + std::to_string(pan) + " out of range (|pan| <= 360 deg)";
-    else if (!std::isfinite(e.tilt) || std::abs(e.tilt) > M_PI / 2) error = "tilt " + std::to_string(tilt) + " out of range (|tilt| <= 90 deg)";
-    else if (!std::isfinite(time) || time < 0) error = "time " + std::to_string(time) + " must be a finite number of seconds >= 0";
-    if (!error.empty()) {
-      out.problems.push_back(where + " (site " + std::to_string(e.site_id) + " pair " + std::to_string(e.pair_index) +
-                             "): " + error + "; row skipped");
-      continue;
-    }
-    e.utime = static_cast<int64_t>(std::llround(time * 1e6));
-    e.left_path = (dir / left).string();
-    e.right_path = (dir / right).string();
-    bool files_ok = true;
-    for (const std::string* p : {&e.left_path, &e.right_path}) {
-      if (!std::filesystem::is_regular_file(*p)) {
-        out.problems.push_back(where + " (site " + std::to_string(e.site_id) + " pair " + std::to_string(e.pair_index) +
-                               "): image file " + *p + " missing; row skipped");
-        files_ok = false;
-        break;
-      }
-    }
-    if (files_ok) out.entries.push_back(e);
-  }
+  for (const YAML::Node& row : root["pairs"])
+    if (auto e = ReadRow(row, ++row_number, path, angle_scale, &out.problems)) out.entries.push_back(*e);
   std::stable_sort(out.entries.begin(), out.entries.end(),
                    [](const NavcamManifestEntry& a, const NavcamManifestEntry& b) { return a.utime < b.utime; });
   RefuseBadPairIndices(path, &out.entries, &out.problems);
