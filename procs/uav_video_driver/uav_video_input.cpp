@@ -110,6 +110,72 @@ TelemetryCsv UavVideoSource::GeotagTelemetry(double horizontal_sigma, std::strin
   return out;
 }
 
+namespace {
+
+// The telemetry table's columns by name (-1: absent); `us`: the time is
+// utime (microseconds), else seconds.
+struct TelemetryColumns {
+  int time = -1, lat = -1, lon = -1, alt = -1, hag = -1, fix = -1, hs = -1, vs = -1;
+  bool us = false;
+};
+TelemetryColumns ColumnsOf(const CsvTable& table) {
+  TelemetryColumns c;
+  c.time = table.Column({"utime"});
+  c.us = c.time >= 0;
+  if (!c.us) c.time = table.Column({"time", "t", "timestamp"});
+  c.lat = table.Column({"latitude", "lat"}), c.lon = table.Column({"longitude", "lon"});
+  c.alt = table.Column({"altitude", "alt"});
+  c.hag = table.Column({"height_above_ground", "height"}), c.fix = table.Column({"fix"});
+  c.hs = table.Column({"horizontal_sigma"}), c.vs = table.Column({"vertical_sigma"});
+  return c;
+}
+
+// One row's fix: false with the problem that skips it (a value that is no
+// number or out of its range; a time before `previous`).
+bool ReadFixRow(const std::vector<std::string>& row, const std::string& where, const TelemetryColumns& c,
+                double time_offset, int64_t previous, TelemetryFix* f, std::string* problem) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  auto number = [&](int column, const char* name, double lo, double hi, double* value) {
+    if (column < 0) {
+      *value = nan;
+      return true;
+    }
+    const std::string& text = row[static_cast<size_t>(column)];
+    if (!ParseCsvNumber(text, value)) {
+      *problem = where + ": column '" + name + "' value '" + text + "' is not a number; row skipped";
+      return false;
+    }
+    if (*value < lo || *value > hi) {
+      *problem = where + ": column '" + name + "' = " + text + " out of range [" + std::to_string(lo) + ", " +
+                 std::to_string(hi) + "]; row skipped";
+      return false;
+    }
+    return true;
+  };
+  double t = 0, fix_value = 2;
+  if (!number(c.time, c.us ? "utime" : "time", -1e12, 1e15, &t) || !number(c.fix, "fix", 0, 2, &fix_value)) return false;
+  f->fix = c.fix < 0 ? 2 : static_cast<int>(fix_value);
+  if (f->fix == 0) {
+    f->latitude = f->longitude = f->altitude = nan;
+  } else if (!number(c.lat, "latitude", -90, 90, &f->latitude) || !number(c.lon, "longitude", -180, 180, &f->longitude) ||
+             !number(c.alt, "altitude", -500, 20000, &f->altitude)) {
+    return false;
+  }
+  if (!number(c.hag, "height_above_ground", 0, 5000, &f->height_above_ground) ||
+      !number(c.hs, "horizontal_sigma", 0, 1000, &f->horizontal_sigma) ||
+      !number(c.vs, "vertical_sigma", 0, 1000, &f->vertical_sigma))
+    return false;
+  f->utime = c.us ? static_cast<int64_t>(std::llround(t + time_offset * 1e6))
+                  : static_cast<int64_t>(std::llround((t + time_offset) * 1e6));
+  if (f->utime < previous) {
+    *problem = where + ": time goes back; row skipped";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
 TelemetryCsv ReadTelemetryCsv(const std::string& path, double time_offset) {
   TelemetryCsv out;
   CsvTable table;
@@ -119,66 +185,18 @@ TelemetryCsv ReadTelemetryCsv(const std::string& path, double time_offset) {
     return out;
   }
   out.problems = table.problems;
-  int time_column = table.Column({"utime"});
-  const bool us = time_column >= 0;
-  if (!us) time_column = table.Column({"time", "t", "timestamp"});
-  const int lat = table.Column({"latitude", "lat"}), lon = table.Column({"longitude", "lon"});
-  const int alt = table.Column({"altitude", "alt"});
-  const int hag = table.Column({"height_above_ground", "height"}), fix = table.Column({"fix"});
-  const int hs = table.Column({"horizontal_sigma"}), vs = table.Column({"vertical_sigma"});
-  if (time_column < 0 || lat < 0 || lon < 0 || alt < 0) {
+  const TelemetryColumns c = ColumnsOf(table);
+  if (c.time < 0 || c.lat < 0 || c.lon < 0 || c.alt < 0) {
     out.problems.push_back(path + ": header needs time (or utime), latitude, longitude, altitude columns; telemetry skipped");
     return out;
   }
   out.readable = true;
-  const double nan = std::numeric_limits<double>::quiet_NaN();
   int64_t previous = std::numeric_limits<int64_t>::min();
   for (size_t r = 0; r < table.rows.size(); ++r) {
-    const auto& row = table.rows[r];
     const std::string where = path + " line " + std::to_string(table.line_numbers[r]);
-    std::string problem;
-    auto number = [&](int column, const char* name, double lo, double hi, double* value) {
-      if (column < 0) {
-        *value = nan;
-        return true;
-      }
-      const std::string& text = row[static_cast<size_t>(column)];
-      if (!ParseCsvNumber(text, value)) {
-        problem = where + ": column '" + name + "' value '" + text + "' is not a number; row skipped";
-        return false;
-      }
-      if (*value < lo || *value > hi) {
-        problem = where + ": column '" + name + "' = " + text + " out of range [" + std::to_string(lo) + ", " +
-                  std::to_string(hi) + "]; row skipped";
-        return false;
-      }
-      return true;
-    };
     TelemetryFix f;
-    double t = 0, fix_value = 2;
-    bool ok = number(time_column, us ? "utime" : "time", -1e12, 1e15, &t) && number(fix, "fix", 0, 2, &fix_value);
-    if (ok) {
-      f.fix = fix < 0 ? 2 : static_cast<int>(fix_value);
-      if (f.fix == 0) {
-        f.latitude = f.longitude = f.altitude = nan;
-        ok = true;
-      } else {
-        ok = number(lat, "latitude", -90, 90, &f.latitude) && number(lon, "longitude", -180, 180, &f.longitude) &&
-             number(alt, "altitude", -500, 20000, &f.altitude);
-      }
-    }
-    ok = ok && number(hag, "height_above_ground", 0, 5000, &f.height_above_ground) &&
-         number(hs, "horizontal_sigma", 0, 1000, &f.horizontal_sigma) &&
-         number(vs, "vertical_sigma", 0, 1000, &f.vertical_sigma);
-    if (ok) {
-      f.utime = us ? static_cast<int64_t>(std::llround(t + time_offset * 1e6))
-                   : static_cast<int64_t>(std::llround((t + time_offset) * 1e6));
-      if (f.utime < previous) {
-        problem = where + ": time goes back; row skipped";
-        ok = false;
-      }
-    }
-    if (!ok) {
+    std::string problem;
+    if (!ReadFixRow(table.rows[r], where, c, time_offset, previous, &f, &problem)) {
       out.problems.push_back(problem);
       continue;
     }
