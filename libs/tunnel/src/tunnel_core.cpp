@@ -213,67 +213,54 @@ void TunnelCore::OnControl(const Frame& frame, double now_s) {
   }
 }
 
-void TunnelCore::OnData(const Frame& frame, int64_t wall_us, double now_s, const DeliverFn& deliver) {
-  const DataFrame& d = frame.data;
-  if (expected_ != 0 && d.seq < expected_) return;  // a resent frame that already arrived
+bool TunnelCore::InSequence(const DataFrame& d, double now_s) {
+  if (expected_ != 0 && d.seq < expected_) return false;  // a resent frame that already arrived
   if (expected_ != 0 && d.seq > expected_) {
     // A gap (frames lost with a connection): ignore until the peer rewinds.
     if (now_s - last_rewind_request_ > kRewindRequestGapS) {
       rewind_due_ = true;
       last_rewind_request_ = now_s;
     }
-    return;
+    return false;
   }
   expected_ = d.seq + 1;
   ++frames_since_ack_;
+  return true;
+}
 
-  auto it = partials_.find(d.msg_id);
-  if (d.offset == 0) {
-    if (it != partials_.end()) {  // a message id reused by the peer: protocol error
-      partial_bytes_ -= static_cast<int64_t>(it->second.bytes.size());
-      partials_.erase(it);
-      ++rejected_frames_;
-      return;
-    }
-    Channel* c = FindOrAdd(d.channel);
-    if (c && c->accept < 0) c->accept = MatchesAny(receive_, d.channel) ? 1 : 0;
-    if (!c || c->accept == 0) {
-      ++refused_from_peer_;
-      if (c) ++c->dropped;
-      return;
-    }
-    // Bounded reassembly: the oldest partial messages give way.
-    while (!partials_.empty() && (partials_.size() >= kMaxPartials ||
-                                  partial_bytes_ + d.total_size > static_cast<int64_t>(options_.reassembly_mb * kMb))) {
-      partial_bytes_ -= static_cast<int64_t>(partials_.begin()->second.bytes.size());
-      partials_.erase(partials_.begin());
-      ++rejected_frames_;
-    }
-    Partial p;
-    p.first_seq = d.seq;
-    p.channel = d.channel;
-    p.bytes.resize(d.total_size);
-    partial_bytes_ += d.total_size;
-    it = partials_.emplace(d.msg_id, std::move(p)).first;
-  } else if (it == partials_.end()) {
-    return;  // the rest of a refused message, or of one begun before this end restarted
-  }
-  Partial& p = it->second;
-  if (p.channel != d.channel || p.bytes.size() != d.total_size || p.filled != d.offset) {
-    partial_bytes_ -= static_cast<int64_t>(p.bytes.size());
-    partials_.erase(it);
-    ++rejected_frames_;
-    return;
-  }
-  if (d.chunk_size) std::copy(d.chunk, d.chunk + d.chunk_size, p.bytes.begin() + static_cast<long>(p.filled));
-  p.filled += d.chunk_size;
-  if (p.filled < p.bytes.size()) return;
-
-  Partial done = std::move(p);
-  partial_bytes_ -= static_cast<int64_t>(done.bytes.size());
+void TunnelCore::DropPartial(std::map<uint64_t, Partial>::iterator it) {
+  partial_bytes_ -= static_cast<int64_t>(it->second.bytes.size());
   partials_.erase(it);
+  ++rejected_frames_;
+}
+
+std::map<uint64_t, TunnelCore::Partial>::iterator TunnelCore::StartMessage(const DataFrame& d) {
+  if (auto it = partials_.find(d.msg_id); it != partials_.end()) {  // a message id reused by the peer: protocol error
+    DropPartial(it);
+    return partials_.end();
+  }
+  Channel* c = FindOrAdd(d.channel);
+  if (c && c->accept < 0) c->accept = MatchesAny(receive_, d.channel) ? 1 : 0;
+  if (!c || c->accept == 0) {
+    ++refused_from_peer_;
+    if (c) ++c->dropped;
+    return partials_.end();
+  }
+  // Bounded reassembly: the oldest partial messages give way.
+  while (!partials_.empty() && (partials_.size() >= kMaxPartials ||
+                                partial_bytes_ + d.total_size > static_cast<int64_t>(options_.reassembly_mb * kMb)))
+    DropPartial(partials_.begin());
+  Partial p;
+  p.first_seq = d.seq;
+  p.channel = d.channel;
+  p.bytes.resize(d.total_size);
+  partial_bytes_ += d.total_size;
+  return partials_.emplace(d.msg_id, std::move(p)).first;
+}
+
+void TunnelCore::DeliverMessage(Partial done, int64_t latency_us, double now_s, const DeliverFn& deliver) {
   Channel* c = FindOrAdd(done.channel);
-  const double latency_ms = std::max(0.0, static_cast<double>(wall_us - d.send_utime) / 1000.0);
+  const double latency_ms = std::max(0.0, static_cast<double>(latency_us) / 1000.0);
   if (period_latencies_ms_.size() < kMaxLatencySamples) period_latencies_ms_.push_back(latency_ms);
   if (c) {
     ++c->received;
@@ -283,6 +270,27 @@ void TunnelCore::OnData(const Frame& frame, int64_t wall_us, double now_s, const
   }
   ++received_messages_;
   deliver(done.channel, done.bytes.data(), done.bytes.size());
+}
+
+void TunnelCore::OnData(const Frame& frame, int64_t wall_us, double now_s, const DeliverFn& deliver) {
+  const DataFrame& d = frame.data;
+  if (!InSequence(d, now_s)) return;
+  auto it = partials_.find(d.msg_id);
+  if (d.offset == 0) {
+    it = StartMessage(d);
+    if (it == partials_.end()) return;
+  } else if (it == partials_.end()) {
+    return;  // the rest of a refused message, or of one begun before this end restarted
+  }
+  Partial& p = it->second;
+  if (p.channel != d.channel || p.bytes.size() != d.total_size || p.filled != d.offset) return DropPartial(it);
+  if (d.chunk_size) std::copy(d.chunk, d.chunk + d.chunk_size, p.bytes.begin() + static_cast<long>(p.filled));
+  p.filled += d.chunk_size;
+  if (p.filled < p.bytes.size()) return;
+  Partial done = std::move(p);
+  partial_bytes_ -= static_cast<int64_t>(done.bytes.size());
+  partials_.erase(it);
+  DeliverMessage(std::move(done), wall_us - d.send_utime, now_s, deliver);
 }
 
 // Acknowledged: every frame before the first chunk of any message still

@@ -163,6 +163,15 @@ class TunnelCore {
   bool ConsumeEcho(uint64_t key, double now_s);
   void OnControl(const Frame& frame, double now_s);
   void OnData(const Frame& frame, int64_t wall_us, double now_s, const DeliverFn& deliver);
+  // Whether a data frame is the next expected (a gap asks for a rewind).
+  bool InSequence(const DataFrame& d, double now_s);
+  // A message's first chunk: its reassembly buffer (oldest ones giving way
+  // to the bounds), or partials_.end() when refused.
+  std::map<uint64_t, Partial>::iterator StartMessage(const DataFrame& d);
+  // An incomplete message dropped as a protocol error.
+  void DropPartial(std::map<uint64_t, Partial>::iterator it);
+  // A reassembled message counted and handed on (latency_us: now - sent).
+  void DeliverMessage(Partial done, int64_t latency_us, double now_s, const DeliverFn& deliver);
   bool NextChunk(std::vector<uint8_t>* frame);
   bool TakeTokens(size_t bytes, double now_s);
   uint64_t AckedSeq() const;
