@@ -616,23 +616,25 @@ bool TraverseGraph::Load(const std::string& path, std::string* error) {
   return true;
 }
 
-bool TraverseGraph::Deserialize(const std::string& text, std::string* error) {
-  TraverseGraph loaded(options_);
+bool TraverseGraph::ReadGraphBody(const std::string& text, std::string* error) {
   if (text.find("EDGE_SE3:QUAT") != std::string::npos || text.find("VERTEX_SE3:QUAT") != std::string::npos) {
     GraphFile file;
     std::string sub;
     if (!ParseGraphText(text, &file, &sub) || file.dimension != 3) return Fail(error, "not a valid 3D g2o graph: " + sub);
-    loaded.graph_ = file.graph3;
-  } else {
-    try {
-      std::istringstream is(text);
-      loaded.graph_.readAsText(is);
-    } catch (const std::exception& e) {
-      return Fail(error, std::string("not a valid MRPT 3D graph: ") + e.what());
-    }
+    graph_ = file.graph3;
+    return true;
   }
-  std::vector<EdgeKey> kinds;
-  std::vector<Matrix6d> informations;
+  try {
+    std::istringstream is(text);
+    graph_.readAsText(is);
+  } catch (const std::exception& e) {
+    return Fail(error, std::string("not a valid MRPT 3D graph: ") + e.what());
+  }
+  return true;
+}
+
+bool TraverseGraph::ReadAnnotations(const std::string& text, std::vector<EdgeKey>* kinds,
+                                    std::vector<Matrix6d>* informations, std::string* error) {
   std::istringstream lines(text);
   std::string line;
   while (std::getline(lines, line)) {
@@ -645,34 +647,39 @@ bool TraverseGraph::Deserialize(const std::string& text, std::string* error) {
       SiteRecord rec;
       if (!(ls >> id >> rec.utime >> has_dr) || !ReadPoseText(ls, &rec.dr)) return Fail(error, "bad line: " + line);
       rec.has_dr = has_dr != 0;
-      loaded.sites_[id] = rec;
+      sites_[id] = rec;
     } else if (tag == "VLOC_EDGE") {
       int from, to, kind;
       if (!(ls >> from >> to >> kind) || kind < 0 || kind > 3) return Fail(error, "bad line: " + line);
-      kinds.push_back({from, to, static_cast<EdgeKind>(kind)});
+      kinds->push_back({from, to, static_cast<EdgeKind>(kind)});
       Matrix6d info;
       for (int r = 0; r < 6; ++r)
         for (int c = r; c < 6; ++c) {
           if (!(ls >> info(r, c))) return Fail(error, "bad line: " + line);
           info(c, r) = info(r, c);
         }
-      informations.push_back(info);
+      informations->push_back(info);
     } else if (tag == "VLOC_PENDING") {
       Pending p;
       int kind;
       if (!(ls >> p.from >> p.to >> kind) || kind < 0 || kind > 3 || !ReadPoseText(ls, &p.measurement))
         return Fail(error, "bad line: " + line);
       p.kind = static_cast<EdgeKind>(kind);
-      loaded.pending_.push_back(p);
+      pending_.push_back(p);
     }
   }
-  if (loaded.pending_.size() > static_cast<size_t>(options_.max_pending)) {
-    const size_t dropped = loaded.pending_.size() - static_cast<size_t>(options_.max_pending);
-    LOG(WARNING) << "pose graph: " << loaded.pending_.size() << " pending measurements in the file, more than "
+  if (pending_.size() > static_cast<size_t>(options_.max_pending)) {
+    const size_t dropped = pending_.size() - static_cast<size_t>(options_.max_pending);
+    LOG(WARNING) << "pose graph: " << pending_.size() << " pending measurements in the file, more than "
                  << "max_pending " << options_.max_pending << "; the oldest " << dropped << " dropped";
-    loaded.pending_.erase(loaded.pending_.begin(), loaded.pending_.begin() + static_cast<std::ptrdiff_t>(dropped));
+    pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(dropped));
   }
-  const auto& g = loaded.graph_;
+  return true;
+}
+
+bool TraverseGraph::AdoptEdges(const std::vector<EdgeKey>& kinds, const std::vector<Matrix6d>& informations,
+                               std::string* error) {
+  const auto& g = graph_;
   if (!kinds.empty() && kinds.size() != g.edges.size())
     return Fail(error, std::to_string(kinds.size()) + " VLOC_EDGE lines for " + std::to_string(g.edges.size()) +
                            " edges; the file is inconsistent");
@@ -697,20 +704,30 @@ bool TraverseGraph::Deserialize(const std::string& text, std::string* error) {
       return Fail(error, "edge " + std::to_string(from) + "->" + std::to_string(to) +
                              ": information matrix is not finite or has no positive eigenvalue");
     if (smallest <= 0) {
-      if (loaded.num_repaired_informations_++ == 0) loaded.smallest_repaired_eigenvalue_ = smallest;
-      loaded.smallest_repaired_eigenvalue_ = std::min(loaded.smallest_repaired_eigenvalue_, smallest);
+      if (num_repaired_informations_++ == 0) smallest_repaired_eigenvalue_ = smallest;
+      smallest_repaired_eigenvalue_ = std::min(smallest_repaired_eigenvalue_, smallest);
     }
-    loaded.edges_[key] = exact;
+    edges_[key] = exact;
   }
-  if (loaded.num_repaired_informations_ > 0)
-    LOG(WARNING) << "pose graph: " << loaded.num_repaired_informations_
+  if (num_repaired_informations_ > 0)
+    LOG(WARNING) << "pose graph: " << num_repaired_informations_
                  << " edges had an information matrix that is not positive definite (smallest eigenvalue "
-                 << loaded.smallest_repaired_eigenvalue_ << "); repaired by raising its eigenvalues to 1e-9 of the largest";
-  for (const auto& n : g.nodes) {
+                 << smallest_repaired_eigenvalue_ << "); repaired by raising its eigenvalues to 1e-9 of the largest";
+  return true;
+}
+
+bool TraverseGraph::Deserialize(const std::string& text, std::string* error) {
+  TraverseGraph loaded(options_);
+  std::vector<EdgeKey> kinds;
+  std::vector<Matrix6d> informations;
+  if (!loaded.ReadGraphBody(text, error) || !loaded.ReadAnnotations(text, &kinds, &informations, error) ||
+      !loaded.AdoptEdges(kinds, informations, error))
+    return false;
+  for (const auto& n : loaded.graph_.nodes) {
     const int id = static_cast<int>(n.first);
     if (!loaded.sites_.count(id)) loaded.sites_[id] = SiteRecord{};
   }
-  loaded.have_root_ = !g.nodes.empty();
+  loaded.have_root_ = !loaded.graph_.nodes.empty();
   loaded.graph_.edges.clear();  // edges_ holds them now
   *this = std::move(loaded);
   return true;

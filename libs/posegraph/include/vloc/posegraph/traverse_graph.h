@@ -212,6 +212,14 @@ class TraverseGraph {
   Matrix6d RootUncertaintyAt(const Pose3& world_from_site) const;
   std::string Serialize(GraphFormat format) const;
   bool Deserialize(const std::string& text, std::string* error);
+  // Deserialize's steps on a fresh graph: the g2o or MRPT text into graph_;
+  // the # VLOC_ lines (sites, edge kinds and exact informations, pending
+  // measurements beyond max_pending dropped oldest first); graph_'s edges
+  // into edges_ with their kinds, informations repaired where needed.
+  bool ReadGraphBody(const std::string& text, std::string* error);
+  bool ReadAnnotations(const std::string& text, std::vector<EdgeKey>* kinds, std::vector<Matrix6d>* informations,
+                       std::string* error);
+  bool AdoptEdges(const std::vector<EdgeKey>& kinds, const std::vector<Matrix6d>& informations, std::string* error);
 
   PoseGraphOptions options_;
   mrpt::graphs::CNetworkOfPoses3DInf graph_;  // the nodes (site poses); its edges stay empty: edges_ holds them
