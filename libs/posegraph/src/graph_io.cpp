@@ -44,6 +44,22 @@ bool RepairInformation(Eigen::Matrix<double, N, N>* information, bool* repaired)
 template bool RepairInformation<3>(Eigen::Matrix3d*, bool*);
 template bool RepairInformation<6>(Eigen::Matrix<double, 6, 6>*, bool*);
 
+std::string Excerpt(const std::string& line) {
+  std::string out;
+  for (size_t i = 0; i < line.size() && out.size() < 80; ++i) {
+    const unsigned char c = static_cast<unsigned char>(line[i]);
+    if (c >= 0x20 && c != 0x7f) {
+      out += static_cast<char>(c);
+    } else {
+      char hex[8];
+      std::snprintf(hex, sizeof(hex), "\\x%02x", c);
+      out += hex;
+    }
+  }
+  if (out.size() >= 80) out += "...";
+  return out;
+}
+
 namespace {
 
 using mrpt::graphs::TNodeID;
@@ -106,24 +122,6 @@ std::string Str(double v) {
   os.precision(6);
   os << v;
   return os.str();
-}
-
-// A line as it can be quoted in one line of a message: at most 80
-// characters, control characters escaped.
-std::string Excerpt(const std::string& line) {
-  std::string out;
-  for (size_t i = 0; i < line.size() && out.size() < 80; ++i) {
-    const unsigned char c = static_cast<unsigned char>(line[i]);
-    if (c >= 0x20 && c != 0x7f) {
-      out += static_cast<char>(c);
-    } else {
-      char hex[8];
-      std::snprintf(hex, sizeof(hex), "\\x%02x", c);
-      out += hex;
-    }
-  }
-  if (out.size() >= 80) out += "...";
-  return out;
 }
 
 std::string RepairReport(int repaired, int skipped, const std::string& first_skipped, int indefinite) {

@@ -611,6 +611,42 @@ TEST(TraverseGraph, SaveAndReloadGiveTheSameResult) {
   EXPECT_NE(error.find(path), std::string::npos);
 }
 
+// A file that is no pose graph, or a saved graph with a damaged line, is
+// refused naming the line: MRPT's reader would skip what it does not know,
+// load less than the file holds, and the next save would overwrite it.
+TEST(TraverseGraph, LoadRefusesLinesThatAreNoPoseGraph) {
+  Traverse t = MakeTraverse(6, 79, 0.05, 0.002, PoseGraphOptions());
+  t.graph.Optimize();
+  const std::string good = (std::filesystem::temp_directory_path() / "vloc_test_damaged.graph").string();
+  std::string error;
+  ASSERT_TRUE(t.graph.Save(good, &error)) << error;
+  std::string text;
+  {
+    std::ifstream in(good);
+    text.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  const size_t edge = text.find("\nEDGE3 ");
+  ASSERT_NE(edge, std::string::npos);
+  std::string damaged = text;
+  damaged.replace(edge + 1, 5, "EDGX3");  // one edge line garbled
+  const std::string garbage = "garbage that is not a graph\n";
+  for (const std::string& bad : {damaged, garbage}) {
+    std::ofstream(good) << bad;
+    TraverseGraph reloaded(PoseGraphOptions{});
+    EXPECT_FALSE(reloaded.Load(good, &error));
+    EXPECT_NE(error.find(good), std::string::npos) << error;
+    EXPECT_NE(error.find("is not a pose-graph line"), std::string::npos) << error;
+    EXPECT_EQ(error.find('\n'), std::string::npos) << "one line: " << error;
+    EXPECT_EQ(reloaded.num_sites(), 0);
+  }
+  EXPECT_NE(error.find("line 1: 'garbage'"), std::string::npos) << error;
+  std::ofstream(good) << text;  // the file as saved loads again
+  TraverseGraph reloaded(PoseGraphOptions{});
+  EXPECT_TRUE(reloaded.Load(good, &error)) << error;
+  EXPECT_EQ(reloaded.num_sites(), 6);
+  std::remove(good.c_str());
+}
+
 // Finding 9 of the hostile review: public data sets hold information
 // matrices that are not positive definite; the optimiser then reported a
 // negative chi2 and wandered. They are repaired on load, with one line.
