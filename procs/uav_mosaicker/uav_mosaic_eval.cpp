@@ -184,6 +184,61 @@ bool LoadEvalOptions(const vloc::CommandLine& args, vloc::mosaic::MosaickerOptio
   return true;
 }
 
+// One evaluated frame's CSV row (the estimate `est` east/north, m).
+void WriteCsvRow(std::ofstream& csv, double t, const vloc::mosaic::FrameState& s, const Eigen::Vector3d& truth,
+                 const cv::Point2d& est) {
+  csv << t << "," << vloc::mosaic::ToString(s.status) << "," << s.height << "," << truth.z() << "," << est.x << ","
+      << est.y << "," << truth.x() << "," << truth.y() << "," << s.gps_aided << "," << s.num_inliers << ","
+      << s.num_foreground << "," << 1e3 * s.tracking_seconds << "," << 1e3 * s.mosaic_seconds << "\n";
+}
+
+// The process's memory and the canvas at flight time t.
+void PrintMemory(double t, const vloc::mosaic::MosaickerSummary& now, double flown_m) {
+  std::cout << "memory at t " << std::fixed << std::setprecision(0) << t << " s: RSS " << StatusMb("VmRSS:")
+            << " MB, peak " << StatusMb("VmHWM:") << " MB, canvas tiles " << now.canvas.tiles_total << " ("
+            << now.canvas.tiles_in_memory << " in memory, " << now.canvas.spills << " spills), " << std::setprecision(1)
+            << flown_m << " m flown" << std::endl;
+}
+
+// The flight, frame by frame: the GPS up to each frame's time fed (with
+// `use_gps`), the frame rendered (timed apart) and processed (its process
+// CPU timed), tallied against the truth; the CSV rows (when open) and the
+// memory every `memory_every` s of flight (0 = never).
+FlightTally Fly(const vloc::UavWorld& world, const vloc::UavWorldOptions& world_options, int frames, bool use_gps,
+                double memory_every, vloc::mosaic::UavMosaicker* mosaicker, std::ofstream* csv) {
+  const double lat0 = world_options.gps.origin_latitude, lon0 = world_options.gps.origin_longitude;
+  double next_memory = memory_every;
+  int gps_index = 0;
+  FlightTally tally;
+  Eigen::Vector3d prev_truth = world.flight().StateAt(0).position;
+  for (int i = 0; i < frames; ++i) {
+    const double t = world.FrameTime(i);
+    if (use_gps) FeedGps(world, t, &gps_index, mosaicker);
+    const auto r0 = std::chrono::steady_clock::now();
+    const cv::Mat frame = world.RenderFrame(t);
+    tally.render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - r0).count();
+    const double cpu0 = ProcessCpuSeconds();
+    const vloc::mosaic::FrameState s = mosaicker->ProcessFrame(frame, world.FrameUtime(i));
+    const double cpu_s = ProcessCpuSeconds() - cpu0;
+    tally.cpu_all_s += cpu_s;
+    if (!s.mosaic_updated && s.status != vloc::mosaic::TrackStatus::kCalibrating) tally.cpu_track_ms.push_back(1e3 * cpu_s);
+    const vloc::UavState truth = world.flight().StateAt(t);
+    tally.dist += (truth.position.head<2>() - prev_truth.head<2>()).norm();
+    prev_truth = truth.position;
+    const cv::Point2d est = tally.Add(s, truth.position, world.gps().InDropout(t), lat0, lon0);
+    if (s.status == vloc::mosaic::TrackStatus::kCalibrating) continue;
+    if (csv->is_open()) WriteCsvRow(*csv, t, s, truth.position, est);
+    if (memory_every > 0 && t >= next_memory) {
+      PrintMemory(t, mosaicker->summary(), tally.dist);
+      next_memory += memory_every;
+    }
+    if (i % 300 == 0)
+      LOG(INFO) << "t " << t << " s: height " << s.height << " (true " << truth.position.z() << "), "
+                << vloc::mosaic::ToString(s.status);
+  }
+  return tally;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -207,8 +262,6 @@ int main(int argc, char** argv) {
     std::cout << "memory with the simulated world built: RSS " << StatusMb("VmRSS:") << " MB, peak " << PeakRssMb()
               << " MB" << std::endl;
   const double duration = args.GetDouble("duration", args.GetDouble("survey", 0.0));
-  const double memory_every = args.GetDouble("memory-every", 0.0);
-  double next_memory = memory_every;
   int frames = world.NumFrames();
   if (duration > 0) frames = std::min(frames, static_cast<int>(duration * world_options.fps));
   vloc::mosaic::UavMosaicker mosaicker(options);
@@ -217,43 +270,8 @@ int main(int argc, char** argv) {
     csv.open(args.Get("csv"));
     csv << "t,status,height,true_height,east,north,true_east,true_north,gps_aided,inliers,foreground,track_ms,mosaic_ms\n";
   }
-  const double lat0 = world_options.gps.origin_latitude, lon0 = world_options.gps.origin_longitude;
-  int gps_index = 0;
-  FlightTally tally;
-  Eigen::Vector3d prev_truth = world.flight().StateAt(0).position;
-  for (int i = 0; i < frames; ++i) {
-    const double t = world.FrameTime(i);
-    if (use_gps) FeedGps(world, t, &gps_index, &mosaicker);
-    const auto r0 = std::chrono::steady_clock::now();
-    const cv::Mat frame = world.RenderFrame(t);
-    tally.render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - r0).count();
-    const double cpu0 = ProcessCpuSeconds();
-    const vloc::mosaic::FrameState s = mosaicker.ProcessFrame(frame, world.FrameUtime(i));
-    const double cpu_s = ProcessCpuSeconds() - cpu0;
-    tally.cpu_all_s += cpu_s;
-    if (!s.mosaic_updated && s.status != vloc::mosaic::TrackStatus::kCalibrating) tally.cpu_track_ms.push_back(1e3 * cpu_s);
-    const vloc::UavState truth = world.flight().StateAt(t);
-    tally.dist += (truth.position.head<2>() - prev_truth.head<2>()).norm();
-    prev_truth = truth.position;
-    const cv::Point2d est = tally.Add(s, truth.position, world.gps().InDropout(t), lat0, lon0);
-    if (s.status == vloc::mosaic::TrackStatus::kCalibrating) continue;
-    if (csv.is_open())
-      csv << t << "," << vloc::mosaic::ToString(s.status) << "," << s.height << "," << truth.position.z() << ","
-          << est.x << "," << est.y << "," << truth.position.x() << "," << truth.position.y() << "," << s.gps_aided << ","
-          << s.num_inliers << "," << s.num_foreground << "," << 1e3 * s.tracking_seconds << "," << 1e3 * s.mosaic_seconds
-          << "\n";
-    if (memory_every > 0 && t >= next_memory) {
-      const vloc::mosaic::MosaickerSummary now = mosaicker.summary();
-      std::cout << "memory at t " << std::fixed << std::setprecision(0) << t << " s: RSS " << StatusMb("VmRSS:")
-                << " MB, peak " << StatusMb("VmHWM:") << " MB, canvas tiles " << now.canvas.tiles_total << " ("
-                << now.canvas.tiles_in_memory << " in memory, " << now.canvas.spills << " spills), " << std::setprecision(1)
-                << tally.dist << " m flown" << std::endl;
-      next_memory += memory_every;
-    }
-    if (i % 300 == 0)
-      LOG(INFO) << "t " << t << " s: height " << s.height << " (true " << truth.position.z() << "), "
-                << vloc::mosaic::ToString(s.status);
-  }
+  const FlightTally tally =
+      Fly(world, world_options, frames, use_gps, args.GetDouble("memory-every", 0.0), &mosaicker, &csv);
   tally.Print(frames, world_options.fps, use_gps, options.height_filter.gps_use, mosaicker.summary());
   if (args.Has("out")) {
     if (!mosaicker.WriteMosaic(args.Get("out"), &error)) {
