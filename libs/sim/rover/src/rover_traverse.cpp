@@ -57,10 +57,27 @@ class Simulator {
   SimulatedTraverse Run() {
     const std::vector<Eigen::Vector2d> plan = PlanSites();
     const int num_planned = static_cast<int>(plan.size());
-    // Initial state at site 0, heading as planned, attitude settled.
+    StartAt(plan);
+    Stationary(o_.motion.stop_pause_s);
+    std::vector<double> site_heading;
+    for (int i = 0; i < num_planned; ++i) {
+      const bool revisit = o_.plan.revisit_site >= 0 && o_.plan.sites_xy.empty() && i == num_planned - 1;
+      if (i > 0) DriveToSite(i, plan[i], revisit ? site_heading[o_.plan.revisit_site] : std::nan(""));
+      ImageSite(i, plan[i], revisit, i + 1 < num_planned);
+      site_heading.push_back(yaw_);
+    }
+    out_.duration_s = (utime_ - static_cast<int64_t>(o_.motion.start_utime)) * 1e-6;
+    return std::move(out_);
+  }
+
+ private:
+  // The initial state at the first site: heading as planned (towards the
+  // second site of an explicit plan), attitude settled on the ground, the
+  // sensor biases drawn, the first sample recorded.
+  void StartAt(const std::vector<Eigen::Vector2d>& plan) {
     p_ = Eigen::Vector3d(plan[0].x(), plan[0].y(), 0.0);
     yaw_ = o_.plan.initial_heading_deg * kDegToRad;
-    if (!o_.plan.sites_xy.empty() && num_planned > 1) {
+    if (!o_.plan.sites_xy.empty() && plan.size() > 1) {
       const Eigen::Vector2d d = plan[1] - plan[0];
       yaw_ = std::atan2(d.y(), d.x());
     }
@@ -76,63 +93,63 @@ class Simulator {
     }
     gyro_bias_ = out_.gyro_bias;
     Record(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, o_.imu.gravity_mps2));
-
-    Stationary(o_.motion.stop_pause_s);
-    std::vector<double> site_heading;
-    for (int i = 0; i < num_planned; ++i) {
-      const bool revisit = o_.plan.revisit_site >= 0 && o_.plan.sites_xy.empty() && i == num_planned - 1;
-      if (i > 0) {
-        Event(i - 1, SiteEventType::kDeparted);
-        out_.sites.back().departed_utime = utime_;
-        const Eigen::Vector2d to_next = plan[i] - p_.head<2>();
-        Turn(WrapAngle(std::atan2(to_next.y(), to_next.x()) - yaw_));
-        Stationary(o_.motion.stop_pause_s);
-        Drive(to_next.norm());
-        Stationary(o_.motion.stop_pause_s);
-        if (revisit) {
-          Turn(WrapAngle(site_heading[o_.plan.revisit_site] - yaw_));
-          Stationary(o_.motion.stop_pause_s);
-        }
-      }
-      // The suspension settles, then the rover rests and reports its arrival: one pose from arrival to
-      // departure, the site's truth, and the dead reckoning's site pose is taken at that same instant.
-      Stationary(o_.panorama.settle_s);
-      at_rest_ = true;
-      SiteVisit site;
-      site.site_id = i;
-      site.revisit_of = revisit ? o_.plan.revisit_site : -1;
-      site.planned_xy = plan[i];
-      site.arrived_utime = utime_;
-      site.world_from_body = MakePose(R_, p_);
-      site.distance_from_start_m = out_.path_length_m;
-      out_.sites.push_back(site);
-      site_heading.push_back(yaw_);
-      const std::vector<MastPointing> pointings = o_.panorama.Pointings();
-      Event(i, SiteEventType::kArrived, static_cast<int>(pointings.size()));
-      Step(0.0, 0.0);  // the first exposure follows the arrival
-      for (size_t k = 0; k < pointings.size(); ++k) {
-        Exposure e;
-        e.utime = utime_;
-        e.site_id = i;
-        e.pair_index = static_cast<int>(k);
-        e.num_pairs = static_cast<int>(pointings.size());
-        e.mast_pan = pointings[k].pan;
-        e.mast_tilt = pointings[k].tilt;
-        e.world_from_body = MakePose(R_, p_);
-        out_.exposures.push_back(e);
-        out_.sites.back().exposures.push_back(e);
-        Stationary(k + 1 < pointings.size() ? o_.panorama.pair_interval_s : o_.motion.stop_pause_s);
-      }
-      Event(i, SiteEventType::kImagingDone, static_cast<int>(pointings.size()));
-      out_.sites.back().imaging_done_utime = utime_;
-      if (i + 1 < num_planned) Stationary(o_.motion.stop_pause_s);
-      at_rest_ = false;
-    }
-    out_.duration_s = (utime_ - static_cast<int64_t>(o_.motion.start_utime)) * 1e-6;
-    return std::move(out_);
   }
 
- private:
+  // Departs site i - 1 and drives to site i (`xy`): turn, pause, drive,
+  // pause; a revisit then turns to `revisit_heading` (NaN: none), the
+  // heading it had there.
+  void DriveToSite(int i, const Eigen::Vector2d& xy, double revisit_heading) {
+    Event(i - 1, SiteEventType::kDeparted);
+    out_.sites.back().departed_utime = utime_;
+    const Eigen::Vector2d to_next = xy - p_.head<2>();
+    Turn(WrapAngle(std::atan2(to_next.y(), to_next.x()) - yaw_));
+    Stationary(o_.motion.stop_pause_s);
+    Drive(to_next.norm());
+    Stationary(o_.motion.stop_pause_s);
+    if (!std::isnan(revisit_heading)) {
+      Turn(WrapAngle(revisit_heading - yaw_));
+      Stationary(o_.motion.stop_pause_s);
+    }
+  }
+
+  // At site i: the suspension settles, then the rover rests and reports its
+  // arrival (one pose from arrival to departure, the site's truth; the dead
+  // reckoning's site pose is taken at that same instant), images its
+  // panorama pair by pair, reports the imaging done, and pauses unless it
+  // is the last site.
+  void ImageSite(int i, const Eigen::Vector2d& planned_xy, bool revisit, bool more_to_come) {
+    Stationary(o_.panorama.settle_s);
+    at_rest_ = true;
+    SiteVisit site;
+    site.site_id = i;
+    site.revisit_of = revisit ? o_.plan.revisit_site : -1;
+    site.planned_xy = planned_xy;
+    site.arrived_utime = utime_;
+    site.world_from_body = MakePose(R_, p_);
+    site.distance_from_start_m = out_.path_length_m;
+    out_.sites.push_back(site);
+    const std::vector<MastPointing> pointings = o_.panorama.Pointings();
+    Event(i, SiteEventType::kArrived, static_cast<int>(pointings.size()));
+    Step(0.0, 0.0);  // the first exposure follows the arrival
+    for (size_t k = 0; k < pointings.size(); ++k) {
+      Exposure e;
+      e.utime = utime_;
+      e.site_id = i;
+      e.pair_index = static_cast<int>(k);
+      e.num_pairs = static_cast<int>(pointings.size());
+      e.mast_pan = pointings[k].pan;
+      e.mast_tilt = pointings[k].tilt;
+      e.world_from_body = MakePose(R_, p_);
+      out_.exposures.push_back(e);
+      out_.sites.back().exposures.push_back(e);
+      Stationary(k + 1 < pointings.size() ? o_.panorama.pair_interval_s : o_.motion.stop_pause_s);
+    }
+    Event(i, SiteEventType::kImagingDone, static_cast<int>(pointings.size()));
+    out_.sites.back().imaging_done_utime = utime_;
+    if (more_to_come) Stationary(o_.motion.stop_pause_s);
+    at_rest_ = false;
+  }
+
   // Sites: explicit, or a random walk that stays inside the terrain and
   // steers around large craters and rocks.
   std::vector<Eigen::Vector2d> PlanSites() {
