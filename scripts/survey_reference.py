@@ -135,16 +135,16 @@ def horizontal_scale(centres, gps_path):
     return abs(np.vdot(za, zb) / np.vdot(za, za))
 
 
-def write_heights(model, path, command, alignment, scale=1.0):
-    """Each registered photo's camera centre minus the median height of the points it observes (a text model),
-    times `scale`."""
+def write_heights(model, poses, path, command, alignment, scale=1.0):
+    """Each registered photo's camera centre minus the median height of the points it observes (a text model whose
+    camera_centres are `poses`), times `scale`."""
     points = {}
     with open(os.path.join(model, "points3D.txt")) as f:
         for line in f:
             if not line.startswith("#"):
                 v = line.split()
                 points[int(v[0])] = float(v[3])
-    centres, lines = camera_centres(model)
+    centres, lines = poses
     rows = []
     for pose, observations in zip(lines[0::2], lines[1::2]):
         v = pose.split()
@@ -201,9 +201,10 @@ def reconstruct(photos, out, threads, log):
 
 
 def align(model, gps, out, max_error, level, log):
-    """The model aligned to the GPS (east/north/up m) as a text model, COLMAP's alignment error line, and the factor
-    the heights take: with level GPS (one altitude for all), the scale of the least-squares fit of the centres to
-    every photo's GPS east/north (COLMAP's 3-D fit shrinks a model whose photos climbed towards the level), else 1."""
+    """The model aligned to the GPS (east/north/up m) as a text model, its camera_centres, COLMAP's alignment error
+    line, and the factor the heights take: with level GPS (one altitude for all), the scale of the least-squares fit
+    of the centres to every photo's GPS east/north (COLMAP's 3-D fit shrinks a model whose photos climbed towards the
+    level), else 1."""
     aligned = os.path.join(out, "aligned")
     os.makedirs(aligned, exist_ok=True)
     colmap(log, "model_aligner", "--input_path", model, "--output_path", aligned, "--ref_images_path", gps,
@@ -214,15 +215,16 @@ def align(model, gps, out, max_error, level, log):
     if "Alignment succeeded" not in text or not errors:
         fail(f"the model could not be aligned to the GPS (see {log})")
     colmap(log, "model_converter", "--input_path", aligned, "--output_path", aligned, "--output_type", "TXT")
-    scale = horizontal_scale(camera_centres(aligned)[0], gps)
+    poses = camera_centres(aligned)
+    scale = horizontal_scale(poses[0], gps)
     line = "GPS alignment error" + errors[-1].split("Alignment error", 1)[1] + " m"
     if level:
-        return aligned, f"{line}; heights x {scale:.4f}, the least-squares scale to the GPS east/north", scale
+        return aligned, poses, f"{line}; heights x {scale:.4f}, the least-squares scale to the GPS east/north", scale
     if abs(scale - 1) > 0.01:
         print(f"[survey_reference] warning: the least-squares fit of every photo's GPS scales the aligned model by "
               f"{scale:.4f}: the RANSAC alignment kept too few photos; give --alignment-max-error about 3x the GPS's "
               f"error", flush=True)
-    return aligned, line, 1.0
+    return aligned, poses, line, 1.0
 
 
 def main():
@@ -251,9 +253,9 @@ def main():
     db, model = reconstruct(photos, a.out, a.threads, log)
     gps = os.path.join(a.out, "gps_enu.txt")
     tagged = write_gps_enu(db, gps, a.level_gps)
-    aligned, alignment, scale = align(model, gps, a.out, a.alignment_max_error, a.level_gps, log)
+    aligned, poses, alignment, scale = align(model, gps, a.out, a.alignment_max_error, a.level_gps, log)
     tsv = os.path.join(a.out, "reference_heights.tsv")
-    rows = write_heights(aligned, tsv, "scripts/survey_reference.py " + " ".join(sys.argv[1:]), alignment, scale)
+    rows = write_heights(aligned, poses, tsv, "scripts/survey_reference.py " + " ".join(sys.argv[1:]), alignment, scale)
     heights = np.array([r[1] for r in rows])
     print(f"[survey_reference] {len(rows)} of {used} photos registered ({tagged} with GPS), heights "
           f"{heights.min():.1f}-{heights.max():.1f} m (median {np.median(heights):.1f}): {tsv}")
