@@ -3,6 +3,7 @@
 #include <glog/logging.h>
 #include <unistd.h>
 
+#include "vloc/common/printable.h"
 #include "vloc/lcm_io/convert_launch.h"
 
 namespace vloc {
@@ -61,7 +62,7 @@ void LaunchLcmAdapter::HandleOrder(const procman_order_t& order) {
   }
   // A name in a log line is escaped; one holding control characters (a
   // newline would forge a line of this log) names nothing and is refused.
-  const std::string target = PrintableName(order.target);
+  const std::string target = Printable(order.target);
   if (HasControlCharacters(order.target)) {
     LOG(ERROR) << kProcmanOrdersChannel << ": order to " << action << " '" << target
                << "' refused: the name holds control characters";

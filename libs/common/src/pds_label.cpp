@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "vloc/common/options.h"
+#include "vloc/common/printable.h"
 
 namespace vloc {
 
@@ -43,7 +44,7 @@ class OdlParser {
       const int line = line_;
       std::string keyword;
       if (!BareToken(&keyword) || keyword.empty())
-        return Err(error, std::string("a keyword was expected, found '") + Printable(s_[pos_]) + "'");
+        return Err(error, std::string("a keyword was expected, found '") + Printable(std::string(1, s_[pos_])) + "'");
       const std::string key = Upper(keyword);
       if (++statements > limits_.max_statements)
         return Err(error, "more than " + std::to_string(limits_.max_statements) + " statements");
@@ -68,13 +69,6 @@ class OdlParser {
   }
 
  private:
-  static std::string Printable(char c) {
-    if (std::isprint(static_cast<unsigned char>(c))) return std::string(1, c);
-    char buf[8];
-    std::snprintf(buf, sizeof(buf), "\\x%02x", static_cast<unsigned char>(c));
-    return buf;
-  }
-
   bool Err(std::string* error, const std::string& what) const {
     if (error) *error = "line " + std::to_string(line_) + ": " + what;
     return false;
@@ -228,7 +222,7 @@ class OdlParser {
         Advance();
         return true;
       }
-      return Err(error, keyword + ": ',' or '" + std::string(1, close) + "' expected, found '" + Printable(s_[pos_]) +
+      return Err(error, keyword + ": ',' or '" + std::string(1, close) + "' expected, found '" + Printable(std::string(1, s_[pos_])) +
                             "'");
     }
   }
@@ -266,7 +260,7 @@ class OdlParser {
     const char c = s_[pos_];
     std::string token;
     if (!BareToken(&token)) return Err(error, keyword + ": a value holds a control or non-ASCII byte");
-    if (token.empty()) return Err(error, keyword + ": a value was expected, found '" + Printable(c) + "'");
+    if (token.empty()) return Err(error, keyword + ": a value was expected, found '" + Printable(std::string(1, c)) + "'");
     v->text = token;
     if (!ParseNumber(token, v)) {
       v->type = OdlValue::Type::kIdentifier;

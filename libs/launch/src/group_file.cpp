@@ -8,34 +8,9 @@
 #include <set>
 
 #include "vloc/common/options.h"
+#include "vloc/common/printable.h"
 
 namespace vloc {
-
-bool HasControlCharacters(const std::string& text) {
-  return std::any_of(text.begin(), text.end(), [](char c) {
-    const auto u = static_cast<unsigned char>(c);
-    return u < 0x20 || u == 0x7f;
-  });
-}
-
-std::string PrintableName(const std::string& text) {
-  std::string out;
-  for (const char c : text) {
-    const auto u = static_cast<unsigned char>(c);
-    if (c == '\\') {
-      out += "\\\\";
-    } else if (c == '\n') {
-      out += "\\n";
-    } else if (u < 0x20 || u == 0x7f) {
-      char hex[8];
-      std::snprintf(hex, sizeof(hex), "\\x%02x", u);
-      out += hex;
-    } else {
-      out += c;
-    }
-  }
-  return out;
-}
 
 const char* RestartPolicyName(RestartPolicy policy) {
   switch (policy) {
@@ -206,7 +181,7 @@ void Expand(std::string* text, const VariableLookup& lookup, const std::string& 
 std::string ProcessContext(const std::string& context, size_t index, const YAML::Node& node) {
   std::string name;
   if (node.IsMap() && node["name"] && node["name"].IsScalar()) name = node["name"].as<std::string>();
-  return context + ": process " + (name.empty() ? "#" + std::to_string(index + 1) : "'" + PrintableName(name) + "'");
+  return context + ": process " + (name.empty() ? "#" + std::to_string(index + 1) : "'" + Printable(name) + "'");
 }
 
 }  // namespace
@@ -284,7 +259,7 @@ void CheckProcess(const RawProcess& raw, const GroupFile& file, const std::strin
     throw ConfigError(where + ": no 'command'; add command: <program path or name on PATH>");
   if (spec->group.empty()) spec->group = default_group;
   if (HasControlCharacters(spec->group))
-    throw ConfigError(where + ".group: '" + PrintableName(spec->group) + "' must not contain control characters");
+    throw ConfigError(where + ".group: '" + Printable(spec->group) + "' must not contain control characters");
   if (spec->host.find_first_of(" /,") != std::string::npos)
     throw ConfigError(where + ".host: '" + spec->host + "' must not contain spaces, '/' or ','");
   if (raw.restart == "never") spec->restart = RestartPolicy::kNever;

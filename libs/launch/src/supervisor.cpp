@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <sstream>
 
+#include "vloc/common/printable.h"
 #include "vloc/launch/proc_stats.h"
 
 extern char** environ;
@@ -191,7 +192,7 @@ bool Supervisor::ForTargets(const std::string& target, bool is_group, std::strin
     } else {
       for (const auto& p : procs_) known += " " + p->spec.name;
     }
-    *error = std::string(is_group ? "unknown group '" : "unknown process '") + PrintableName(target) + "'; known:" + known;
+    *error = std::string(is_group ? "unknown group '" : "unknown process '") + Printable(target) + "'; known:" + known;
   }
   return any;
 }
@@ -781,7 +782,7 @@ void Supervisor::Sweep(Clock::time_point now, bool everything) {
     if (leftover) {
       const auto k = killed_.find(e.pid);
       if (k == killed_.end()) {
-        const std::string what = "pid " + std::to_string(e.pid) + " (" + PrintableName(e.comm) + ")";
+        const std::string what = "pid " + std::to_string(e.pid) + " (" + Printable(e.comm) + ")";
         if (p) Note(*procs_[owner.index], "killing " + what + ", left behind by its instance " +
                                               std::to_string(owner.instance));
         else LOG(WARNING) << "killing " << what << ", a descendant of unknown origin";

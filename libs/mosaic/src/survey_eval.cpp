@@ -1,4 +1,3 @@
-#include "vloc/common/stats.h"
 #include "vloc/mosaic/survey_eval.h"
 
 #include <opencv2/calib3d.hpp>
@@ -12,6 +11,9 @@
 #include <fstream>
 #include <limits>
 #include <stdexcept>
+
+#include "vloc/common/printable.h"
+#include "vloc/common/stats.h"
 
 namespace vloc::mosaic {
 
@@ -137,13 +139,6 @@ std::vector<std::string> SplitTabs(const std::string& line) {
   return fields;
 }
 
-// A field of a hostile file quoted for one error line: at most 40 characters, no control characters.
-std::string Quoted(const std::string& field) {
-  std::string q;
-  for (char c : field.substr(0, 40)) q += std::iscntrl(static_cast<unsigned char>(c)) ? '?' : c;
-  return "\"" + q + (field.size() > 40 ? "...\"" : "\"");
-}
-
 }  // namespace
 
 bool ReadReferenceHeights(const std::string& path, std::map<std::string, double>* heights, std::string* error) {
@@ -183,8 +178,8 @@ bool ReadReferenceHeights(const std::string& path, std::map<std::string, double>
     char* end = nullptr;
     const double h = std::strtod(value.c_str(), &end);
     if (end == value.c_str() || *end != '\0' || !(h > 0 && h < 1e5))
-      return fail(where + ": height_m " + Quoted(value) + " is not a height in (0, 100 km)");
-    if (!heights->emplace(name, h).second) return fail(where + ": photo " + Quoted(name) + " twice");
+      return fail(where + ": height_m " + "\"" + Printable(value, 40) + "\"" + " is not a height in (0, 100 km)");
+    if (!heights->emplace(name, h).second) return fail(where + ": photo " + "\"" + Printable(name, 40) + "\"" + " twice");
   }
   if (name_col < 0) return fail(no_header);
   if (heights->empty()) return fail("no photo");

@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include "vloc/common/options.h"
+#include "vloc/common/printable.h"
 #include "vloc/common/pose.h"
 #include "vloc/posegraph/mrpt_graph.h"
 
@@ -43,22 +44,6 @@ bool RepairInformation(Eigen::Matrix<double, N, N>* information, bool* repaired)
 }
 template bool RepairInformation<3>(Eigen::Matrix3d*, bool*);
 template bool RepairInformation<6>(Eigen::Matrix<double, 6, 6>*, bool*);
-
-std::string Excerpt(const std::string& line) {
-  std::string out;
-  for (size_t i = 0; i < line.size() && out.size() < 80; ++i) {
-    const unsigned char c = static_cast<unsigned char>(line[i]);
-    if (c >= 0x20 && c != 0x7f) {
-      out += static_cast<char>(c);
-    } else {
-      char hex[8];
-      std::snprintf(hex, sizeof(hex), "\\x%02x", c);
-      out += hex;
-    }
-  }
-  if (out.size() >= 80) out += "...";
-  return out;
-}
 
 namespace {
 
@@ -167,9 +152,9 @@ struct Record {
   std::string* error = nullptr;
 
   bool Refuse(const std::string& what) const { return Fail(error, "line " + std::to_string(line_number) + ": " + what); }
-  bool Bad() const { return Refuse("cannot parse '" + Excerpt(line) + "'"); }
+  bool Bad() const { return Refuse("cannot parse '" + Printable(line, 80) + "'"); }
   bool Unknown(const std::string& graph_kind) const {
-    return Refuse("unknown record '" + Excerpt(key) + "' in a " + graph_kind);
+    return Refuse("unknown record '" + Printable(key, 80) + "' in a " + graph_kind);
   }
   // A vertex id: a decimal integer in 0..kMaxVertexId ("-1" would wrap to 2^64 - 1 through a stream).
   bool ReadId(TNodeID* id) {
@@ -179,7 +164,7 @@ struct Record {
                         token.find_first_not_of("0123456789") == std::string::npos;
     const unsigned long long value = digits ? std::strtoull(token.c_str(), nullptr, 10) : 0;
     if (!digits || value > kMaxVertexId)
-      return Refuse("vertex id '" + Excerpt(token) + "' is not an integer in 0.." + std::to_string(kMaxVertexId));
+      return Refuse("vertex id '" + Printable(token, 80) + "' is not an integer in 0.." + std::to_string(kMaxVertexId));
     *id = value;
     return true;
   }
@@ -504,7 +489,7 @@ bool ParseGraphStream(std::istream& in, GraphFile* file, std::string* error, Inf
   const bool two_d = key == "VERTEX_SE2" || key == "EDGE_SE2" || key == "VERTEX2" || key == "EDGE2" ||
                      key == "VERTEX" || key == "EDGE";
   if (!three_d && !two_d)
-    return Fail(error, "unknown record '" + Excerpt(key) + "' (expected VERTEX_SE3:QUAT/EDGE_SE3:QUAT, VERTEX_SE2/EDGE_SE2, "
+    return Fail(error, "unknown record '" + Printable(key, 80) + "' (expected VERTEX_SE3:QUAT/EDGE_SE3:QUAT, VERTEX_SE2/EDGE_SE2, "
                        "VERTEX2/EDGE2 or VERTEX3/EDGE3)");
   file->dimension = three_d ? 3 : 2;
   file->format = key.find("_SE") != std::string::npos ? GraphFormat::kG2o : GraphFormat::kMrptText;

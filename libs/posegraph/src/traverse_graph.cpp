@@ -13,6 +13,7 @@
 #include <set>
 #include <sstream>
 
+#include "vloc/common/printable.h"
 #include "vloc/common/stopwatch.h"
 #include "vloc/posegraph/graph_io.h"
 
@@ -637,7 +638,7 @@ bool TraverseGraph::ReadGraphBody(const std::string& text, std::string* error) {
     static const std::set<std::string> kKnown = {"VERTEX2", "VERTEX", "VERTEX_SE2", "VERTEX3", "VERTEX_SE3:QUAT",
                                                  "EDGE2", "EDGE", "EDGE_SE2", "EDGE3", "EDGE_SE3:QUAT", "EQUIV", "FIX"};
     if (!kKnown.count(keyword))
-      return Fail(error, "line " + std::to_string(number) + ": '" + Excerpt(keyword) +
+      return Fail(error, "line " + std::to_string(number) + ": '" + Printable(keyword, 80) +
                              "' is not a pose-graph line (VERTEX3, EDGE3, FIX, or g2o's VERTEX_SE3:QUAT, EDGE_SE3:QUAT)");
   }
   try {

@@ -10,6 +10,7 @@
 #include "vloc/common/command_line.h"
 #include "vloc/common/options.h"
 #include "vloc/common/pose.h"
+#include "vloc/common/printable.h"
 
 namespace vloc {
 namespace {
@@ -434,6 +435,18 @@ TEST(CommandLine, NonNumericValueIsAConfigErrorNamingTheFlag) {
     EXPECT_EQ(std::string(e.what()), "--sites expects an integer, got 'ten'");
   }
   EXPECT_THROW(cl.GetDouble("speed", 1.0), ConfigError);
+}
+
+TEST(Printable, EscapesWhatCouldForgeALineAndCutsLongText) {
+  EXPECT_TRUE(HasControlCharacters("a\nb"));
+  EXPECT_TRUE(HasControlCharacters(std::string("a\x7f", 2)));
+  EXPECT_FALSE(HasControlCharacters("sim_rover caf\xc3\xa9"));
+  EXPECT_EQ(Printable("x\nI1127 forged\t\\"), "x\\nI1127 forged\\x09\\\\");
+  EXPECT_EQ(Printable(std::string("a\0b", 3)), "a\\x00b");
+  EXPECT_EQ(Printable("caf\xc3\xa9"), "caf\xc3\xa9");  // UTF-8 kept
+  EXPECT_EQ(Printable("abcdef", 4), "abcd...");
+  EXPECT_EQ(Printable("abcd", 4), "abcd");
+  EXPECT_EQ(Printable("\n\n", 1), "\\n...");
 }
 
 }  // namespace

@@ -54,13 +54,6 @@ namespace vloc {
 
 enum class RestartPolicy { kNever, kOnFailure, kAlways };
 
-// True when `text` holds a control character (a newline in a name would
-// forge a line in a log): such names are refused.
-bool HasControlCharacters(const std::string& text);
-// `text` as it may appear inside one log line: control characters and
-// backslashes escaped (\n, \xNN, \\).
-std::string PrintableName(const std::string& text);
-
 const char* RestartPolicyName(RestartPolicy policy);
 
 // How to run and supervise one process.

@@ -109,8 +109,4 @@ struct GraphFileReport {
 // report.solver (poses unchanged).
 GraphFileReport OptimizeGraphFile(GraphFile* file, const SolverOptions& options);
 
-// A line as it can be quoted in one line of a message: at most 80
-// characters, control characters escaped.
-std::string Excerpt(const std::string& line);
-
 }  // namespace vloc::posegraph
