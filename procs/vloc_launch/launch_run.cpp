@@ -5,9 +5,52 @@
 #include <algorithm>
 #include <chrono>
 
+#include "vloc/launch/idle_watch.h"
+#include "vloc/launch/proc_stats.h"
 #include "vloc/lcm_io/process.h"
 
 namespace vloc {
+
+namespace {
+
+// After a clean end: time for the others to finish their last piece of
+// work, the largest exit_grace of the done processes (or --exit-grace),
+// cut short once they have been idle for the largest exit_idle.
+template <class Step>
+void GiveGrace(Transport& transport, Supervisor& supervisor, const LaunchRunOptions& options, const Step& step) {
+  double grace = 0.0, idle_s = 0.0;
+  for (const auto& n : options.done_names) {
+    if (const auto* spec = supervisor.file().Find(n)) {
+      grace = std::max(grace, spec->exit_grace);
+      idle_s = std::max(idle_s, spec->exit_idle);
+    }
+  }
+  grace = options.exit_grace_s.value_or(grace);
+  if (idle_s > 0) {
+    LOG(INFO) << "done (--exit-when-done): stopping the rest in " << grace << " s, or once it has been idle for "
+              << idle_s << " s";
+  } else {
+    LOG(INFO) << "done (--exit-when-done): stopping the rest in " << grace << " s";
+  }
+  using Clock = std::chrono::steady_clock;
+  const auto start = Clock::now();
+  const auto until = start + std::chrono::duration<double>(grace);
+  IdleWatch idle(idle_s, ClockTicksPerSecond());
+  auto next_sample = start;
+  while (Clock::now() < until && !StopSignalPending()) {
+    transport.Handle(20);
+    step(30);
+    if (idle_s <= 0 || Clock::now() < next_sample) continue;
+    next_sample += std::chrono::milliseconds(500);
+    const double t = std::chrono::duration<double>(Clock::now() - start).count();
+    if (idle.Update(t, supervisor.CpuTicks())) {
+      LOG(INFO) << "the rest idle for " << idle_s << " s, " << t << " s into the grace: stopping it";
+      return;
+    }
+  }
+}
+
+}  // namespace
 
 int RunLauncher(Transport& transport, Supervisor& supervisor, LaunchLcmAdapter& adapter,
                 const LaunchRunOptions& options) {
@@ -23,19 +66,7 @@ int RunLauncher(Transport& transport, Supervisor& supervisor, LaunchLcmAdapter& 
         return outcome.has_value();
       });
 
-  if (outcome && *outcome == 0) {
-    // Give the others time to finish their last piece of work.
-    double grace = 0.0;
-    for (const auto& n : options.done_names)
-      if (const auto* spec = supervisor.file().Find(n)) grace = std::max(grace, spec->exit_grace);
-    grace = options.exit_grace_s.value_or(grace);
-    LOG(INFO) << "done (--exit-when-done): stopping the rest in " << grace << " s";
-    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(grace);
-    while (std::chrono::steady_clock::now() < until && !StopSignalPending()) {
-      transport.Handle(20);
-      step(30);
-    }
-  }
+  if (outcome && *outcome == 0) GiveGrace(transport, supervisor, options, step);
   if (outcome && *outcome != 0) LOG(ERROR) << "done (--exit-when-done) with a failure; stopping the rest";
   adapter.SetShuttingDown();
   supervisor.StopAll();

@@ -145,18 +145,23 @@ struct RawProcess {
     r.Optional("args", &spec.args, "arguments");
     r.Optional("group", &spec.group, "group name");
     r.Optional("depends_on", &spec.depends_on, "processes that must run first");
-    r.Optional("start_delay", &spec.start_delay, "s, after dependencies run");
+    r.Optional("start_delay", &spec.start_delay, "s, after dependencies run", NonNegative());
     r.Optional("restart", &restart, "never | on-failure | always");
-    r.Optional("max_restarts", &spec.max_restarts, "restarts before giving up, -1 = no limit");
-    r.Optional("backoff_initial", &spec.backoff_initial, "s, first restart delay");
+    r.Optional("max_restarts", &spec.max_restarts, "restarts before giving up, -1 = no limit", AtLeast(-1));
+    r.Optional("backoff_initial", &spec.backoff_initial, "s, first restart delay", Positive());
     r.Optional("backoff_max", &spec.backoff_max, "s, longest restart delay");
     r.Optional("stop_signal", &stop_signal, "SIGINT | SIGTERM | ...");
-    r.Optional("stop_timeout", &spec.stop_timeout, "s, before SIGKILL");
+    r.Optional("stop_timeout", &spec.stop_timeout, "s, before SIGKILL", Positive());
     r.Optional("working_dir", &spec.working_dir, "working directory");
+    r.Optional("nice", &spec.nice, "scheduling niceness: 0 = the launcher's, up to 19 = yields the CPU to the rest",
+               InRange(0, 19));
     r.Optional("autostart", &spec.autostart, "start with its group");
     r.Optional("exit_when_done", &spec.exit_when_done, "its end ends the launcher (--exit-when-done)");
-    r.Optional("exit_grace", &spec.exit_grace, "s, after that end, before stopping the rest");
+    r.Optional("exit_grace", &spec.exit_grace, "s, after that end, before stopping the rest", NonNegative());
+    r.Optional("exit_idle", &spec.exit_idle,
+               "s, the grace ends sooner once the rest has used under 5 % of a core this long; 0 = off", NonNegative());
     r.Optional("host", &spec.host, "host or role it runs on (vloc_launch --host)");
+    r.Relation("backoff_max", spec.backoff_max >= spec.backoff_initial, "must be >= backoff_initial");
   }
 };
 
@@ -270,13 +275,12 @@ void CheckProcess(const RawProcess& raw, const GroupFile& file, const std::strin
   spec->stop_signal = ParseSignalName(raw.stop_signal);
   if (spec->stop_signal <= 0)
     throw ConfigError(where + ".stop_signal: unknown signal '" + raw.stop_signal + "'; use SIGINT or SIGTERM");
-  if (spec->max_restarts < -1) throw ConfigError(where + ".max_restarts: must be -1 (no limit) or >= 0");
-  if (!(spec->start_delay >= 0)) throw ConfigError(where + ".start_delay: must be >= 0 s");
-  if (!(spec->backoff_initial > 0)) throw ConfigError(where + ".backoff_initial: must be > 0 s");
-  if (!(spec->backoff_max >= spec->backoff_initial))
-    throw ConfigError(where + ".backoff_max: must be >= backoff_initial");
-  if (!(spec->exit_grace >= 0)) throw ConfigError(where + ".exit_grace: must be >= 0 s");
-  if (!(spec->stop_timeout > 0)) throw ConfigError(where + ".stop_timeout: must be > 0 s");
+  // Every value against the bound on its Visit line ("where: stop_timeout = 0: must be > 0").
+  std::string bound_error;
+  OptionsReader checker = OptionsReader::Checker(&bound_error);
+  RawProcess checked = raw;
+  checked.Visit(checker, /*is_defaults=*/false);
+  if (!bound_error.empty()) throw ConfigError(where + ": " + bound_error);
 }
 
 // Process `index` of the list: the defaults under its own keys, its env

@@ -5,6 +5,7 @@
 #include <poll.h>
 #include <signal.h>
 #include <sys/prctl.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -422,8 +423,10 @@ std::vector<std::string> ChildEnvironment(const std::map<std::string, std::strin
 
 // In the child after fork: its own process group, dies with the launcher
 // (`parent`), default signals, stdin from /dev/null, stdout and stderr into
-// out_fd, then the program; exit 126 / 127 with one line when it cannot.
-[[noreturn]] void ExecChild(pid_t parent, int out_fd, const char* workdir, char* const* argv, char* const* envp) {
+// out_fd, its niceness raised by `nice`, then the program; exit 126 / 127
+// with one line when it cannot.
+[[noreturn]] void ExecChild(pid_t parent, int out_fd, const char* workdir, int nice, char* const* argv,
+                            char* const* envp) {
   setpgid(0, 0);
   prctl(PR_SET_PDEATHSIG, SIGTERM);
   if (getppid() != parent) _exit(1);
@@ -439,6 +442,8 @@ std::vector<std::string> ChildEnvironment(const std::map<std::string, std::strin
     dprintf(2, "vloc_launch: cannot enter working_dir %s: %s\n", workdir, std::strerror(errno));
     _exit(126);
   }
+  if (nice > 0 && setpriority(PRIO_PROCESS, 0, getpriority(PRIO_PROCESS, 0) + nice) != 0)
+    dprintf(2, "vloc_launch: cannot lower the priority by nice %d: %s\n", nice, std::strerror(errno));
   execve(argv[0], argv, envp);
   dprintf(2, "vloc_launch: cannot run %s: %s\n", argv[0], std::strerror(errno));
   _exit(127);
@@ -492,7 +497,7 @@ void Supervisor::Spawn(Proc& p, Clock::time_point now) {
     close(fds[1]);
     return RetryStartLater(p, now, std::string("fork failed: ") + std::strerror(errno));
   }
-  if (pid == 0) ExecChild(parent, fds[1], workdir, argv.data(), envp.data());
+  if (pid == 0) ExecChild(parent, fds[1], workdir, spec.nice, argv.data(), envp.data());
   setpgid(pid, pid);  // also here, so signals to -pid work at once
   close(fds[1]);
   fcntl(fds[0], F_SETFL, fcntl(fds[0], F_GETFL) | O_NONBLOCK);
@@ -668,6 +673,17 @@ std::vector<ProcessStatus> Supervisor::Status() {
   }
   last_status_time_ = now;
   return out;
+}
+
+std::map<pid_t, uint64_t> Supervisor::CpuTicks() const {
+  const auto usage = ReadProcessGroupUsage();
+  std::map<pid_t, uint64_t> ticks;
+  for (const auto& p : procs_) {
+    if (p->pid <= 0) continue;
+    const auto it = usage.find(p->pid);
+    if (it != usage.end()) ticks[p->pid] = it->second.cpu_ticks;
+  }
+  return ticks;
 }
 
 std::vector<std::string> Supervisor::ExitWhenDoneNames() const {

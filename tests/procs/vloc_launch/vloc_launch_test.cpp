@@ -425,6 +425,31 @@ processes:
   unsetenv("SIM_EXIT");
 }
 
+// exit_idle: the grace (30 s here) ends once the rest has finished its last
+// piece of work (a worker busy for a while after the simulator's end) and
+// has stayed idle for 2 s, and not before that work is done.
+TEST(VlocLaunch, GraceEndsOnceTheRestIsIdle) {
+  Scratch scratch("idle");
+  const std::string flag = scratch.dir + "/sim_ended";
+  const std::string group = R"(
+defaults: {stop_timeout: 2}
+processes:
+  - {name: worker, command: /bin/sh, stop_signal: SIGINT, args: [-c, "trap 'echo worker got INT; exit 0' INT;
+     while [ ! -f )" + flag + R"( ]; do sleep 0.05; done; i=0; while [ $i -lt 400000 ]; do i=$((i+1)); done;
+     echo finished; while :; do sleep 0.05; done"]}
+  - {name: sim, command: /bin/sh, args: [-c, "sleep 0.5; touch )" + flag + R"("], depends_on: [worker],
+     restart: never, exit_when_done: true, exit_grace: 30, exit_idle: 2}
+)";
+  const int port = 7837;
+  Subprocess launcher = Launch(scratch, scratch.WriteGroup(group), port, {"--exit-when-done"});
+  ASSERT_EQ(launcher.WaitExit(25), std::optional<int>(0)) << launcher.output();
+  const std::string log = scratch.Log("worker");
+  const size_t finished = log.find("[worker] finished\n"), stopped = log.find("[worker] worker got INT");
+  ASSERT_NE(stopped, std::string::npos) << log;
+  EXPECT_LT(finished, stopped) << log;
+  EXPECT_NE(launcher.output().find("the rest idle for 2 s"), std::string::npos) << launcher.output();
+}
+
 // One group split over two launchers on one bus (--host vehicle / ground,
 // as on two machines): each runs its part and names its host; an order is
 // applied by the launcher that owns the target and left alone by the

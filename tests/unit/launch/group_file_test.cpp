@@ -56,6 +56,7 @@ processes:
     stop_signal: SIGINT
     stop_timeout: 1
     working_dir: /tmp
+    nice: 10
     autostart: false
     exit_when_done: true
     exit_grace: 3
@@ -84,6 +85,8 @@ processes:
   EXPECT_EQ(b.stop_signal, SIGINT);
   EXPECT_DOUBLE_EQ(b.stop_timeout, 1.0);
   EXPECT_EQ(b.working_dir, "/tmp");
+  EXPECT_EQ(b.nice, 10);
+  EXPECT_EQ(a.nice, 0);
   EXPECT_FALSE(b.autostart);
   EXPECT_TRUE(b.exit_when_done);
   EXPECT_DOUBLE_EQ(b.exit_grace, 3.0);
@@ -124,6 +127,7 @@ TEST(GroupFile, EachMistakeIsReported) {
             std::string::npos);
   EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: x, stop_timeout: 0}\n").find("stop_timeout"),
             std::string::npos);
+  EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: x, nice: -5}\n").find("nice"), std::string::npos);
   EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: x, max_restarts: many}\n").find("expected an integer"),
             std::string::npos);
   EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: \"${NOPE}/x\"}\n").find("variable NOPE is not set"),

@@ -5,8 +5,10 @@
 
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -124,6 +126,32 @@ TEST(Supervisor, DaemonsOfItsProcessesDieWithThem) {
   ASSERT_TRUE(StepUntil(s, [&] { return s.AllStopped(); }));
   EXPECT_EQ(CountSleepers(kept), 0);
   EXPECT_EQ(s.NumOtherDescendants(), 0);
+  fs::remove_all(dir);
+}
+
+// `nice` lowers a process's priority below the launcher's (the simulator
+// below the vehicle's localisation in the demo groups).
+TEST(Supervisor, NiceLowersTheProcessPriority) {
+  const std::string dir = TempDir("nice");
+  GroupFile file;
+  file.processes = {Shell("plain", "nice > " + dir + "/plain; exec sleep 30"),
+                    Shell("low", "nice > " + dir + "/low; exec sleep 30")};
+  file.processes[1].nice = 7;
+  Supervisor s(file, {});
+  ASSERT_TRUE(s.Start("plain", false, nullptr));
+  ASSERT_TRUE(s.Start("low", false, nullptr));
+  const auto read = [&](const std::string& name) {
+    std::ifstream f(dir + "/" + name);
+    int value = -100;
+    f >> value;
+    return value;
+  };
+  ASSERT_TRUE(StepUntil(s, [&] { return read("plain") != -100 && read("low") != -100; }));
+  const int own = getpriority(PRIO_PROCESS, 0);
+  EXPECT_EQ(read("plain"), own);
+  EXPECT_EQ(read("low"), std::min(own + 7, 19));
+  s.StopAll();
+  ASSERT_TRUE(StepUntil(s, [&] { return s.AllStopped(); }));
   fs::remove_all(dir);
 }
 

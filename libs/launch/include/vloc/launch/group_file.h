@@ -22,9 +22,11 @@
 //       stop_signal: SIGINT         # SIGINT | SIGTERM | SIGHUP | SIGQUIT | SIGUSR1 | SIGUSR2
 //       stop_timeout: 5             # s, then SIGKILL
 //       working_dir: ${VLOC_ROOT}
+//       nice: 10                    # 0-19: higher yields the CPU to the others (a simulator below the localisation)
 //       autostart: true             # start with its group
 //       exit_when_done: true        # with --exit-when-done: its end ends the launcher
 //       exit_grace: 10              # s, after that end, before the others are stopped
+//       exit_idle: 3                # s, ... or sooner, once the others have been idle this long
 //       host: vehicle               # host or role it runs on (see below)
 //
 // Groups across machines (one LCM bus, a launcher per machine, after
@@ -72,9 +74,11 @@ struct ProcessSpec {
   int stop_signal = 15;                      // signal number sent to stop it (SIGTERM)
   double stop_timeout = 5.0;                 // s, time allowed to stop before SIGKILL
   std::string working_dir;                   // empty = the launcher's working directory
+  int nice = 0;                              // scheduling niceness, 0-19: higher yields the CPU to the others
   bool autostart = true;                     // started when its group is started at launch
   bool exit_when_done = false;               // with --exit-when-done, the launcher ends when it ends
   double exit_grace = 0.0;                   // s, after an exit_when_done end, before stopping the rest
+  double exit_idle = 0.0;                    // s, the grace ends once the rest has been idle this long; 0 = off
   std::string host;                          // host or role it runs on; empty = wherever the file is launched
   // Set by SelectHost: depends_on entries that run on another host, as
   // {host, process name}; the supervisor asks its RemoteCheck about them.

@@ -121,6 +121,10 @@ class Supervisor {
   // previous call.
   std::vector<ProcessStatus> Status();
 
+  // CPU clock ticks each running process's group has used so far, by pid
+  // (no effect on Status()'s CPU%).
+  std::map<pid_t, uint64_t> CpuTicks() const;
+
   // For --exit-when-done: nullopt while any of `names` (every selected
   // process when empty) may still run; else 0 when each ended with exit
   // code 0 (or was stopped), 1 otherwise.
