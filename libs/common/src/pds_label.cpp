@@ -44,7 +44,7 @@ class OdlParser {
       const int line = line_;
       std::string keyword;
       if (!BareToken(&keyword) || keyword.empty())
-        return Err(error, std::string("a keyword was expected, found '") + Printable(std::string(1, s_[pos_])) + "'");
+        return Err(error, std::string("a keyword was expected, found '") + Printable({&s_[pos_], 1}) + "'");
       const std::string key = Upper(keyword);
       if (++statements > limits_.max_statements)
         return Err(error, "more than " + std::to_string(limits_.max_statements) + " statements");
@@ -222,8 +222,8 @@ class OdlParser {
         Advance();
         return true;
       }
-      return Err(error, keyword + ": ',' or '" + std::string(1, close) + "' expected, found '" + Printable(std::string(1, s_[pos_])) +
-                            "'");
+      return Err(error, keyword + ": ',' or '" + std::string(1, close) + "' expected, found '" +
+                            Printable({&s_[pos_], 1}) + "'");
     }
   }
 
@@ -260,7 +260,7 @@ class OdlParser {
     const char c = s_[pos_];
     std::string token;
     if (!BareToken(&token)) return Err(error, keyword + ": a value holds a control or non-ASCII byte");
-    if (token.empty()) return Err(error, keyword + ": a value was expected, found '" + Printable(std::string(1, c)) + "'");
+    if (token.empty()) return Err(error, keyword + ": a value was expected, found '" + Printable({&c, 1}) + "'");
     v->text = token;
     if (!ParseNumber(token, v)) {
       v->type = OdlValue::Type::kIdentifier;
