@@ -138,7 +138,9 @@ def main():
     fixes = read_csv(os.path.join(d, "eval", "fixes.csv"))
     log = open(os.path.join(d, "map_localizer.log")).read() if os.path.exists(os.path.join(d, "map_localizer.log")) else ""
     attempted = len(re.findall(r"site \d+: (?:fix|no fix)", log)) or None
-    no_fix = re.findall(r"site (\d+): no fix: ([^(]*)", log)
+    fixed = set(re.findall(r"site (\d+): fix \(ok\)", log))
+    no_fix = [(s, why) for s, why in re.findall(r"site (\d+): no fix: ([^(]*)", log) if s not in fixed]
+    retried = sorted(set(re.findall(r"site (\d+): tried again on the new map", log)) & fixed, key=int)
     status = re.findall(r"(\d+) fixes, (\d+) sites without a fix", log)
 
     def local_mosaic_error(x, y, radius=15.0):
@@ -165,7 +167,8 @@ def main():
     if status:
         ok, bad = status[-1]
         out.append(f"map_localizer: {ok} fixes, {bad} sites without a fix"
-                   + ("".join(f"; site {s}: {why.strip()}" for s, why in no_fix)) + "\n")
+                   + ("".join(f"; site {s}: {why.strip()}" for s, why in no_fix))
+                   + ("".join(f"; site {s} fixed when tried again on a later map" for s in retried)) + "\n")
     if fixes:
         out.append("| site | fix error m (x, y) | heading error deg | sigma x / y m | NEES xy / xyh | mosaic error there m (mean x, y) |")
         out.append("|---|---|---|---|---|---|")

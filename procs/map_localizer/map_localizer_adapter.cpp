@@ -32,8 +32,10 @@ void MapLocalizerProcOptions::Visit(OptionsReader& r) {
              Rule<std::vector<double>>(IsLatLonOrEmpty, "[] or [latitude, longitude] in degrees"));
   r.Optional("map_m_per_px", &map_m_per_px, "m, resample the map to this cell size (0 = the file's)",
              NonNegative() && Finite());
-  r.Optional("reload_map_on_change", &reload_map_on_change, "re-read the map file when it changes");
-  r.Optional("wait_for_map_s", &wait_for_map_s, "s, wait at start for the map file to appear", NonNegative());
+  r.Optional("reload_map_on_change", &reload_map_on_change,
+             "re-read the map file when it changes; the newest sites without a fix are tried again on it");
+  r.Optional("wait_for_map_s", &wait_for_map_s, "s, sites wait this long for a map file not there yet",
+             NonNegative());
   r.Optional("stereo_channel", &stereo_channel, "stereo_image_t in", NonEmpty());
   r.Optional("traverse_channel", &traverse_channel, "traverse_t in", NonEmpty());
   r.Optional("dr_channel", &dr_channel, "site_pose_t in (prior before the graph has the site)");
@@ -77,8 +79,10 @@ int64_t FileTime(const std::string& path) {
 MapLocalizerAdapter::MapLocalizerAdapter(Transport& transport, const MapLocalizerProcOptions& options,
                                          const NavcamModel& navcam, maploc::MapRaster map)
     : transport_(transport), options_(options), navcam_(navcam), map_(std::move(map)) {
-  map_mtime_ = FileTime(options_.map_path);
-  options_.ortho.m_per_px = map_.m_per_px;
+  if (HasMap()) {
+    map_mtime_ = FileTime(options_.map_path);
+    options_.ortho.m_per_px = map_.m_per_px;
+  }
   stereo_stats_ = Subscribe<stereo_image_t>(
       transport_, options_.stereo_channel, [this](const std::string&, const stereo_image_t& m) { OnStereo(m); },
       options_.queue_capacity);
@@ -180,6 +184,7 @@ void MapLocalizerAdapter::OnDeadReckoning(const site_pose_t& msg) {
 }
 
 void MapLocalizerAdapter::ProcessReadySites() {
+  if (!HasMap()) return;  // the sites wait for it
   for (auto it = waiting_.begin(); it != waiting_.end();) {
     const int site = it->first;
     const bool complete = static_cast<int>(it->second.pairs.size()) >= it->second.num_pairs;
@@ -205,35 +210,70 @@ void MapLocalizerAdapter::LocaliseSite(int site_id, std::vector<StereoPair> pair
   maploc::GroundOrthoSummary ortho_summary;
   const maploc::MapRaster ortho =
       maploc::BuildGroundOrtho(pairs, navcam_, rpy.x(), rpy.y(), options_.ortho, &ortho_summary);
-  maploc::MapFix fix;
-  if (!ortho_summary.usable) fix.message = "ground orthophoto: " + ortho_summary.message;
-  else fix = maploc::RegisterToMap(ortho, map_, maploc::SitePriorFromPose(prior), options_.registration);
+  if (!ortho_summary.usable) {
+    ++no_fixes_;
+    last_result_ = "site " + std::to_string(site_id) + ": no fix: ground orthophoto: " + ortho_summary.message;
+    LOG(WARNING) << last_result_;
+    return;
+  }
+  if (RegisterSite(site_id, ortho, ortho_summary, prior) || !options_.reload_map_on_change) return;
+  // A map still growing (a UAV mosaic) may cover it later: tried again on each new map.
+  to_retry_[site_id] = {ortho, ortho_summary, prior};
+  while (static_cast<int>(to_retry_.size()) > options_.max_sites_waiting) to_retry_.erase(to_retry_.begin());
+}
+
+bool MapLocalizerAdapter::RegisterSite(int site_id, const maploc::MapRaster& ortho,
+                                       const maploc::GroundOrthoSummary& ortho_summary,
+                                       const PoseWithCovariance& prior) {
+  const maploc::MapFix fix =
+      maploc::RegisterToMap(ortho, map_, maploc::SitePriorFromPose(prior), options_.registration);
   last_result_ = "site " + std::to_string(site_id) + ": " + fix.BriefReport();
   if (!fix.usable) {
     ++no_fixes_;
     LOG(WARNING) << "site " << site_id << ": no fix: " << fix.message << " (" << ortho_summary.BriefReport() << ")";
-    return;
+    return false;
   }
   ++fixes_;
   LOG(INFO) << last_result_ << "; ortho " << ortho_summary.BriefReport();
   const PoseWithCovariance pose = maploc::FixToPose(fix, prior, options_.registration);
   Publish(transport_, options_.fix_channel, SitePoseToMessage(site_id, kSourceMapFix, pose));
+  return true;
+}
+
+void MapLocalizerAdapter::RetrySites() {
+  for (auto it = to_retry_.begin(); it != to_retry_.end();) {
+    LOG(INFO) << "site " << it->first << ": tried again on the new map";
+    --no_fixes_;  // a site is counted once, as it ends
+    it = RegisterSite(it->first, it->second.ortho, it->second.ortho_summary, it->second.prior) ? to_retry_.erase(it)
+                                                                                              : std::next(it);
+  }
 }
 
 void MapLocalizerAdapter::OnIdle() {
-  if (!options_.reload_map_on_change) return;
+  if (!HasMap()) {
+    if (ReadMap()) ProcessReadySites();  // the sites that waited for it
+    return;
+  }
+  if (options_.reload_map_on_change && ReadMap()) RetrySites();
+}
+
+bool MapLocalizerAdapter::ReadMap() {
   const int64_t t = FileTime(options_.map_path);
-  if (t == 0 || t == map_mtime_) return;
+  if (t == 0 || t == map_mtime_) return false;
   map_mtime_ = t;
+  const bool first = !HasMap();
   maploc::MapRaster map;
   std::string error;
   if (!maploc::LoadMapRaster(options_.map_path, &map, &error, options_.Georeference())) {
-    LOG(ERROR) << "map changed but not reloaded, keeping the previous one: " << error;
-    return;
+    LOG(ERROR) << (first ? "map appeared but cannot be read: " : "map changed but not reloaded, keeping the previous one: ")
+               << error;
+    return false;
   }
   map_ = std::move(map);
   options_.ortho.m_per_px = map_.m_per_px;
-  LOG(INFO) << "map reloaded: " << map_.gray.cols << " x " << map_.gray.rows << " at " << map_.m_per_px << " m/px";
+  LOG(INFO) << (first ? "map read: " : "map reloaded: ") << map_.gray.cols << " x " << map_.gray.rows << " at "
+            << map_.m_per_px << " m/px" << (first ? "; " + std::to_string(waiting_.size()) + " sites waited for it" : "");
+  return true;
 }
 
 std::string MapLocalizerAdapter::StatusLine() const {

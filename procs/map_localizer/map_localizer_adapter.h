@@ -42,8 +42,9 @@ struct MapLocalizerProcOptions {
   std::vector<double> map_geographic_origin = {};    // [lat, lon] deg: the map's coordinates are WGS84 degrees (the
                                                      // UAV mosaic's world file) and this point is the world origin
   double map_m_per_px = 0.0;                         // m, resample the map to this cell size on load (0 = the file's)
-  bool reload_map_on_change = true;                  // re-read map_path when the file changes (a mosaic being updated)
-  double wait_for_map_s = 0.0;                       // s, wait this long at start for map_path to appear (0 = not)
+  bool reload_map_on_change = true;                  // re-read map_path when the file changes (a mosaic being updated),
+                                                     // the newest sites without a fix tried again on it
+  double wait_for_map_s = 0.0;                       // s, sites wait this long for a map_path not there yet (0 = not)
   std::string stereo_channel = "NAVCAM_STEREO";      // stereo_image_t in
   std::string traverse_channel = "TRAVERSE";         // traverse_t in: predicted pose + covariance
   std::string dr_channel = "SITE_POSE_DR";           // site_pose_t in: prior before the graph has the site
@@ -71,10 +72,13 @@ inline constexpr int8_t kSourceMapFix = 4;
 
 class MapLocalizerAdapter {
  public:
+  // `map` empty: the map file is not there yet (wait_for_map_s); sites
+  // collect and wait for it (max_sites_waiting), OnIdle reads it once it is.
   MapLocalizerAdapter(Transport& transport, const MapLocalizerProcOptions& options, const NavcamModel& navcam,
                       maploc::MapRaster map);
-  // Re-reads the map when its file changed (called between messages).
+  // Reads the map when its file appeared or changed (called between messages).
   void OnIdle();
+  bool HasMap() const { return !map_.gray.empty(); }
   std::string StatusLine() const;
 
  private:
@@ -83,6 +87,14 @@ class MapLocalizerAdapter {
   void OnDeadReckoning(const site_pose_t& msg);
   void ProcessReadySites();
   void LocaliseSite(int site_id, std::vector<StereoPair> pairs, const PoseWithCovariance& prior);
+  // The site's ground orthophoto registered to the map: true when a fix
+  // was published.
+  bool RegisterSite(int site_id, const maploc::MapRaster& ortho, const maploc::GroundOrthoSummary& ortho_summary,
+                    const PoseWithCovariance& prior);
+  // The sites without a fix tried again on the map just read.
+  void RetrySites();
+  // The map file read into map_ when it is there; false (map_ kept) when it is not or cannot be read.
+  bool ReadMap();
 
   Transport& transport_;
   MapLocalizerProcOptions options_;
@@ -98,6 +110,14 @@ class MapLocalizerAdapter {
   void DropSite(std::map<int, WaitingSite>::iterator it, const std::string& why);
 
   std::map<int, WaitingSite> waiting_;                // per site, until its panorama and prior are in
+  struct SiteToRetry {
+    maploc::MapRaster ortho;  // its ground orthophoto (the panorama's product: no need to keep the images)
+    maploc::GroundOrthoSummary ortho_summary;
+    PoseWithCovariance prior;
+  };
+  // The newest max_sites_waiting sites a map still being written (reload_map_on_change) gave no fix:
+  // a mosaic that did not reach them yet, or reached only their edge.
+  std::map<int, SiteToRetry> to_retry_;
   std::map<int, PoseWithCovariance> graph_poses_, dr_poses_;  // the newest site_window sites
   std::set<int> localised_;                           // sites done (newest site_window): later pairs ignored
   int newest_site_ = -1;

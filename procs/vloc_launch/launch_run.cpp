@@ -40,11 +40,12 @@ void GiveGrace(Transport& transport, Supervisor& supervisor, const LaunchRunOpti
   while (Clock::now() < until && !StopSignalPending()) {
     transport.Handle(20);
     step(30);
-    if (idle_s <= 0 || Clock::now() < next_sample) continue;
-    next_sample += std::chrono::milliseconds(500);
-    const double t = std::chrono::duration<double>(Clock::now() - start).count();
-    if (idle.Update(t, supervisor.CpuTicks())) {
-      LOG(INFO) << "the rest idle for " << idle_s << " s, " << t << " s into the grace: stopping it";
+    const auto now = Clock::now();
+    if (idle_s <= 0 || now < next_sample) continue;
+    next_sample = now + std::chrono::milliseconds(500);
+    const double t = std::chrono::duration<double>(now - start).count();
+    if (idle.Update(t, supervisor.CpuTicks(), supervisor.AnyStartPending())) {
+      LOG(INFO) << "the rest idle for " << idle_s << " s, " << t << " s into the grace: stopping the rest";
       return;
     }
   }

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <csignal>
-#include <cstdio>
 #include <cstdlib>
 #include <functional>
 #include <set>
@@ -312,13 +311,17 @@ ProcessSpec ReadProcess(const YAML::Node& entry, size_t index, const FileDefault
   return spec;
 }
 
-// Hosts: none (one machine) or every process.
+// Hosts: none (one machine) or every process; exit_idle only on one
+// machine (a launcher sees the CPU of its own processes alone).
 void CheckHosts(const GroupFile& file, const std::string& context) {
   const auto hosts = file.Hosts();
   for (const auto& p : file.processes) {
     if (!hosts.empty() && p.host.empty())
       throw ConfigError(context + ": process '" + p.name + "' has no 'host' while others have (" + hosts.front() +
                         "); give every process a host, or set defaults.host");
+    if (!hosts.empty() && p.exit_idle > 0)
+      throw ConfigError(context + ": process '" + p.name + "': exit_idle needs a group on one machine (a launcher "
+                        "sees only its own host's processes idle); use exit_grace alone");
   }
 }
 

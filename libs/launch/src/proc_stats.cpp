@@ -43,7 +43,9 @@ std::optional<StatLine> ReadStat(const std::string& path) {
   s.ppid = static_cast<pid_t>(std::atol(f[1].c_str()));
   s.pgrp = static_cast<pid_t>(std::atol(f[2].c_str()));
   s.start_ticks = std::strtoull(f[19].c_str(), nullptr, 10);
-  s.usage.cpu_ticks = std::strtoull(f[11].c_str(), nullptr, 10) + std::strtoull(f[12].c_str(), nullptr, 10);
+  // utime + stime, and cutime + cstime: a child's time moves into its parent's when it is reaped
+  // (a shell whose work runs in short-lived tools keeps counting).
+  for (int k = 11; k <= 14; ++k) s.usage.cpu_ticks += std::strtoull(f[k].c_str(), nullptr, 10);
   s.usage.rss_bytes = std::atoll(f[21].c_str()) * static_cast<int64_t>(sysconf(_SC_PAGESIZE));
   s.usage.num_processes = 1;
   return s;
@@ -89,7 +91,7 @@ std::vector<ProcEntry> ReadProcessTable() {
     if (e->d_name[0] < '0' || e->d_name[0] > '9') continue;
     auto s = ReadStat(std::string("/proc/") + e->d_name + "/stat");
     if (!s) continue;
-    table.push_back({s->pid, s->ppid, s->pgrp, s->state, s->start_ticks, s->comm});
+    table.push_back({s->pid, s->ppid, s->pgrp, s->state, s->start_ticks, s->comm, s->usage.cpu_ticks});
   }
   closedir(dir);
   return table;

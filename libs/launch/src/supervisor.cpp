@@ -423,9 +423,11 @@ std::vector<std::string> ChildEnvironment(const std::map<std::string, std::strin
 
 // In the child after fork: its own process group, dies with the launcher
 // (`parent`), default signals, stdin from /dev/null, stdout and stderr into
-// out_fd, its niceness raised by `nice`, then the program; exit 126 / 127
-// with one line when it cannot.
-[[noreturn]] void ExecChild(pid_t parent, int out_fd, const char* workdir, int nice, char* const* argv,
+// out_fd, its niceness set to `niceness` (computed before fork;
+// kLaunchersNiceness: left as it is), then the program; exit 126 / 127 with
+// one line when it cannot.
+constexpr int kLaunchersNiceness = 100;
+[[noreturn]] void ExecChild(pid_t parent, int out_fd, const char* workdir, int niceness, char* const* argv,
                             char* const* envp) {
   setpgid(0, 0);
   prctl(PR_SET_PDEATHSIG, SIGTERM);
@@ -442,8 +444,10 @@ std::vector<std::string> ChildEnvironment(const std::map<std::string, std::strin
     dprintf(2, "vloc_launch: cannot enter working_dir %s: %s\n", workdir, std::strerror(errno));
     _exit(126);
   }
-  if (nice > 0 && setpriority(PRIO_PROCESS, 0, getpriority(PRIO_PROCESS, 0) + nice) != 0)
-    dprintf(2, "vloc_launch: cannot lower the priority by nice %d: %s\n", nice, std::strerror(errno));
+  if (niceness != kLaunchersNiceness && setpriority(PRIO_PROCESS, 0, niceness) != 0) {
+    static const char kMessage[] = "vloc_launch: cannot lower the priority ('nice'); running at the launcher's\n";
+    (void)!write(2, kMessage, sizeof(kMessage) - 1);
+  }
   execve(argv[0], argv, envp);
   dprintf(2, "vloc_launch: cannot run %s: %s\n", argv[0], std::strerror(errno));
   _exit(127);
@@ -491,13 +495,15 @@ void Supervisor::Spawn(Proc& p, Clock::time_point now) {
   int fds[2];
   if (pipe2(fds, O_CLOEXEC) != 0) return RetryStartLater(p, now, std::string("pipe failed: ") + std::strerror(errno));
   const pid_t parent = getpid();
+  const int niceness =
+      spec.nice > 0 ? std::clamp(getpriority(PRIO_PROCESS, 0) + spec.nice, -20, 19) : kLaunchersNiceness;
   const pid_t pid = fork();
   if (pid < 0) {
     close(fds[0]);
     close(fds[1]);
     return RetryStartLater(p, now, std::string("fork failed: ") + std::strerror(errno));
   }
-  if (pid == 0) ExecChild(parent, fds[1], workdir, spec.nice, argv.data(), envp.data());
+  if (pid == 0) ExecChild(parent, fds[1], workdir, niceness, argv.data(), envp.data());
   setpgid(pid, pid);  // also here, so signals to -pid work at once
   close(fds[1]);
   fcntl(fds[0], F_SETFL, fcntl(fds[0], F_GETFL) | O_NONBLOCK);
@@ -510,7 +516,8 @@ void Supervisor::Spawn(Proc& p, Clock::time_point now) {
   p.signal_sent = p.kill_sent = false;
   p.cpu_valid = false;
   p.waiting_noted = false;
-  Note(p, "started pid " + std::to_string(pid) + ": " + JoinCommand(program, spec.args));
+  Note(p, "started pid " + std::to_string(pid) + (spec.nice > 0 ? " at nice " + std::to_string(niceness) : "") + ": " +
+              JoinCommand(program, spec.args));
 }
 
 void Supervisor::OnExit(Proc& p, int wait_status, Clock::time_point now) {
@@ -676,14 +683,27 @@ std::vector<ProcessStatus> Supervisor::Status() {
 }
 
 std::map<pid_t, uint64_t> Supervisor::CpuTicks() const {
-  const auto usage = ReadProcessGroupUsage();
+  const auto table = ReadProcessTable();
+  std::multimap<pid_t, const ProcEntry*> children;
+  for (const auto& e : table) children.emplace(e.ppid, &e);
   std::map<pid_t, uint64_t> ticks;
-  for (const auto& p : procs_) {
-    if (p->pid <= 0) continue;
-    const auto it = usage.find(p->pid);
-    if (it != usage.end()) ticks[p->pid] = it->second.cpu_ticks;
+  std::vector<pid_t> todo{self_};
+  for (size_t i = 0; i < todo.size(); ++i) {
+    const auto range = children.equal_range(todo[i]);
+    for (auto it = range.first; it != range.second; ++it) {
+      const ProcEntry& e = *it->second;
+      if (e.state == 'Z' || e.state == 'X') continue;
+      ticks[e.pid] = e.cpu_ticks;
+      todo.push_back(e.pid);
+    }
   }
   return ticks;
+}
+
+bool Supervisor::AnyStartPending() const {
+  return std::any_of(procs_.begin(), procs_.end(), [](const auto& p) {
+    return p->state == ProcState::kStarting || p->state == ProcState::kBackoff;
+  });
 }
 
 std::vector<std::string> Supervisor::ExitWhenDoneNames() const {

@@ -5,7 +5,6 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -178,8 +177,8 @@ bool ReadReferenceHeights(const std::string& path, std::map<std::string, double>
     char* end = nullptr;
     const double h = std::strtod(value.c_str(), &end);
     if (end == value.c_str() || *end != '\0' || !(h > 0 && h < 1e5))
-      return fail(where + ": height_m " + "\"" + Printable(value, 40) + "\"" + " is not a height in (0, 100 km)");
-    if (!heights->emplace(name, h).second) return fail(where + ": photo " + "\"" + Printable(name, 40) + "\"" + " twice");
+      return fail(where + ": height_m \"" + Printable(value, 40) + "\" is not a height in (0, 100 km)");
+    if (!heights->emplace(name, h).second) return fail(where + ": photo \"" + Printable(name, 40) + "\" twice");
   }
   if (name_col < 0) return fail(no_header);
   if (heights->empty()) return fail("no photo");

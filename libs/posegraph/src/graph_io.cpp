@@ -4,7 +4,6 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <cmath>
-#include <cstdio>
 #include <cstdlib>
 #include <deque>
 #include <filesystem>

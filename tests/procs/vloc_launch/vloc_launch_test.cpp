@@ -1,7 +1,8 @@
-// vloc_launch as a real process over real LCM (ports 7822-7833), with
+// vloc_launch as a real process over real LCM (ports 7822-7837), with
 // /bin/sh and sleep as its children: starting a group, restarting after
 // SIGKILL, giving up, SIGTERM leaving no process, orders over LCM, log
-// files, bad group files, --exit-when-done. Every wait has a timeout.
+// files, bad group files, --exit-when-done, the grace cut short once the
+// rest is idle. Every wait has a timeout.
 
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -426,8 +427,9 @@ processes:
 }
 
 // exit_idle: the grace (30 s here) ends once the rest has finished its last
-// piece of work (a worker busy for a while after the simulator's end) and
-// has stayed idle for 2 s, and not before that work is done.
+// piece of work (a worker busy for 4 s after the simulator's end, longer
+// than exit_idle, in a child process as a script's tools are) and has
+// stayed idle for 2 s, and not before that work is done.
 TEST(VlocLaunch, GraceEndsOnceTheRestIsIdle) {
   Scratch scratch("idle");
   const std::string flag = scratch.dir + "/sim_ended";
@@ -435,8 +437,8 @@ TEST(VlocLaunch, GraceEndsOnceTheRestIsIdle) {
 defaults: {stop_timeout: 2}
 processes:
   - {name: worker, command: /bin/sh, stop_signal: SIGINT, args: [-c, "trap 'echo worker got INT; exit 0' INT;
-     while [ ! -f )" + flag + R"( ]; do sleep 0.05; done; i=0; while [ $i -lt 400000 ]; do i=$((i+1)); done;
-     echo finished; while :; do sleep 0.05; done"]}
+     while [ ! -f )" + flag + R"( ]; do sleep 0.05; done; timeout 4 sh -c 'while :; do :; done';
+     echo finished; while :; do sleep 0.5; done"]}
   - {name: sim, command: /bin/sh, args: [-c, "sleep 0.5; touch )" + flag + R"("], depends_on: [worker],
      restart: never, exit_when_done: true, exit_grace: 30, exit_idle: 2}
 )";
@@ -447,7 +449,9 @@ processes:
   const size_t finished = log.find("[worker] finished\n"), stopped = log.find("[worker] worker got INT");
   ASSERT_NE(stopped, std::string::npos) << log;
   EXPECT_LT(finished, stopped) << log;
-  EXPECT_NE(launcher.output().find("the rest idle for 2 s"), std::string::npos) << launcher.output();
+  const size_t idle = launcher.output().find("the rest idle for 2 s, ");
+  ASSERT_NE(idle, std::string::npos) << launcher.output();
+  EXPECT_GE(std::atof(launcher.output().c_str() + idle + 23), 6.0) << launcher.output();  // 4 s of work + 2 s idle
 }
 
 // One group split over two launchers on one bus (--host vehicle / ground,

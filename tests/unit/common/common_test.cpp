@@ -444,9 +444,12 @@ TEST(Printable, EscapesWhatCouldForgeALineAndCutsLongText) {
   EXPECT_EQ(Printable("x\nI1127 forged\t\\"), "x\\nI1127 forged\\x09\\\\");
   EXPECT_EQ(Printable(std::string("a\0b", 3)), "a\\x00b");
   EXPECT_EQ(Printable("caf\xc3\xa9"), "caf\xc3\xa9");  // UTF-8 kept
+  EXPECT_EQ(Printable("caf\xc3"), "caf\\xc3");          // a character cut short
+  EXPECT_EQ(Printable("\xe9t\xe9"), "\\xe9t\\xe9");       // Latin-1, no UTF-8
   EXPECT_EQ(Printable("abcdef", 4), "abcd...");
   EXPECT_EQ(Printable("abcd", 4), "abcd");
-  EXPECT_EQ(Printable("\n\n", 1), "\\n...");
+  EXPECT_EQ(Printable("\n\n", 3), "\\n...");                 // the limit is on what is printed
+  EXPECT_EQ(Printable("\xc3\xa9\xc3\xa9", 3), "\xc3\xa9..."); // whole characters only
 }
 
 }  // namespace

@@ -57,6 +57,7 @@ processes:
     stop_timeout: 1
     working_dir: /tmp
     nice: 10
+    exit_idle: 2.5
     autostart: false
     exit_when_done: true
     exit_grace: 3
@@ -86,6 +87,7 @@ processes:
   EXPECT_DOUBLE_EQ(b.stop_timeout, 1.0);
   EXPECT_EQ(b.working_dir, "/tmp");
   EXPECT_EQ(b.nice, 10);
+  EXPECT_DOUBLE_EQ(b.exit_idle, 2.5);
   EXPECT_EQ(a.nice, 0);
   EXPECT_FALSE(b.autostart);
   EXPECT_TRUE(b.exit_when_done);
@@ -127,7 +129,13 @@ TEST(GroupFile, EachMistakeIsReported) {
             std::string::npos);
   EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: x, stop_timeout: 0}\n").find("stop_timeout"),
             std::string::npos);
-  EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: x, nice: -5}\n").find("nice"), std::string::npos);
+  EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: x, nice: -5}\n").find("nice = -5: must be in [0, 19]"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: x, exit_idle: -1}\n").find("exit_idle = -1: must be >= 0"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: x, host: v, exit_idle: 3}\n")
+                .find("exit_idle needs a group on one machine"),
+            std::string::npos);
   EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: x, max_restarts: many}\n").find("expected an integer"),
             std::string::npos);
   EXPECT_NE(ErrorOf("processes:\n  - {name: a, command: \"${NOPE}/x\"}\n").find("variable NOPE is not set"),

@@ -19,7 +19,7 @@ TEST(IdleWatch, IdleOnlyAfterTheWholeTimeUnderTheThreshold) {
   EXPECT_FALSE(idle.Update(1.0, ticks));
   ticks[10] += 1;
   EXPECT_FALSE(idle.Update(1.4, ticks));
-  EXPECT_TRUE(idle.Update(1.5, ticks));  // idle since 0.5 s
+  EXPECT_TRUE(idle.Update(1.6, ticks));  // idle since 0.5 s
 }
 
 TEST(IdleWatch, ABusySampleOrANewProcessStartsTheCountAgain) {
@@ -30,12 +30,15 @@ TEST(IdleWatch, ABusySampleOrANewProcessStartsTheCountAgain) {
   ticks[10] += 4;  // 0.04 s in 0.3 s = 13 %
   EXPECT_FALSE(idle.Update(0.9, ticks));
   EXPECT_FALSE(idle.Update(1.8, ticks));
-  ticks[12] = 0;  // a restart: busy
+  ticks[12] = 1;  // a process that appeared: all its time counts, 0.01 s in 0.1 s = 10 %
   EXPECT_FALSE(idle.Update(1.9, ticks));
   EXPECT_FALSE(idle.Update(2.8, ticks));
-  EXPECT_TRUE(idle.Update(2.9, ticks));
-  ticks.erase(10);  // a process that ended is no work
   EXPECT_TRUE(idle.Update(3.0, ticks));
+  ticks.erase(10);  // a process that ended is no work
+  EXPECT_TRUE(idle.Update(3.1, ticks));
+  EXPECT_FALSE(idle.Update(3.2, ticks, /*start_pending=*/true));  // one about to restart
+  EXPECT_FALSE(idle.Update(4.1, ticks));
+  EXPECT_TRUE(idle.Update(4.3, ticks));
 }
 
 }  // namespace

@@ -132,6 +132,8 @@ TEST(Supervisor, DaemonsOfItsProcessesDieWithThem) {
 // `nice` lowers a process's priority below the launcher's (the simulator
 // below the vehicle's localisation in the demo groups).
 TEST(Supervisor, NiceLowersTheProcessPriority) {
+  const int own = getpriority(PRIO_PROCESS, 0);
+  if (own + 7 > 19) GTEST_SKIP() << "the test runs at nice " << own << ": no room for 7 more";
   const std::string dir = TempDir("nice");
   GroupFile file;
   file.processes = {Shell("plain", "nice > " + dir + "/plain; exec sleep 30"),
@@ -147,9 +149,8 @@ TEST(Supervisor, NiceLowersTheProcessPriority) {
     return value;
   };
   ASSERT_TRUE(StepUntil(s, [&] { return read("plain") != -100 && read("low") != -100; }));
-  const int own = getpriority(PRIO_PROCESS, 0);
   EXPECT_EQ(read("plain"), own);
-  EXPECT_EQ(read("low"), std::min(own + 7, 19));
+  EXPECT_EQ(read("low"), own + 7);
   s.StopAll();
   ASSERT_TRUE(StepUntil(s, [&] { return s.AllStopped(); }));
   fs::remove_all(dir);

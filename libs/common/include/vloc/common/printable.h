@@ -12,9 +12,10 @@ namespace vloc {
 // forge a line in a log).
 bool HasControlCharacters(std::string_view text);
 
-// `text` with its control characters escaped (\n, \xNN) and its
-// backslashes doubled (\\, so no escape can be forged); of a longer text
-// its first `max_chars` bytes and "...".
+// `text` with its control characters and any byte that is no UTF-8
+// character escaped (\n, \xNN) and its backslashes doubled (\\, so no
+// escape can be forged); when that is longer than `max_chars`, as many
+// whole characters of it as fit and "...".
 std::string Printable(std::string_view text, std::size_t max_chars = std::string_view::npos);
 
 }  // namespace vloc

@@ -17,8 +17,11 @@ class IdleWatch {
   IdleWatch(double idle_s, double ticks_per_second, double max_core_fraction = 0.05);
   // The CPU ticks of each running process by pid (Supervisor::CpuTicks) at
   // time `t` (s, monotonic), fed now and then: true once idle. A process
-  // that appeared since the last call counts as busy.
-  bool Update(double t, const std::map<pid_t, uint64_t>& ticks);
+  // that appeared since the last call counts with all its time;
+  // `start_pending` (one about to restart) is busy. What uses no CPU (a
+  // timer, disk or network waits) looks idle: exit_idle is for pipelines
+  // that compute to the end.
+  bool Update(double t, const std::map<pid_t, uint64_t>& ticks, bool start_pending = false);
 
  private:
   double idle_s_, ticks_per_second_, max_core_fraction_;

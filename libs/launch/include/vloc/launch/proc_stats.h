@@ -12,7 +12,7 @@
 namespace vloc {
 
 struct ProcUsage {
-  uint64_t cpu_ticks = 0;  // user + system time, clock ticks (sysconf(_SC_CLK_TCK) per second)
+  uint64_t cpu_ticks = 0;  // user + system time, its reaped children's included, clock ticks (sysconf(_SC_CLK_TCK) per second)
   int64_t rss_bytes = 0;   // resident memory, bytes
   int num_processes = 0;   // processes summed
 };
@@ -38,6 +38,7 @@ struct ProcEntry {
   char state = '?';          // 'Z' zombie, 'R' running, 'S' sleeping, ...
   uint64_t start_ticks = 0;  // start time after boot, clock ticks (with pid: which process, across pid reuse)
   std::string comm;          // executable name (at most 15 characters)
+  uint64_t cpu_ticks = 0;    // as ProcUsage::cpu_ticks
 };
 
 // Every process in /proc, one pass.

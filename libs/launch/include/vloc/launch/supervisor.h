@@ -121,9 +121,13 @@ class Supervisor {
   // previous call.
   std::vector<ProcessStatus> Status();
 
-  // CPU clock ticks each running process's group has used so far, by pid
-  // (no effect on Status()'s CPU%).
+  // CPU clock ticks used so far by each live process below the launcher
+  // (its processes, whatever they forked, in their groups or not, and the
+  // orphans it adopted; each with its reaped children's), by pid. No
+  // effect on Status()'s CPU%.
   std::map<pid_t, uint64_t> CpuTicks() const;
+  // True while a process waits to (re)start (starting or backing off).
+  bool AnyStartPending() const;
 
   // For --exit-when-done: nullopt while any of `names` (every selected
   // process when empty) may still run; else 0 when each ended with exit
