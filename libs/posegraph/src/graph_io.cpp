@@ -488,8 +488,8 @@ bool ParseGraphStream(std::istream& in, GraphFile* file, std::string* error, Inf
   const bool two_d = key == "VERTEX_SE2" || key == "EDGE_SE2" || key == "VERTEX2" || key == "EDGE2" ||
                      key == "VERTEX" || key == "EDGE";
   if (!three_d && !two_d)
-    return Fail(error, "unknown record '" + Printable(key, 80) + "' (expected VERTEX_SE3:QUAT/EDGE_SE3:QUAT, VERTEX_SE2/EDGE_SE2, "
-                       "VERTEX2/EDGE2 or VERTEX3/EDGE3)");
+    return Fail(error, "unknown record '" + Printable(key, 80) +
+                           "' (expected VERTEX_SE3:QUAT/EDGE_SE3:QUAT, VERTEX_SE2/EDGE_SE2, VERTEX2/EDGE2 or VERTEX3/EDGE3)");
   file->dimension = three_d ? 3 : 2;
   file->format = key.find("_SE") != std::string::npos ? GraphFormat::kG2o : GraphFormat::kMrptText;
   bool ok;

@@ -12,7 +12,8 @@
 namespace vloc {
 
 struct ProcUsage {
-  uint64_t cpu_ticks = 0;  // user + system time, its reaped children's included, clock ticks (sysconf(_SC_CLK_TCK) per second)
+  uint64_t cpu_ticks = 0;  // user + system time, its reaped children's included, clock ticks
+                           // (sysconf(_SC_CLK_TCK) per second)
   int64_t rss_bytes = 0;   // resident memory, bytes
   int num_processes = 0;   // processes summed
 };
