@@ -421,6 +421,13 @@ std::vector<std::string> ChildEnvironment(const std::map<std::string, std::strin
   return env_strings;
 }
 
+// The process table's entries by parent pid.
+std::multimap<pid_t, const ProcEntry*> ChildrenByParent(const std::vector<ProcEntry>& table) {
+  std::multimap<pid_t, const ProcEntry*> children;
+  for (const auto& e : table) children.emplace(e.ppid, &e);
+  return children;
+}
+
 // In the child after fork: its own process group, dies with the launcher
 // (`parent`), default signals, stdin from /dev/null, stdout and stderr into
 // out_fd, its niceness set to `niceness` (computed before fork;
@@ -684,8 +691,7 @@ std::vector<ProcessStatus> Supervisor::Status() {
 
 std::map<pid_t, uint64_t> Supervisor::CpuTicks() const {
   const auto table = ReadProcessTable();
-  std::multimap<pid_t, const ProcEntry*> children;
-  for (const auto& e : table) children.emplace(e.ppid, &e);
+  const auto children = ChildrenByParent(table);
   std::map<pid_t, uint64_t> ticks;
   std::vector<pid_t> todo{self_};
   for (size_t i = 0; i < todo.size(); ++i) {
@@ -750,8 +756,7 @@ std::optional<int> Supervisor::DoneOutcome(const std::vector<std::string>& names
 void Supervisor::SignalDescendants(Proc& p, int sig) {
   if (p.pid <= 0) return;
   const auto table = ReadProcessTable();
-  std::multimap<pid_t, const ProcEntry*> children;
-  for (const auto& e : table) children.emplace(e.ppid, &e);
+  const auto children = ChildrenByParent(table);
   const std::string marker = std::to_string(self_) + ":" + std::to_string(p.index) + ":" + std::to_string(p.instance);
   std::vector<pid_t> todo{p.pid};
   // Below its pid, and the launcher's adopted orphans marked (or seen before) as this instance's.
@@ -777,15 +782,22 @@ void Supervisor::Sweep(Clock::time_point now, bool everything) {
   sweep_due_ = false;
   next_sweep_ = now + std::chrono::seconds(1);
   const auto table = ReadProcessTable();
-  std::multimap<pid_t, const ProcEntry*> children;
-  for (const auto& e : table) children.emplace(e.ppid, &e);
+  const auto children = ChildrenByParent(table);
   std::map<pid_t, const Proc*> leaders;
   for (const auto& p : procs_)
     if (p->pid > 0) leaders[p->pid] = p.get();
-  // The tree below the launcher, each subtree with the owner of its top.
-  std::vector<std::pair<const ProcEntry*, Owner>> todo;
-  const auto top = children.equal_range(self_);
-  for (auto it = top.first; it != top.second; ++it) {
+  std::vector<OwnedEntry> tree = TopOfTree(children, leaders);
+  const int live = KillLeftovers(children, leaders, now, everything, &tree);
+  ForgetEndedKills(tree, now);
+  num_other_descendants_ = live;
+  if (live > 0 && everything) sweep_due_ = true;
+}
+
+std::vector<Supervisor::OwnedEntry> Supervisor::TopOfTree(const std::multimap<pid_t, const ProcEntry*>& children,
+                                                          const std::map<pid_t, const Proc*>& leaders) const {
+  std::vector<OwnedEntry> top;
+  const auto range = children.equal_range(self_);
+  for (auto it = range.first; it != range.second; ++it) {
     const ProcEntry& e = *it->second;
     Owner owner;
     if (const auto l = leaders.find(e.pid); l != leaders.end()) {
@@ -798,15 +810,21 @@ void Supervisor::Sweep(Clock::time_point now, bool everything) {
           index >= 0 && index < static_cast<int>(procs_.size()))
         owner = {index, instance};
     }
-    todo.push_back({&e, owner});
+    top.push_back({&e, owner});
   }
+  return top;
+}
+
+int Supervisor::KillLeftovers(const std::multimap<pid_t, const ProcEntry*>& children,
+                              const std::map<pid_t, const Proc*>& leaders, Clock::time_point now, bool everything,
+                              std::vector<OwnedEntry>* tree) {
   std::map<pid_t, std::pair<uint64_t, Owner>> owners;
   int live = 0;
-  for (size_t i = 0; i < todo.size(); ++i) {
-    const ProcEntry& e = *todo[i].first;
-    const Owner owner = todo[i].second;
+  for (size_t i = 0; i < tree->size(); ++i) {
+    const ProcEntry& e = *(*tree)[i].first;
+    const Owner owner = (*tree)[i].second;
     const auto range = children.equal_range(e.pid);
-    for (auto it = range.first; it != range.second; ++it) todo.push_back({it->second, owner});
+    for (auto it = range.first; it != range.second; ++it) tree->push_back({it->second, owner});
     if (owner.index >= 0) owners[e.pid] = {e.start_ticks, owner};
     if (leaders.count(e.pid)) continue;  // the processes themselves: Step() reaps and stops them
     if (e.state == 'Z' || e.state == 'X') {
@@ -831,8 +849,12 @@ void Supervisor::Sweep(Clock::time_point now, bool everything) {
     ++live;
   }
   known_owners_ = std::move(owners);
+  return live;
+}
+
+void Supervisor::ForgetEndedKills(const std::vector<OwnedEntry>& tree, Clock::time_point now) {
   for (auto it = killed_.begin(); it != killed_.end();) {
-    const bool alive = std::any_of(todo.begin(), todo.end(), [&](const auto& t) {
+    const bool alive = std::any_of(tree.begin(), tree.end(), [&](const auto& t) {
       return t.first->pid == it->first && t.first->state != 'Z' && t.first->state != 'X';
     });
     if (!alive) {
@@ -845,8 +867,6 @@ void Supervisor::Sweep(Clock::time_point now, bool everything) {
     }
     ++it;
   }
-  num_other_descendants_ = live;
-  if (live > 0 && everything) sweep_due_ = true;
 }
 
 std::vector<pid_t> Supervisor::LivePids() const {

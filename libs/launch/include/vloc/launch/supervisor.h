@@ -41,6 +41,7 @@
 #include <vector>
 
 #include "vloc/launch/group_file.h"
+#include "vloc/launch/proc_stats.h"
 
 namespace vloc {
 
@@ -174,6 +175,19 @@ class Supervisor {
   // SIGKILLs leftovers (their instance ended; every one when `everything`),
   // and counts what lives in num_other_descendants_.
   void Sweep(Clock::time_point now, bool everything);
+  // Sweep's steps. A live process of the tree with the owner of its subtree's top.
+  using OwnedEntry = std::pair<const ProcEntry*, Owner>;
+  // The launcher's children, each with its owner: a process itself, known
+  // from an earlier sweep, or named by the mark in its start environment.
+  std::vector<OwnedEntry> TopOfTree(const std::multimap<pid_t, const ProcEntry*>& children,
+                                    const std::map<pid_t, const Proc*>& leaders) const;
+  // Walks `tree` (its tops in, every descendant appended), reaps ended
+  // orphans, SIGKILLs the leftovers, remembers owners; returns how many live.
+  int KillLeftovers(const std::multimap<pid_t, const ProcEntry*>& children,
+                    const std::map<pid_t, const Proc*>& leaders, Clock::time_point now, bool everything,
+                    std::vector<OwnedEntry>* tree);
+  // killed_ without those gone; those alive 5 s after SIGKILL given up on.
+  void ForgetEndedKills(const std::vector<OwnedEntry>& tree, Clock::time_point now);
   // Sends `sig` to every live descendant of p's current instance.
   void SignalDescendants(Proc& p, int sig);
 
