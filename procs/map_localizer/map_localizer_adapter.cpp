@@ -265,14 +265,16 @@ bool MapLocalizerAdapter::ReadMap() {
   maploc::MapRaster map;
   std::string error;
   if (!maploc::LoadMapRaster(options_.map_path, &map, &error, options_.Georeference())) {
-    LOG(ERROR) << (first ? "map appeared but cannot be read: " : "map changed but not reloaded, keeping the previous one: ")
+    LOG(ERROR) << (first ? "map appeared but cannot be read: "
+                         : "map changed but not reloaded, keeping the previous one: ")
                << error;
     return false;
   }
   map_ = std::move(map);
   options_.ortho.m_per_px = map_.m_per_px;
   LOG(INFO) << (first ? "map read: " : "map reloaded: ") << map_.gray.cols << " x " << map_.gray.rows << " at "
-            << map_.m_per_px << " m/px" << (first ? "; " + std::to_string(waiting_.size()) + " sites waited for it" : "");
+            << map_.m_per_px << " m/px"
+            << (first ? "; " + std::to_string(waiting_.size()) + " sites waited for it" : std::string());
   return true;
 }
 
