@@ -451,7 +451,8 @@ processes:
   EXPECT_LT(finished, stopped) << log;
   const size_t idle = launcher.output().find("the rest idle for 2 s, ");
   ASSERT_NE(idle, std::string::npos) << launcher.output();
-  EXPECT_GE(std::atof(launcher.output().c_str() + idle + 23), 6.0) << launcher.output();  // 4 s of work + 2 s idle
+  // 4 s of work, then 2 s idle sampled every 0.5 s (the work may start a little before the grace does).
+  EXPECT_GE(std::atof(launcher.output().c_str() + idle + 23), 5.0) << launcher.output();
 }
 
 // One group split over two launchers on one bus (--host vehicle / ground,
