@@ -66,14 +66,9 @@ if [ "$together" = 1 ]; then
   uav_pid=$!
   VLOC_SIM_SITES="$sites" run_group rover_coop
   wait "$uav_pid" || exit 1
-  say "map_localizer: $(grep -hE 'fixes, [0-9]+ sites without' "$out/map_localizer.log" | tail -n 1 | sed 's/.*map_localizer: //' | cut -c1-120)"
-  say "map_localizer re-read the mosaic $(grep -c 'map reloaded' "$out/map_localizer.log" || true) times as the UAV flew"
-  "$build/bin/vloc_eval" "$out/rover_coop.lcmlog" --out "$out/eval" --quiet --no-plots > /dev/null
-  /usr/bin/python3 "$root/scripts/coop_eval.py" --dir "$out"
-  say "done (both groups at once)"
-  exit 0
+else
+  VLOC_SIM_UAV_SECONDS="$flight_s" run_group uav_coop
 fi
-VLOC_SIM_UAV_SECONDS="$flight_s" run_group uav_coop
 [ -f "$out/uav_mosaic.pgw" ] || { echo "coop_demo.sh: the mosaic is not georeferenced (no $out/uav_mosaic.pgw)" >&2; exit 1; }
 say "mosaic: $(grep -h 'mosaic written' "$out/uav_mosaicker.log" | tail -n 1 | sed 's/.*uav_mosaicker: mosaic written to //')"
 if [ "$uav_only" = 1 ]; then
@@ -81,8 +76,9 @@ if [ "$uav_only" = 1 ]; then
   say "done (UAV only)"
   exit 0
 fi
-VLOC_SIM_SITES="$sites" run_group rover_coop
+[ "$together" = 1 ] || VLOC_SIM_SITES="$sites" run_group rover_coop
 say "map_localizer: $(grep -hE 'fixes, [0-9]+ sites without' "$out/map_localizer.log" | tail -n 1 | sed 's/.*map_localizer: //' | cut -c1-120)"
+[ "$together" = 0 ] || say "map_localizer re-read the mosaic $(grep -c 'map reloaded' "$out/map_localizer.log" || true) times as the UAV flew"
 "$build/bin/vloc_eval" "$out/rover_coop.lcmlog" --out "$out/eval" --quiet --no-plots > /dev/null
 /usr/bin/python3 "$root/scripts/coop_eval.py" --dir "$out"
 say "done"

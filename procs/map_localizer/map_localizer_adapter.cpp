@@ -216,7 +216,9 @@ void MapLocalizerAdapter::LocaliseSite(int site_id, std::vector<StereoPair> pair
     LOG(WARNING) << last_result_;
     return;
   }
-  if (RegisterSite(site_id, ortho, ortho_summary, prior) || !options_.reload_map_on_change) return;
+  if (RegisterSite(site_id, ortho, ortho_summary, prior)) return;
+  ++no_fixes_;
+  if (!options_.reload_map_on_change) return;
   // A map still growing (a UAV mosaic) may cover it later: tried again on each new map.
   to_retry_[site_id] = {ortho, ortho_summary, prior};
   while (static_cast<int>(to_retry_.size()) > options_.max_sites_waiting) to_retry_.erase(to_retry_.begin());
@@ -229,7 +231,6 @@ bool MapLocalizerAdapter::RegisterSite(int site_id, const maploc::MapRaster& ort
       maploc::RegisterToMap(ortho, map_, maploc::SitePriorFromPose(prior), options_.registration);
   last_result_ = "site " + std::to_string(site_id) + ": " + fix.BriefReport();
   if (!fix.usable) {
-    ++no_fixes_;
     LOG(WARNING) << "site " << site_id << ": no fix: " << fix.message << " (" << ortho_summary.BriefReport() << ")";
     return false;
   }
@@ -243,9 +244,12 @@ bool MapLocalizerAdapter::RegisterSite(int site_id, const maploc::MapRaster& ort
 void MapLocalizerAdapter::RetrySites() {
   for (auto it = to_retry_.begin(); it != to_retry_.end();) {
     LOG(INFO) << "site " << it->first << ": tried again on the new map";
-    --no_fixes_;  // a site is counted once, as it ends
-    it = RegisterSite(it->first, it->second.ortho, it->second.ortho_summary, it->second.prior) ? to_retry_.erase(it)
-                                                                                              : std::next(it);
+    if (!RegisterSite(it->first, it->second.ortho, it->second.ortho_summary, it->second.prior)) {
+      ++it;
+      continue;
+    }
+    --no_fixes_;  // counted without a fix when it first failed
+    it = to_retry_.erase(it);
   }
 }
 

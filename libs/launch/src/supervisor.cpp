@@ -428,6 +428,20 @@ std::multimap<pid_t, const ProcEntry*> ChildrenByParent(const std::vector<ProcEn
   return children;
 }
 
+// Every live (not ended) process below `roots`, breadth first.
+std::vector<const ProcEntry*> LiveDescendants(const std::multimap<pid_t, const ProcEntry*>& children,
+                                              const std::vector<pid_t>& roots) {
+  std::vector<const ProcEntry*> found;
+  const auto add_children = [&](pid_t parent) {
+    const auto range = children.equal_range(parent);
+    for (auto it = range.first; it != range.second; ++it)
+      if (it->second->state != 'Z' && it->second->state != 'X') found.push_back(it->second);
+  };
+  for (const pid_t root : roots) add_children(root);
+  for (size_t i = 0; i < found.size(); ++i) add_children(found[i]->pid);
+  return found;
+}
+
 // In the child after fork: its own process group, dies with the launcher
 // (`parent`), default signals, stdin from /dev/null, stdout and stderr into
 // out_fd, its niceness set to `niceness` (computed before fork;
@@ -691,18 +705,8 @@ std::vector<ProcessStatus> Supervisor::Status() {
 
 std::map<pid_t, uint64_t> Supervisor::CpuTicks() const {
   const auto table = ReadProcessTable();
-  const auto children = ChildrenByParent(table);
   std::map<pid_t, uint64_t> ticks;
-  std::vector<pid_t> todo{self_};
-  for (size_t i = 0; i < todo.size(); ++i) {
-    const auto range = children.equal_range(todo[i]);
-    for (auto it = range.first; it != range.second; ++it) {
-      const ProcEntry& e = *it->second;
-      if (e.state == 'Z' || e.state == 'X') continue;
-      ticks[e.pid] = e.cpu_ticks;
-      todo.push_back(e.pid);
-    }
-  }
+  for (const ProcEntry* e : LiveDescendants(ChildrenByParent(table), {self_})) ticks[e->pid] = e->cpu_ticks;
   return ticks;
 }
 
@@ -758,7 +762,7 @@ void Supervisor::SignalDescendants(Proc& p, int sig) {
   const auto table = ReadProcessTable();
   const auto children = ChildrenByParent(table);
   const std::string marker = std::to_string(self_) + ":" + std::to_string(p.index) + ":" + std::to_string(p.instance);
-  std::vector<pid_t> todo{p.pid};
+  std::vector<pid_t> roots{p.pid};
   // Below its pid, and the launcher's adopted orphans marked (or seen before) as this instance's.
   const auto adopted = children.equal_range(self_);
   for (auto it = adopted.first; it != adopted.second; ++it) {
@@ -767,14 +771,10 @@ void Supervisor::SignalDescendants(Proc& p, int sig) {
     const auto known = known_owners_.find(e.pid);
     const bool seen = known != known_owners_.end() && known->second.first == e.start_ticks &&
                       known->second.second.index == p.index && known->second.second.instance == p.instance;
-    if (seen || ReadStartEnvironment(e.pid, kOwnerVariable) == marker) todo.push_back(e.pid);
+    if (seen || ReadStartEnvironment(e.pid, kOwnerVariable) == marker) roots.push_back(e.pid);
   }
-  for (size_t i = 0; i < todo.size(); ++i) {
-    if (todo[i] != p.pid) kill(todo[i], sig);
-    const auto range = children.equal_range(todo[i]);
-    for (auto it = range.first; it != range.second; ++it)
-      if (it->second->state != 'Z') todo.push_back(it->second->pid);
-  }
+  for (size_t i = 1; i < roots.size(); ++i) kill(roots[i], sig);  // the adopted ones
+  for (const ProcEntry* e : LiveDescendants(children, roots)) kill(e->pid, sig);
   sweep_due_ = true;
 }
 
