@@ -3,6 +3,7 @@
 // cv::AffineFeature (SIFT, default tilts) over whole left images +
 // brute-force matching, measured on one image pair and added up to the site
 // pair (14 images, 21 overlapping image pairs).
+// BM_SiftStages: what OpenCV's SIFT spends on one zoomed region, per stage.
 //   VLOC_SIM_CACHE=/tmp/vloc-sim-cache build/bench/bench_frontend --benchmark_repetitions=5
 //     (add --benchmark_report_aggregates_only=true for medians only)
 // (run from the source root; the cache folder keeps the rendered images between runs)
@@ -17,6 +18,7 @@
 #include <string>
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "../../unit/crosssite/sim_site_pair.h"
 #include "vloc/common/allocator.h"
@@ -69,6 +71,37 @@ BENCHMARK_CAPTURE(BM_FrontendProfile, hard, "config/procs/sim_rover_hard.yaml")
     ->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime()->MeasureProcessCPUTime();
 BENCHMARK_CAPTURE(BM_FrontendProfile, extreme, "config/procs/sim_rover_extreme.yaml")
     ->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime()->MeasureProcessCPUTime();
+
+// What a byte-identical SIFT cannot save (issue 36: the same tie points pin OpenCV's SIFT on the same pixels).
+// One previous-site region as the front end sees it (the top 458 rows of pair 1's left image, zoomed 2x; the
+// front end's SIFT settings, one thread), timed as the front end calls SIFT (0), without the descriptors (1), and
+// with a contrast threshold no extremum passes (2: the Gaussian pyramid, the DoG and the extremum scan alone,
+// the floor of any exact reimplementation). Counters: keypoints kept, candidates before the 4000 cap.
+void BM_SiftStages(benchmark::State& state) {
+  const vloc::AsiftOptions a = vloc::FrontendOptions().features.asift;
+  cv::Mat region;
+  cv::resize(Scene().previous.pairs[1].left(cv::Rect(0, 0, 1024, 458)), region, cv::Size(), 2.0, 2.0,
+             cv::INTER_LINEAR);
+  cv::setNumThreads(1);
+  const int variant = static_cast<int>(state.range(0));
+  const double contrast = variant == 2 ? 1.0 : a.sift_contrast_threshold;
+  auto sift = cv::SIFT::create(a.max_features_per_view, a.sift_octave_layers, contrast, a.sift_edge_threshold,
+                               a.sift_sigma);
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;
+  for (auto _ : state) {
+    if (variant == 0) sift->detectAndCompute(region, cv::noArray(), keypoints, descriptors);
+    else sift->detect(region, keypoints);
+    benchmark::DoNotOptimize(keypoints.data());
+  }
+  std::vector<cv::KeyPoint> all;
+  cv::SIFT::create(0, a.sift_octave_layers, contrast, a.sift_edge_threshold, a.sift_sigma)->detect(region, all);
+  state.counters["keypoints"] = static_cast<double>(keypoints.size());
+  state.counters["candidates"] = static_cast<double>(all.size());
+  state.counters["megapixels"] = region.total() / 1e6;
+}
+BENCHMARK(BM_SiftStages)->ArgName("detect_compute0_detect1_floor2")->DenseRange(0, 2)->Unit(benchmark::kMillisecond)
+    ->Iterations(5)->UseRealTime();
 
 // The plain approach on one previous and one current image (the full pair
 // has 14 images and 21 overlapping image pairs: at this machine's speed it
