@@ -23,30 +23,27 @@ int main(int argc, char** argv) {
   if (!loaded) return 1;
   const vloc::MapLocalizerProcOptions& options = *loaded;
   vloc::NavcamModel navcam;
-  vloc::maploc::MapRaster map;
-  std::string error;
   try {
     navcam = vloc::LoadOptionsFile<vloc::NavcamModel>(options.navcam_config);
   } catch (const vloc::ConfigError& e) {
     std::cerr << "map_localizer: " << e.what() << "\n";
     return 1;
   }
+  vloc::MapLocalizerAdapter adapter(*setup->transport, options, navcam);
   // A map that is there is read now (a bad one stops the process); one
   // still to come (a mosaic being flown, a map rendered by another process
   // of the group) is waited for up to wait_for_map_s while sites collect.
   if (options.wait_for_map_s <= 0 || std::filesystem::exists(options.map_path)) {
-    if (!vloc::maploc::LoadMapRaster(options.map_path, &map, &error, options.Georeference())) {
+    std::string error;
+    if (!adapter.LoadMap(&error)) {
       std::cerr << "map_localizer: " << error << "\n";
       return 1;
     }
-    LOG(INFO) << "map_localizer: map " << options.map_path << ": " << map.gray.cols << " x " << map.gray.rows
-              << " at " << map.m_per_px << " m/px" << (map.has_height() ? " with heights" : "") << ", x from "
-              << map.x_min << ", y up to " << map.y_max;
+    LOG(INFO) << "map_localizer: map " << options.map_path << ": " << adapter.MapDescription();
   } else {
     LOG(INFO) << "map_localizer: the map " << options.map_path << " is not there yet; sites wait for it up to "
               << options.wait_for_map_s << " s";
   }
-  vloc::MapLocalizerAdapter adapter(*setup->transport, options, navcam, std::move(map));
   LOG(INFO) << "map_localizer: waiting for " << options.stereo_channel << " and " << options.traverse_channel;
   const auto map_deadline =
       std::chrono::steady_clock::now() + std::chrono::duration<double>(std::max(0.0, options.wait_for_map_s));

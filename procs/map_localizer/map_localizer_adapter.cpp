@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <sstream>
 
 #include "vloc/common/site_window.h"
 #include "vloc/lcm_io/convert.h"
@@ -261,25 +262,36 @@ void MapLocalizerAdapter::OnIdle() {
   if (options_.reload_map_on_change && ReadMap()) RetrySites();
 }
 
+bool MapLocalizerAdapter::LoadMap(std::string* error) {
+  map_mtime_ = FileTime(options_.map_path);  // a file that cannot be read is not tried again until it changes
+  maploc::MapRaster map;
+  if (!maploc::LoadMapRaster(options_.map_path, &map, error, options_.Georeference())) return false;
+  map_ = std::move(map);
+  options_.ortho.m_per_px = map_.m_per_px;
+  return true;
+}
+
 bool MapLocalizerAdapter::ReadMap() {
   const int64_t t = FileTime(options_.map_path);
   if (t == 0 || t == map_mtime_) return false;
-  map_mtime_ = t;
   const bool first = !HasMap();
-  maploc::MapRaster map;
   std::string error;
-  if (!maploc::LoadMapRaster(options_.map_path, &map, &error, options_.Georeference())) {
+  if (!LoadMap(&error)) {
     LOG(ERROR) << (first ? "map appeared but cannot be read: "
                          : "map changed but not reloaded, keeping the previous one: ")
                << error;
     return false;
   }
-  map_ = std::move(map);
-  options_.ortho.m_per_px = map_.m_per_px;
-  LOG(INFO) << (first ? "map read: " : "map reloaded: ") << map_.gray.cols << " x " << map_.gray.rows << " at "
-            << map_.m_per_px << " m/px"
+  LOG(INFO) << (first ? "map read: " : "map reloaded: ") << MapDescription()
             << (first ? "; " + std::to_string(waiting_.size()) + " sites waited for it" : std::string());
   return true;
+}
+
+std::string MapLocalizerAdapter::MapDescription() const {
+  std::ostringstream out;
+  out << map_.gray.cols << " x " << map_.gray.rows << " at " << map_.m_per_px << " m/px"
+      << (map_.has_height() ? " with heights" : "") << ", x from " << map_.x_min << ", y up to " << map_.y_max;
+  return out.str();
 }
 
 std::string MapLocalizerAdapter::StatusLine() const {

@@ -72,13 +72,17 @@ inline constexpr int8_t kSourceMapFix = 4;
 
 class MapLocalizerAdapter {
  public:
-  // `map` empty: the map file is not there yet (wait_for_map_s); sites
-  // collect and wait for it (max_sites_waiting), OnIdle reads it once it is.
+  // Without a map (LoadMap not called or `map` empty), sites collect and
+  // wait for it (max_sites_waiting); OnIdle reads map_path once it is there.
   MapLocalizerAdapter(Transport& transport, const MapLocalizerProcOptions& options, const NavcamModel& navcam,
-                      maploc::MapRaster map);
+                      maploc::MapRaster map = maploc::MapRaster());
+  // Reads map_path now: false with `error` when it cannot be read.
+  bool LoadMap(std::string* error);
   // Reads the map when its file appeared or changed (called between messages).
   void OnIdle();
   bool HasMap() const { return !map_.gray.empty(); }
+  // The map's size, cell size, heights and extent, for a log line.
+  std::string MapDescription() const;
   std::string StatusLine() const;
 
  private:
