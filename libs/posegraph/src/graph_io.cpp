@@ -472,7 +472,8 @@ bool ParseToro2D(std::istream& in, GraphFile* file, std::string* error) {
   return ParseRecords(in, file, &file->graph2, error, is_vertex, on_vertex, on_other);
 }
 
-bool ParseGraphStream(std::istream& in, GraphFile* file, std::string* error, InformationUse use) {
+bool ParseGraphStream(std::istream& in, GraphFile* file, std::string* error, InformationUse use,
+                      bool edges_required = true) {
   *file = GraphFile{};
   file->information_use = use;
   // The first vertex or edge keyword decides the dimension and format.
@@ -497,7 +498,7 @@ bool ParseGraphStream(std::istream& in, GraphFile* file, std::string* error, Inf
   else if (three_d) ok = ParseMrpt3D(in, file, error);
   else ok = ParseToro2D(in, file, error);
   if (!ok) return false;
-  if (file->num_edges() == 0) return Fail(error, "no edge");
+  if (edges_required && file->num_edges() == 0) return Fail(error, "no edge");
   file->repair_report = RepairReport(file->num_repaired, file->num_skipped, file->first_skipped, file->num_indefinite);
   return true;
 }
@@ -507,6 +508,15 @@ bool ParseGraphStream(std::istream& in, GraphFile* file, std::string* error, Inf
 bool ParseGraphText(const std::string& text, GraphFile* file, std::string* error, InformationUse use) {
   std::istringstream in(text);
   return ParseGraphStream(in, file, error, use);
+}
+
+bool ParseGraph3Text(const std::string& text, mrpt::graphs::CNetworkOfPoses3DInf* graph, std::string* error) {
+  std::istringstream in(text);
+  GraphFile file;
+  if (!ParseGraphStream(in, &file, error, InformationUse::kChi2, false)) return false;
+  if (file.dimension != 3) return Fail(error, "a 2D graph where a 3D one is needed");
+  *graph = std::move(file.graph3);
+  return true;
 }
 
 bool ReadGraphFile(const std::string& path, GraphFile* file, std::string* error, InformationUse use) {

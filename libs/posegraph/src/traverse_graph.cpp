@@ -10,10 +10,8 @@
 #include <fstream>
 #include <iomanip>
 #include <mrpt/poses/CPose3DPDFGaussianInf.h>
-#include <set>
 #include <sstream>
 
-#include "vloc/common/printable.h"
 #include "vloc/common/stopwatch.h"
 #include "vloc/posegraph/graph_io.h"
 
@@ -619,35 +617,10 @@ bool TraverseGraph::Load(const std::string& path, std::string* error) {
 }
 
 bool TraverseGraph::ReadGraphBody(const std::string& text, std::string* error) {
-  if (text.find("EDGE_SE3:QUAT") != std::string::npos || text.find("VERTEX_SE3:QUAT") != std::string::npos) {
-    GraphFile file;
-    std::string sub;
-    if (!ParseGraphText(text, &file, &sub) || file.dimension != 3) return Fail(error, "not a valid 3D g2o graph: " + sub);
-    graph_ = file.graph3;
-    return true;
-  }
-  // MRPT's reader skips lines it does not know: a file that is no graph, or
-  // a graph with a damaged line, would load as less than it holds (and the
-  // next save would overwrite it).
-  std::istringstream lines(text);
-  std::string line;
-  for (int number = 1; std::getline(lines, line); ++number) {
-    std::istringstream ls(line);
-    std::string keyword;
-    if (!(ls >> keyword) || keyword[0] == '#') continue;
-    static const std::set<std::string> kKnown = {"VERTEX2", "VERTEX", "VERTEX_SE2", "VERTEX3", "VERTEX_SE3:QUAT",
-                                                 "EDGE2", "EDGE", "EDGE_SE2", "EDGE3", "EDGE_SE3:QUAT", "EQUIV", "FIX"};
-    if (!kKnown.count(keyword))
-      return Fail(error, "line " + std::to_string(number) + ": '" + Printable(keyword, 80) +
-                             "' is not a pose-graph line (VERTEX3, EDGE3, FIX, or g2o's VERTEX_SE3:QUAT, EDGE_SE3:QUAT)");
-  }
-  try {
-    std::istringstream is(text);
-    graph_.readAsText(is);
-  } catch (const std::exception& e) {
-    return Fail(error, std::string("not a valid MRPT 3D graph: ") + e.what());
-  }
-  return true;
+  // graph_io's reader refuses what MRPT's would skip: a file that is no
+  // graph, or a graph with a damaged line, would load as less than it holds
+  // (and the next save would overwrite it).
+  return ParseGraph3Text(text, &graph_, error);
 }
 
 bool TraverseGraph::ReadAnnotations(const std::string& text, std::vector<EdgeKey>* kinds,
