@@ -56,6 +56,13 @@ void Start(const std::string& url, const std::filesystem::path& dir, Running* r)
   ASSERT_TRUE(r->proc->WaitForOutput(kReadyLine, 30)) << r->proc->output();
 }
 
+// The world both fix tests drive in: sites at (0, 0) and (8, 2) m.
+testing::MaplocScenarioOptions TwoSites() {
+  testing::MaplocScenarioOptions s;
+  s.sites_xy = {0, 0, 8, 2};
+  return s;
+}
+
 // Site `site`'s dead-reckoning prior (0.7 m, 2 deg off the truth) and its panorama on the bus; returns the prior.
 PoseWithCovariance PublishSite(Transport& transport, const sim::RoverWorld& world, int site) {
   std::mt19937 rng(5);
@@ -82,8 +89,7 @@ void WaitForAFix(Transport& transport, testing::Subprocess& proc, const std::vec
 TEST(MapLocalizerProcess, PublishesAFixOfASimulatedSiteAndSurvivesGarbage) {
   const std::string url = testing::TestLcmUrl(7897);
   const auto dir = TempDir("fix");
-  testing::MaplocScenarioOptions s;
-  s.sites_xy = {0, 0, 8, 2};
+  const testing::MaplocScenarioOptions s = TwoSites();
   const sim::RoverWorld world(testing::MaplocWorldOptions(s));
   std::string error;
   ASSERT_TRUE(maploc::WriteMapGeoTiff(testing::RenderMapOf(world.options().terrain, s), (dir / "map.tif").string(),
@@ -131,41 +137,38 @@ TEST(MapLocalizerProcess, PublishesAFixOfASimulatedSiteAndSurvivesGarbage) {
 TEST(MapLocalizerProcess, ASiteThatCameBeforeTheMapIsLocalisedOnceAMapReachesIt) {
   const std::string url = testing::TestLcmUrl(7835);
   const auto dir = TempDir("late_map");
-  testing::MaplocScenarioOptions s;
-  s.sites_xy = {0, 0, 8, 2};
+  const testing::MaplocScenarioOptions s = TwoSites();
   const sim::RoverWorld world(testing::MaplocWorldOptions(s));
   WriteConfigs(dir, (dir / "map.tif").string());
   std::ofstream(dir / "map_localizer.yaml", std::ios::app) << "wait_for_map_s: 60\n";
-  std::string error;
   Running r;
   ASSERT_NO_FATAL_FAILURE(Start(url, dir, &r));
-  Transport* transport = r.transport.get();
-  const std::vector<site_pose_t>& fixes = r.fixes;
-  testing::Subprocess& proc = *r.proc;
-  PublishSite(*transport, world, 1);
-  WaitForAFix(*transport, proc, fixes, 2);
-  EXPECT_TRUE(fixes.empty()) << "a fix without a map";
+  PublishSite(*r.transport, world, 1);
+  WaitForAFix(*r.transport, *r.proc, r.fixes, 2);
+  EXPECT_TRUE(r.fixes.empty()) << "a fix without a map";
   maploc::MapRaster map = testing::RenderMapOf(world.options().terrain, s);
   const auto put_map = [&](const maploc::MapRaster& m) {
+    std::string error;
     ASSERT_TRUE(maploc::WriteMapGeoTiff(m, (dir / "map.part").string(), &error)) << error;
     std::filesystem::rename(dir / "map.part", dir / "map.tif");
   };
   map.x_min += 500;  // 500 m east of the site
   put_map(map);
-  WaitForAFix(*transport, proc, fixes, 5);
-  EXPECT_TRUE(fixes.empty()) << "a fix on a map that does not cover the site";
+  WaitForAFix(*r.transport, *r.proc, r.fixes, 5);
+  EXPECT_TRUE(r.fixes.empty()) << "a fix on a map that does not cover the site";
   map.x_min -= 500;
   put_map(map);
-  WaitForAFix(*transport, proc, fixes, 40);
-  ASSERT_EQ(fixes.size(), 1u) << proc.output();
-  EXPECT_EQ(fixes[0].site_id, 1);
+  WaitForAFix(*r.transport, *r.proc, r.fixes, 40);
+  const std::string& output = r.proc->output();
+  ASSERT_EQ(r.fixes.size(), 1u) << output;
+  EXPECT_EQ(r.fixes[0].site_id, 1);
   const Pose3 truth = world.traverse().sites[1].world_from_body;
-  EXPECT_LT((PoseFromMessage(fixes[0].pose).pose.translation() - truth.translation()).head<2>().norm(), 0.2);
-  proc.Signal(SIGTERM);
-  EXPECT_EQ(proc.WaitExit(20), 0) << proc.output();
-  EXPECT_NE(proc.output().find("1 sites waited for it"), std::string::npos) << proc.output();
-  EXPECT_NE(proc.output().find("site 1: tried again on the new map"), std::string::npos) << proc.output();
-  EXPECT_NE(proc.output().find("1 fixes, 0 sites without a fix"), std::string::npos) << proc.output();
+  EXPECT_LT((PoseFromMessage(r.fixes[0].pose).pose.translation() - truth.translation()).head<2>().norm(), 0.2);
+  r.proc->Signal(SIGTERM);
+  EXPECT_EQ(r.proc->WaitExit(20), 0) << output;
+  EXPECT_NE(output.find("1 sites waited for it"), std::string::npos) << output;
+  EXPECT_NE(output.find("site 1: tried again on the new map"), std::string::npos) << output;
+  EXPECT_NE(output.find("1 fixes, 0 sites without a fix"), std::string::npos) << output;
   std::filesystem::remove_all(dir);
 }
 
