@@ -327,45 +327,17 @@ bool Supervisor::HasStoppingDependents(const Proc& p) const {
 void Supervisor::Step(int timeout_ms) {
   PumpOutput(timeout_ms);
   const auto now = Clock::now();
-  for (auto& p : procs_) {
-    if (p->pid <= 0) continue;
-    int status = 0;
-    const pid_t r = waitpid(p->pid, &status, WNOHANG);
-    if (r == p->pid) OnExit(*p, status, now);
-    else if (r < 0 && errno == ECHILD) OnExit(*p, 0, now);  // reaped elsewhere: treat as ended
-  }
+  ReapExited(now);
   if (sweep_due_ || now >= next_sweep_) {
     bool all_down = stopping_all_;
     for (const auto& p : procs_) all_down = all_down && p->pid <= 0;
     Sweep(now, all_down);
   }
-  if (!lingering_.empty()) {
-    const auto usage = ReadProcessGroupUsage();
-    for (auto it = lingering_.begin(); it != lingering_.end();) {
-      if (!usage.count(it->first)) {
-        it = lingering_.erase(it);
-      } else if (Seconds(now - it->second) > 5.0) {
-        LOG(ERROR) << "process group " << it->first << " still has processes 5 s after SIGKILL; giving up on them";
-        it = lingering_.erase(it);
-      } else {
-        kill(-it->first, SIGKILL);
-        ++it;
-      }
-    }
-  }
+  KillLingeringGroups(now);
   for (auto& p : procs_) {
     switch (p->state) {
       case ProcState::kStopping:
-        if (p->pid <= 0) break;
-        if (!p->signal_sent) {
-          if (!HasStoppingDependents(*p)) SendStop(*p, now);
-        } else if (!p->kill_sent && now >= p->stop_deadline) {
-          Note(*p, "did not stop within " + Fmt(p->spec.stop_timeout) + " s; sending SIGKILL");
-          kill(-p->pid, SIGKILL);
-          kill(p->pid, SIGKILL);
-          SignalDescendants(*p, SIGKILL);
-          p->kill_sent = true;
-        }
+        AdvanceStop(*p, now);
         break;
       case ProcState::kBackoff:
         if (now >= p->next_start_at) {
@@ -374,25 +346,68 @@ void Supervisor::Step(int timeout_ms) {
         }
         break;
       case ProcState::kStarting:
-        if (!DependenciesRunning(*p)) {
-          p->deps_ready_since.reset();
-          if (!p->waiting_noted) {
-            std::string deps;
-            for (const auto& d : p->spec.depends_on) deps += " " + d;
-            if (remote_check_)
-              for (const auto& [host, name] : p->spec.remote_depends_on) deps += " " + name + " (host " + host + ")";
-            Note(*p, "waiting for:" + deps);
-            p->waiting_noted = true;
-          }
-          break;
-        }
-        if (!p->deps_ready_since) p->deps_ready_since = now;
-        if (Seconds(now - *p->deps_ready_since) >= p->spec.start_delay) Spawn(*p, now);
+        AdvanceStart(*p, now);
         break;
       default:
         break;
     }
   }
+}
+
+void Supervisor::ReapExited(Clock::time_point now) {
+  for (auto& p : procs_) {
+    if (p->pid <= 0) continue;
+    int status = 0;
+    const pid_t r = waitpid(p->pid, &status, WNOHANG);
+    if (r == p->pid) OnExit(*p, status, now);
+    else if (r < 0 && errno == ECHILD) OnExit(*p, 0, now);  // reaped elsewhere: treat as ended
+  }
+}
+
+void Supervisor::KillLingeringGroups(Clock::time_point now) {
+  if (lingering_.empty()) return;
+  const auto usage = ReadProcessGroupUsage();
+  for (auto it = lingering_.begin(); it != lingering_.end();) {
+    if (!usage.count(it->first)) {
+      it = lingering_.erase(it);
+    } else if (Seconds(now - it->second) > 5.0) {
+      LOG(ERROR) << "process group " << it->first << " still has processes 5 s after SIGKILL; giving up on them";
+      it = lingering_.erase(it);
+    } else {
+      kill(-it->first, SIGKILL);
+      ++it;
+    }
+  }
+}
+
+void Supervisor::AdvanceStop(Proc& p, Clock::time_point now) {
+  if (p.pid <= 0) return;
+  if (!p.signal_sent) {
+    if (!HasStoppingDependents(p)) SendStop(p, now);
+  } else if (!p.kill_sent && now >= p.stop_deadline) {
+    Note(p, "did not stop within " + Fmt(p.spec.stop_timeout) + " s; sending SIGKILL");
+    kill(-p.pid, SIGKILL);
+    kill(p.pid, SIGKILL);
+    SignalDescendants(p, SIGKILL);
+    p.kill_sent = true;
+  }
+}
+
+void Supervisor::AdvanceStart(Proc& p, Clock::time_point now) {
+  if (!DependenciesRunning(p)) {
+    p.deps_ready_since.reset();
+    if (!p.waiting_noted) {
+      std::string deps;
+      for (const auto& d : p.spec.depends_on) deps += " " + d;
+      if (remote_check_)
+        for (const auto& [host, name] : p.spec.remote_depends_on) deps += " " + name + " (host " + host + ")";
+      Note(p, "waiting for:" + deps);
+      p.waiting_noted = true;
+    }
+    return;
+  }
+  if (!p.deps_ready_since) p.deps_ready_since = now;
+  if (Seconds(now - *p.deps_ready_since) >= p.spec.start_delay) Spawn(p, now);
 }
 
 namespace {

@@ -160,6 +160,14 @@ class Supervisor {
   void OpenLog(Proc& p);  // once, when options_.log_dir is set
   void RetryStartLater(Proc& p, Clock::time_point now, const std::string& why);  // in 1 s
   void OnExit(Proc& p, int wait_status, Clock::time_point now);
+  // Step's parts: the ended processes reaped, the process groups still
+  // there after SIGKILL killed again (for 5 s), a stop moved on (SIGTERM once
+  // no dependent is stopping, SIGKILL after stop_timeout), a start moved on
+  // (once its dependencies run, after start_delay).
+  void ReapExited(Clock::time_point now);
+  void KillLingeringGroups(Clock::time_point now);
+  void AdvanceStop(Proc& p, Clock::time_point now);
+  void AdvanceStart(Proc& p, Clock::time_point now);
   void PumpOutput(int timeout_ms);
   void ReadOutput(Proc& p);
   void WriteLine(Proc& p, const std::string& line);
