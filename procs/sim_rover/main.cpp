@@ -12,7 +12,9 @@
 #include <glog/logging.h>
 
 #include <iostream>
+#include <algorithm>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -21,6 +23,77 @@
 #include "vloc/common/options.h"
 #include "vloc/lcm_io/process.h"
 
+
+namespace {
+
+// The command line's overrides (--speed, --sites, --revisit, --seed) applied to `o`.
+void ApplyOverrides(const vloc::CommandLine& args, vloc::SimRoverOptions* o) {
+  vloc::sim::TraversePlanOptions& plan = o->world.traverse.plan;
+  if (args.Has("speed")) o->speed = args.GetDouble("speed", o->speed);
+  if (args.Has("sites")) {
+    plan.num_sites = args.GetInt("sites", plan.num_sites);
+    if (!plan.sites_xy.empty())
+      plan.sites_xy.resize(std::min<size_t>(plan.sites_xy.size(), 2 * std::max(1, plan.num_sites)));
+    if (plan.revisit_site >= plan.num_sites) plan.revisit_site = -1;
+  }
+  if (args.Has("revisit")) plan.revisit_site = args.GetInt("revisit", plan.revisit_site);
+  if (const int seed = args.GetInt("seed", -1); seed >= 0) o->world.traverse.seed = static_cast<uint64_t>(seed);
+}
+
+// The config with the command line's overrides, echoed to the log; nullopt after one error line.
+std::optional<vloc::SimRoverOptions> LoadSimRoverOptions(const vloc::ProcessSetup& setup) {
+  try {
+    std::string echo;
+    auto options = vloc::LoadOptions<vloc::SimRoverOptions>(
+        setup.config, setup.config_path.empty() ? "defaults" : setup.config_path, &echo);
+    ApplyOverrides(setup.args, &options);
+    std::string error;
+    if (!options.Check(&error)) throw vloc::ConfigError("command line: " + error);
+    const vloc::sim::TraversePlanOptions& plan = options.world.traverse.plan;
+    LOG(INFO) << "sim_rover options:\n"
+              << echo << "\n(overrides: speed " << options.speed << ", sites " << plan.num_sites << ", revisit "
+              << plan.revisit_site << ", seed " << options.world.traverse.seed << ")";
+    return options;
+  } catch (const vloc::ConfigError& e) {
+    std::cerr << "sim_rover: " << e.what() << "\n";
+    return std::nullopt;
+  }
+}
+
+// The terrain and traverse, described in the log; null after one error line.
+std::unique_ptr<vloc::sim::RoverWorld> BuildWorld(const vloc::sim::RoverWorldOptions& options) {
+  std::unique_ptr<vloc::sim::RoverWorld> world;
+  try {
+    world = std::make_unique<vloc::sim::RoverWorld>(options);
+  } catch (const std::exception& e) {
+    std::cerr << "sim_rover: " << e.what() << "\n";
+    return nullptr;
+  }
+  const auto& s = world->terrain().summary();
+  LOG(INFO) << "terrain: " << s.grid_vertices << "^2 vertices, " << s.num_craters << " craters, " << s.num_rocks
+            << " rocks, heights " << s.min_height << " .. " << s.max_height << " m, built in " << s.build_seconds << " s";
+  const auto& traverse = world->traverse();
+  LOG(INFO) << "traverse: " << traverse.sites.size() << " sites, " << traverse.path_length_m << " m driven in "
+            << traverse.duration_s << " s, " << traverse.exposures.size() << " stereo pairs";
+  return world;
+}
+
+// --log: every message straight to the LCM log at `path`; the process's exit code.
+int WriteLog(const std::string& path, vloc::SimRoverPublisher* publisher) {
+  std::string error;
+  if (!vloc::WriteSimRoverLog(path, publisher, &error)) {
+    std::cerr << "sim_rover: " << error << "\n";
+    return 1;
+  }
+  const auto& summary = publisher->summary();
+  LOG(INFO) << "wrote " << path << ": " << summary.stereo_pairs << " stereo pairs, " << summary.site_events
+            << " site events, " << summary.imu_samples << " IMU, " << summary.wheel_samples << " wheel, "
+            << summary.gt_poses << " GT poses, " << summary.site_poses << " site poses; rendering took "
+            << summary.render_seconds_total << " s";
+  return 0;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
@@ -32,62 +105,12 @@ int main(int argc, char** argv) {
                                    "[--log FILE | --render-sample DIR]",
                                    {"log", "render-sample"}});
   if (!setup) return 1;
-
-  vloc::SimRoverOptions options;
-  try {
-    std::string echo;
-    options = vloc::LoadOptions<vloc::SimRoverOptions>(
-        setup->config, setup->config_path.empty() ? "defaults" : setup->config_path, &echo);
-    if (setup->args.Has("speed")) options.speed = setup->args.GetDouble("speed", options.speed);
-    if (setup->args.Has("sites")) {
-      options.world.traverse.plan.num_sites = setup->args.GetInt("sites", options.world.traverse.plan.num_sites);
-      if (!options.world.traverse.plan.sites_xy.empty())
-        options.world.traverse.plan.sites_xy.resize(
-            std::min<size_t>(options.world.traverse.plan.sites_xy.size(), 2 * std::max(1, options.world.traverse.plan.num_sites)));
-      if (options.world.traverse.plan.revisit_site >= options.world.traverse.plan.num_sites) options.world.traverse.plan.revisit_site = -1;
-    }
-    if (setup->args.Has("revisit"))
-      options.world.traverse.plan.revisit_site = setup->args.GetInt("revisit", options.world.traverse.plan.revisit_site);
-    if (const int seed = setup->args.GetInt("seed", -1); seed >= 0) options.world.traverse.seed = static_cast<uint64_t>(seed);
-    std::string error;
-    if (!options.Check(&error)) throw vloc::ConfigError("command line: " + error);
-    LOG(INFO) << "sim_rover options:\n"
-              << echo << "\n(overrides: speed " << options.speed << ", sites " << options.world.traverse.plan.num_sites
-              << ", revisit " << options.world.traverse.plan.revisit_site << ", seed " << options.world.traverse.seed << ")";
-  } catch (const vloc::ConfigError& e) {
-    std::cerr << "sim_rover: " << e.what() << "\n";
-    return 1;
-  }
-
-  std::unique_ptr<vloc::sim::RoverWorld> world;
-  try {
-    world = std::make_unique<vloc::sim::RoverWorld>(options.world);
-  } catch (const std::exception& e) {
-    std::cerr << "sim_rover: " << e.what() << "\n";
-    return 1;
-  }
-  const auto& s = world->terrain().summary();
-  LOG(INFO) << "terrain: " << s.grid_vertices << "^2 vertices, " << s.num_craters << " craters, " << s.num_rocks
-            << " rocks, heights " << s.min_height << " .. " << s.max_height << " m, built in " << s.build_seconds << " s";
-  const auto& traverse = world->traverse();
-  LOG(INFO) << "traverse: " << traverse.sites.size() << " sites, " << traverse.path_length_m << " m driven in "
-            << traverse.duration_s << " s, " << traverse.exposures.size() << " stereo pairs";
+  const std::optional<vloc::SimRoverOptions> options = LoadSimRoverOptions(*setup);
+  if (!options) return 1;
+  const std::unique_ptr<vloc::sim::RoverWorld> world = BuildWorld(options->world);
+  if (!world) return 1;
   if (setup->args.Has("render-sample")) return vloc::WriteSimRoverSample(*world, setup->args.Get("render-sample"));
-
-  vloc::SimRoverPublisher publisher(options, *world);
-  if (setup->args.Has("log")) {
-    std::string error;
-    const std::string path = setup->args.Get("log");
-    if (!vloc::WriteSimRoverLog(path, &publisher, &error)) {
-      std::cerr << "sim_rover: " << error << "\n";
-      return 1;
-    }
-    const auto& summary = publisher.summary();
-    LOG(INFO) << "wrote " << path << ": " << summary.stereo_pairs << " stereo pairs, " << summary.site_events
-              << " site events, " << summary.imu_samples << " IMU, " << summary.wheel_samples << " wheel, "
-              << summary.gt_poses << " GT poses, " << summary.site_poses << " site poses; rendering took "
-              << summary.render_seconds_total << " s";
-    return 0;
-  }
-  return vloc::PublishSimRoverRealTime(*setup->transport, options.speed, &publisher);
+  vloc::SimRoverPublisher publisher(*options, *world);
+  if (setup->args.Has("log")) return WriteLog(setup->args.Get("log"), &publisher);
+  return vloc::PublishSimRoverRealTime(*setup->transport, options->speed, &publisher);
 }
