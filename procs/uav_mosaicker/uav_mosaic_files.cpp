@@ -269,6 +269,56 @@ bool ReferencesFrom(const vloc::CommandLine& args, bool split, vm::SurveyReferen
   return true;
 }
 
+// The images to register: --split's one photo, or the photos given and those in the folders given; false after
+// one error line.
+bool InputPaths(const vloc::CommandLine& args, bool split, std::vector<std::string>* paths) {
+  for (const auto& p : args.positional()) {
+    if (!std::filesystem::exists(p)) {
+      std::cerr << "uav_mosaic_files: " << p << ": no such image or folder\n";
+      return false;
+    }
+  }
+  *paths = split ? args.positional() : ExpandInputs(args.positional());
+  if (paths->size() < (split ? 1u : 2u)) {
+    std::cerr << "uav_mosaic_files: give at least two images (or a folder holding them)\n";
+    return false;
+  }
+  return true;
+}
+
+// --split: two views cut from one photo loaded into `runner`, *true_scale the scale change between them; false
+// after one error line.
+bool LoadSplitViews(const vloc::CommandLine& args, const std::string& path, const vm::SurveyOptions& options,
+                    vm::SurveyRunner* runner, double* true_scale) {
+  std::string error;
+  const cv::Mat src = vm::LoadCheckedPhoto(path, options.limits, cv::Size(), &error);
+  if (src.empty()) {
+    std::cerr << "uav_mosaic_files: " << error << "\n";
+    return false;
+  }
+  std::vector<cv::Mat> views;
+  *true_scale = SplitViews(src, args.GetDouble("angle", 12.0), args.GetDouble("zoom", 1.18), &views);
+  runner->LoadViews({path + " (view 1)", path + " (view 2)"}, views);
+  return true;
+}
+
+// The mosaic and the products asked for (--preview, --report, --geotiff, --geojson), the summary and the
+// comparison with the references; the exit code.
+int WriteOutputs(const vloc::CommandLine& args, const vm::SurveyReferences& references, vm::SurveyRunner* runner) {
+  const std::string out = args.Get("out");
+  if (!runner->WriteMosaic(out)) return 1;
+  if (args.Has("preview") && !WritePreview(out, args.Get("preview"), args.GetInt("preview-side", 480))) {
+    std::cerr << "uav_mosaic_files: cannot write preview " << args.Get("preview") << "\n";
+    return 1;
+  }
+  runner->PrintSummary(out);
+  runner->Evaluate(references);
+  if (args.Has("report") && !runner->WriteReport(args.Get("report"))) return 1;
+  if (args.Has("geotiff") && !runner->WriteGeoTiff(args.Get("geotiff"))) return 1;
+  if (args.Has("geojson") && !runner->WriteGeoJson(args.Get("geojson"))) return 1;
+  return runner->ExitCode();
+}
+
 // The tool; main() turns any exception into one line and exit code 1.
 int Run(int argc, char** argv) {
   vloc::CommandLine args;
@@ -283,17 +333,8 @@ int Run(int argc, char** argv) {
     return 1;
   }
   const bool split = args.Has("split");
-  const std::vector<std::string> paths = split ? args.positional() : ExpandInputs(args.positional());
-  for (const auto& p : args.positional()) {
-    if (!std::filesystem::exists(p)) {
-      std::cerr << "uav_mosaic_files: " << p << ": no such image or folder\n";
-      return 1;
-    }
-  }
-  if (paths.size() < (split ? 1u : 2u)) {
-    std::cerr << "uav_mosaic_files: give at least two images (or a folder holding them)\n";
-    return 1;
-  }
+  std::vector<std::string> paths;
+  if (!InputPaths(args, split, &paths)) return 1;
   vm::SurveyOptions options;
   if (!SurveyOptionsFrom(args, &options)) return 1;
   vm::SurveyReferences references;
@@ -305,18 +346,7 @@ int Run(int argc, char** argv) {
   if (!split && args.Has("self-calibrate") && !SelfCalibrate(args.Get("self-calibrate"), paths, &options)) return 1;
   vm::SurveyRunner runner(options, &std::cout, &std::cerr);
   double true_scale = 0;
-  if (split) {
-    const cv::Mat src = vm::LoadCheckedPhoto(paths[0], options.limits, cv::Size(), &error);
-    if (src.empty()) {
-      std::cerr << "uav_mosaic_files: " << error << "\n";
-      return 1;
-    }
-    std::vector<cv::Mat> views;
-    true_scale = SplitViews(src, args.GetDouble("angle", 12.0), args.GetDouble("zoom", 1.18), &views);
-    runner.LoadViews({paths[0] + " (view 1)", paths[0] + " (view 2)"}, views);
-  } else if (!runner.LoadPhotos(paths)) {
-    return 1;
-  }
+  if (split ? !LoadSplitViews(args, paths[0], options, &runner, &true_scale) : !runner.LoadPhotos(paths)) return 1;
   if (!runner.ChooseCamera() || !runner.ChooseFirstHeight()) return 1;
   runner.RegisterAll();
   if (true_scale > 0) {
@@ -325,18 +355,7 @@ int Run(int argc, char** argv) {
     std::cout << "truth: scale change " << true_scale << " (height " << h / true_scale << " m); measured " << s.scale
               << " (height " << s.height_raw << " m), error " << 100 * (s.scale - true_scale) / true_scale << " %\n";
   }
-  const std::string out = args.Get("out");
-  if (!runner.WriteMosaic(out)) return 1;
-  if (args.Has("preview") && !WritePreview(out, args.Get("preview"), args.GetInt("preview-side", 480))) {
-    std::cerr << "uav_mosaic_files: cannot write preview " << args.Get("preview") << "\n";
-    return 1;
-  }
-  runner.PrintSummary(out);
-  runner.Evaluate(references);
-  if (args.Has("report") && !runner.WriteReport(args.Get("report"))) return 1;
-  if (args.Has("geotiff") && !runner.WriteGeoTiff(args.Get("geotiff"))) return 1;
-  if (args.Has("geojson") && !runner.WriteGeoJson(args.Get("geojson"))) return 1;
-  return runner.ExitCode();
+  return WriteOutputs(args, references, &runner);
 }
 
 }  // namespace
