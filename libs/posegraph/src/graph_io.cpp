@@ -333,6 +333,63 @@ bool ParseRecords(std::istream& in, GraphFile* file, Graph* graph, std::string* 
   return true;
 }
 
+// The values of a g2o EDGE_SE3:QUAT record after its ends: x y z qx qy qz qw
+// and the upper triangle of the information, checked, into the graph.
+bool ReadG2oEdge3(Record& rec, TNodeID i, TNodeID j, GraphFile* file) {
+  std::istringstream& s = rec.rest;
+  const std::string what = rec.Edge(i, j);
+  double x, y, z, qx, qy, qz, qw;
+  Matrix6 info;
+  if (!Numbers{s}.Read(&x, &y, &z, &qx, &qy, &qz, &qw)) return rec.Bad();
+  for (int r = 0; r < 6; ++r)
+    for (int c = r; c < 6; ++c) {
+      if (!Numbers{s}.One(&info(r, c))) return rec.Bad();
+      info(c, r) = info(r, c);
+    }
+  if (!std::isfinite(x + y + z + qx + qy + qz + qw)) return rec.Refuse(what + ": pose not finite");
+  if (!CheckQuaternion(rec, what, qx, qy, qz, qw)) return false;
+  if (!CheckInformation<6>(rec, what, &info, file)) return false;  // in the file's numbers
+  InsertEdge(file, i, j, PoseFromQuat(x, y, z, qx, qy, qz, qw), QuatScale() * info * QuatScale());
+  return true;
+}
+
+// The same for EDGE_SE2: x y theta and the information's upper triangle.
+bool ReadG2oEdge2(Record& rec, TNodeID i, TNodeID j, GraphFile* file) {
+  std::istringstream& s = rec.rest;
+  const std::string what = rec.Edge(i, j);
+  double x, y, th;
+  Eigen::Matrix3d info;
+  if (!Numbers{s}.Read(&x, &y, &th)) return rec.Bad();
+  for (int r = 0; r < 3; ++r)
+    for (int c = r; c < 3; ++c) {
+      if (!Numbers{s}.One(&info(r, c))) return rec.Bad();
+      info(c, r) = info(r, c);
+    }
+  if (!std::isfinite(x + y + th)) return rec.Refuse(what + ": pose not finite");
+  if (!CheckInformation<3>(rec, what, &info, file)) return false;
+  InsertEdge(file, i, j, mrpt::poses::CPose2D(x, y, th), info);
+  return true;
+}
+
+// A g2o vertex record after its keyword: id and pose (x y z and a quaternion, or x y theta).
+bool ReadG2oVertex(Record& rec, GraphFile* file) {
+  std::istringstream& s = rec.rest;
+  TNodeID id;
+  if (!rec.ReadId(&id)) return false;
+  const std::string what = "vertex " + std::to_string(id);
+  if (file->dimension == 3) {
+    double x, y, z, qx, qy, qz, qw;
+    if (!Numbers{s}.Read(&x, &y, &z, &qx, &qy, &qz, &qw)) return rec.Bad();
+    if (!std::isfinite(x + y + z + qx + qy + qz + qw)) return rec.Refuse(what + ": pose not finite");
+    if (!CheckQuaternion(rec, what, qx, qy, qz, qw)) return false;
+    return AddVertex(rec, &file->graph3, id, PoseFromQuat(x, y, z, qx, qy, qz, qw));
+  }
+  double x, y, th;
+  if (!Numbers{s}.Read(&x, &y, &th)) return rec.Bad();
+  if (!std::isfinite(x + y + th)) return rec.Refuse(what + ": pose not finite");
+  return AddVertex(rec, &file->graph2, id, mrpt::poses::CPose2D(x, y, th));
+}
+
 // g2o: VERTEX_SE3:QUAT / EDGE_SE3:QUAT or VERTEX_SE2 / EDGE_SE2; records of
 // other types (landmarks, priors, ...) skipped and counted.
 bool ParseG2o(std::istream& in, GraphFile* file, std::string* error) {
@@ -343,7 +400,6 @@ bool ParseG2o(std::istream& in, GraphFile* file, std::string* error) {
   const std::string other_edge = three_d ? "EDGE_SE2" : "EDGE_SE3:QUAT";
   auto is_vertex = [&](const std::string& key) { return key == vertex_key; };
   auto on_other = [&](Record& rec) {
-    std::istringstream& s = rec.rest;
     if (rec.key == other_vertex || rec.key == other_edge)
       return rec.Refuse(rec.key + " in a " + std::to_string(file->dimension) + "D graph (its first record decides)");
     if (rec.key != edge_key) {
@@ -353,52 +409,9 @@ bool ParseG2o(std::istream& in, GraphFile* file, std::string* error) {
     TNodeID i, j;
     if (!rec.ReadId(&i) || !rec.ReadId(&j)) return false;
     if (!(three_d ? CheckEnds(rec, file->graph3, i, j) : CheckEnds(rec, file->graph2, i, j))) return false;
-    const std::string what = rec.Edge(i, j);
-    if (three_d) {
-      double x, y, z, qx, qy, qz, qw;
-      Matrix6 info;
-      if (!Numbers{s}.Read(&x, &y, &z, &qx, &qy, &qz, &qw)) return rec.Bad();
-      for (int r = 0; r < 6; ++r)
-        for (int c = r; c < 6; ++c) {
-          if (!Numbers{s}.One(&info(r, c))) return rec.Bad();
-          info(c, r) = info(r, c);
-        }
-      if (!std::isfinite(x + y + z + qx + qy + qz + qw)) return rec.Refuse(what + ": pose not finite");
-      if (!CheckQuaternion(rec, what, qx, qy, qz, qw)) return false;
-      if (!CheckInformation<6>(rec, what, &info, file)) return false;  // in the file's numbers
-      InsertEdge(file, i, j, PoseFromQuat(x, y, z, qx, qy, qz, qw), QuatScale() * info * QuatScale());
-    } else {
-      double x, y, th;
-      Eigen::Matrix3d info;
-      if (!Numbers{s}.Read(&x, &y, &th)) return rec.Bad();
-      for (int r = 0; r < 3; ++r)
-        for (int c = r; c < 3; ++c) {
-          if (!Numbers{s}.One(&info(r, c))) return rec.Bad();
-          info(c, r) = info(r, c);
-        }
-      if (!std::isfinite(x + y + th)) return rec.Refuse(what + ": pose not finite");
-      if (!CheckInformation<3>(rec, what, &info, file)) return false;
-      InsertEdge(file, i, j, mrpt::poses::CPose2D(x, y, th), info);
-    }
-    return true;
+    return three_d ? ReadG2oEdge3(rec, i, j, file) : ReadG2oEdge2(rec, i, j, file);
   };
-  auto on_vertex = [&](Record& rec) {
-    std::istringstream& s = rec.rest;
-    TNodeID id;
-    if (!rec.ReadId(&id)) return false;
-    const std::string what = "vertex " + std::to_string(id);
-    if (three_d) {
-      double x, y, z, qx, qy, qz, qw;
-      if (!Numbers{s}.Read(&x, &y, &z, &qx, &qy, &qz, &qw)) return rec.Bad();
-      if (!std::isfinite(x + y + z + qx + qy + qz + qw)) return rec.Refuse(what + ": pose not finite");
-      if (!CheckQuaternion(rec, what, qx, qy, qz, qw)) return false;
-      return AddVertex(rec, &file->graph3, id, PoseFromQuat(x, y, z, qx, qy, qz, qw));
-    }
-    double x, y, th;
-    if (!Numbers{s}.Read(&x, &y, &th)) return rec.Bad();
-    if (!std::isfinite(x + y + th)) return rec.Refuse(what + ": pose not finite");
-    return AddVertex(rec, &file->graph2, id, mrpt::poses::CPose2D(x, y, th));
-  };
+  auto on_vertex = [&](Record& rec) { return ReadG2oVertex(rec, file); };
   if (three_d) return ParseRecords(in, file, &file->graph3, error, is_vertex, on_vertex, on_other);
   return ParseRecords(in, file, &file->graph2, error, is_vertex, on_vertex, on_other);
 }
