@@ -174,6 +174,28 @@ void Terrain::BuildRelief() {
   }
 }
 
+namespace {
+
+// A crater's height at rho radii from its centre (rho < 3): a parabolic
+// bowl rounded into the rim over its outer 10 %, then the ejecta blanket
+// falling off as rho^-3, reaching 0 at 3 radii.
+double CraterProfile(const Crater& c, double rho) {
+  if (rho < 1.0) {
+    const double bowl = c.depth + c.rim_height;
+    double h = -c.depth + bowl * rho * rho;
+    if (rho > 0.9) {
+      const double s = (rho - 0.9) / 0.1;
+      h = h * (1 - 0.25 * s * s) + 0.25 * s * s * c.rim_height;
+    }
+    return h;
+  }
+  const double tail = 1.0 / 27.0;
+  const double inv = 1.0 / rho;
+  return c.rim_height * (inv * inv * inv - tail) / (1.0 - tail);
+}
+
+}  // namespace
+
 void Terrain::PlaceCraters() {
   const uint64_t seed = StreamSeed(options_.seed, kCraters);
   const Region b = Bounds();
@@ -183,7 +205,6 @@ void Terrain::PlaceCraters() {
   const double expected = options_.crater_density * area / 100.0 * std::pow(d_min, -2.0) *
                           (1.0 - std::pow(d_min / d_max, 2.0));
   const int count = static_cast<int>(std::lround(expected));
-  const double res = options_.resolution_m;
   for (int k = 0; k < count; ++k) {
     Crater c;
     c.diameter = PowerLawSample(Uniform(seed, k, 0), d_min, d_max, 2.0);
@@ -199,44 +220,31 @@ void Terrain::PlaceCraters() {
   // Bigger craters first so small ones are superposed on them.
   std::stable_sort(craters_.begin(), craters_.end(),
                    [](const Crater& a, const Crater& b) { return a.diameter > b.diameter; });
-  for (const Crater& c : craters_) {
-    const double radius = 0.5 * c.diameter, reach = 3.0 * radius;
-    const int i0 = std::max(0, static_cast<int>(std::floor((c.centre.x() - reach - options_.origin_x_m) * inv_res_)));
-    const int i1 = std::min(n_ - 1, static_cast<int>(std::ceil((c.centre.x() + reach - options_.origin_x_m) * inv_res_)));
-    const int j0 = std::max(0, static_cast<int>(std::floor((c.centre.y() - reach - options_.origin_y_m) * inv_res_)));
-    const int j1 = std::min(n_ - 1, static_cast<int>(std::ceil((c.centre.y() + reach - options_.origin_y_m) * inv_res_)));
-    if (i0 > i1 || j0 > j1) continue;
-    const double bowl = c.depth + c.rim_height;
-    const double tail = 1.0 / 27.0;
+  for (const Crater& c : craters_) AddCrater(c);
+}
+
+void Terrain::AddCrater(const Crater& c) {
+  const double res = options_.resolution_m;
+  const double radius = 0.5 * c.diameter, reach = 3.0 * radius;
+  const int i0 = std::max(0, static_cast<int>(std::floor((c.centre.x() - reach - options_.origin_x_m) * inv_res_)));
+  const int i1 = std::min(n_ - 1, static_cast<int>(std::ceil((c.centre.x() + reach - options_.origin_x_m) * inv_res_)));
+  const int j0 = std::max(0, static_cast<int>(std::floor((c.centre.y() - reach - options_.origin_y_m) * inv_res_)));
+  const int j1 = std::min(n_ - 1, static_cast<int>(std::ceil((c.centre.y() + reach - options_.origin_y_m) * inv_res_)));
+  if (i0 > i1 || j0 > j1) return;
 #pragma omp parallel for schedule(static) num_threads(options_.num_threads)
-    for (int j = j0; j <= j1; ++j) {
-      const double dy = options_.origin_y_m + j * res - c.centre.y();
-      // Only the chord of the row inside 3 radii.
-      const double half_chord2 = reach * reach - dy * dy;
-      if (half_chord2 <= 0) continue;
-      const double half_chord = std::sqrt(half_chord2);
-      const int a0 = std::max(i0, static_cast<int>(std::floor((c.centre.x() - half_chord - options_.origin_x_m) * inv_res_)));
-      const int a1 = std::min(i1, static_cast<int>(std::ceil((c.centre.x() + half_chord - options_.origin_x_m) * inv_res_)));
-      for (int i = a0; i <= a1; ++i) {
-        const double dx = options_.origin_x_m + i * res - c.centre.x();
-        const double rho = std::sqrt(dx * dx + dy * dy) / radius;
-        double h;
-        if (rho < 1.0) {
-          // Parabolic bowl, rounded into the rim over the outer 10 %.
-          h = -c.depth + bowl * rho * rho;
-          if (rho > 0.9) {
-            const double s = (rho - 0.9) / 0.1;
-            h = h * (1 - 0.25 * s * s) + 0.25 * s * s * c.rim_height;
-          }
-        } else if (rho < 3.0) {
-          // Ejecta blanket falling off as rho^-3, reaching 0 at 3 radii.
-          const double inv = 1.0 / rho;
-          h = c.rim_height * (inv * inv * inv - tail) / (1.0 - tail);
-        } else {
-          continue;
-        }
-        heights_[static_cast<size_t>(j) * n_ + i] += static_cast<float>(h);
-      }
+  for (int j = j0; j <= j1; ++j) {
+    const double dy = options_.origin_y_m + j * res - c.centre.y();
+    // Only the chord of the row inside 3 radii.
+    const double half_chord2 = reach * reach - dy * dy;
+    if (half_chord2 <= 0) continue;
+    const double half_chord = std::sqrt(half_chord2);
+    const int a0 = std::max(i0, static_cast<int>(std::floor((c.centre.x() - half_chord - options_.origin_x_m) * inv_res_)));
+    const int a1 = std::min(i1, static_cast<int>(std::ceil((c.centre.x() + half_chord - options_.origin_x_m) * inv_res_)));
+    for (int i = a0; i <= a1; ++i) {
+      const double dx = options_.origin_x_m + i * res - c.centre.x();
+      const double rho = std::sqrt(dx * dx + dy * dy) / radius;
+      if (rho >= 3.0) continue;
+      heights_[static_cast<size_t>(j) * n_ + i] += static_cast<float>(CraterProfile(c, rho));
     }
   }
 }

@@ -162,6 +162,7 @@ class Terrain {
  private:
   void BuildRelief();
   void PlaceCraters();
+  void AddCrater(const Crater& c);  // its bowl, rim and ejecta added to the heights
   void PlaceRocks();
   void BuildMaxMips();
   void SunFromOptions();
