@@ -7,6 +7,8 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <iostream>
+#include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -15,6 +17,58 @@
 #include "vloc/common/options.h"
 #include "vloc/lcm_io/process.h"
 
+
+namespace {
+
+// The config with the command line's overrides, echoed to the log; nullopt after one error line.
+std::optional<vloc::SimUavOptions> LoadSimUavOptions(const vloc::ProcessSetup& setup) {
+  const vloc::CommandLine& args = setup.args;
+  try {
+    std::string echo;
+    auto o = vloc::LoadOptions<vloc::SimUavOptions>(setup.config, setup.config_path.empty() ? "defaults" : setup.config_path,
+                                                    &echo);
+    if (args.Has("duration")) o.duration = args.GetDouble("duration", o.duration);
+    if (args.Has("fps")) o.world.fps = args.GetDouble("fps", o.world.fps);
+    if (args.Has("speed")) o.speed = args.GetDouble("speed", o.speed);
+    if (args.Has("orthomap")) o.world.orthomap.image = args.Get("orthomap");
+    if (args.Has("gps-sigma")) o.world.gps.horizontal_sigma = args.GetDouble("gps-sigma", o.world.gps.horizontal_sigma);
+    std::string error;
+    if (!o.Check(&error)) throw vloc::ConfigError("command line: " + error);
+    LOG(INFO) << "sim_uav options:\n" << echo << "\n(overrides: duration " << o.duration << " s, fps " << o.world.fps
+              << ", speed " << o.speed << ", orthomap image '" << o.world.orthomap.image << "', GPS horizontal sigma "
+              << o.world.gps.horizontal_sigma << " m)";
+    return o;
+  } catch (const vloc::ConfigError& e) {
+    std::cerr << "sim_uav: " << e.what() << "\n";
+    return std::nullopt;
+  }
+}
+
+// The world and its flight, described in the log; null after one error line.
+std::unique_ptr<vloc::UavWorld> BuildWorld(const vloc::UavWorldOptions& options) {
+  std::unique_ptr<vloc::UavWorld> world;
+  try {
+    world = std::make_unique<vloc::UavWorld>(options);
+  } catch (const std::exception& e) {
+    std::cerr << "sim_uav: " << e.what() << "\n";
+    return nullptr;
+  }
+  LOG(INFO) << "flight: " << world->flight().Duration() << " s, route " << world->flight().RouteLength() << " m, "
+            << world->NumFrames() << " frames at " << options.fps << " fps";
+  return world;
+}
+
+// --snapshot: the frame at `t` s saved to `path`; the process's exit code.
+int WriteSnapshot(const vloc::UavWorld& world, const std::string& path, double t) {
+  if (!cv::imwrite(path, world.RenderFrame(t))) {
+    std::cerr << "sim_uav: cannot write snapshot " << path << " (check the folder exists and is writable)\n";
+    return 1;
+  }
+  LOG(INFO) << "saved the frame at t = " << t << " s to " << path;
+  return 0;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
@@ -27,49 +81,13 @@ int main(int argc, char** argv) {
        "[--log FILE] [--snapshot FILE.png --at T]",
        {"log", "snapshot"}});
   if (!setup) return 1;
-
-  vloc::SimUavOptions options;
-  try {
-    std::string echo;
-    options = vloc::LoadOptions<vloc::SimUavOptions>(setup->config, setup->config_path.empty() ? "defaults" : setup->config_path, &echo);
-    if (setup->args.Has("duration")) options.duration = setup->args.GetDouble("duration", options.duration);
-    if (setup->args.Has("fps")) options.world.fps = setup->args.GetDouble("fps", options.world.fps);
-    if (setup->args.Has("speed")) options.speed = setup->args.GetDouble("speed", options.speed);
-    if (setup->args.Has("orthomap")) options.world.orthomap.image = setup->args.Get("orthomap");
-    if (setup->args.Has("gps-sigma"))
-      options.world.gps.horizontal_sigma = setup->args.GetDouble("gps-sigma", options.world.gps.horizontal_sigma);
-    std::string error;
-    if (!options.Check(&error)) throw vloc::ConfigError("command line: " + error);
-    LOG(INFO) << "sim_uav options:\n" << echo << "\n(overrides: duration " << options.duration << " s, fps "
-              << options.world.fps << ", speed " << options.speed << ", orthomap image '"
-              << options.world.orthomap.image << "', GPS horizontal sigma " << options.world.gps.horizontal_sigma << " m)";
-  } catch (const vloc::ConfigError& e) {
-    std::cerr << "sim_uav: " << e.what() << "\n";
-    return 1;
-  }
-
-  std::unique_ptr<vloc::UavWorld> world;
-  try {
-    world = std::make_unique<vloc::UavWorld>(options.world);
-  } catch (const std::exception& e) {
-    std::cerr << "sim_uav: " << e.what() << "\n";
-    return 1;
-  }
-  LOG(INFO) << "flight: " << world->flight().Duration() << " s, route " << world->flight().RouteLength() << " m, "
-            << world->NumFrames() << " frames at " << options.world.fps << " fps";
-
-  if (setup->args.Has("snapshot")) {
-    const std::string path = setup->args.Get("snapshot");
-    const double t = setup->args.GetDouble("at", 1.0);
-    if (!cv::imwrite(path, world->RenderFrame(t))) {
-      std::cerr << "sim_uav: cannot write snapshot " << path << " (check the folder exists and is writable)\n";
-      return 1;
-    }
-    LOG(INFO) << "saved the frame at t = " << t << " s to " << path;
-    return 0;
-  }
-
-  vloc::SimUavPublisher publisher(options, *world);
+  const std::optional<vloc::SimUavOptions> options = LoadSimUavOptions(*setup);
+  if (!options) return 1;
+  const std::unique_ptr<vloc::UavWorld> world = BuildWorld(options->world);
+  if (!world) return 1;
+  if (setup->args.Has("snapshot"))
+    return WriteSnapshot(*world, setup->args.Get("snapshot"), setup->args.GetDouble("at", 1.0));
+  vloc::SimUavPublisher publisher(*options, *world);
   if (setup->args.Has("log")) {
     std::string error;
     if (!vloc::WriteSimUavLog(setup->args.Get("log"), &publisher, &error)) {
@@ -78,5 +96,5 @@ int main(int argc, char** argv) {
     }
     return 0;
   }
-  return vloc::PublishSimUavRealTime(*setup->transport, options.speed, &publisher);
+  return vloc::PublishSimUavRealTime(*setup->transport, options->speed, &publisher);
 }
