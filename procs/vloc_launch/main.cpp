@@ -19,6 +19,38 @@
 #include "vloc/launch/supervisor.h"
 #include "vloc/lcm_io/process.h"
 
+namespace {
+
+// The group file (`whole`) and this host's part of it (`file`: all of it
+// without --host), --lost-after into `peer_options`; false after one error line.
+bool ReadGroupFile(const vloc::ProcessSetup& setup, const std::string& host, vloc::GroupFile* whole,
+                   vloc::GroupFile* file, vloc::PeerTrackerOptions* peer_options) {
+  peer_options->lost_after_s = setup.args.GetDouble("lost-after", peer_options->lost_after_s);
+  try {
+    *whole = *file = vloc::ParseGroupFile(setup.config_path);
+    if (!host.empty()) *file = vloc::SelectHost(*whole, host);
+    std::string error;
+    if (!peer_options->Check(&error)) throw vloc::ConfigError("--lost-after: " + error);
+  } catch (const vloc::ConfigError& e) {
+    std::cerr << "vloc_launch: " << e.what() << "\n";
+    return false;
+  }
+  return true;
+}
+
+// --exit-when-done's names are processes of `file`; false after one error line.
+bool ProcessesOf(const vloc::GroupFile& file, const std::vector<std::string>& names) {
+  for (const auto& n : names) {
+    if (!file.Find(n)) {
+      std::cerr << "vloc_launch: --exit-when-done names unknown process '" << n << "' (not in " << file.path << ")\n";
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   vloc::InitLogging(argv[0]);
   const std::vector<std::string> groups = vloc::CollectFlagValues(argc, argv, "group");
@@ -42,25 +74,11 @@ int main(int argc, char** argv) {
   }
   const std::string host = setup->args.Get("host", "");
   vloc::PeerTrackerOptions peer_options;
-  peer_options.lost_after_s = setup->args.GetDouble("lost-after", peer_options.lost_after_s);
   vloc::GroupFile whole, file;
-  try {
-    whole = file = vloc::ParseGroupFile(setup->config_path);
-    if (!host.empty()) file = vloc::SelectHost(whole, host);
-    if (!peer_options.Check(&error)) throw vloc::ConfigError("--lost-after: " + error);
-  } catch (const vloc::ConfigError& e) {
-    std::cerr << "vloc_launch: " << e.what() << "\n";
-    return 1;
-  }
+  if (!ReadGroupFile(*setup, host, &whole, &file, &peer_options)) return 1;
   const bool exit_when_done = setup->args.Has("exit-when-done");
   std::vector<std::string> done_names = vloc::CollectFlagValues(argc, argv, "exit-when-done");
-  for (const auto& n : done_names) {
-    if (!file.Find(n)) {
-      std::cerr << "vloc_launch: --exit-when-done names unknown process '" << n << "' (not in "
-                << file.path << ")\n";
-      return 1;
-    }
-  }
+  if (!ProcessesOf(file, done_names)) return 1;
   LOG(INFO) << "group file " << file.path << ": " << file.processes.size() << " processes"
             << (host.empty() ? "" : " of host " + host + " (" + std::to_string(whole.processes.size()) + " in all)")
             << "; VLOC_BIN="
