@@ -36,12 +36,10 @@ std::vector<PeerEvent> PeerTracker::OnReport(const PeerReport& report, Clock::ti
   const std::string& host = report.host;
   if (host == own_host_) {
     // Another launcher claims this launcher's host: both would run its part.
-    if (!duplicate_noted_.count(report.launcher_pid)) {
-      duplicate_noted_.insert(report.launcher_pid);
-      events.push_back({PeerEventKind::kDuplicateHost, host, "",
-                        "another launcher (pid " + std::to_string(report.launcher_pid) + ") also calls itself '" +
-                            host + "': both run that host's processes; give each machine its own --host"});
-    }
+    NoteDuplicateOnce(report.launcher_pid, host,
+                      "another launcher (pid " + std::to_string(report.launcher_pid) + ") also calls itself '" + host +
+                          "': both run that host's processes; give each machine its own --host",
+                      &events);
     return events;
   }
   auto found = peers_.find(host);
@@ -51,40 +49,13 @@ std::vector<PeerEvent> PeerTracker::OnReport(const PeerReport& report, Clock::ti
     events.push_back({PeerEventKind::kJoined, host, "",
                       "launcher '" + host + "' (pid " + std::to_string(report.launcher_pid) + ") joined with " +
                           std::to_string(report.procs.size()) + " processes"});
-  } else if (peer.lost) {
-    events.push_back({PeerEventKind::kBack, host, "",
-                      "launcher '" + host + "' is back after " + Fmt(Seconds(now - peer.last_heard)) +
-                          " s without a report (lost for " + Fmt(Seconds(now - peer.lost_since)) + " s)"});
-  }
-  if (!is_new && peer.launcher_pid != report.launcher_pid) {
-    if (!peer.lost && Seconds(now - peer.last_heard) < options_.lost_after_s) {
-      // Two live launchers under one name (reports alternate): say it once.
-      if (!duplicate_noted_.count(report.launcher_pid)) {
-        duplicate_noted_.insert(report.launcher_pid);
-        events.push_back({PeerEventKind::kDuplicateHost, host, "",
-                          "two launchers call themselves '" + host + "' (pids " + std::to_string(peer.launcher_pid) +
-                              " and " + std::to_string(report.launcher_pid) +
-                              "): both run that host's processes; give each machine its own --host"});
-      }
-    } else {
-      events.push_back({PeerEventKind::kLauncherRestarted, host, "",
-                        "launcher '" + host + "' restarted: pid " + std::to_string(peer.launcher_pid) + " -> " +
-                            std::to_string(report.launcher_pid)});
-    }
-  }
-  if (!is_new) {
-    for (const auto& p : report.procs) {
-      auto it = peer.procs.find(p.name);
-      if (it == peer.procs.end()) continue;
-      const ProcessStatus& was = it->second;
-      if (was.state == p.state && was.pid == p.pid && was.restarts == p.restarts) continue;
-      std::string text = "launcher '" + host + "': process '" + p.name + "' " + ProcStateName(was.state) + " -> " +
-                         ProcStateName(p.state);
-      if (was.pid != p.pid) text += ", pid " + std::to_string(was.pid) + " -> " + std::to_string(p.pid);
-      if (was.restarts != p.restarts) text += ", restarts " + std::to_string(p.restarts);
-      if (p.has_exited && p.state != ProcState::kRunning) text += ", last exit " + std::to_string(p.last_exit_code);
-      events.push_back({PeerEventKind::kProcessChanged, host, p.name, text});
-    }
+  } else {
+    if (peer.lost)
+      events.push_back({PeerEventKind::kBack, host, "",
+                        "launcher '" + host + "' is back after " + Fmt(Seconds(now - peer.last_heard)) +
+                            " s without a report (lost for " + Fmt(Seconds(now - peer.lost_since)) + " s)"});
+    if (peer.launcher_pid != report.launcher_pid) OnOtherLauncher(host, peer, report.launcher_pid, now, &events);
+    ProcessChanges(host, peer, report, &events);
   }
   peer.procs.clear();
   for (const auto& p : report.procs) peer.procs[p.name] = p;
@@ -93,6 +64,44 @@ std::vector<PeerEvent> PeerTracker::OnReport(const PeerReport& report, Clock::ti
   peer.lost = false;
   ++peer.reports;
   return events;
+}
+
+void PeerTracker::NoteDuplicateOnce(int launcher_pid, const std::string& host, const std::string& text,
+                                    std::vector<PeerEvent>* events) {
+  if (!duplicate_noted_.insert(launcher_pid).second) return;
+  events->push_back({PeerEventKind::kDuplicateHost, host, "", text});
+}
+
+void PeerTracker::OnOtherLauncher(const std::string& host, const Peer& peer, int launcher_pid, Clock::time_point now,
+                                  std::vector<PeerEvent>* events) {
+  if (!peer.lost && Seconds(now - peer.last_heard) < options_.lost_after_s) {
+    // Two live launchers under one name (reports alternate): say it once.
+    NoteDuplicateOnce(launcher_pid, host,
+                      "two launchers call themselves '" + host + "' (pids " + std::to_string(peer.launcher_pid) +
+                          " and " + std::to_string(launcher_pid) +
+                          "): both run that host's processes; give each machine its own --host",
+                      events);
+    return;
+  }
+  events->push_back({PeerEventKind::kLauncherRestarted, host, "",
+                     "launcher '" + host + "' restarted: pid " + std::to_string(peer.launcher_pid) + " -> " +
+                         std::to_string(launcher_pid)});
+}
+
+void PeerTracker::ProcessChanges(const std::string& host, const Peer& peer, const PeerReport& report,
+                                 std::vector<PeerEvent>* events) {
+  for (const auto& p : report.procs) {
+    auto it = peer.procs.find(p.name);
+    if (it == peer.procs.end()) continue;
+    const ProcessStatus& was = it->second;
+    if (was.state == p.state && was.pid == p.pid && was.restarts == p.restarts) continue;
+    std::string text = "launcher '" + host + "': process '" + p.name + "' " + ProcStateName(was.state) + " -> " +
+                       ProcStateName(p.state);
+    if (was.pid != p.pid) text += ", pid " + std::to_string(was.pid) + " -> " + std::to_string(p.pid);
+    if (was.restarts != p.restarts) text += ", restarts " + std::to_string(p.restarts);
+    if (p.has_exited && p.state != ProcState::kRunning) text += ", last exit " + std::to_string(p.last_exit_code);
+    events->push_back({PeerEventKind::kProcessChanged, host, p.name, text});
+  }
 }
 
 std::vector<PeerEvent> PeerTracker::Check(Clock::time_point now) {

@@ -89,6 +89,15 @@ class PeerTracker {
     int times_lost = 0;
     std::map<std::string, ProcessStatus> procs;
   };
+  // OnReport's parts: a duplicate host said once per launcher pid; a known
+  // host under another pid (a second live launcher, or a restart); each
+  // process whose state, pid or restarts changed since the last report.
+  void NoteDuplicateOnce(int launcher_pid, const std::string& host, const std::string& text,
+                         std::vector<PeerEvent>* events);
+  void OnOtherLauncher(const std::string& host, const Peer& peer, int launcher_pid, Clock::time_point now,
+                       std::vector<PeerEvent>* events);
+  static void ProcessChanges(const std::string& host, const Peer& peer, const PeerReport& report,
+                             std::vector<PeerEvent>* events);
   std::string own_host_;
   int own_pid_;
   PeerTrackerOptions options_;
