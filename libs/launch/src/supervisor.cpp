@@ -556,16 +556,22 @@ void Supervisor::Spawn(Proc& p, Clock::time_point now) {
               JoinCommand(program, spec.args));
 }
 
-void Supervisor::OnExit(Proc& p, int wait_status, Clock::time_point now) {
-  if (p.out_fd >= 0) {
-    ReadOutput(p);
-    if (p.out_fd >= 0) {
-      if (!p.partial.empty()) WriteLine(p, p.partial);
-      p.partial.clear();
-      close(p.out_fd);
-      p.out_fd = -1;
-    }
+namespace {
+
+// A wait status as an exit code (-signal when killed) and its words.
+int ExitCode(int wait_status, std::string* how) {
+  if (WIFSIGNALED(wait_status)) {
+    *how = "killed by " + SignalName(WTERMSIG(wait_status));
+    return -WTERMSIG(wait_status);
   }
+  *how = "exited with code " + std::to_string(WEXITSTATUS(wait_status));
+  return WEXITSTATUS(wait_status);
+}
+
+}  // namespace
+
+void Supervisor::OnExit(Proc& p, int wait_status, Clock::time_point now) {
+  FlushOutput(p);
   const pid_t pid = p.pid;
   // Whatever the process left behind in its group goes too; Step() checks
   // that it is gone before AllStopped() says so.
@@ -573,19 +579,11 @@ void Supervisor::OnExit(Proc& p, int wait_status, Clock::time_point now) {
   p.pid = 0;
   sweep_due_ = true;  // and what it left elsewhere (Sweep)
   p.has_exited = true;
-  int code = 0;
   std::string how;
-  if (WIFSIGNALED(wait_status)) {
-    code = -WTERMSIG(wait_status);
-    how = "killed by " + SignalName(WTERMSIG(wait_status));
-  } else {
-    code = WEXITSTATUS(wait_status);
-    how = "exited with code " + std::to_string(code);
-  }
+  const int code = ExitCode(wait_status, &how);
   p.last_exit_code = code;
   const double ran = Seconds(now - p.started_at);
   Note(p, "pid " + std::to_string(pid) + " " + how + " after " + Fmt(ran) + " s");
-
   if (p.state == ProcState::kStopping) {
     const bool again = p.restart_after_stop;
     p.restart_after_stop = false;
@@ -599,6 +597,20 @@ void Supervisor::OnExit(Proc& p, int wait_status, Clock::time_point now) {
     p.state = ProcState::kExited;
     return;
   }
+  ScheduleRestart(p, ran, now);
+}
+
+void Supervisor::FlushOutput(Proc& p) {
+  if (p.out_fd < 0) return;
+  ReadOutput(p);
+  if (p.out_fd < 0) return;
+  if (!p.partial.empty()) WriteLine(p, p.partial);
+  p.partial.clear();
+  close(p.out_fd);
+  p.out_fd = -1;
+}
+
+void Supervisor::ScheduleRestart(Proc& p, double ran, Clock::time_point now) {
   if (ran >= p.spec.backoff_max) {  // a long run: count its failures afresh
     p.backoff_step = 0;
     p.restarts_in_row = 0;

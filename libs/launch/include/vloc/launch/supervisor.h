@@ -160,6 +160,10 @@ class Supervisor {
   void OpenLog(Proc& p);  // once, when options_.log_dir is set
   void RetryStartLater(Proc& p, Clock::time_point now, const std::string& why);  // in 1 s
   void OnExit(Proc& p, int wait_status, Clock::time_point now);
+  // OnExit's parts: the rest of the process's output written to its log;
+  // its restart after the backoff (or giving up after max_restarts).
+  void FlushOutput(Proc& p);
+  void ScheduleRestart(Proc& p, double ran_s, Clock::time_point now);
   // Step's parts: the ended processes reaped, the process groups still
   // there after SIGKILL killed again (for 5 s), a stop moved on (SIGTERM once
   // no dependent is stopping, SIGKILL after stop_timeout), a start moved on
