@@ -29,6 +29,7 @@ void CrossSiteBaOptions::Visit(OptionsReader& r) {
   r.Optional("max_correction_m", &max_correction_m, "m, largest accepted move from dead reckoning", Positive());
   r.Optional("min_intersection_parallax_rad", &min_intersection_parallax_rad, "rad, intersection ray angle",
              Positive());
+  r.Optional("far_points", &far_points, "points with nearly parallel previous-site rays enter as inverse depths");
   r.Optional("inflate_by_variance_factor", &inflate_by_variance_factor, "scale covariance by max(1, s0^2)");
   r.Optional("max_independent_points", &max_independent_points,
              "covariance scaled by max(1, points / this): shared errors do not average down (0 = off)", NonNegative());
@@ -52,7 +53,7 @@ std::string CrossSiteBaSummary::BriefReport() const {
   std::ostringstream s;
   s << "site " << previous_site_id << " -> " << current_site_id << ": " << ToString(status) << " (" << message
     << "); points used " << num_tie_points_used << ", rejected " << num_tie_points_rejected << ", unusable "
-    << num_tie_points_unusable << " of " << num_tie_points_in << "; observations " << num_observations
+    << num_tie_points_unusable << " of " << num_tie_points_in << " (far " << num_far_points << "); observations " << num_observations
     << "; RMS " << initial_rms_px << " -> " << final_rms_px << " px; " << iterations << " iterations, "
     << solve_seconds << " s; condition " << condition_number;
   return s.str();
@@ -84,10 +85,16 @@ constexpr double kMaxImageCoordinatePx = 1e5;
 constexpr double kMaxObservationSigmaPx = 1e3;
 constexpr double kMaxMastAngleRad = 100.0;
 
-// A tie point prepared for the adjustment.
+// A tie point prepared for the adjustment: a point in the world, or a far
+// point (its previous-site rays nearly parallel) as an inverse depth
+// q = [a, b, rho] in its anchor camera, p_anchor = (a, b, 1) / rho with
+// rho >= 0 (0: at infinity).
 struct BaPoint {
   int id = 0;
-  Eigen::Vector3d p_world = Eigen::Vector3d::Zero();
+  Eigen::Vector3d p_world = Eigen::Vector3d::Zero();  // not far
+  bool far = false;
+  Pose3 world_from_anchor = Pose3::Identity();        // far: the first previous observation's camera
+  Eigen::Vector3d q = Eigen::Vector3d::Zero();        // far: [a, b, rho]
   std::vector<TieObservation> previous;  // validated observations
   std::vector<TieObservation> current;
   bool inlier = true;
@@ -107,12 +114,20 @@ struct Network {
   const Pose3& BodyFromCurrentCamera(const TieObservation& o) const {
     return o.camera == CameraSide::kLeft ? body_from_left[o.pair_index] : body_from_right[o.pair_index];
   }
-  // Reprojection error (px) of an observation of p_world given the current site pose.
-  Eigen::Vector2d Residual(const TieObservation& o, const Eigen::Vector3d& p_world, const Pose3& world_from_current) const {
+  // Reprojection error (px) of an observation of `p` given the current site pose.
+  Eigen::Vector2d Residual(const TieObservation& o, const BaPoint& p, const Pose3& world_from_current) const {
     const Pose3 world_from_camera = o.site == SiteRole::kPrevious ? PreviousCamera(o)
                                                                  : world_from_current * BodyFromCurrentCamera(o);
-    const auto px = CameraView::Make(world_from_camera, Intrinsics(o.camera)).Project(p_world);
-    return px ? Eigen::Vector2d(*px - o.uv) : Eigen::Vector2d(1e4, 1e4);
+    if (!p.far) {
+      const auto px = CameraView::Make(world_from_camera, Intrinsics(o.camera)).Project(p.p_world);
+      return px ? Eigen::Vector2d(*px - o.uv) : Eigen::Vector2d(1e4, 1e4);
+    }
+    const Pose3 camera_from_anchor = world_from_camera.inverse() * p.world_from_anchor;
+    const Eigen::Vector3d h = camera_from_anchor.linear() * Eigen::Vector3d(p.q.x(), p.q.y(), 1.0) +
+                              p.q.z() * camera_from_anchor.translation();  // rho p_camera
+    if (!(h.z() > 1e-9)) return Eigen::Vector2d(1e4, 1e4);
+    const PinholeCamera& k = Intrinsics(o.camera);
+    return Eigen::Vector2d(k.fx * h.x() / h.z() + k.cx, k.fy * h.y() / h.z() + k.cy) - o.uv;
   }
 };
 
@@ -128,21 +143,30 @@ struct PassResult {
 // `robust`.
 void AddObservations(const Network& net, const Eigen::Matrix3d& R0, bool robust, const CrossSiteBaOptions& options,
                      std::vector<BaPoint>* points, double* pose, ceres::Problem* problem) {
+  auto loss = [&]() -> ceres::LossFunction* { return robust ? new ceres::HuberLoss(options.huber_sigmas) : nullptr; };
   for (auto& p : *points) {
     if (!p.inlier) continue;
+    double* point = p.far ? p.q.data() : p.p_world.data();
     for (const auto& o : p.previous) {
       const PinholeCamera& k = net.Intrinsics(o.camera);
       problem->AddResidualBlock(
-          internal::FixedCameraReprojection::Create(net.PreviousCamera(o), k.fx, k.fy, k.cx, k.cy, o.uv, o.sigma),
-          robust ? new ceres::HuberLoss(options.huber_sigmas) : nullptr, p.p_world.data());
+          p.far ? internal::FixedCameraInverseDepth::Create(net.PreviousCamera(o).inverse() * p.world_from_anchor,
+                                                            k.fx, k.fy, k.cx, k.cy, o.uv, o.sigma)
+                : internal::FixedCameraReprojection::Create(net.PreviousCamera(o), k.fx, k.fy, k.cx, k.cy, o.uv,
+                                                            o.sigma),
+          loss(), point);
     }
     for (const auto& o : p.current) {
       const PinholeCamera& k = net.Intrinsics(o.camera);
-      problem->AddResidualBlock(internal::BodyCameraReprojection::Create(R0, net.BodyFromCurrentCamera(o), k.fx, k.fy,
-                                                                         k.cx, k.cy, o.uv, o.sigma),
-                                robust ? new ceres::HuberLoss(options.huber_sigmas) : nullptr, pose,
-                                p.p_world.data());
+      const Pose3& body_from_camera = net.BodyFromCurrentCamera(o);
+      problem->AddResidualBlock(
+          p.far ? internal::BodyCameraInverseDepth::Create(R0, body_from_camera, p.world_from_anchor, k.fx, k.fy,
+                                                           k.cx, k.cy, o.uv, o.sigma)
+                : internal::BodyCameraReprojection::Create(R0, body_from_camera, k.fx, k.fy, k.cx, k.cy, o.uv,
+                                                           o.sigma),
+          loss(), pose, point);
     }
+    if (p.far) problem->SetParameterLowerBound(point, 2, 0.0);  // rho: at most at infinity
   }
 }
 
@@ -186,7 +210,7 @@ Residuals ComputeResiduals(const Network& net, const std::vector<BaPoint>& point
     ++r.points;
     for (const auto* list : {&p.previous, &p.current}) {
       for (const auto& o : *list) {
-        const Eigen::Vector2d e = net.Residual(o, p.p_world, world_from_current);
+        const Eigen::Vector2d e = net.Residual(o, p, world_from_current);
         sum_px += e.squaredNorm();
         r.chi2 += e.squaredNorm() / (o.sigma * o.sigma);
         ++r.observations;
@@ -210,7 +234,7 @@ int RejectOutliers(const Network& net, std::vector<BaPoint>* points, const Pose3
     double worst = 0;
     for (const auto* list : {&p.previous, &p.current}) {
       for (const auto& o : *list) {
-        const double e = net.Residual(o, p.p_world, world_from_current).norm() / o.sigma;
+        const double e = net.Residual(o, p, world_from_current).norm() / o.sigma;
         worst = std::max(worst, e);
         all.push_back(e);
       }
@@ -298,6 +322,25 @@ Network MakeNetwork(const TiePointSet& set, const NavcamModel& navcam) {
   return net;
 }
 
+// A point whose previous-site rays are nearly parallel as an inverse depth
+// in the camera of its first previous observation: the ray from that pixel,
+// rho from the intersection when it lies in front of that camera (else 0:
+// at infinity). False when the pixel's ray is not usable.
+bool MakeFarPoint(const Network& net, const std::vector<CameraView>& views, const std::vector<Eigen::Vector2d>& uv,
+                  const std::vector<double>& sigma, BaPoint* bp) {
+  const TieObservation& anchor = bp->previous.front();
+  const PinholeCamera& k = net.Intrinsics(anchor.camera);
+  bp->far = true;
+  bp->world_from_anchor = net.PreviousCamera(anchor);
+  bp->q = Eigen::Vector3d((anchor.uv.x() - k.cx) / k.fx, (anchor.uv.y() - k.cy) / k.fy, 0.0);
+  const IntersectionResult loose = IntersectPoint(views, uv, sigma, 0.0);
+  if (loose.ok) {
+    const double z = (bp->world_from_anchor.inverse() * loose.p_world).z();
+    if (z > 0 && std::isfinite(z)) bp->q.z() = 1.0 / z;
+  }
+  return bp->q.allFinite();
+}
+
 // The tie points with valid observations, seen at least twice from the
 // previous site and once from the current, intersected from the previous
 // site; counts the bad observations and unusable points into `s`.
@@ -329,11 +372,13 @@ std::vector<BaPoint> IntersectFromPreviousSite(const TiePointSet& set, const Net
       sigma.push_back(o.sigma);
     }
     const IntersectionResult ir = IntersectPoint(views, uv, sigma, options.min_intersection_parallax_rad);
-    if (!ir.ok) {
+    if (ir.ok) {
+      bp.p_world = ir.p_world;
+    } else if (!(options.far_points && ir.max_parallax_rad < options.min_intersection_parallax_rad &&
+                 MakeFarPoint(net, views, uv, sigma, &bp))) {
       ++s->num_tie_points_unusable;
       continue;
     }
-    bp.p_world = ir.p_world;
     points.push_back(bp);
   }
   return points;
@@ -353,6 +398,7 @@ Pose3 ResectCurrentSite(const TiePointSet& set, const Network& net, const std::v
   }
   std::vector<ResectionObservation> robs;
   for (const auto& p : points) {
+    if (p.far) continue;  // the resection takes the points in the world
     for (const auto& o : p.current) {
       ResectionObservation r;
       r.p_world = p.p_world;
@@ -406,9 +452,10 @@ ScaledCovariance ScaleCovariance(const Matrix6d& plain, const Residuals& res, co
   if (options.max_independent_points > 0)
     cov *= std::max(1.0, static_cast<double>(res.points) / options.max_independent_points);
   double mean_range = 0;
+  int near = 0;
   for (const auto& p : points)
-    if (p.inlier) mean_range += (p.p_world - world_from_current.translation()).norm();
-  mean_range /= std::max(1, res.points);
+    if (p.inlier && !p.far) mean_range += (p.p_world - world_from_current.translation()).norm(), ++near;
+  mean_range /= std::max(1, near);
   Vector6d scale;
   scale << 1, 1, 1, mean_range, mean_range, mean_range;
   const Matrix6d scaled = scale.asDiagonal() * cov * scale.asDiagonal();
@@ -515,6 +562,8 @@ CrossSiteBaSummary SolveCrossSiteBa(const TiePointSet& set, const NavcamModel& n
   s.iterations += final_pass.iterations;
   const Residuals res = ComputeResiduals(net, points, world_from_current);
   s.num_tie_points_used = res.points;
+  s.num_far_points = static_cast<int>(
+      std::count_if(points.begin(), points.end(), [](const BaPoint& p) { return p.inlier && p.far; }));
   s.num_observations = res.observations;
   s.final_rms_px = res.rms_px;
   s.final_normalised_rms = res.normalised_rms;

@@ -33,6 +33,9 @@ struct CrossSiteBaOptions {
   double max_final_rms_sigmas = 3.0;       // final normalised reprojection RMS above this: NOT_CONVERGED
   double max_correction_m = 10.0;          // a solution further than this from the dead-reckoning pose: NOT_CONVERGED
   double min_intersection_parallax_rad = 1e-3;  // rays closer than this do not intersect a point
+  bool far_points = false;                 // true: such a point (far terrain) enters as an inverse depth in its
+                                           // first previous camera (defined at infinity: it fixes the rotation);
+                                           // false: it is unusable (README: Devon, far points)
   bool inflate_by_variance_factor = true;  // multiply the covariance by max(1, a-posteriori variance factor)
   int max_independent_points = 0;          // ... and by max(1, points / this): for points of one site pair that
                                            // share errors (calibration, relief-biased matching) that do not
@@ -60,6 +63,7 @@ struct CrossSiteBaSummary {
   int num_tie_points_used = 0;         // inliers in the final adjustment
   int num_tie_points_rejected = 0;     // outliers removed
   int num_tie_points_unusable = 0;     // not seen from both sites, not intersectable, bad data
+  int num_far_points = 0;              // of the used: inverse-depth points (options.far_points)
   int num_observations = 0;            // image observations in the final adjustment
   int num_bad_observations = 0;        // dropped for bad data (unknown pair, bad sigma, not finite)
   double initial_rms_px = 0;           // reprojection RMS at the initial values (inliers)
