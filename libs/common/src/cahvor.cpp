@@ -230,13 +230,6 @@ Pose3 CahvModel::ReferenceFromCamera() const {
   return MakePose(rot, c);
 }
 
-PinholeCamera CahvModel::ToPinhole(int width, int height) const {
-  PinholeCamera p;
-  p.width = width, p.height = height;
-  p.fx = hs(), p.fy = vs(), p.cx = hc(), p.cy = vc();
-  return p;
-}
-
 CahvModel CahvModel::FromPinhole(const PinholeCamera& pin, const Pose3& ref_from_camera) {
   const Eigen::Matrix3d rot = ref_from_camera.linear();
   CahvModel m;

@@ -259,17 +259,4 @@ std::vector<FeatureMatch> GatedMatch(const FeatureSet& query, const std::vector<
   return UniqueMatches(std::move(matches), query, train);
 }
 
-std::vector<FeatureMatch> BruteForceMatch(const FeatureSet& query, const FeatureSet& train, double ratio) {
-  if (query.size() == 0 || train.size() < 2) return {};
-  cv::BFMatcher matcher(cv::NORM_L2);
-  std::vector<std::vector<cv::DMatch>> knn;
-  matcher.knnMatch(query.descriptors, train.descriptors, knn, 2);
-  std::vector<FeatureMatch> out;
-  for (const auto& k : knn) {
-    if (k.size() < 2) continue;
-    if (k[0].distance < ratio * k[1].distance) out.push_back({k[0].queryIdx, k[0].trainIdx, k[0].distance});
-  }
-  return UniqueMatches(std::move(out), query, train);
-}
-
 }  // namespace vloc

@@ -26,16 +26,6 @@ void MedianFilterOptions::Visit(OptionsReader& r) {
 
 bool MedianFilterOptions::Check(std::string* error) const { return CheckOptions(*this, error); }
 
-float SampleBilinear(const cv::Mat& image, double x, double y) {
-  x = std::clamp(x, 0.0, image.cols - 1.001);
-  y = std::clamp(y, 0.0, image.rows - 1.001);
-  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
-  const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
-  const float* r0 = image.ptr<float>(y0) + x0;
-  const float* r1 = image.ptr<float>(y0 + 1) + x0;
-  return (1 - fy) * ((1 - fx) * r0[0] + fx * r0[1]) + fy * ((1 - fx) * r1[0] + fx * r1[1]);
-}
-
 namespace {
 
 // Samples the window around (x, y) into `out`; false when outside.

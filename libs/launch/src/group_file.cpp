@@ -11,15 +11,6 @@
 
 namespace vloc {
 
-const char* RestartPolicyName(RestartPolicy policy) {
-  switch (policy) {
-    case RestartPolicy::kNever: return "never";
-    case RestartPolicy::kOnFailure: return "on-failure";
-    case RestartPolicy::kAlways: return "always";
-  }
-  return "?";
-}
-
 std::vector<std::string> GroupFile::Groups() const {
   std::vector<std::string> groups;
   for (const auto& p : processes) {

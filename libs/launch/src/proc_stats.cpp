@@ -53,12 +53,6 @@ std::optional<StatLine> ReadStat(const std::string& path) {
 
 }  // namespace
 
-std::optional<ProcUsage> ReadProcessUsage(pid_t pid) {
-  auto s = ReadStat("/proc/" + std::to_string(pid) + "/stat");
-  if (!s) return std::nullopt;
-  return s->usage;
-}
-
 std::map<pid_t, ProcUsage> ReadProcessGroupUsage() {
   std::map<pid_t, ProcUsage> groups;
   DIR* dir = opendir("/proc");

@@ -171,12 +171,6 @@ Supervisor::~Supervisor() {
   } while (Clock::now() < until);
 }
 
-Supervisor::Proc* Supervisor::FindProc(const std::string& name) {
-  for (auto& p : procs_)
-    if (p->spec.name == name) return p.get();
-  return nullptr;
-}
-
 bool Supervisor::ForTargets(const std::string& target, bool is_group, std::string* error,
                             const std::function<void(Proc&)>& action) {
   bool any = false;

@@ -74,6 +74,5 @@ double HeightFilter::UpdateGps(double height, int64_t utime) {
 }
 
 double HeightFilter::height() const { return initialized_ ? std::exp(x_(0)) : 0.0; }
-double HeightFilter::climb_rate() const { return height() * x_(1); }
 
 }  // namespace vloc::mosaic

@@ -472,20 +472,4 @@ SimulatedTraverse SimulateTraverse(const Terrain& terrain, const TraverseOptions
   return simulator.Run();
 }
 
-Pose3 GroundTruthAt(const SimulatedTraverse& traverse, int64_t utime) {
-  const auto& gt = traverse.ground_truth;
-  if (gt.empty()) return Pose3::Identity();
-  if (utime <= gt.front().utime) return gt.front().world_from_body;
-  if (utime >= gt.back().utime) return gt.back().world_from_body;
-  const auto it = std::lower_bound(gt.begin(), gt.end(), utime,
-                                   [](const GroundTruthSample& s, int64_t t) { return s.utime < t; });
-  if (it->utime == utime) return it->world_from_body;
-  const GroundTruthSample& b = *it;
-  const GroundTruthSample& a = *(it - 1);
-  const double f = static_cast<double>(utime - a.utime) / static_cast<double>(b.utime - a.utime);
-  const Eigen::Quaterniond qa(a.world_from_body.linear()), qb(b.world_from_body.linear());
-  return MakePose(qa.slerp(f, qb).toRotationMatrix(),
-                  (1 - f) * a.world_from_body.translation() + f * b.world_from_body.translation());
-}
-
 }  // namespace vloc::sim

@@ -57,12 +57,6 @@ std::unique_lock<std::mutex> RoverWorld::LightSite(int site_id) const {
   return lock;
 }
 
-RenderedPair RoverWorld::RenderExposureWithDepth(const Exposure& e) const {
-  const uint64_t seed = Hash3(options_.traverse.seed, static_cast<uint64_t>(e.site_id), static_cast<uint64_t>(e.pair_index));
-  const auto lit = LightSite(e.site_id);
-  return renderer_->RenderPair(e.world_from_body, e.mast_pan, e.mast_tilt, seed, true, GainAtSite(e.site_id));
-}
-
 StereoPair RoverWorld::RenderExposure(const Exposure& e) const {
   const uint64_t seed = Hash3(options_.traverse.seed, static_cast<uint64_t>(e.site_id), static_cast<uint64_t>(e.pair_index));
   RenderedPair rendered;

@@ -99,9 +99,6 @@ struct CahvModel {
   // The frame of the linear part: camera z = A, x = H', y = A x H'
   // (orthonormal: V' = y up to the model's skew), in the reference frame.
   Pose3 ReferenceFromCamera() const;
-  // The linear part as a pinhole camera of the given size (fx = hs, fy = vs,
-  // principal point hc, vc); exact for an orthogonal CAHV.
-  PinholeCamera ToPinhole(int width, int height) const;
   // A CAHV model equal to a pinhole camera placed by ref_from_camera.
   static CahvModel FromPinhole(const PinholeCamera& pinhole, const Pose3& ref_from_camera);
 };

@@ -108,8 +108,4 @@ struct FeatureMatch {
 std::vector<FeatureMatch> GatedMatch(const FeatureSet& query, const std::vector<Eigen::Vector2d>& predicted,
                                      const FeatureSet& train, const GatedMatchOptions& options);
 
-// Brute-force matching with the ratio test (the plain approach), for tools
-// and benchmarks.
-std::vector<FeatureMatch> BruteForceMatch(const FeatureSet& query, const FeatureSet& train, double ratio);
-
 }  // namespace vloc

@@ -52,7 +52,4 @@ std::vector<bool> MedianDisparityFilter(const std::vector<Eigen::Vector2d>& left
                                         const std::vector<double>& disparities,
                                         const MedianFilterOptions& options);
 
-// Bilinear sample of a CV_32FC1 image (clamped at the border).
-float SampleBilinear(const cv::Mat& image, double x, double y);
-
 }  // namespace vloc

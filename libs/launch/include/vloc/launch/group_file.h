@@ -56,8 +56,6 @@ namespace vloc {
 
 enum class RestartPolicy { kNever, kOnFailure, kAlways };
 
-const char* RestartPolicyName(RestartPolicy policy);
-
 // How to run and supervise one process.
 struct ProcessSpec {
   std::string name;                          // unique in the file

@@ -18,9 +18,6 @@ struct ProcUsage {
   int num_processes = 0;   // processes summed
 };
 
-// Usage of one process from /proc/<pid>/stat; nullopt when it is gone.
-std::optional<ProcUsage> ReadProcessUsage(pid_t pid);
-
 // Usage summed over every live (not zombie) process of each process group,
 // keyed by the group id, from one pass over /proc.
 std::map<pid_t, ProcUsage> ReadProcessGroupUsage();

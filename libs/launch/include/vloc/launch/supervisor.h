@@ -150,7 +150,6 @@ class Supervisor {
 
  private:
   struct Proc;
-  Proc* FindProc(const std::string& name);
   bool ForTargets(const std::string& target, bool is_group, std::string* error,
                   const std::function<void(Proc&)>& action);
   void RequestStart(Proc& p);

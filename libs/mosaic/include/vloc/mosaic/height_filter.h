@@ -41,7 +41,6 @@ class HeightFilter {
   // GPS height above ground (m); ignored unless gps_use == "fused".
   double UpdateGps(double height, int64_t utime);
   double height() const;
-  double climb_rate() const;  // m/s
 
  private:
   void Predict(int64_t utime);

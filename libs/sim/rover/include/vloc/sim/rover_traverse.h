@@ -171,7 +171,4 @@ struct SimulatedTraverse {
 // the terrain.
 SimulatedTraverse SimulateTraverse(const Terrain& terrain, const TraverseOptions& options);
 
-// Ground-truth pose at `utime` (linear / slerp between samples, clamped).
-Pose3 GroundTruthAt(const SimulatedTraverse& traverse, int64_t utime);
-
 }  // namespace vloc::sim

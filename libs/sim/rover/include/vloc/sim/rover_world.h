@@ -65,8 +65,6 @@ class RoverWorld {
 
   // The stereo pair of one exposure; noise seeded by (traverse seed, site, pair).
   StereoPair RenderExposure(const Exposure& exposure) const;
-  // With the per-pixel depth of both images (CV_32F, camera z, 0 = none).
-  RenderedPair RenderExposureWithDepth(const Exposure& exposure) const;
   // Every pair of one site's panorama, in pair order.
   std::vector<StereoPair> RenderSite(int site_id) const;
   // The sun (azimuth, elevation, deg) and gain factor of a site under `lighting`.
