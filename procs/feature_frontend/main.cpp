@@ -17,7 +17,7 @@ int main(int argc, char** argv) {
   vloc::KeepLargeBlocksForReuse();
   auto setup = vloc::SetupProcess(argc, argv,
                                   {"feature_frontend", {"site-cache"}, true,
-                                   "--config config/procs/feature_frontend.yaml [--site-cache DIR]"});
+                                   "--config config/procs/feature_frontend.yaml [--site-cache DIR] [--lcm-url URL]"});
   if (!setup) return 1;
   const auto loaded = vloc::LoadProcessOptions<vloc::FeatureFrontendProcOptions>(*setup, [&](vloc::FeatureFrontendProcOptions& o) {
     if (setup->args.Has("site-cache")) o.site_cache_dir = setup->args.Get("site-cache");

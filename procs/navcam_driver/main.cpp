@@ -17,7 +17,7 @@ int main(int argc, char** argv) {
   auto setup = vloc::SetupProcess(argc, argv,
                                   {"navcam_driver", {"manifest", "pds", "speed"}, false,
                                    "[--config config/procs/navcam_driver.yaml] (--manifest FILE.yaml | --pds FOLDER) "
-                                   "[--speed X]"});
+                                   "[--speed X] [--lcm-url URL]"});
   if (!setup) return 1;
   const auto loaded = vloc::LoadProcessOptions<vloc::NavcamDriverOptions>(*setup, [&](vloc::NavcamDriverOptions& o) {
     if (setup->args.Has("manifest")) {

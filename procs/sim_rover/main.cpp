@@ -102,7 +102,7 @@ int main(int argc, char** argv) {
                                    {"log", "speed", "sites", "revisit", "seed", "render-sample"},
                                    false,
                                    "[--config config/procs/sim_rover.yaml] [--speed X] [--sites N] [--revisit K] [--seed S] "
-                                   "[--log FILE | --render-sample DIR]",
+                                   "[--log FILE | --render-sample DIR] [--lcm-url URL]",
                                    {"log", "render-sample"}});
   if (!setup) return 1;
   const std::optional<vloc::SimRoverOptions> options = LoadSimRoverOptions(*setup);

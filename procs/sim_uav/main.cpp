@@ -78,7 +78,7 @@ int main(int argc, char** argv) {
        {"log", "duration", "fps", "speed", "snapshot", "at", "orthomap", "gps-sigma"},
        false,
        "[--config config/procs/sim_uav.yaml] [--speed X] [--duration S] [--fps F] [--orthomap FILE.png] [--gps-sigma M] "
-       "[--log FILE] [--snapshot FILE.png --at T]",
+       "[--log FILE] [--snapshot FILE.png --at T] [--lcm-url URL]",
        {"log", "snapshot"}});
   if (!setup) return 1;
   const std::optional<vloc::SimUavOptions> options = LoadSimUavOptions(*setup);

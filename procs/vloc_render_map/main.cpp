@@ -62,11 +62,18 @@ int main(int argc, char** argv) {
   vloc::CommandLine args;
   std::string error;
   if (!args.Parse(argc, argv,
-                  {"config", "out", "res", "sun-azimuth", "sun-elevation", "region", "terrain-seed", "rock-density"},
-                  &error) ||
-      !args.Has("config") || !args.Has("out")) {
-    std::cerr << "vloc_render_map: " << (error.empty() ? "--config and --out are required" : error) << "\n"
-              << kUsage << "\n";
+                  {"config", "out", "res", "sun-azimuth", "sun-elevation", "region", "terrain-seed", "rock-density",
+                   "help"},
+                  &error)) {
+    std::cerr << "vloc_render_map: " << error << "\n" << kUsage << "\n";
+    return 1;
+  }
+  if (args.Has("help")) {
+    std::cout << kUsage << "\n";
+    return 0;
+  }
+  if (!args.Has("config") || !args.Has("out")) {
+    std::cerr << "vloc_render_map: --config and --out are required\n" << kUsage << "\n";
     return 1;
   }
   try {

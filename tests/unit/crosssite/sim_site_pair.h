@@ -55,6 +55,7 @@ inline bool LoadCachedSite(const std::string& dir, const std::string& tag, size_
                            std::vector<cv::Mat>* depth) {
   for (size_t k = 0; k < n; ++k) {
     const std::string base = dir + "/" + tag + "_" + std::to_string(k);
+    if (!std::filesystem::exists(base + "_d.yml.gz")) return false;  // not cached yet (OpenCV would log an error)
     cv::Mat l = cv::imread(base + "_l.png", cv::IMREAD_GRAYSCALE), r = cv::imread(base + "_r.png", cv::IMREAD_GRAYSCALE);
     cv::FileStorage fs(base + "_d.yml.gz", cv::FileStorage::READ);
     if (l.empty() || r.empty() || !fs.isOpened()) return false;
@@ -83,6 +84,8 @@ inline SimSitePair MakeSimSitePair(const SimSitePairOptions& so = SimSitePairOpt
   out.navcam = LoadOptionsFile<NavcamModel>("config/navcam.yaml");
   const char* cache_env = std::getenv("VLOC_SIM_CACHE");
   const std::string cache = cache_env ? cache_env : "";
+  std::error_code made;
+  if (!cache.empty()) std::filesystem::create_directories(cache, made);  // a new folder fills on the first run
   std::ostringstream key;
   key << "t" << so.terrain_seed << "_d" << so.distance << "_h" << so.heading_change_deg << (so.textureless ? "_flat" : "") << (so.no_relief ? "_plane" : "");
   sim::NavcamRenderOptions render_options;
@@ -130,7 +133,7 @@ inline SimSitePair MakeSimSitePair(const SimSitePairOptions& so = SimSitePairOpt
   // Terrain heights at the two sites, cached with the images.
   double z0 = 0, z1 = 0;
   bool cached = false;
-  if (!cache.empty()) {
+  if (!cache.empty() && std::filesystem::exists(cache + "/" + key.str() + "_heights.yml")) {
     cv::FileStorage fs(cache + "/" + key.str() + "_heights.yml", cv::FileStorage::READ);
     if (fs.isOpened()) {
       fs["z0"] >> z0;
