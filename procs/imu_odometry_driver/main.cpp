@@ -14,7 +14,8 @@ int main(int argc, char** argv) {
   auto setup = vloc::SetupProcess(
       argc, argv,
       {"imu_odometry_driver", {"imu", "wheel", "speed"}, false,
-       "[--config config/procs/imu_odometry_driver.yaml] [--imu imu.csv] [--wheel wheel.csv] [--speed X] [--lcm-url URL]"});
+       "[--config config/procs/imu_odometry_driver.yaml] [--imu imu.csv] [--wheel wheel.csv] [--speed X] "
+       "[--lcm-url URL]"});
   if (!setup) return 1;
   const auto loaded = vloc::LoadProcessOptions<vloc::ImuOdometryDriverOptions>(*setup, [&](vloc::ImuOdometryDriverOptions& o) {
     if (setup->args.Has("imu")) o.imu_csv = setup->args.Get("imu");

@@ -25,8 +25,8 @@ std::optional<vloc::SimUavOptions> LoadSimUavOptions(const vloc::ProcessSetup& s
   const vloc::CommandLine& args = setup.args;
   try {
     std::string echo;
-    auto o = vloc::LoadOptions<vloc::SimUavOptions>(setup.config, setup.config_path.empty() ? "defaults" : setup.config_path,
-                                                    &echo);
+    const std::string source = setup.config_path.empty() ? "defaults" : setup.config_path;
+    auto o = vloc::LoadOptions<vloc::SimUavOptions>(setup.config, source, &echo);
     if (args.Has("duration")) o.duration = args.GetDouble("duration", o.duration);
     if (args.Has("fps")) o.world.fps = args.GetDouble("fps", o.world.fps);
     if (args.Has("speed")) o.speed = args.GetDouble("speed", o.speed);

@@ -16,7 +16,8 @@ int main(int argc, char** argv) {
   auto setup = vloc::SetupProcess(
       argc, argv,
       {"uav_video_driver", {"video", "telemetry", "speed", "fps"}, false,
-       "[--config config/procs/uav_video_driver.yaml] --video FILE|PATTERN|FOLDER [--telemetry CSV] [--speed X] [--fps F] [--lcm-url URL]"});
+       "[--config config/procs/uav_video_driver.yaml] --video FILE|PATTERN|FOLDER [--telemetry CSV] [--speed X] "
+       "[--fps F] [--lcm-url URL]"});
   if (!setup) return 1;
   const auto loaded = vloc::LoadProcessOptions<vloc::UavVideoDriverOptions>(*setup, [&](vloc::UavVideoDriverOptions& o) {
     if (setup->args.Has("video")) o.video = setup->args.Get("video");

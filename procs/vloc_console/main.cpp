@@ -32,7 +32,8 @@ int main(int argc, char** argv) {
       {"vloc_console",
        {"bind", "port", "token", "web-root"},
        false,
-       "[--config config/procs/vloc_console.yaml] [--bind ADDR] [--port N] [--token T] [--web-root DIR] [--lcm-url URL]"});
+       "[--config config/procs/vloc_console.yaml] [--bind ADDR] [--port N] [--token T] [--web-root DIR] "
+       "[--lcm-url URL]"});
   if (!setup) return 1;
   const auto loaded = vloc::LoadProcessOptions<vloc::ConsoleProcOptions>(
       *setup, [&](vloc::ConsoleProcOptions& o) { ApplyOverrides(setup->args, o); });

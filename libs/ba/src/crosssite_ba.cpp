@@ -53,7 +53,8 @@ std::string CrossSiteBaSummary::BriefReport() const {
   std::ostringstream s;
   s << "site " << previous_site_id << " -> " << current_site_id << ": " << ToString(status) << " (" << message
     << "); points used " << num_tie_points_used << ", rejected " << num_tie_points_rejected << ", unusable "
-    << num_tie_points_unusable << " of " << num_tie_points_in << " (far " << num_far_points << "); observations " << num_observations
+    << num_tie_points_unusable << " of " << num_tie_points_in << " (far " << num_far_points << "); observations "
+    << num_observations
     << "; RMS " << initial_rms_px << " -> " << final_rms_px << " px; " << iterations << " iterations, "
     << solve_seconds << " s; condition " << condition_number;
   return s.str();
