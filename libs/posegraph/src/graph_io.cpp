@@ -523,12 +523,14 @@ bool ParseGraphText(const std::string& text, GraphFile* file, std::string* error
   return ParseGraphStream(in, file, error, use);
 }
 
-bool ParseGraph3Text(const std::string& text, mrpt::graphs::CNetworkOfPoses3DInf* graph, std::string* error) {
+bool ParseGraph3Text(const std::string& text, mrpt::graphs::CNetworkOfPoses3DInf* graph, std::string* error,
+                     std::string* repair_report) {
   std::istringstream in(text);
   GraphFile file;
   if (!ParseGraphStream(in, &file, error, InformationUse::kChi2, false)) return false;
   if (file.dimension != 3) return Fail(error, "a 2D graph where a 3D one is needed");
   *graph = std::move(file.graph3);
+  *repair_report = file.repair_report;
   return true;
 }
 

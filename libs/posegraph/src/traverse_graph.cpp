@@ -620,7 +620,10 @@ bool TraverseGraph::ReadGraphBody(const std::string& text, std::string* error) {
   // graph_io's reader refuses what MRPT's would skip: a file that is no
   // graph, or a graph with a damaged line, would load as less than it holds
   // (and the next save would overwrite it).
-  return ParseGraph3Text(text, &graph_, error);
+  std::string repaired;
+  if (!ParseGraph3Text(text, &graph_, error, &repaired)) return false;
+  if (!repaired.empty()) LOG(WARNING) << "pose graph file: " << repaired;
+  return true;
 }
 
 bool TraverseGraph::ReadAnnotations(const std::string& text, std::vector<EdgeKey>* kinds,

@@ -79,7 +79,9 @@ bool ParseGraphText(const std::string& text, GraphFile* file, std::string* error
                     InformationUse use = InformationUse::kChi2);
 // A 3D graph in either format (g2o or MRPT's), checked the same way, which
 // may have no edge (a traverse of one site); false with *error naming the line.
-bool ParseGraph3Text(const std::string& text, mrpt::graphs::CNetworkOfPoses3DInf* graph, std::string* error);
+// *repair_report: GraphFile::repair_report (what was repaired or skipped).
+bool ParseGraph3Text(const std::string& text, mrpt::graphs::CNetworkOfPoses3DInf* graph, std::string* error,
+                     std::string* repair_report);
 
 // Writes (atomically) in file.format; vertices hold the current poses.
 bool WriteGraphFile(const std::string& path, const GraphFile& file, std::string* error);
