@@ -323,12 +323,26 @@ Network MakeNetwork(const TiePointSet& set, const NavcamModel& navcam) {
   return net;
 }
 
+// Only the left camera's observations of a far point: the stereo cannot
+// range it (that is what made it far), so its right-image pixel adds a
+// disparity below a pixel whose calibration bias would set the point's depth,
+// and through it the site's scale (Devon: |t| 8 % longer with them).
+void KeepLeftObservations(std::vector<TieObservation>* observations) {
+  observations->erase(std::remove_if(observations->begin(), observations->end(),
+                                     [](const TieObservation& o) { return o.camera != CameraSide::kLeft; }),
+                      observations->end());
+}
+
 // A point whose previous-site rays are nearly parallel as an inverse depth
-// in the camera of its first previous observation: the ray from that pixel,
-// rho from the intersection when it lies in front of that camera (else 0:
-// at infinity). False when the pixel's ray is not usable.
+// in the left camera of its first previous observation: the ray from that
+// pixel, rho from the intersection when it lies in front of that camera
+// (else 0: at infinity); its left observations only (KeepLeftObservations).
+// False when a site has no left observation of it.
 bool MakeFarPoint(const Network& net, const std::vector<CameraView>& views, const std::vector<Eigen::Vector2d>& uv,
                   const std::vector<double>& sigma, BaPoint* bp) {
+  KeepLeftObservations(&bp->previous);
+  KeepLeftObservations(&bp->current);
+  if (bp->previous.empty() || bp->current.empty()) return false;
   const TieObservation& anchor = bp->previous.front();
   const PinholeCamera& k = net.Intrinsics(anchor.camera);
   bp->far = true;

@@ -33,9 +33,9 @@ struct CrossSiteBaOptions {
   double max_final_rms_sigmas = 3.0;       // final normalised reprojection RMS above this: NOT_CONVERGED
   double max_correction_m = 10.0;          // a solution further than this from the dead-reckoning pose: NOT_CONVERGED
   double min_intersection_parallax_rad = 1e-3;  // rays closer than this do not intersect a point
-  bool far_points = false;                 // true: such a point (far terrain) enters as an inverse depth in its
-                                           // first previous camera (defined at infinity: it fixes the rotation);
-                                           // false: it is unusable (README: Devon, far points)
+  bool far_points = true;                  // such a point (far terrain) enters as an inverse depth in its first
+                                           // previous left camera, its left observations only (bearings, defined
+                                           // at infinity: they fix the rotation); false: it is unusable
   bool inflate_by_variance_factor = true;  // multiply the covariance by max(1, a-posteriori variance factor)
   int max_independent_points = 0;          // ... and by max(1, points / this): for points of one site pair that
                                            // share errors (calibration, relief-biased matching) that do not
