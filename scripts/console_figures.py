@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 """vloc_console's figures on a recorded run, with a headless Chromium page
 open: the console's resident memory (RSS, sampled every 0.5 s) while the
 run replays, and the latency from each TRAVERSE reaching the console to the

@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 """Vision heights against the GPS altitude minus a fitted ground, for three
 ground models: one level (what uav_mosaic_files reports), a tilted plane and
 a quadratic surface over the GPS east / north.

@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 """Plots for vloc_eval: reads the CSVs it wrote in --out and writes PNGs there.
 
   traverse_map.png      ground truth, dead reckoning, visual (chained BA) and
