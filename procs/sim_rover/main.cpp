@@ -42,22 +42,14 @@ void ApplyOverrides(const vloc::CommandLine& args, vloc::SimRoverOptions* o) {
 
 // The config with the command line's overrides, echoed to the log; nullopt after one error line.
 std::optional<vloc::SimRoverOptions> LoadSimRoverOptions(const vloc::ProcessSetup& setup) {
-  try {
-    std::string echo;
-    auto options = vloc::LoadOptions<vloc::SimRoverOptions>(
-        setup.config, setup.config_path.empty() ? "defaults" : setup.config_path, &echo);
-    ApplyOverrides(setup.args, &options);
-    std::string error;
-    if (!options.Check(&error)) throw vloc::ConfigError("command line: " + error);
-    const vloc::sim::TraversePlanOptions& plan = options.world.traverse.plan;
-    LOG(INFO) << "sim_rover options:\n"
-              << echo << "\n(overrides: speed " << options.speed << ", sites " << plan.num_sites << ", revisit "
-              << plan.revisit_site << ", seed " << options.world.traverse.seed << ")";
-    return options;
-  } catch (const vloc::ConfigError& e) {
-    std::cerr << "sim_rover: " << e.what() << "\n";
-    return std::nullopt;
+  auto options = vloc::LoadProcessOptions<vloc::SimRoverOptions>(
+      setup, [&](vloc::SimRoverOptions& o) { ApplyOverrides(setup.args, &o); });
+  if (options) {
+    const vloc::sim::TraversePlanOptions& plan = options->world.traverse.plan;
+    LOG(INFO) << "(overrides: speed " << options->speed << ", sites " << plan.num_sites << ", revisit "
+              << plan.revisit_site << ", seed " << options->world.traverse.seed << ")";
   }
+  return options;
 }
 
 // The terrain and traverse, described in the log; null after one error line.

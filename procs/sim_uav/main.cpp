@@ -23,25 +23,18 @@ namespace {
 // The config with the command line's overrides, echoed to the log; nullopt after one error line.
 std::optional<vloc::SimUavOptions> LoadSimUavOptions(const vloc::ProcessSetup& setup) {
   const vloc::CommandLine& args = setup.args;
-  try {
-    std::string echo;
-    const std::string source = setup.config_path.empty() ? "defaults" : setup.config_path;
-    auto o = vloc::LoadOptions<vloc::SimUavOptions>(setup.config, source, &echo);
+  auto options = vloc::LoadProcessOptions<vloc::SimUavOptions>(setup, [&](vloc::SimUavOptions& o) {
     if (args.Has("duration")) o.duration = args.GetDouble("duration", o.duration);
     if (args.Has("fps")) o.world.fps = args.GetDouble("fps", o.world.fps);
     if (args.Has("speed")) o.speed = args.GetDouble("speed", o.speed);
     if (args.Has("orthomap")) o.world.orthomap.image = args.Get("orthomap");
     if (args.Has("gps-sigma")) o.world.gps.horizontal_sigma = args.GetDouble("gps-sigma", o.world.gps.horizontal_sigma);
-    std::string error;
-    if (!o.Check(&error)) throw vloc::ConfigError("command line: " + error);
-    LOG(INFO) << "sim_uav options:\n" << echo << "\n(overrides: duration " << o.duration << " s, fps " << o.world.fps
-              << ", speed " << o.speed << ", orthomap image '" << o.world.orthomap.image << "', GPS horizontal sigma "
-              << o.world.gps.horizontal_sigma << " m)";
-    return o;
-  } catch (const vloc::ConfigError& e) {
-    std::cerr << "sim_uav: " << e.what() << "\n";
-    return std::nullopt;
-  }
+  });
+  if (options)
+    LOG(INFO) << "(overrides: duration " << options->duration << " s, fps " << options->world.fps << ", speed "
+              << options->speed << ", orthomap image '" << options->world.orthomap.image
+              << "', GPS horizontal sigma " << options->world.gps.horizontal_sigma << " m)";
+  return options;
 }
 
 // The world and its flight, described in the log; null after one error line.
