@@ -333,6 +333,17 @@ bool ParseRecords(std::istream& in, GraphFile* file, Graph* graph, std::string* 
   return true;
 }
 
+// The upper triangle of an N x N information matrix, row by row, mirrored (g2o's order).
+template <int N>
+bool ReadUpperTriangle(std::istringstream& s, Eigen::Matrix<double, N, N>* info) {
+  for (int r = 0; r < N; ++r)
+    for (int c = r; c < N; ++c) {
+      if (!Numbers{s}.One(&(*info)(r, c))) return false;
+      (*info)(c, r) = (*info)(r, c);
+    }
+  return true;
+}
+
 // The values of a g2o EDGE_SE3:QUAT record after its ends: x y z qx qy qz qw
 // and the upper triangle of the information, checked, into the graph.
 bool ReadG2oEdge3(Record& rec, TNodeID i, TNodeID j, GraphFile* file) {
@@ -340,12 +351,7 @@ bool ReadG2oEdge3(Record& rec, TNodeID i, TNodeID j, GraphFile* file) {
   const std::string what = rec.Edge(i, j);
   double x, y, z, qx, qy, qz, qw;
   Matrix6 info;
-  if (!Numbers{s}.Read(&x, &y, &z, &qx, &qy, &qz, &qw)) return rec.Bad();
-  for (int r = 0; r < 6; ++r)
-    for (int c = r; c < 6; ++c) {
-      if (!Numbers{s}.One(&info(r, c))) return rec.Bad();
-      info(c, r) = info(r, c);
-    }
+  if (!Numbers{s}.Read(&x, &y, &z, &qx, &qy, &qz, &qw) || !ReadUpperTriangle<6>(s, &info)) return rec.Bad();
   if (!std::isfinite(x + y + z + qx + qy + qz + qw)) return rec.Refuse(what + ": pose not finite");
   if (!CheckQuaternion(rec, what, qx, qy, qz, qw)) return false;
   if (!CheckInformation<6>(rec, what, &info, file)) return false;  // in the file's numbers
@@ -359,12 +365,7 @@ bool ReadG2oEdge2(Record& rec, TNodeID i, TNodeID j, GraphFile* file) {
   const std::string what = rec.Edge(i, j);
   double x, y, th;
   Eigen::Matrix3d info;
-  if (!Numbers{s}.Read(&x, &y, &th)) return rec.Bad();
-  for (int r = 0; r < 3; ++r)
-    for (int c = r; c < 3; ++c) {
-      if (!Numbers{s}.One(&info(r, c))) return rec.Bad();
-      info(c, r) = info(r, c);
-    }
+  if (!Numbers{s}.Read(&x, &y, &th) || !ReadUpperTriangle<3>(s, &info)) return rec.Bad();
   if (!std::isfinite(x + y + th)) return rec.Refuse(what + ": pose not finite");
   if (!CheckInformation<3>(rec, what, &info, file)) return false;
   InsertEdge(file, i, j, mrpt::poses::CPose2D(x, y, th), info);
