@@ -79,10 +79,10 @@ int64_t FileTime(const std::string& path) {
 
 MapLocalizerAdapter::MapLocalizerAdapter(Transport& transport, const MapLocalizerProcOptions& options,
                                          const NavcamModel& navcam, maploc::MapRaster map)
-    : transport_(transport), options_(options), navcam_(navcam), map_(std::move(map)) {
-  if (HasMap()) {
+    : transport_(transport), options_(options), navcam_(navcam) {
+  if (!map.gray.empty()) {
     map_mtime_ = FileTime(options_.map_path);
-    options_.ortho.m_per_px = map_.m_per_px;
+    UseMap(std::move(map));
   }
   stereo_stats_ = Subscribe<stereo_image_t>(
       transport_, options_.stereo_channel, [this](const std::string&, const stereo_image_t& m) { OnStereo(m); },
@@ -266,9 +266,13 @@ bool MapLocalizerAdapter::LoadMap(std::string* error) {
   map_mtime_ = FileTime(options_.map_path);  // a file that cannot be read is not tried again until it changes
   maploc::MapRaster map;
   if (!maploc::LoadMapRaster(options_.map_path, &map, error, options_.Georeference())) return false;
-  map_ = std::move(map);
-  options_.ortho.m_per_px = map_.m_per_px;
+  UseMap(std::move(map));
   return true;
+}
+
+void MapLocalizerAdapter::UseMap(maploc::MapRaster map) {
+  map_ = std::move(map);
+  options_.ortho.m_per_px = map_.m_per_px;  // the ground orthophoto on the map's grid
 }
 
 bool MapLocalizerAdapter::ReadMap() {

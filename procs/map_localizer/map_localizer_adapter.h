@@ -99,6 +99,8 @@ class MapLocalizerAdapter {
   void RetrySites();
   // The map file read into map_ when it is there; false (map_ kept) when it is not or cannot be read.
   bool ReadMap();
+  // `map` the one sites are registered to (the orthophoto's cell size follows it).
+  void UseMap(maploc::MapRaster map);
 
   Transport& transport_;
   MapLocalizerProcOptions options_;
