@@ -1,5 +1,6 @@
 // The whole front end on one simulated site pair (7 + 7 Navcam stereo
-// pairs), with 1 and 2 threads, and on the same images the plain approach:
+// pairs), with 1 and 2 threads, beside it with SIFT on the zoomed grids (the
+// default before session 21), and on the same images the plain approach:
 // cv::AffineFeature (SIFT, default tilts) over whole left images +
 // brute-force matching, measured on one image pair and added up to the site
 // pair (14 images, 21 overlapping image pairs).
@@ -30,11 +31,13 @@ const vloc::testing::SimSitePair& Scene() {
   return scene;
 }
 
-// The front end with `threads` threads on `s`; counters: tie points and each stage's seconds (FRONTEND_STATUS's
-// names).
-void RunFrontend(benchmark::State& state, const vloc::testing::SimSitePair& s, int threads) {
+// The front end with `threads` threads on `s`, the options changed by `adjust` when given; counters: tie points
+// and each stage's seconds (FRONTEND_STATUS's names).
+void RunFrontend(benchmark::State& state, const vloc::testing::SimSitePair& s, int threads,
+                 void (*adjust)(vloc::FrontendOptions*) = nullptr) {
   vloc::FrontendOptions o;
   if (const char* e = std::getenv("VLOC_TEST_FRONTEND_CONFIG")) o = vloc::LoadOptionsFile<vloc::FrontendOptions>(e);
+  if (adjust) adjust(&o);
   o.num_threads = threads;
   o.features.asift.num_threads = threads;
   o.overlap_matching.matching.num_threads = threads;
@@ -56,29 +59,45 @@ void RunFrontend(benchmark::State& state, const vloc::testing::SimSitePair& s, i
 void BM_Frontend(benchmark::State& state) { RunFrontend(state, Scene(), static_cast<int>(state.range(0))); }
 BENCHMARK(BM_Frontend)->Arg(1)->Arg(2)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime()->MeasureProcessCPUTime();
 
+// Beside it, SIFT on the zoomed grids themselves (sift_max_zoom 0, 4000 features a view: the default before
+// session 21), which cv::SIFT doubles again: 16x a region's pixels at zoom 2 in its first octave.
+void SetSiftOnZoomedGrid(vloc::FrontendOptions* o) {
+  o->features.sift_max_zoom = 0.0;
+  o->features.asift.max_features_per_view = 4000;
+}
+void BM_FrontendSiftOnZoomedGrid(benchmark::State& state) {
+  RunFrontend(state, Scene(), static_cast<int>(state.range(0)), SetSiftOnZoomedGrid);
+}
+BENCHMARK(BM_FrontendSiftOnZoomedGrid)->Arg(2)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime()
+    ->MeasureProcessCPUTime();
+
 // The same pair rendered in each simulator profile (config/procs/sim_rover_<profile>.yaml), 2 threads: the time
 // per profile (a pair that fails stops early, at the stage that failed).
-void BM_FrontendProfile(benchmark::State& state, const char* profile) {
+void BM_FrontendProfile(benchmark::State& state, const char* profile, void (*adjust)(vloc::FrontendOptions*)) {
   static std::map<std::string, vloc::testing::SimSitePair> scenes;  // rendered once per profile
   if (!scenes.count(profile)) {
     vloc::testing::SimSitePairOptions so;
     so.profile = profile;
     scenes.emplace(profile, vloc::testing::MakeSimSitePair(so));
   }
-  RunFrontend(state, scenes.at(profile), 2);
+  RunFrontend(state, scenes.at(profile), 2, adjust);
 }
-BENCHMARK_CAPTURE(BM_FrontendProfile, hard, "config/procs/sim_rover_hard.yaml")
+BENCHMARK_CAPTURE(BM_FrontendProfile, hard, "config/procs/sim_rover_hard.yaml", nullptr)
     ->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime()->MeasureProcessCPUTime();
-BENCHMARK_CAPTURE(BM_FrontendProfile, extreme, "config/procs/sim_rover_extreme.yaml")
+BENCHMARK_CAPTURE(BM_FrontendProfile, hard_sift_on_zoomed_grid, "config/procs/sim_rover_hard.yaml", SetSiftOnZoomedGrid)
+    ->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime()->MeasureProcessCPUTime();
+BENCHMARK_CAPTURE(BM_FrontendProfile, extreme, "config/procs/sim_rover_extreme.yaml", nullptr)
     ->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime()->MeasureProcessCPUTime();
 
 // What a byte-identical SIFT cannot save (issue 36: the same tie points pin OpenCV's SIFT on the same pixels).
-// One previous-site region as the front end sees it (the top 458 rows of pair 1's left image, zoomed 2x; the
-// front end's SIFT settings, one thread), timed as the front end calls SIFT (0), without the descriptors (1), and
-// with a contrast threshold no extremum passes (2: the Gaussian pyramid, the DoG and the extremum scan alone,
-// the floor of any exact reimplementation). Counters: keypoints kept, candidates before the 4000 cap.
+// One previous-site region as the front end saw it with sift_max_zoom 0 (the top 458 rows of pair 1's left image,
+// zoomed 2x; the front end's SIFT settings then, one thread), timed as the front end called SIFT (0), without the
+// descriptors (1), and with a contrast threshold no extremum passes (2: the Gaussian pyramid, the DoG and the
+// extremum scan alone, the floor of any exact reimplementation). Counters: keypoints kept, candidates before the
+// 4000 cap.
 void BM_SiftStages(benchmark::State& state) {
-  const vloc::AsiftOptions a = vloc::FrontendOptions().features.asift;
+  vloc::AsiftOptions a = vloc::FrontendOptions().features.asift;
+  a.max_features_per_view = 4000;  // as on the zoomed grids (sift_max_zoom 0)
   cv::Mat region;
   cv::resize(Scene().previous.pairs[1].left(cv::Rect(0, 0, 1024, 458)), region, cv::Size(), 2.0, 2.0,
              cv::INTER_LINEAR);

@@ -214,6 +214,7 @@ TEST(RegionFeatures, SiftMaxZoomDescribesTheGridAtThatZoom) {
   AsiftOptions single = o.asift;
   single.num_threads = 1;
   const FeatureSet plain = DetectAsift(grid, cv::Mat(), views, single);
+  o.sift_max_zoom = 0.0;
   const FeatureSet off = DetectOnGrid(grid, cv::Mat(), views, 2.0, o);
   EXPECT_EQ(off.size(), plain.size());
   o.sift_max_zoom = 2.0;

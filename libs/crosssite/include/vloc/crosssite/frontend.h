@@ -141,15 +141,20 @@ struct WorkRegionOptions {
 
 // asift_and_warps: ASIFT on the regions and on the warped current images.
 struct FeatureOptions {
-  AsiftOptions asift;
+  AsiftOptions asift = [] {            // SIFT capped at 5000 features a view: at zoom 1 (sift_max_zoom) as many tie
+    AsiftOptions a;                    // points as 4000 kept on the zoomed grids
+    a.max_features_per_view = 5000;
+    return a;
+  }();
   double tilt_margin = 1.25;           // simulate tilts t <= predicted tilt * tilt_margin (and always t = 1)
   double longitude_margin_deg = 30.0;  // deg, simulated longitudes within this of the predicted one
   double warp_max_tilt = 1.0;          // tilts simulated on the warped image: the warp by the predicted ground
                                        // homography leaves tilt ~1, so the restricted set is {1}
-  double sift_max_zoom = 0.0;          // SIFT on a previous region zoomed more than this, and on the current images
+  double sift_max_zoom = 1.0;          // SIFT on a previous region zoomed more than this, and on the current images
                                        // warped onto it, runs on the grid resized to this zoom (0 = off: on the
                                        // grid itself, which cv::SIFT doubles again: its first octave is then 4x
-                                       // the region's pixels at zoom 2, ~75 % of its pyramid)
+                                       // the region's pixels at zoom 2, ~75 % of its pyramid, for detail the
+                                       // previous image does not hold; README, "Where the front end's time goes")
   void Visit(OptionsReader& reader);
 };
 
