@@ -96,8 +96,9 @@ BENCHMARK_CAPTURE(BM_FrontendProfile, extreme, "config/procs/sim_rover_extreme.y
 // extremum scan alone, the floor of any exact reimplementation). Counters: keypoints kept, candidates before the
 // 4000 cap.
 void BM_SiftStages(benchmark::State& state) {
-  vloc::AsiftOptions a = vloc::FrontendOptions().features.asift;
-  a.max_features_per_view = 4000;  // as on the zoomed grids (sift_max_zoom 0)
+  vloc::FrontendOptions zoomed_grid;
+  SetSiftOnZoomedGrid(&zoomed_grid);
+  const vloc::AsiftOptions a = zoomed_grid.features.asift;
   cv::Mat region;
   cv::resize(Scene().previous.pairs[1].left(cv::Rect(0, 0, 1024, 458)), region, cv::Size(), 2.0, 2.0,
              cv::INTER_LINEAR);
