@@ -66,6 +66,39 @@ double Normalise(float* p, int count) {
   return std::sqrt(sum2 / count);
 }
 
+// Normalise on kLanes patches at once and each one's dot product with the normalised template: the
+// scalar code's operations in each lane, in its order (its sums in double run one after another, so four
+// patches share each sum's latency), bit for bit. cand: kLanes patches of n, one after another; valid:
+// the patches inside the image. scores[l]: the ZNCC, or -2 where invalid or flat.
+constexpr int kLanes = 4;
+typedef double Doubles __attribute__((vector_size(32)));
+typedef float Floats __attribute__((vector_size(16)));
+
+__attribute__((target_clones("avx2", "default"))) void ScorePatches(const float* tmpl, const float* cand, int n,
+                                                                  const bool* valid, double* scores) {
+  std::vector<Floats> x(n);
+  for (int i = 0; i < n; ++i) x[i] = Floats{cand[i], cand[n + i], cand[2 * n + i], cand[3 * n + i]};
+  Doubles sum = {};
+  for (int i = 0; i < n; ++i) sum += __builtin_convertvector(x[i], Doubles);
+  const Doubles mean = sum / static_cast<double>(n);
+  Doubles sum2 = {};
+  for (int i = 0; i < n; ++i) {
+    x[i] = __builtin_convertvector(__builtin_convertvector(x[i], Doubles) - mean, Floats);
+    const Doubles d = __builtin_convertvector(x[i], Doubles);
+    sum2 += d * d;
+  }
+  Floats inv;
+  bool use[kLanes];
+  for (int l = 0; l < kLanes; ++l) {
+    const double norm = std::sqrt(sum2[l]);
+    inv[l] = norm > 1e-9 ? static_cast<float>(1.0 / norm) : 1.0f;  // x * 1 is x: the scalar code's skip
+    use[l] = valid[l] && std::sqrt(sum2[l] / n) >= 1e-3;
+  }
+  Doubles dot = {};
+  for (int i = 0; i < n; ++i) dot += __builtin_convertvector(tmpl[i] * (x[i] * inv), Doubles);
+  for (int l = 0; l < kLanes; ++l) scores[l] = use[l] ? dot[l] : -2.0;
+}
+
 }  // namespace
 
 ZnccMatch ZnccAlongSegment(const cv::Mat& left, const cv::Mat& right, const Eigen::Vector2d& left_px,
@@ -86,15 +119,17 @@ ZnccMatch ZnccAlongSegment(const cv::Mat& left, const cv::Mat& right, const Eige
   const Eigen::Vector2d d = seg_end - seg_start;
   const double length = d.norm();
   const int steps = std::max(1, static_cast<int>(std::ceil(length / o.step)));
-  std::vector<double> scores(steps + 1, -2.0);
-  for (int k = 0; k <= steps; ++k) {
-    const Eigen::Vector2d p = seg_start + d * (static_cast<double>(k) / steps);
-    if (!SamplePatch(right, p.x(), p.y(), half, cand.data())) continue;
-    if (Normalise(cand.data(), n) < 1e-3) continue;
-    double s = 0;
-    for (int i = 0; i < n; ++i) s += tmpl[i] * cand[i];
-    scores[k] = s;
+  std::vector<double> scores(steps + 1 + kLanes, -2.0);
+  cand.assign(kLanes * n, 0.f);
+  for (int k0 = 0; k0 <= steps; k0 += kLanes) {
+    bool valid[kLanes];
+    for (int l = 0; l < kLanes; ++l) {
+      const Eigen::Vector2d p = seg_start + d * (static_cast<double>(k0 + l) / steps);
+      valid[l] = k0 + l <= steps && SamplePatch(right, p.x(), p.y(), half, cand.data() + l * n);
+    }
+    ScorePatches(tmpl.data(), cand.data(), n, valid, scores.data() + k0);
   }
+  scores.resize(steps + 1);
   const int best = static_cast<int>(std::max_element(scores.begin(), scores.end()) - scores.begin());
   if (scores[best] < o.min_score) {
     result.why = "correlation below min_score";
