@@ -14,6 +14,7 @@
 #include <glog/logging.h>
 
 #include "vloc/common/homography.h"
+#include "vloc/features/template_ncc.h"
 #include "vloc/crosssite/internal/frontend_steps.h"
 
 namespace vloc::frontend_internal {
@@ -27,7 +28,7 @@ bool ZnccPeakNear(const cv::Mat& templ, const Eigen::Vector2d& templ_px, const c
   if ((tr & cv::Rect(0, 0, templ.cols, templ.rows)) != tr || (sr & cv::Rect(0, 0, target.cols, target.rows)) != sr)
     return false;
   cv::Mat score;
-  cv::matchTemplate(target(sr), templ(tr), score, cv::TM_CCOEFF_NORMED);
+  MatchTemplateNcc(target(sr), templ(tr), &score);
   double best;
   cv::Point p;
   cv::minMaxLoc(score, nullptr, &best, nullptr, &p);

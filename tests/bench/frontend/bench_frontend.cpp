@@ -4,7 +4,8 @@
 // cv::AffineFeature (SIFT, default tilts) over whole left images +
 // brute-force matching, measured on one image pair and added up to the site
 // pair (14 images, 21 overlapping image pairs).
-// BM_SiftStages: what OpenCV's SIFT spends on one zoomed region, per stage.
+// BM_SiftStages: what OpenCV's SIFT spends on one zoomed region, per stage. BM_TemplateNcc: the correlation
+// searches of the tile registration and the grid LSM, vloc's and OpenCV's.
 //   VLOC_SIM_CACHE=/tmp/vloc-sim-cache build/bench/bench_frontend --benchmark_repetitions=5
 //     (add --benchmark_report_aggregates_only=true for medians only)
 // (run from the source root; the cache folder keeps the rendered images between runs)
@@ -23,6 +24,7 @@
 
 #include "../../unit/crosssite/sim_site_pair.h"
 #include "vloc/common/allocator.h"
+#include "vloc/features/template_ncc.h"
 
 namespace {
 
@@ -122,6 +124,28 @@ void BM_SiftStages(benchmark::State& state) {
 }
 BENCHMARK(BM_SiftStages)->ArgName("detect_compute0_detect1_floor2")->DenseRange(0, 2)->Unit(benchmark::kMillisecond)
     ->Iterations(5)->UseRealTime();
+
+// The front end's two correlation searches, by vloc::MatchTemplateNcc and by cv::matchTemplate (TM_CCOEFF_NORMED,
+// its DFTs): a registration tile (48 x 4 reduced px, +-25 px: pass 1 over a DR gate) and an LSM start search on
+// the grid (53 x 11 px, +-4 px), on pair 1's left image. Time per search.
+void BM_TemplateNcc(benchmark::State& state, bool opencv, cv::Size templ, int radius) {
+  cv::Mat image;
+  Scene().previous.pairs[1].left(cv::Rect(300, 500, 400, 200)).convertTo(image, CV_32F);
+  const cv::Rect search(100, 50, templ.width + 2 * radius, templ.height + 2 * radius);
+  const cv::Rect tile(search.x + radius + 3, search.y + radius - 2, templ.width, templ.height);
+  cv::setNumThreads(1);
+  cv::Mat score;
+  for (auto _ : state) {
+    if (opencv) cv::matchTemplate(image(search), image(tile), score, cv::TM_CCOEFF_NORMED);
+    else vloc::MatchTemplateNcc(image(search), image(tile), &score);
+    benchmark::DoNotOptimize(score.data);
+  }
+  state.counters["positions"] = static_cast<double>(score.total());
+}
+BENCHMARK_CAPTURE(BM_TemplateNcc, tile_vloc, false, cv::Size(48, 4), 25)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_TemplateNcc, tile_opencv, true, cv::Size(48, 4), 25)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_TemplateNcc, grid_start_vloc, false, cv::Size(53, 11), 4)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_TemplateNcc, grid_start_opencv, true, cv::Size(53, 11), 4)->Unit(benchmark::kMicrosecond);
 
 // The plain approach on one previous and one current image (the full pair
 // has 14 images and 21 overlapping image pairs: at this machine's speed it
