@@ -69,14 +69,13 @@ double Normalise(float* p, int count) {
 // Normalise on kLanes patches at once and each one's dot product with the normalised template: the
 // scalar code's operations in each lane, in its order (its sums in double run one after another, so four
 // patches share each sum's latency), bit for bit. cand: kLanes patches of n, one after another; valid:
-// the patches inside the image. scores[l]: the ZNCC, or -2 where invalid or flat.
+// the patches inside the image; x: n values of scratch. scores[l]: the ZNCC, or -2 where invalid or flat.
 constexpr int kLanes = 4;
 typedef double Doubles __attribute__((vector_size(32)));
 typedef float Floats __attribute__((vector_size(16)));
 
 __attribute__((target_clones("avx2", "default"))) void ScorePatches(const float* tmpl, const float* cand, int n,
-                                                                  const bool* valid, double* scores) {
-  std::vector<Floats> x(n);
+                                                                  const bool* valid, Floats* x, double* scores) {
   for (int i = 0; i < n; ++i) x[i] = Floats{cand[i], cand[n + i], cand[2 * n + i], cand[3 * n + i]};
   Doubles sum = {};
   for (int i = 0; i < n; ++i) sum += __builtin_convertvector(x[i], Doubles);
@@ -107,7 +106,8 @@ ZnccMatch ZnccAlongSegment(const cv::Mat& left, const cv::Mat& right, const Eige
   CV_Assert(left.type() == CV_32FC1 && right.type() == CV_32FC1);
   ZnccMatch result;
   const int half = o.window / 2, n = o.window * o.window;
-  std::vector<float> tmpl(n), cand(n);
+  std::vector<float> tmpl(n), cand(kLanes * n);
+  std::vector<Floats> lanes(n);
   if (!SamplePatch(left, left_px.x(), left_px.y(), half, tmpl.data())) {
     result.why = "template outside the left image";
     return result;
@@ -120,14 +120,13 @@ ZnccMatch ZnccAlongSegment(const cv::Mat& left, const cv::Mat& right, const Eige
   const double length = d.norm();
   const int steps = std::max(1, static_cast<int>(std::ceil(length / o.step)));
   std::vector<double> scores(steps + 1 + kLanes, -2.0);
-  cand.assign(kLanes * n, 0.f);
   for (int k0 = 0; k0 <= steps; k0 += kLanes) {
     bool valid[kLanes];
     for (int l = 0; l < kLanes; ++l) {
       const Eigen::Vector2d p = seg_start + d * (static_cast<double>(k0 + l) / steps);
       valid[l] = k0 + l <= steps && SamplePatch(right, p.x(), p.y(), half, cand.data() + l * n);
     }
-    ScorePatches(tmpl.data(), cand.data(), n, valid, scores.data() + k0);
+    ScorePatches(tmpl.data(), cand.data(), n, valid, lanes.data(), scores.data() + k0);
   }
   scores.resize(steps + 1);
   const int best = static_cast<int>(std::max_element(scores.begin(), scores.end()) - scores.begin());

@@ -42,10 +42,9 @@ __attribute__((target_clones("avx2", "default"))) void DotBlock(const float* ima
 // One result row normalised as OpenCV's common_matchTemplate does: the window's norm from its sums (s0, s1: the
 // integral's rows above and below it; q0, q1: the squares') times the template's; |score| within 1.125 of 1
 // clamped, beyond it 0 (a flat window). (sqrt of a value >= 0 needs no errno: the loop vectorises.)
-__attribute__((target_clones("avx2", "default"), optimize("no-math-errno"))) void NormaliseRow(const float* dots, const double* s0,
-                                                                    const double* s1, const double* q0,
-                                                                    const double* q1, int tw, int cols, double inv_n,
-                                                                    double templ_norm, float* out) {
+__attribute__((target_clones("avx2", "default"), optimize("no-math-errno"))) void NormaliseRow(
+    const float* dots, const double* s0, const double* s1, const double* q0, const double* q1, int tw, int cols,
+    double inv_n, double templ_norm, float* out) {
   for (int x = 0; x < cols; ++x) {
     const double wsum = s1[x + tw] - s1[x] - s0[x + tw] + s0[x];
     const double wsq = q1[x + tw] - q1[x] - q0[x + tw] + q0[x];
