@@ -5,6 +5,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "vloc/common/options.h"
+#include "vloc/features/template_ncc.h"
 
 namespace vloc {
 
@@ -60,7 +61,7 @@ std::vector<TileMatch> RegisterTiles(const cv::Mat& moving, const cv::Mat& movin
       const cv::Rect search = cv::Rect(x - R, y - R, T + 2 * R, TH + 2 * R) & cv::Rect(0, 0, fx.cols, fx.rows);
       if (search.width < T + 2 || search.height < TH + 2) continue;
       cv::Mat score;
-      cv::matchTemplate(fx(search), m(tile), score, cv::TM_CCOEFF_NORMED);
+      MatchTemplateNcc(fx(search), m(tile), &score);
       double best;
       cv::Point peak;
       cv::minMaxLoc(score, nullptr, &best, nullptr, &peak);

@@ -209,6 +209,10 @@ struct TruthCheck {
   std::vector<double> cross_error_px;  // |previous-left obs - true previous-left| of the right ones
   std::vector<double> all_cross_error_px;
   std::vector<Eigen::Vector2d> cross_error_vec;  // per tie point: true minus observed previous-left position, px (NaN: unchecked)
+  // The same split along the cross-site epipolar line through the truth (the image of the current camera's ray:
+  // a match slid along it is a depth error, which the sites' stereo at 15-30 m cannot tell from the truth) and
+  // across it (what no depth explains: a wrong match shows here), px, one per checked point.
+  std::vector<double> along_epipolar_px, across_epipolar_px;
 };
 
 // Bilinear depth at a sub-pixel position; 0 when a neighbour has no hit or
@@ -269,6 +273,13 @@ inline TruthCheck CheckAgainstTruth(const SimSitePair& s, const TiePointSet& tps
     const auto q = cam.ProjectIdeal(pl_from_world * p_world);
     const double err = q ? (*q - pl->uv).norm() : 1e9;
     out.all_cross_error_px.push_back(err);
+    const Eigen::Vector3d current_centre = (s.current_true * body_from_cl).translation();
+    const auto q_farther = cam.ProjectIdeal(pl_from_world * (p_world + 0.01 * (p_world - current_centre)));
+    if (q && q_farther && (*q_farther - *q).norm() > 1e-9) {
+      const Eigen::Vector2d along = (*q_farther - *q).normalized(), e = *q - pl->uv;
+      out.along_epipolar_px.push_back(std::abs(e.dot(along)));
+      out.across_epipolar_px.push_back(std::abs(e.x() * along.y() - e.y() * along.x()));
+    }
     out.cross_error_vec.push_back(q ? Eigen::Vector2d(*q - pl->uv) : Eigen::Vector2d::Constant(NAN));
     if (err > wrong_px) {
       ++out.num_wrong;

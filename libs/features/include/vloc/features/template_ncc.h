@@ -3,11 +3,11 @@
 // small search window: what cv::matchTemplate(image, templ, result,
 // cv::TM_CCOEFF_NORMED) computes, with its handling of flat windows, summed
 // directly. OpenCV correlates through DFTs of the whole window, which on the
-// front end's LSM start search (53 x 11 px over +-4 px) costs 2.7x this
-// (bench_frontend BM_TemplateNcc). The values agree with OpenCV's to its
-// float rounding (~1e-5), not bit for bit: the tile registration keeps
-// OpenCV's, where that rounding moves the warp and SIFT's features (README,
-// "Where the front end's time goes").
+// front end's small windows costs 2.7-3.5x this: the LSM start search (53 x
+// 11 px over +-4 px) and the tile registration (48 x 4 px tiles over the DR
+// gate; bench_frontend BM_TemplateNcc). The values agree with OpenCV's to
+// its float rounding (~1e-5), not bit for bit (README, "Where the front
+// end's time goes").
 
 #include <opencv2/core.hpp>
 
