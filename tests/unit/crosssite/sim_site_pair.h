@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <memory>
+#include <optional>
 #include <opencv2/imgcodecs.hpp>
 #include <filesystem>
 #include <sstream>
@@ -209,11 +210,21 @@ struct TruthCheck {
   std::vector<double> cross_error_px;  // |previous-left obs - true previous-left| of the right ones
   std::vector<double> all_cross_error_px;
   std::vector<Eigen::Vector2d> cross_error_vec;  // per tie point: true minus observed previous-left position, px (NaN: unchecked)
-  // The same split along the cross-site epipolar line through the truth (the image of the current camera's ray:
-  // a match slid along it is a depth error, which the sites' stereo at 15-30 m cannot tell from the truth) and
-  // across it (what no depth explains: a wrong match shows here), px, one per checked point.
-  std::vector<double> along_epipolar_px, across_epipolar_px;
+  // The same split (along, across) the cross-site epipolar line through the truth, px (NaN: unchecked): along
+  // the image of the current camera's ray, towards its centre (a match slid along it is a depth error, which the
+  // sites' stereo at 15-30 m cannot tell from the truth), and across it (what no depth explains: a wrong match
+  // shows here).
+  std::vector<Eigen::Vector2d> epipolar_error_vec;
 };
+
+// The largest |component| (0: along, 1: across) of the checked points' epipolar_error_vec; none when no point
+// was checked.
+inline std::optional<double> LargestEpipolarError(const TruthCheck& t, int component) {
+  std::optional<double> out;
+  for (const Eigen::Vector2d& e : t.epipolar_error_vec)
+    if (std::isfinite(e(component))) out = std::max(out.value_or(0.0), std::abs(e(component)));
+  return out;
+}
 
 // Bilinear depth at a sub-pixel position; 0 when a neighbour has no hit or
 // the four disagree by more than 2 % (an occluding edge).
@@ -249,6 +260,7 @@ inline TruthCheck CheckAgainstTruth(const SimSitePair& s, const TiePointSet& tps
     }
     if (!pl || !cl) {
       out.cross_error_vec.push_back(Eigen::Vector2d::Constant(NAN));
+      out.epipolar_error_vec.push_back(Eigen::Vector2d::Constant(NAN));
       continue;
     }
     ++out.num_points;
@@ -256,6 +268,7 @@ inline TruthCheck CheckAgainstTruth(const SimSitePair& s, const TiePointSet& tps
     if (!(z > 0)) {
       ++out.num_unchecked;
       out.cross_error_vec.push_back(Eigen::Vector2d::Constant(NAN));
+      out.epipolar_error_vec.push_back(Eigen::Vector2d::Constant(NAN));
       continue;
     }
     const Eigen::Vector3d p_cam = cam.Ray(cl->uv) * z;
@@ -273,14 +286,15 @@ inline TruthCheck CheckAgainstTruth(const SimSitePair& s, const TiePointSet& tps
     const auto q = cam.ProjectIdeal(pl_from_world * p_world);
     const double err = q ? (*q - pl->uv).norm() : 1e9;
     out.all_cross_error_px.push_back(err);
-    const Eigen::Vector3d current_centre = (s.current_true * body_from_cl).translation();
-    const auto q_farther = cam.ProjectIdeal(pl_from_world * (p_world + 0.01 * (p_world - current_centre)));
-    if (q && q_farther && (*q_farther - *q).norm() > 1e-9) {
-      const Eigen::Vector2d along = (*q_farther - *q).normalized(), e = *q - pl->uv;
-      out.along_epipolar_px.push_back(std::abs(e.dot(along)));
-      out.across_epipolar_px.push_back(std::abs(e.x() * along.y() - e.y() * along.x()));
-    }
     out.cross_error_vec.push_back(q ? Eigen::Vector2d(*q - pl->uv) : Eigen::Vector2d::Constant(NAN));
+    const Eigen::Vector3d current_centre = (s.current_true * body_from_cl).translation();
+    const auto q_nearer = cam.ProjectIdeal(pl_from_world * (p_world + 0.01 * (current_centre - p_world)));
+    Eigen::Vector2d split = Eigen::Vector2d::Constant(NAN);
+    if (q && q_nearer && (*q_nearer - *q).norm() > 1e-9) {
+      const Eigen::Vector2d along = (*q_nearer - *q).normalized(), e = *q - pl->uv;
+      split = Eigen::Vector2d(e.dot(along), e.x() * along.y() - e.y() * along.x());
+    }
+    out.epipolar_error_vec.push_back(split);
     if (err > wrong_px) {
       ++out.num_wrong;
       std::printf("wrong tie point: previous pair %d at (%.1f, %.1f), current pair %d at (%.1f, %.1f), depth %.2f m, "
