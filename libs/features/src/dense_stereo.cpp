@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <opencv2/core/hal/intrin.hpp>
 #if defined(__x86_64__) && defined(__GNUC__)
@@ -101,44 +102,91 @@ struct ZnccStage {
   long points = 0, matches = 0;
 };
 
-// Adds sign * L(r, x) R(r, x - d) to V[x * nd + di] (d = dlo + di, x - d >= 0)
-// for x in [xa, xb); `rrev`: the right row reversed (rrev[k] = R(r, W - 1 - k)).
-// The scalar loop's operations, vectorised along di (AVX2 where the CPU has it).
-__attribute__((target_clones("avx2", "default"))) void AddRowProducts(const float* l, const float* rrev, int W,
-                                                                       int dlo, int nd, int xa, int xb, float sign,
-                                                                       float* V) {
-  for (int x = std::max(xa, dlo); x < xb; ++x) {
-    const int m = std::min(nd - 1, x - dlo);
-    float* v = V + static_cast<size_t>(x) * nd;
-    const float sl = sign * l[x];
-    const float* rp = rrev + (W - 1 - x + dlo);  // rp[di] = R(r, x - d)
-    for (int di = 0; di <= m; ++di) v[di] += sl * rp[di];
-  }
-}
-
 bool HasAvx2() {
   static const bool has = __builtin_cpu_supports("avx2");
   return has;
 }
 
+// The products of ZNCC's window sums are of integer grey levels centred on
+// 0 (|L|, |R| <= 128): the column sums V and the window sums S are exact
+// integers, in int32 (a 41 x 41 window's sum stays under 2^25).
+//
+// Two window rows a, b entering (sign +1) or leaving (-1) the column sums
+// of grid row y, for the 16-bit pair products of AddRowPairProducts:
+// lpair[x] packs (sign_a L(a, x), sign_b L(b, x)) into one int32 (a
+// missing row b: 0), rpair[2k], rpair[2k + 1] = R(a, W - 1 - k), R(b, W - 1 - k)
+// (the right rows reversed, so that x - d runs forward with di).
+struct RowPair {
+  std::vector<int32_t> lpair;
+  std::vector<int16_t> rpair;
+};
+
+// Adds L(a, x) R(a, x - d) +- L(b, x) R(b, x - d) (the pair's signs) to
+// V[x * nd + di] (d = dlo + di, x - d >= 0) for x in [xa, xb): 8
+// disparities per multiply-add of 16-bit pairs (AVX2), else the scalar loop.
+__attribute__((target("avx2"))) void AddRowPairProductsAvx2(const RowPair& p, int W, int dlo, int nd, int xa, int xb,
+                                                            int32_t* V) {
+  for (int x = std::max(xa, dlo); x < xb; ++x) {
+    const int m = std::min(nd - 1, x - dlo);
+    int32_t* v = V + static_cast<size_t>(x) * nd;
+    const __m256i lp = _mm256_set1_epi32(p.lpair[x]);
+    const int16_t* rp = p.rpair.data() + 2 * (W - 1 - x + dlo);  // rp[2 di], rp[2 di + 1]: R(a | b, x - d)
+    int di = 0;
+    for (; di + 8 <= m + 1; di += 8) {
+      const __m256i r = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(rp + 2 * di));
+      __m256i* out = reinterpret_cast<__m256i*>(v + di);
+      _mm256_storeu_si256(out, _mm256_add_epi32(_mm256_loadu_si256(out), _mm256_madd_epi16(lp, r)));
+    }
+    const int16_t la = static_cast<int16_t>(p.lpair[x] & 0xffff), lb = static_cast<int16_t>(p.lpair[x] >> 16);
+    for (; di <= m; ++di) v[di] += la * rp[2 * di] + lb * rp[2 * di + 1];
+  }
+}
+
+void AddRowPairProducts(const RowPair& p, int W, int dlo, int nd, int xa, int xb, int32_t* V) {
+  if (HasAvx2()) return AddRowPairProductsAvx2(p, W, dlo, nd, xa, xb, V);
+  for (int x = std::max(xa, dlo); x < xb; ++x) {
+    const int m = std::min(nd - 1, x - dlo);
+    int32_t* v = V + static_cast<size_t>(x) * nd;
+    const int16_t la = static_cast<int16_t>(p.lpair[x] & 0xffff), lb = static_cast<int16_t>(p.lpair[x] >> 16);
+    const int16_t* rp = p.rpair.data() + 2 * (W - 1 - x + dlo);
+    for (int di = 0; di <= m; ++di) v[di] += la * rp[2 * di] + lb * rp[2 * di + 1];
+  }
+}
+
+// A column's best score and its disparity index (the first of equal
+// scores; -2 / -1: none), as RowScores finds them.
+struct ColumnBest {
+  float score = -2.f;
+  int index = -1;
+};
+
 // RowScores' scores for di in [0, active) 8 at a time, the same float
-// operations in each lane; returns the first di left to the scalar loop.
-__attribute__((target("avx2"))) int ScoresAvx2(const double* S, double inv_n, float ml, float il, const float* mr,
-                                               const float* ir, int active, float* c, float* br, int* brd) {
+// operations in each lane, and their best (each lane keeps its first best,
+// the lanes' first of the best is the column's); returns the first di left
+// to the scalar loop.
+__attribute__((target("avx2"))) int ScoresAvx2(const int32_t* S, double inv_n, float ml, float il, const float* mr,
+                                               const float* ir, int active, float* c, float* br, int* brd,
+                                               ColumnBest* best) {
   const __m256d vinv = _mm256_set1_pd(inv_n);
   const __m256 vml = _mm256_set1_ps(ml), vil = _mm256_set1_ps(il), undefined = _mm256_set1_ps(-2.f);
   const __m256 zero = _mm256_setzero_ps();
   const __m256 left_ok = il > 0 ? _mm256_castsi256_ps(_mm256_set1_epi32(-1)) : zero;
   __m256i vdi = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  __m256 vbest = undefined;
+  __m256i vbi = _mm256_set1_epi32(-1);
   int di = 0;
   for (; di + 8 <= active; di += 8, vdi = _mm256_add_epi32(vdi, _mm256_set1_epi32(8))) {
-    const __m128 s0 = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_loadu_pd(S + di), vinv));
-    const __m128 s1 = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_loadu_pd(S + di + 4), vinv));
+    const __m256i si = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(S + di));
+    const __m128 s0 = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_cvtepi32_pd(_mm256_castsi256_si128(si)), vinv));
+    const __m128 s1 = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_cvtepi32_pd(_mm256_extracti128_si256(si, 1)), vinv));
     const __m256 vir = _mm256_loadu_ps(ir + di);
     const __m256 cov = _mm256_sub_ps(_mm256_set_m128(s1, s0), _mm256_mul_ps(vml, _mm256_loadu_ps(mr + di)));
     const __m256 ok = _mm256_and_ps(left_ok, _mm256_cmp_ps(vir, zero, _CMP_GT_OQ));
     const __m256 z = _mm256_blendv_ps(undefined, _mm256_mul_ps(_mm256_mul_ps(cov, vil), vir), ok);
     _mm256_storeu_ps(c + di, z);
+    const __m256 better = _mm256_cmp_ps(z, vbest, _CMP_GT_OQ);
+    vbest = _mm256_blendv_ps(vbest, z, better);
+    vbi = _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(vbi), _mm256_castsi256_ps(vdi), better));
     const __m256 old = _mm256_loadu_ps(br + di);
     const __m256 up = _mm256_cmp_ps(z, old, _CMP_GT_OQ);
     _mm256_storeu_ps(br + di, _mm256_blendv_ps(old, z, up));
@@ -146,28 +194,43 @@ __attribute__((target("avx2"))) int ScoresAvx2(const double* S, double inv_n, fl
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(brd + di),
                         _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(oldd), _mm256_castsi256_ps(vdi), up)));
   }
+  // The lanes' best (max across halves, then within), and the first index
+  // among the lanes that hold it; none when every score is -2.
+  __m256 m = _mm256_max_ps(vbest, _mm256_permute2f128_ps(vbest, vbest, 1));
+  m = _mm256_max_ps(m, _mm256_permute_ps(m, 0x4E));
+  m = _mm256_max_ps(m, _mm256_permute_ps(m, 0xB1));
+  const float score = _mm_cvtss_f32(_mm256_castps256_ps128(m));
+  if (score > best->score) {
+    const __m256i at_best = _mm256_castps_si256(_mm256_cmp_ps(vbest, m, _CMP_EQ_OQ));
+    __m256i i = _mm256_blendv_epi8(_mm256_set1_epi32(INT32_MAX), vbi, at_best);
+    i = _mm256_min_epi32(i, _mm256_permute2x128_si256(i, i, 1));
+    i = _mm256_min_epi32(i, _mm256_shuffle_epi32(i, 0x4E));
+    i = _mm256_min_epi32(i, _mm256_shuffle_epi32(i, 0xB1));
+    best->score = score;
+    best->index = _mm_cvtsi128_si32(_mm256_castsi256_si128(i));
+  }
   return di;
 }
 
 // ZNCC C[(x - xa) * nd + di] of one row from the column sums V, for x in
-// [xa, xb) within [d + h, W - h - 1] (calls in x order): the window sum
-// S[di] starts at x = d + h (summed in x order) and slides with x, in
-// double; the best score of each right pixel x - d in bestRrev / bestRdrev
+// [xa, xb) within [d + h, W - h - 1] (calls in x order), and each column's
+// best (best[x - xa]): the window sum S[di] starts at x = d + h and slides
+// with x; the best score of each right pixel x - d in bestRrev / bestRdrev
 // (reversed: index W - 1 - (x - d); the first of equal scores in d order).
-// mRrev, iRrev: the right row's window mean and inverse std, reversed. Each
-// lane does the scalar operations in their order.
-__attribute__((target_clones("avx2", "default"))) void RowScores(const float* V, int W, int nd, int dlo, int h, int n,
-                                                                  int xa, int xb, const float* mL, const float* iL,
-                                                                  const float* mRrev, const float* iRrev, double* S,
-                                                                  float* C, float* bestRrev, int* bestRdrev) {
+// mRrev, iRrev: the right row's window mean and inverse std, reversed.
+__attribute__((target_clones("avx2", "default"))) void RowScores(const int32_t* V, int W, int nd, int dlo, int h,
+                                                                  int n, int xa, int xb, const float* mL,
+                                                                  const float* iL, const float* mRrev,
+                                                                  const float* iRrev, int32_t* S, float* C,
+                                                                  float* bestRrev, int* bestRdrev, ColumnBest* best) {
   for (int x = std::max(xa, dlo + h); x < std::min(xb, W - h); ++x) {
     const int started = x - dlo - h;  // disparities below this slide; this one starts at x
-    const float* va = V + static_cast<size_t>(x + h) * nd;
-    const float* vb = V + static_cast<size_t>(x - h - 1) * nd;
+    const int32_t* va = V + static_cast<size_t>(x + h) * nd;
+    const int32_t* vb = V + static_cast<size_t>(x - h - 1) * nd;
     const int slide = std::min(nd, started);
-    for (int di = 0; di < slide; ++di) S[di] += static_cast<double>(va[di]) - vb[di];
+    for (int di = 0; di < slide; ++di) S[di] += va[di] - vb[di];
     if (started < nd) {
-      double s = 0;
+      int32_t s = 0;
       for (int k = x - h; k <= x + h; ++k) s += V[static_cast<size_t>(k) * nd + started];
       S[started] = s;
     }
@@ -180,11 +243,18 @@ __attribute__((target_clones("avx2", "default"))) void RowScores(const float* V,
     const float* ir = iRrev + k0;
     float* br = bestRrev + k0;
     int* brd = bestRdrev + k0;
-    const int first = HasAvx2() ? ScoresAvx2(S, inv_n, ml, il, mr, ir, active, c, br, brd) : 0;
+    ColumnBest& b = best[x - xa];
+    b = ColumnBest();
+    if (!(il > 0)) {  // a flat left window: no score (and none beats a right pixel's best)
+      std::fill(c, c + nd, -2.f);
+      continue;
+    }
+    const int first = HasAvx2() ? ScoresAvx2(S, inv_n, ml, il, mr, ir, active, c, br, brd, &b) : 0;
     for (int di = first; di < active; ++di) {
-      const float cov = static_cast<float>(S[di] * inv_n) - ml * mr[di];
+      const float cov = static_cast<float>(static_cast<double>(S[di]) * inv_n) - ml * mr[di];
       const float z = il > 0 && ir[di] > 0 ? cov * il * ir[di] : -2.f;
       c[di] = z;
+      if (z > b.score) b.score = z, b.index = di;
       const bool up = z > br[di];
       br[di] = up ? z : br[di];
       brd[di] = up ? di : brd[di];
@@ -193,19 +263,9 @@ __attribute__((target_clones("avx2", "default"))) void RowScores(const float* V,
   }
 }
 
-// The best score of c[0, nd) (-2 = none) and its disparity (the first of
-// equal scores; -1 = none), and the best local maximum at least 3
-// disparities from it (-2 = none): maxima of exact values, 4 at a time.
-void BestAndSecondPeak(const float* c, int nd, int* best_index, float* best_score, float* second_score) {
-  cv::v_float32x4 vbest = cv::v_setall_f32(-2.f);
-  int di = 0;
-  for (; di + 4 <= nd; di += 4) vbest = cv::v_max(vbest, cv::v_load(c + di));
-  float best = cv::v_reduce_max(vbest);
-  for (; di < nd; ++di) best = std::max(best, c[di]);
-  int bi = -1;
-  if (best > -2.f)
-    for (bi = 0; c[bi] != best; ++bi) {
-    }
+// The best local maximum of c[0, nd) at least 3 disparities from the best
+// score's index bi (-2 = none): maxima of exact values, 4 at a time.
+float SecondPeak(const float* c, int nd, int bi) {
   // A disparity d qualifies when |d - bi| >= 3 and c[d] >= its neighbours.
   auto qualifies = [&](int d) {
     return std::abs(d - bi) >= 3 && (d == 0 || c[d] >= c[d - 1]) && (d + 1 == nd || c[d] >= c[d + 1]);
@@ -215,7 +275,7 @@ void BestAndSecondPeak(const float* c, int nd, int* best_index, float* best_scor
   cv::v_float32x4 vsec = cv::v_setall_f32(-2.f);
   const cv::v_int32x4 lo = cv::v_setall_s32(bi - 2), hi = cv::v_setall_s32(bi + 2), four = cv::v_setall_s32(4);
   cv::v_int32x4 idx(1, 2, 3, 4);
-  di = 1;
+  int di = 1;
   for (; di + 5 <= nd; di += 4, idx += four) {  // d = di .. di + 3, all with both neighbours
     const cv::v_float32x4 cur = cv::v_load(c + di);
     const cv::v_float32x4 peak = (cur >= cv::v_load(c + di - 1)) & (cur >= cv::v_load(c + di + 1));
@@ -225,42 +285,12 @@ void BestAndSecondPeak(const float* c, int nd, int* best_index, float* best_scor
   second = std::max(second, cv::v_reduce_max(vsec));
   for (; di < nd; ++di)
     if (qualifies(di)) second = std::max(second, c[di]);
-  *best_index = bi;
-  *best_score = best;
-  *second_score = second;
+  return second;
 }
 
-// BestAndSecondPeak 8 disparities at a time (AVX2): the same maxima (a
-// maximum does not depend on the order), the first index of the best score.
-// A best score under `min_best` has no second peak looked for (-2).
-__attribute__((target("avx2"))) void BestAndSecondPeakAvx2(const float* c, int nd, double min_best, int* best_index,
-                                                           float* best_score, float* second_score) {
-  alignas(32) float lanes[8];
-  auto reduce_max = [&lanes](float init) {
-    for (float x : lanes) init = std::max(init, x);
-    return init;
-  };
-  __m256 vbest = _mm256_set1_ps(-2.f);
-  int di = 0;
-  for (; di + 8 <= nd; di += 8) vbest = _mm256_max_ps(vbest, _mm256_loadu_ps(c + di));
-  _mm256_store_ps(lanes, vbest);
-  float best = reduce_max(-2.f);
-  for (; di < nd; ++di) best = std::max(best, c[di]);
-  int bi = -1;
-  if (best > -2.f) {
-    const __m256 vb = _mm256_set1_ps(best);
-    for (di = 0; di + 8 <= nd; di += 8) {
-      const int m = _mm256_movemask_ps(_mm256_cmp_ps(_mm256_loadu_ps(c + di), vb, _CMP_EQ_OQ));
-      if (m) break;
-    }
-    for (; c[di] != best; ++di) {
-    }
-    bi = di;
-  }
-  *best_index = bi;
-  *best_score = best;
-  *second_score = -2.f;
-  if (best < min_best) return;  // compared in double, as PeakOfColumn does
+// SecondPeak 8 disparities at a time (AVX2): the same maximum (a maximum
+// does not depend on the order).
+__attribute__((target("avx2"))) float SecondPeakAvx2(const float* c, int nd, int bi) {
   auto qualifies = [&](int d) {
     return std::abs(d - bi) >= 3 && (d == 0 || c[d] >= c[d - 1]) && (d + 1 == nd || c[d] >= c[d + 1]);
   };
@@ -269,7 +299,7 @@ __attribute__((target("avx2"))) void BestAndSecondPeakAvx2(const float* c, int n
   __m256 vsec = _mm256_set1_ps(-2.f);
   const __m256i lo = _mm256_set1_epi32(bi - 2), hi = _mm256_set1_epi32(bi + 2), eight = _mm256_set1_epi32(8);
   __m256i idx = _mm256_setr_epi32(1, 2, 3, 4, 5, 6, 7, 8);
-  di = 1;
+  int di = 1;
   for (; di + 9 <= nd; di += 8, idx = _mm256_add_epi32(idx, eight)) {  // d = di .. di + 7, all with both neighbours
     const __m256 cur = _mm256_loadu_ps(c + di);
     const __m256 peak = _mm256_and_ps(_mm256_cmp_ps(cur, _mm256_loadu_ps(c + di - 1), _CMP_GE_OQ),
@@ -277,11 +307,12 @@ __attribute__((target("avx2"))) void BestAndSecondPeakAvx2(const float* c, int n
     const __m256 far = _mm256_castsi256_ps(_mm256_or_si256(_mm256_cmpgt_epi32(lo, idx), _mm256_cmpgt_epi32(idx, hi)));
     vsec = _mm256_max_ps(vsec, _mm256_blendv_ps(_mm256_set1_ps(-2.f), cur, _mm256_and_ps(peak, far)));
   }
+  alignas(32) float lanes[8];
   _mm256_store_ps(lanes, vsec);
-  second = reduce_max(second);
+  for (float v : lanes) second = std::max(second, v);
   for (; di < nd; ++di)
     if (qualifies(di)) second = std::max(second, c[di]);
-  *second_score = second;
+  return second;
 }
 
 // A grid pixel's ZNCC peak before the left-right check.
@@ -290,22 +321,20 @@ struct ZnccPeak {
   double offset;  // sub-pixel parabola offset
 };
 
-// The ZNCC peak of grid column x from its scores c[0, nd): false when the
-// best score is too low, not unique enough, or at the search limit.
-bool PeakOfColumn(const float* c, int x, int nd, int dlo, int h, const DenseStereoOptions& o, int* bi_out,
-                  double* offset_out) {
-  int bi;
-  float best, second;
-  if (HasAvx2()) {
-    BestAndSecondPeakAvx2(c, nd, o.min_score, &bi, &best, &second);
-  } else {
-    BestAndSecondPeak(c, nd, &bi, &best, &second);
-  }
+// The ZNCC peak of grid column x from its scores c[0, nd) and their best:
+// false when the best score is too low, not unique enough, or at the
+// search limit.
+bool PeakOfColumn(const float* c, const ColumnBest& b, int x, int nd, int dlo, int h, const DenseStereoOptions& o,
+                  int* bi_out, double* offset_out) {
+  const int bi = b.index;
+  const float best = b.score;
+  if (bi < 0 || best < o.min_score) return false;  // compared in double
+  const float second = HasAvx2() ? SecondPeakAvx2(c, nd, bi) : SecondPeak(c, nd, bi);
+  if (best - second < o.min_peak_margin) return false;
   // Near the left edge the search stops at the largest disparity whose
   // window fits the right image; a best score at that limit may still be
   // rising, so it is no peak.
   const int last = std::min(nd - 1, x - h - dlo);
-  if (bi < 0 || best < o.min_score || best - second < o.min_peak_margin) return false;
   if (last < nd - 1 && bi == last) return false;
   double offset = 0;
   if (bi > 0 && bi + 1 < nd) {
@@ -320,54 +349,68 @@ bool PeakOfColumn(const float* c, int x, int nd, int dlo, int h, const DenseSter
 
 // One thread's buffers for ZnccRows. Disparity-major per x: V[x * nd + di];
 // the scores of a chunk of kChunk columns C[(x - x0) * nd + di] (the chunk
-// stays in the first-level cache). The right image's rows and statistics
-// are read reversed, so that x - d runs forward with di; bestR / bestRd are
-// kept reversed too.
+// stays in the first-level cache) and their best. The right image's rows
+// and statistics are read reversed, so that x - d runs forward with di;
+// bestR / bestRd are kept reversed too.
 struct ZnccScratch {
   static constexpr int kChunk = 16;
   ZnccScratch(int W, int nd)
-      : V(static_cast<size_t>(nd) * W), C(static_cast<size_t>(nd) * kChunk), S(nd), mRrev(W), iRrev(W), bestRrev(W),
-        bestRdrev(W) {}
-  std::vector<float> V, C;
-  std::vector<double> S;
+      : V(static_cast<size_t>(nd) * W), S(nd), C(static_cast<size_t>(nd) * kChunk), best(kChunk), mRrev(W), iRrev(W),
+        bestRrev(W), bestRdrev(W) {}
+  std::vector<int32_t> V, S;
+  std::vector<float> C;
+  std::vector<ColumnBest> best;
   std::vector<float> mRrev, iRrev, bestRrev;
   std::vector<int> bestRdrev;
-  std::vector<std::vector<float>> rrev;  // the reversed right rows added / subtracted this grid row
+  std::vector<RowPair> pairs;  // the window rows added / subtracted this grid row, two at a time
   std::vector<ZnccPeak> peaks;
   int prev_y = -(1 << 20);
 };
 
-// The window rows that enter (sign +1) and leave (-1) V for grid row y, the
-// right rows reversed; V cleared when the windows do not overlap.
-std::vector<std::pair<int, float>> RowsToAdd(const cv::Mat& R, int y, int h, int window, ZnccScratch* z) {
-  std::vector<std::pair<int, float>> rows;
+// The window rows that enter (sign +1) and leave (-1) V for grid row y
+// (V cleared when the windows do not overlap), two at a time in z->pairs;
+// L8, R8: the 8-bit images.
+void RowsToAdd(const cv::Mat& L8, const cv::Mat& R8, int y, int h, int window, ZnccScratch* z) {
+  std::vector<std::pair<int, int>> rows;
   if (y - z->prev_y < window) {
-    for (int r = z->prev_y + h + 1; r <= y + h; ++r) rows.emplace_back(r, 1.f);
-    for (int r = z->prev_y - h; r < y - h; ++r) rows.emplace_back(r, -1.f);
+    for (int r = z->prev_y + h + 1, o = z->prev_y - h; r <= y + h; ++r, ++o) {
+      rows.emplace_back(r, 1);
+      if (o < y - h) rows.emplace_back(o, -1);
+    }
   } else {
-    std::fill(z->V.begin(), z->V.end(), 0.f);
-    for (int r = y - h; r <= y + h; ++r) rows.emplace_back(r, 1.f);
+    std::fill(z->V.begin(), z->V.end(), 0);
+    for (int r = y - h; r <= y + h; ++r) rows.emplace_back(r, 1);
   }
   z->prev_y = y;
-  z->rrev.resize(rows.size());
-  for (size_t k = 0; k < rows.size(); ++k) {
-    const float* rr = R.ptr<float>(rows[k].first);
-    z->rrev[k].resize(R.cols);
-    std::reverse_copy(rr, rr + R.cols, z->rrev[k].begin());
+  const int W = L8.cols;
+  z->pairs.resize((rows.size() + 1) / 2);
+  for (size_t k = 0; k < z->pairs.size(); ++k) {
+    RowPair& p = z->pairs[k];
+    p.lpair.assign(W, 0);
+    p.rpair.assign(2 * static_cast<size_t>(W), 0);
+    for (size_t e = 0; e < 2 && 2 * k + e < rows.size(); ++e) {
+      const auto [r, sign] = rows[2 * k + e];
+      const uchar* l = L8.ptr<uchar>(r);
+      const uchar* rr = R8.ptr<uchar>(r);
+      for (int x = 0; x < W; ++x) {
+        const auto lv = static_cast<uint16_t>(static_cast<int16_t>(sign * (l[x] - 128)));
+        p.lpair[x] |= static_cast<int32_t>(static_cast<uint32_t>(lv) << (16 * e));
+        p.rpair[2 * static_cast<size_t>(W - 1 - x) + e] = static_cast<int16_t>(rr[x] - 128);
+      }
+    }
   }
-  return rows;
 }
 
 // One grid row of step 1, chunk by chunk of columns: the column sums V
 // (rows in, then rows out), the scores and the peaks of the grid columns;
 // then the left-right check (the right pixels' best disparities are
 // complete only after the row). Returns the grid points searched.
-long ZnccRow(const cv::Mat& L, const cv::Mat& R, const cv::Mat& muL, const cv::Mat& isdL, const cv::Mat& muR,
+long ZnccRow(const cv::Mat& L8, const cv::Mat& R8, const cv::Mat& muL, const cv::Mat& isdL, const cv::Mat& muR,
              const cv::Mat& isdR, int y, const DenseStereoOptions& o, ZnccScratch* z, float* out_row, long* matches) {
-  const int W = L.cols, h = o.zncc_window / 2, n = o.zncc_window * o.zncc_window;
+  const int W = L8.cols, h = o.zncc_window / 2, n = o.zncc_window * o.zncc_window;
   const int dlo = static_cast<int>(std::ceil(o.min_disparity)), dhi = static_cast<int>(std::floor(o.max_disparity));
   const int nd = dhi - dlo + 1;
-  const std::vector<std::pair<int, float>> rows = RowsToAdd(R, y, h, o.zncc_window, z);
+  RowsToAdd(L8, R8, y, h, o.zncc_window, z);
   std::fill(z->bestRrev.begin(), z->bestRrev.end(), -2.f);
   std::fill(z->bestRdrev.begin(), z->bestRdrev.end(), -1);
   const float* mR = muR.ptr<float>(y);
@@ -379,17 +422,16 @@ long ZnccRow(const cv::Mat& L, const cv::Mat& R, const cv::Mat& muL, const cv::M
   // Scores at x need V up to column x + h.
   for (int x0 = dlo + h, vdone = 0; x0 < W - h; x0 += ZnccScratch::kChunk) {
     const int x1 = std::min(W - h, x0 + ZnccScratch::kChunk);
-    for (size_t k = 0; k < rows.size(); ++k)
-      AddRowProducts(L.ptr<float>(rows[k].first), z->rrev[k].data(), W, dlo, nd, vdone, x1 + h, rows[k].second,
-                     z->V.data());
+    for (const RowPair& p : z->pairs) AddRowPairProducts(p, W, dlo, nd, vdone, x1 + h, z->V.data());
     vdone = x1 + h;
     RowScores(z->V.data(), W, nd, dlo, h, n, x0, x1, muL.ptr<float>(y), isdL.ptr<float>(y), z->mRrev.data(),
-              z->iRrev.data(), z->S.data(), z->C.data(), z->bestRrev.data(), z->bestRdrev.data());
+              z->iRrev.data(), z->S.data(), z->C.data(), z->bestRrev.data(), z->bestRdrev.data(), z->best.data());
     for (int x = (x0 + o.step - 1) / o.step * o.step; x < x1; x += o.step) {
       ++points;
       ZnccPeak p;
       p.gx = x / o.step;
-      if (PeakOfColumn(z->C.data() + static_cast<size_t>(x - x0) * nd, x, nd, dlo, h, o, &p.bi, &p.offset))
+      if (PeakOfColumn(z->C.data() + static_cast<size_t>(x - x0) * nd, z->best[x - x0], x, nd, dlo, h, o, &p.bi,
+                       &p.offset))
         z->peaks.push_back(p);
     }
   }
@@ -409,7 +451,8 @@ ZnccStage ZnccRows(const cv::Mat& left8, const cv::Mat& right8, const DenseStere
   const int nd = dhi - dlo + 1;
   const int gw = (W + o.step - 1) / o.step, gh = (H + o.step - 1) / o.step;
   cv::Mat L, R;
-  // Centred grey levels keep the float sums of products small.
+  // Centred grey levels for the window statistics (the sums of products
+  // centre them too: RowsToAdd).
   left8.convertTo(L, CV_32F, 1.0, -128.0);
   right8.convertTo(R, CV_32F, 1.0, -128.0);
   cv::Mat muL, isdL, muR, isdR;
@@ -429,7 +472,7 @@ ZnccStage ZnccRows(const cv::Mat& left8, const cv::Mat& right8, const DenseStere
       for (int gy = b * block; gy < std::min(gh, (b + 1) * block); ++gy) {
         const int y = gy * o.step;
         if (y - h < 0 || y + h >= H) continue;
-        points += ZnccRow(L, R, muL, isdL, muR, isdR, y, o, &z, out.disparity.ptr<float>(gy), &matches);
+        points += ZnccRow(left8, right8, muL, isdL, muR, isdR, y, o, &z, out.disparity.ptr<float>(gy), &matches);
       }
     }
   }
