@@ -214,8 +214,10 @@ void PrintSummary(const vloc::DenseStereoSummary& summary, const vloc::DenseSter
   std::cout << "disparity_median_px: " << MedianDisparity(disp) << "\n";
   std::cout << "lsm_sigma_median_px: " << summary.median_sigma_px << "\n";
   std::cout << "lsm_mean_iterations: " << summary.lsm_mean_iterations << "\n";
-  if (o.lsm_lattice > 1)
+  if (o.lsm_lattice > 1) {
     std::cout << "lsm_from_lattice: " << summary.lsm_from_lattice << "  # from the lattice's planes, before the LSM median test\n";
+    std::cout << "lsm_dropped: " << summary.lsm_dropped << "  # in a cell whose corners all failed, without LSM\n";
+  }
   std::cout << "scale: " << (pfm ? 1.0 : 1.0 / 256.0) << "  # disparity = value * scale\n";
   std::cout << "seconds: " << summary.total_seconds << "  # zncc " << summary.zncc_seconds << ", median "
             << summary.median_seconds << ", lsm " << summary.lsm_seconds << "\n";

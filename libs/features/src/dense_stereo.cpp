@@ -56,6 +56,8 @@ void DenseStereoOptions::Visit(OptionsReader& r) {
              InRange(1, 4));
   r.Optional("lsm_lattice_agree_px", &lsm_lattice_agree_px, "px, spread of the corners' predictions allowed",
              NonNegative());
+  r.Optional("lsm_lattice_drop_failed_cells", &lsm_lattice_drop_failed_cells,
+             "drop a point whose coarser cell's corners all failed, without LSM");
   r.Optional("num_threads", &num_threads, "OpenMP threads", AtLeast(1));
   r.Relation("max_disparity", max_disparity >= min_disparity + 1, "must exceed min_disparity by >= 1");
 }
@@ -649,7 +651,7 @@ void RefinePixels(const LsmImages& im, const DenseStereoOptions& o, const std::v
 }
 
 struct LsmPassCounts {
-  long matched = 0, iterations = 0, from_lattice = 0;
+  long matched = 0, iterations = 0, from_lattice = 0, dropped = 0;
 };
 
 // The lattice's strides, coarse to fine: lsm_lattice, halved while even,
@@ -710,6 +712,17 @@ bool FromLattice(const DenseStereoOptions& o, int k, int gx, int gy, float zncc,
   return true;
 }
 
+// Whether every corner inside the grid of point (gx, gy)'s cell of side k
+// failed: rejected by LSM or without a ZNCC match.
+bool CellFailed(int k, int gx, int gy, const LatticeResults& lat) {
+  const int x0 = gx - gx % k, y0 = gy - gy % k;
+  for (const int cy : {y0, y0 + k})
+    for (const int cx : {x0, x0 + k})
+      if (cx < lat.d.cols && cy < lat.d.rows && lat.done.at<uchar>(cy, cx) && std::isfinite(lat.d.at<float>(cy, cx)))
+        return false;
+  return true;
+}
+
 // Step 3 over the grid (`disp`: the ZNCC disparities in, the LSM ones out,
 // NaN = rejected; `sigma` out): LSM on every point, or level by level of
 // the lattice (lsm_lattice > 1, LatticeStrides). OpenMP over blocks of 8
@@ -727,8 +740,8 @@ LsmPassCounts RefineDisparities(const LsmImages& images, const DenseStereoOption
     const int stride = strides[level], coarser = level > 0 ? strides[level - 1] : 0;
     const int block = 8;  // grid rows per task
     const int nblocks = (disp->rows + block - 1) / block;
-    long matched = 0, iterations = 0, from_lattice = 0;
-#pragma omp parallel num_threads(o.num_threads) reduction(+ : matched, iterations, from_lattice)
+    long matched = 0, iterations = 0, from_lattice = 0, dropped = 0;
+#pragma omp parallel num_threads(o.num_threads) reduction(+ : matched, iterations, from_lattice, dropped)
     {
       std::vector<internal::RowLsmTask> tasks;
       std::vector<cv::Point> cells;
@@ -746,6 +759,11 @@ LsmPassCounts RefineDisparities(const LsmImages& images, const DenseStereoOption
               if (OnLattice(gx, gy, coarser)) continue;
               if (FromLattice(o, coarser, gx, gy, row[gx], &lat)) {
                 ++matched, ++from_lattice;
+                continue;
+              }
+              if (o.lsm_lattice_drop_failed_cells && CellFailed(coarser, gx, gy, lat)) {
+                lat.done.at<uchar>(gy, gx) = 1;
+                ++dropped;
                 continue;
               }
             }
@@ -769,6 +787,7 @@ LsmPassCounts RefineDisparities(const LsmImages& images, const DenseStereoOption
       }
     }
     total.matched += matched, total.iterations += iterations, total.from_lattice += from_lattice;
+    total.dropped += dropped;
   }
   lat.d.copyTo(*disp);
   lat.sigma.copyTo(*sigma);
@@ -804,6 +823,7 @@ cv::Mat DenseStereo(const cv::Mat& left, const cv::Mat& right, const DenseStereo
     const LsmPassCounts counts = RefineDisparities(images, o, &disp, &sigma);
     const long matched = counts.matched, iterations = counts.iterations;
     s.lsm_from_lattice = counts.from_lattice;
+    s.lsm_dropped = counts.dropped;
     s.lsm_matches = matched;
     const long refined = matched - counts.from_lattice;
     s.lsm_mean_iterations = refined ? static_cast<double>(iterations) / refined : 0.0;

@@ -111,13 +111,15 @@ void SetStereoCounters(benchmark::State& state, const StereoCase& c, const cv::M
 
 // Each stage's seconds and what it kept: the points the ZNCC and median
 // tests keep (after_median), those taken from the LSM lattice's planes
-// (from_lattice; the rest ran LSM) and the output (lsm_matches).
+// (from_lattice), those dropped without LSM (lsm_dropped; the rest ran
+// LSM) and the output (lsm_matches).
 void SetStageCounters(benchmark::State& state, const vloc::DenseStereoSummary& s) {
   state.counters["zncc_s"] = s.zncc_seconds;
   state.counters["median_s"] = s.median_seconds;
   state.counters["lsm_s"] = s.lsm_seconds;
   state.counters["after_median"] = static_cast<double>(s.after_median);
   state.counters["from_lattice"] = static_cast<double>(s.lsm_from_lattice);
+  state.counters["lsm_dropped"] = static_cast<double>(s.lsm_dropped);
   state.counters["lsm_matches"] = static_cast<double>(s.lsm_matches);
 }
 

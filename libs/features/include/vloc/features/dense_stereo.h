@@ -80,6 +80,11 @@ struct DenseStereoOptions {
   int lsm_lattice = 1;
   int lsm_lattice_min_corners = 3;    // accepted corners a point from the planes needs (of 4)
   double lsm_lattice_agree_px = 0.2;  // px, largest spread of the corners' predictions
+  // A point whose coarser cell has every corner failed (rejected by LSM or
+  // without a ZNCC match) is dropped without LSM (true) instead of running
+  // it: about 1 in 10 of them is accepted then, each after the most
+  // iterations (README, issue 36).
+  bool lsm_lattice_drop_failed_cells = false;
   int num_threads = 2;             // OpenMP threads over rows
 
   void Visit(OptionsReader& reader);
@@ -96,6 +101,7 @@ struct DenseStereoSummary {
   long lsm_matches = 0;           // ... and LSM (the output when lsm_enabled)
   long lsm_from_lattice = 0;      // points taken from the lattice's planes (lsm_lattice > 1), before
                                   // the LSM median test (lsm_median_tolerance)
+  long lsm_dropped = 0;           // points dropped without LSM (lsm_lattice_drop_failed_cells)
   double median_sigma_px = 0;     // median LSM 1-sigma disparity precision
   double lsm_mean_iterations = 0; // Gauss-Newton iterations per accepted LSM match
   double zncc_seconds = 0, median_seconds = 0, lsm_seconds = 0, total_seconds = 0;
