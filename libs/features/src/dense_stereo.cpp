@@ -165,14 +165,14 @@ struct ColumnBest {
 // RowScores' scores for di in [0, active) 8 at a time, the same float
 // operations in each lane, and their best (each lane keeps its first best,
 // the lanes' first of the best is the column's); returns the first di left
-// to the scalar loop.
+// to the scalar loop. The left window is not flat (il > 0: RowScores skips
+// those).
 __attribute__((target("avx2"))) int ScoresAvx2(const int32_t* S, double inv_n, float ml, float il, const float* mr,
                                                const float* ir, int active, float* c, float* br, int* brd,
                                                ColumnBest* best) {
   const __m256d vinv = _mm256_set1_pd(inv_n);
   const __m256 vml = _mm256_set1_ps(ml), vil = _mm256_set1_ps(il), undefined = _mm256_set1_ps(-2.f);
   const __m256 zero = _mm256_setzero_ps();
-  const __m256 left_ok = il > 0 ? _mm256_castsi256_ps(_mm256_set1_epi32(-1)) : zero;
   __m256i vdi = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   __m256 vbest = undefined;
   __m256i vbi = _mm256_set1_epi32(-1);
@@ -183,7 +183,7 @@ __attribute__((target("avx2"))) int ScoresAvx2(const int32_t* S, double inv_n, f
     const __m128 s1 = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_cvtepi32_pd(_mm256_extracti128_si256(si, 1)), vinv));
     const __m256 vir = _mm256_loadu_ps(ir + di);
     const __m256 cov = _mm256_sub_ps(_mm256_set_m128(s1, s0), _mm256_mul_ps(vml, _mm256_loadu_ps(mr + di)));
-    const __m256 ok = _mm256_and_ps(left_ok, _mm256_cmp_ps(vir, zero, _CMP_GT_OQ));
+    const __m256 ok = _mm256_cmp_ps(vir, zero, _CMP_GT_OQ);
     const __m256 z = _mm256_blendv_ps(undefined, _mm256_mul_ps(_mm256_mul_ps(cov, vil), vir), ok);
     _mm256_storeu_ps(c + di, z);
     const __m256 better = _mm256_cmp_ps(z, vbest, _CMP_GT_OQ);
@@ -254,7 +254,7 @@ __attribute__((target_clones("avx2", "default"))) void RowScores(const int32_t* 
     const int first = HasAvx2() ? ScoresAvx2(S, inv_n, ml, il, mr, ir, active, c, br, brd, &b) : 0;
     for (int di = first; di < active; ++di) {
       const float cov = static_cast<float>(static_cast<double>(S[di]) * inv_n) - ml * mr[di];
-      const float z = il > 0 && ir[di] > 0 ? cov * il * ir[di] : -2.f;
+      const float z = ir[di] > 0 ? cov * il * ir[di] : -2.f;
       c[di] = z;
       if (z > b.score) b.score = z, b.index = di;
       const bool up = z > br[di];
