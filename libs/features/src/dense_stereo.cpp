@@ -56,6 +56,8 @@ void DenseStereoOptions::Visit(OptionsReader& r) {
              InRange(1, 4));
   r.Optional("lsm_lattice_agree_px", &lsm_lattice_agree_px, "px, spread of the corners' predictions allowed",
              NonNegative());
+  r.Optional("lsm_lattice_max_failed_corners", &lsm_lattice_max_failed_corners,
+             "failed lattice corners (rejected, no ZNCC match) a point from the planes tolerates", InRange(0, 3));
   r.Optional("lsm_lattice_drop_failed_cells", &lsm_lattice_drop_failed_cells,
              "drop a point whose coarser cell's corners all failed, without LSM");
   r.Optional("num_threads", &num_threads, "OpenMP threads", AtLeast(1));
@@ -676,8 +678,9 @@ struct LatticeResults {
 // A point's disparity, sigma and plane (written into `lattice`, the point
 // then refined) from the planes of the refined points at the corners of its
 // cell of side `k` (tent weights: the nearer a corner, the more it counts):
-// false when a corner inside the grid has no ZNCC match or was rejected by
-// LSM, when fewer than lsm_lattice_min_corners were accepted (the grid's
+// false when more than lsm_lattice_max_failed_corners corners inside the
+// grid have no ZNCC match or were rejected by LSM (the others count), when
+// fewer than lsm_lattice_min_corners were accepted (the grid's
 // last row and column lack some), or when their predictions spread wider
 // than lsm_lattice_agree_px or leave lsm_max_shift_px of the point's ZNCC
 // disparity.
@@ -686,13 +689,16 @@ bool FromLattice(const DenseStereoOptions& o, int k, int gx, int gy, float zncc,
   const int x0 = gx - gx % k, y0 = gy - gy % k;
   double lo = std::numeric_limits<double>::infinity(), hi = -lo, sum = 0, weights = 0, sdx = 0, sdy = 0;
   float worst = 0;
-  int used = 0;
+  int used = 0, failed = 0;
   for (const int cy : {y0, y0 + k}) {
     for (const int cx : {x0, x0 + k}) {
       if (cx >= lat.d.cols || cy >= lat.d.rows) continue;  // past the grid's last row or column
-      if (!lat.done.at<uchar>(cy, cx)) return false;       // no ZNCC match there: an occlusion, no texture
+      // No ZNCC match there (an occlusion, no texture) or rejected by LSM (an edge).
       const float dc = lat.d.at<float>(cy, cx);
-      if (!std::isfinite(dc)) return false;                // rejected by LSM: an edge
+      if (!lat.done.at<uchar>(cy, cx) || !std::isfinite(dc)) {
+        if (++failed > o.lsm_lattice_max_failed_corners) return false;
+        continue;
+      }
       const double ddx = lat.ddx.at<float>(cy, cx), ddy = lat.ddy.at<float>(cy, cx);
       const double p = dc + (ddx * (gx - cx) + ddy * (gy - cy)) * o.step;
       const double w = (k - std::abs(gx - cx) + 0.5) * (k - std::abs(gy - cy) + 0.5);  // tent, never 0

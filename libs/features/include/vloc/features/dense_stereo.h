@@ -73,13 +73,15 @@ struct DenseStereoOptions {
   // halved while even, then 1), a point of the finer lattice takes the
   // mean of the disparity planes of its coarser cell's refined corners,
   // weighted by nearness (the nearest LSM windows hold most of its own),
-  // when enough were accepted, none was rejected by LSM or had no ZNCC
-  // match, and their predictions agree; else it runs LSM itself (depth
-  // edges, occlusions). A point from the planes skips lsm_back_check_px
-  // and takes its corners' largest sigma. 1 = every point (the paper's).
+  // when enough were accepted, at most lsm_lattice_max_failed_corners were
+  // rejected by LSM or had no ZNCC match, and their predictions agree; else
+  // it runs LSM itself (depth edges, occlusions). A point from the planes
+  // skips lsm_back_check_px and takes its corners' largest sigma. 1 = every
+  // point (the paper's).
   int lsm_lattice = 1;
   int lsm_lattice_min_corners = 3;    // accepted corners a point from the planes needs (of 4)
   double lsm_lattice_agree_px = 0.2;  // px, largest spread of the corners' predictions
+  int lsm_lattice_max_failed_corners = 0;  // corners rejected by LSM or without a ZNCC match a point tolerates
   // A point whose coarser cell has every corner failed (rejected by LSM or
   // without a ZNCC match) is dropped without LSM (true) instead of running
   // it: about 1 in 10 of them is accepted then, each after the most
