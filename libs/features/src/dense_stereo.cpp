@@ -17,6 +17,7 @@
 #include <utility>
 #include <vector>
 
+#include "median_test.h"
 #include "row_lsm.h"
 #include "vloc/common/options.h"
 
@@ -80,6 +81,38 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
+bool HasAvx2() {
+  static const bool has = __builtin_cpu_supports("avx2");
+  return has;
+}
+
+// One row of BoxStats' inverse standard deviations from the box means m
+// and mean squares q: 1 / sqrt(max(0, q - m^2)) in double (m^2 is exact),
+// 0 below min_std.
+void InvStdRow(const float* m, const float* q, int cols, double min_std, float* out) {
+  for (int x = 0; x < cols; ++x) {
+    const double var = std::max(0.0, static_cast<double>(q[x]) - static_cast<double>(m[x]) * m[x]);
+    const double sd = std::sqrt(var);
+    out[x] = sd >= min_std ? static_cast<float>(1.0 / sd) : 0.f;
+  }
+}
+
+// InvStdRow 4 columns at a time (AVX2): the same double operations, each
+// correctly rounded, so the same floats; returns the first column left.
+__attribute__((target("avx2"))) int InvStdRowAvx2(const float* m, const float* q, int cols, double min_std,
+                                                  float* out) {
+  const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0), lo = _mm256_set1_pd(min_std);
+  int x = 0;
+  for (; x + 4 <= cols; x += 4) {
+    const __m256d md = _mm256_cvtps_pd(_mm_loadu_ps(m + x)), qd = _mm256_cvtps_pd(_mm_loadu_ps(q + x));
+    // max(var, 0) is var > 0 ? var : 0, as std::max(0.0, var) (NaN, -0 -> 0).
+    const __m256d sd = _mm256_sqrt_pd(_mm256_max_pd(_mm256_sub_pd(qd, _mm256_mul_pd(md, md)), zero));
+    const __m256d inv = _mm256_and_pd(_mm256_div_pd(one, sd), _mm256_cmp_pd(sd, lo, _CMP_GE_OQ));
+    _mm_storeu_ps(out + x, _mm256_cvtpd_ps(inv));
+  }
+  return x;
+}
+
 // Box mean and inverse standard deviation (0 where the std is below
 // min_std) of a float image over a square window.
 void BoxStats(const cv::Mat& img, int window, double min_std, cv::Mat* mean, cv::Mat* inv_std) {
@@ -89,15 +122,13 @@ void BoxStats(const cv::Mat& img, int window, double min_std, cv::Mat* mean, cv:
   cv::boxFilter(img, *mean, CV_32F, cv::Size(window, window), cv::Point(-1, -1), true, cv::BORDER_REFLECT);
   cv::boxFilter(sq, m2, CV_32F, cv::Size(window, window), cv::Point(-1, -1), true, cv::BORDER_REFLECT);
   *inv_std = cv::Mat(img.size(), CV_32F);
+  const bool avx2 = HasAvx2();
   for (int y = 0; y < img.rows; ++y) {
     const float* m = mean->ptr<float>(y);
     const float* q = m2.ptr<float>(y);
     float* o = inv_std->ptr<float>(y);
-    for (int x = 0; x < img.cols; ++x) {
-      const double var = std::max(0.0, static_cast<double>(q[x]) - static_cast<double>(m[x]) * m[x]);
-      const double sd = std::sqrt(var);
-      o[x] = sd >= min_std ? static_cast<float>(1.0 / sd) : 0.f;
-    }
+    const int done = avx2 ? InvStdRowAvx2(m, q, img.cols, min_std, o) : 0;
+    InvStdRow(m + done, q + done, img.cols - done, min_std, o + done);
   }
 }
 
@@ -105,11 +136,6 @@ struct ZnccStage {
   cv::Mat disparity;  // grid, CV_32F, NaN = none
   long points = 0, matches = 0;
 };
-
-bool HasAvx2() {
-  static const bool has = __builtin_cpu_supports("avx2");
-  return has;
-}
 
 // The products of ZNCC's window sums are of integer grey levels centred on
 // 0 (|L|, |R| <= 128): the column sums V and the window sums S are exact
@@ -460,8 +486,14 @@ ZnccStage ZnccRows(const cv::Mat& left8, const cv::Mat& right8, const DenseStere
   left8.convertTo(L, CV_32F, 1.0, -128.0);
   right8.convertTo(R, CV_32F, 1.0, -128.0);
   cv::Mat muL, isdL, muR, isdR;
-  BoxStats(L, o.zncc_window, o.min_template_std, &muL, &isdL);
-  BoxStats(R, o.zncc_window, 1e-3, &muR, &isdR);
+  // The two images side by side (OpenCV's box filters run on one thread).
+#pragma omp parallel sections num_threads(std::min(2, o.num_threads))
+  {
+#pragma omp section
+    BoxStats(L, o.zncc_window, o.min_template_std, &muL, &isdL);
+#pragma omp section
+    BoxStats(R, o.zncc_window, 1e-3, &muR, &isdR);
+  }
   ZnccStage out;
   out.disparity = cv::Mat(gh, gw, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
   const int block = 16;  // grid rows per task: the column sums carry over within a block
@@ -522,6 +554,24 @@ bool KeepByMedian(const cv::Mat& in, int x, int y, float d, const DenseStereoOpt
   return std::abs(d - med) <= abs_tolerance + rel_tolerance * std::abs(med);
 }
 
+// KeepByMedian's verdict for 8 cells from their counts of valid
+// neighbours and of those beyond the tolerance below and above.
+__attribute__((target("avx2"))) void KeepFromCounts(__m256i n, __m256i below, __m256i above,
+                                                    const DenseStereoOptions& o, unsigned char* keep) {
+  alignas(32) int nn[8], bb[8], aa[8];
+  _mm256_store_si256(reinterpret_cast<__m256i*>(nn), n);
+  _mm256_store_si256(reinterpret_cast<__m256i*>(bb), below);
+  _mm256_store_si256(reinterpret_cast<__m256i*>(aa), above);
+  for (int k = 0; k < 8; ++k) {
+    if (nn[k] < std::max(1, o.median_min_neighbours)) {
+      keep[k] = o.median_min_neighbours == 0;
+    } else {
+      const int half = nn[k] / 2;
+      keep[k] = bb[k] <= half && aa[k] < nn[k] - half;
+    }
+  }
+}
+
 // KeepByMedian without the relative term for the cells of grid row y
 // (keep[x] = 1: passes; cells without a disparity are not looked at), 8
 // cells at a time: the same counts, the differences in double as there.
@@ -567,29 +617,90 @@ __attribute__((target("avx2"))) void KeepRowByMedianAvx2(const cv::Mat& in, int 
         above = _mm256_sub_epi32(above, _mm256_andnot_si256(lower, far));
       }
     }
-    alignas(32) int nn[8], bb[8], aa[8];
-    _mm256_store_si256(reinterpret_cast<__m256i*>(nn), n);
-    _mm256_store_si256(reinterpret_cast<__m256i*>(bb), below);
-    _mm256_store_si256(reinterpret_cast<__m256i*>(aa), above);
-    for (int k = 0; k < 8; ++k) {
-      if (nn[k] < std::max(1, o.median_min_neighbours)) {
-        keep[x + k] = o.median_min_neighbours == 0;
-      } else {
-        const int half = nn[k] / 2;
-        keep[x + k] = bb[k] <= half && aa[k] < nn[k] - half;
-      }
-    }
+    KeepFromCounts(n, below, above, o, keep + x);
   }
   std::vector<float> neigh;
   for (; x < cols; ++x)
     keep[x] = std::isfinite(row[x]) && KeepByMedian(in, x, y, row[x], o, abs_tolerance, 0.0, &neigh);
 }
 
+// Whether KeepRowByThresholdsAvx2's float thresholds decide as
+// KeepByMedian's double differences do: the tolerance a multiple of 2^-10
+// up to 256 px, every disparity 0 or NaN or of magnitude in [2^-20, 4096].
+// Then d - tol, d + tol and, wherever it is near the tolerance, d - v are
+// exact in double (at most 53 bits from the highest to the lowest), so
+// |d - v| > tol is v < d - tol or v > d + tol, exactly.
+bool ThresholdsAreExact(const cv::Mat& in, double tol) {
+  const double scaled = std::ldexp(tol, 10);
+  if (!(tol >= 0 && tol <= 256 && scaled == std::floor(scaled))) return false;
+  for (int y = 0; y < in.rows; ++y) {
+    const float* row = in.ptr<float>(y);
+    for (int x = 0; x < in.cols; ++x) {
+      const float a = std::abs(row[x]);
+      if (std::isnan(a) || a == 0.f) continue;
+      if (!(a >= std::ldexp(1.f, -20) && a <= 4096.f)) return false;
+    }
+  }
+  return true;
+}
+
+// KeepRowByMedianAvx2 when ThresholdsAreExact: each cell's neighbours
+// compared in float with the smallest float above d - tol and the largest
+// below d + tol. `padded`: the grid with median_radius NaN columns on
+// either side.
+__attribute__((target("avx2"))) void KeepRowByThresholdsAvx2(const cv::Mat& padded, int y, const DenseStereoOptions& o,
+                                                             double tol, unsigned char* keep) {
+  const int r = o.median_radius, s = o.median_stride, cols = padded.cols - 2 * r;
+  const float* row = padded.ptr<float>(y) + r;
+  std::vector<float> lo(cols), hi(cols);
+  for (int x = 0; x < cols; ++x) {
+    const double l = static_cast<double>(row[x]) - tol, u = static_cast<double>(row[x]) + tol;
+    float lf = static_cast<float>(l), uf = static_cast<float>(u);
+    if (static_cast<double>(lf) < l) lf = std::nextafter(lf, std::numeric_limits<float>::infinity());
+    if (static_cast<double>(uf) > u) uf = std::nextafter(uf, -std::numeric_limits<float>::infinity());
+    lo[x] = lf, hi[x] = uf;
+  }
+  const int kmin = -(r / s) * s;
+  int x = 0;
+  for (; x + 8 <= cols; x += 8) {
+    const __m256 vlo = _mm256_loadu_ps(lo.data() + x), vhi = _mm256_loadu_ps(hi.data() + x);
+    __m256i n = _mm256_setzero_si256(), below = n, above = n;
+    for (int dy = kmin; dy <= r; dy += s) {
+      const int yy = y + dy;
+      if (yy < 0 || yy >= padded.rows) continue;
+      const float* nrow = padded.ptr<float>(yy) + r;
+      for (int dx = kmin; dx <= r; dx += s) {
+        if (dx == 0 && dy == 0) continue;
+        const __m256 v = _mm256_loadu_ps(nrow + x + dx);  // NaN past the grid's sides
+        n = _mm256_sub_epi32(n, _mm256_castps_si256(_mm256_cmp_ps(v, v, _CMP_ORD_Q)));
+        below = _mm256_sub_epi32(below, _mm256_castps_si256(_mm256_cmp_ps(v, vlo, _CMP_LT_OQ)));
+        above = _mm256_sub_epi32(above, _mm256_castps_si256(_mm256_cmp_ps(v, vhi, _CMP_GT_OQ)));
+      }
+    }
+    KeepFromCounts(n, below, above, o, keep + x);
+  }
+  if (x < cols) {
+    const cv::Mat in = padded.colRange(r, r + cols);
+    std::vector<float> neigh;
+    for (; x < cols; ++x)
+      keep[x] = std::isfinite(row[x]) && KeepByMedian(in, x, y, row[x], o, tol, 0.0, &neigh);
+  }
+}
+
+}  // namespace
+
+namespace internal {
+
 // Step 2: drops disparities far from the median of their grid neighbours.
 long MedianTest(const DenseStereoOptions& o, double abs_tolerance, double rel_tolerance, cv::Mat* disp) {
   const cv::Mat in = disp->clone();
   long kept = 0;
   const bool vector_rows = rel_tolerance == 0 && HasAvx2();
+  const bool thresholds = vector_rows && ThresholdsAreExact(in, abs_tolerance);
+  cv::Mat padded;
+  if (thresholds)
+    cv::copyMakeBorder(in, padded, 0, 0, o.median_radius, o.median_radius, cv::BORDER_CONSTANT,
+                       cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
 #pragma omp parallel for schedule(dynamic, 8) num_threads(o.num_threads) reduction(+ : kept)
   for (int y = 0; y < in.rows; ++y) {
     std::vector<float> neigh;
@@ -598,7 +709,11 @@ long MedianTest(const DenseStereoOptions& o, double abs_tolerance, double rel_to
     float* out = disp->ptr<float>(y);
     if (vector_rows) {
       keep.resize(in.cols);
-      KeepRowByMedianAvx2(in, y, o, abs_tolerance, keep.data());
+      if (thresholds) {
+        KeepRowByThresholdsAvx2(padded, y, o, abs_tolerance, keep.data());
+      } else {
+        KeepRowByMedianAvx2(in, y, o, abs_tolerance, keep.data());
+      }
     }
     for (int x = 0; x < in.cols; ++x) {
       if (!std::isfinite(row[x])) continue;
@@ -612,7 +727,7 @@ long MedianTest(const DenseStereoOptions& o, double abs_tolerance, double rel_to
   return kept;
 }
 
-}  // namespace
+}  // namespace internal
 
 namespace {
 
@@ -820,7 +935,7 @@ cv::Mat DenseStereo(const cv::Mat& left, const cv::Mat& right, const DenseStereo
   s.zncc_seconds = Since(t0);
   const auto t1 = Clock::now();
   cv::Mat disp = z.disparity;
-  s.after_median = MedianTest(o, o.median_abs_tolerance, o.median_rel_tolerance, &disp);
+  s.after_median = internal::MedianTest(o, o.median_abs_tolerance, o.median_rel_tolerance, &disp);
   s.median_seconds = Since(t1);
   const auto t2 = Clock::now();
   if (o.lsm_enabled) {
@@ -833,7 +948,7 @@ cv::Mat DenseStereo(const cv::Mat& left, const cv::Mat& right, const DenseStereo
     s.lsm_matches = matched;
     const long refined = matched - counts.from_lattice;
     s.lsm_mean_iterations = refined ? static_cast<double>(iterations) / refined : 0.0;
-    if (o.lsm_median_tolerance > 0) s.lsm_matches = MedianTest(o, o.lsm_median_tolerance, 0.0, &disp);
+    if (o.lsm_median_tolerance > 0) s.lsm_matches = internal::MedianTest(o, o.lsm_median_tolerance, 0.0, &disp);
     std::vector<float> sig;
     for (int y = 0; y < sigma.rows; ++y)
       for (int x = 0; x < sigma.cols; ++x)

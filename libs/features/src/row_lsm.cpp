@@ -331,9 +331,11 @@ cv::Mat PrepareRowLsmTarget(const cv::Mat& right, const DenseStereoOptions& o) {
   // Cubic B-spline prefilter along the rows (Unser 1999; mirror boundary).
   const double z = std::sqrt(3.0) - 2.0;
   const int W = out.cols;
-  std::vector<double> c(W);
   const int horizon = std::min(W, 30);  // |z|^30 < 1e-17
+  // Rows in parallel: each is filtered on its own.
+#pragma omp parallel for schedule(static) num_threads(std::max(1, o.num_threads))
   for (int y = 0; y < out.rows; ++y) {
+    std::vector<double> c(W);
     float* row = out.ptr<float>(y);
     for (int k = 0; k < W; ++k) c[k] = 6.0 * row[k];
     if (W > 1) {

@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "median_test.h"
 #include "real_pairs.h"
 #include "test_images.h"
 #include "vloc/common/options.h"
@@ -425,6 +426,39 @@ TEST(DenseStereo, MedianTestCountsAsItSorts) {
   cv::Mat differ = (a != b) & (a == a);  // NaN != NaN: compare where a has a value
   EXPECT_EQ(cv::countNonZero(differ), 0);
   EXPECT_EQ(cv::countNonZero(a == a), cv::countNonZero(b == b));
+}
+
+// The median test's float thresholds decide as its sorted medians where
+// neighbours differ from a cell by exactly the tolerance or one float more
+// or less: a grid drawn from values 1, 0.5 px and one float apart (and
+// near 2^-20, whose d +- tol no float holds), with zeros and holes, kept cell for cell as with sorting (a relative term of
+// 1e-300 changes no tolerance); the same with a value of 1e-30 in the grid,
+// where the thresholds would not be exact and the double differences run.
+TEST(DenseStereo, MedianTestThresholdsDecideAsSortingAtTheTolerance) {
+  DenseStereoOptions o;
+  const float base = 10.f, up = std::nextafter(base + 1.f, 100.f), down = std::nextafter(base - 1.f, 0.f);
+  const std::vector<float> values = {base, base + 1.f, base - 1.f, up, down, base + 0.5f, base - 0.5f,
+                                     std::nextafter(base + 0.5f, 0.f), 0.f, 1.f, std::nanf(""),
+                                     // d - tol and d + tol that no float holds
+                                     std::nextafter(std::ldexp(1.f, -20), 1.f), 1.f + std::ldexp(1.f, -20),
+                                     std::nextafter(1.f + std::ldexp(1.f, -20), 2.f), 0.5f + std::ldexp(1.f, -20)};
+  cv::RNG rng(7);
+  for (const float odd : {0.f, 1e-30f}) {
+    for (const double tol : {1.0, 0.5}) {
+      cv::Mat grid(48, 61, CV_32F);
+      for (int y = 0; y < grid.rows; ++y)
+        for (int x = 0; x < grid.cols; ++x) grid.at<float>(y, x) = values[rng.uniform(0, static_cast<int>(values.size()))];
+      if (odd != 0.f) grid.at<float>(20, 30) = odd;
+      cv::Mat counted = grid.clone(), sorted = grid.clone();
+      const long kept = internal::MedianTest(o, tol, 0.0, &counted);
+      const long kept_sorted = internal::MedianTest(o, tol, 1e-300, &sorted);
+      EXPECT_EQ(kept, kept_sorted) << "tol " << tol << " odd " << odd;
+      EXPECT_GT(kept, 0);
+      EXPECT_LT(kept, cv::countNonZero(grid == grid));
+      EXPECT_EQ(cv::countNonZero((counted != sorted) & (counted == counted)), 0);
+      EXPECT_EQ(cv::countNonZero(counted == counted), cv::countNonZero(sorted == sorted));
+    }
+  }
 }
 
 // A real Curiosity Navcam pair (../shared/data/real/mars_navcam, sol 1431;
