@@ -781,7 +781,9 @@ std::vector<int> LatticeStrides(int k) {
   return strides;
 }
 
-bool OnLattice(int gx, int gy, int k) { return gx % k == 0 && gy % k == 0; }
+// a mod k for a >= 0, k >= 1 (a mask for the usual powers of two: an
+// integer division per grid point and level was a few percent of LSM).
+inline int Mod(int a, int k) { return (k & (k - 1)) == 0 ? a & (k - 1) : a % k; }
 
 // The levels' results so far: disparity and sigma (NaN = rejected), the
 // disparity plane's gradients, and whether the point was refined (by LSM
@@ -801,7 +803,7 @@ struct LatticeResults {
 // disparity.
 bool FromLattice(const DenseStereoOptions& o, int k, int gx, int gy, float zncc, LatticeResults* lattice) {
   LatticeResults& lat = *lattice;
-  const int x0 = gx - gx % k, y0 = gy - gy % k;
+  const int x0 = gx - Mod(gx, k), y0 = gy - Mod(gy, k);
   double lo = std::numeric_limits<double>::infinity(), hi = -lo, sum = 0, weights = 0, sdx = 0, sdy = 0;
   float worst = 0;
   int used = 0, failed = 0;
@@ -836,7 +838,7 @@ bool FromLattice(const DenseStereoOptions& o, int k, int gx, int gy, float zncc,
 // Whether every corner inside the grid of point (gx, gy)'s cell of side k
 // failed: rejected by LSM or without a ZNCC match.
 bool CellFailed(int k, int gx, int gy, const LatticeResults& lat) {
-  const int x0 = gx - gx % k, y0 = gy - gy % k;
+  const int x0 = gx - Mod(gx, k), y0 = gy - Mod(gy, k);
   for (const int cy : {y0, y0 + k})
     for (const int cx : {x0, x0 + k})
       if (cx < lat.d.cols && cy < lat.d.rows && lat.done.at<uchar>(cy, cx) && std::isfinite(lat.d.at<float>(cy, cx)))
@@ -873,11 +875,13 @@ LsmPassCounts RefineDisparities(const LsmImages& images, const DenseStereoOption
         tasks.clear();
         cells.clear();
         for (int gy = b * block; gy < std::min(disp->rows, (b + 1) * block); ++gy) {
+          if (Mod(gy, stride) != 0) continue;  // only this level's lattice points, in grid order
+          const bool coarser_row = level > 0 && Mod(gy, coarser) == 0;
           const float* row = zncc.ptr<float>(gy);
-          for (int gx = 0; gx < disp->cols; ++gx) {
-            if (!std::isfinite(row[gx]) || !OnLattice(gx, gy, stride)) continue;
+          for (int gx = 0; gx < disp->cols; gx += stride) {
+            if (!std::isfinite(row[gx])) continue;
             if (level > 0) {
-              if (OnLattice(gx, gy, coarser)) continue;
+              if (coarser_row && Mod(gx, coarser) == 0) continue;  // refined on a coarser level
               if (FromLattice(o, coarser, gx, gy, row[gx], &lat)) {
                 ++matched, ++from_lattice;
                 continue;
