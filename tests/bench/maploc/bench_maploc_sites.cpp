@@ -5,7 +5,7 @@
 // by sigma_xy / sigma_heading. Prints each site's error and the summary:
 // median horizontal error, heading error, mean NEES (x, y: dimension 2;
 // x, y, heading: 3). Used to calibrate RegistrationOptions::covariance_scale.
-//   bench_maploc_sites [--sites 12] [--seed 7] [--res 0.2] [--sigma-xy 1.0] [--sigma-heading-deg 2] [--scale K] [--heading-scale K] [--height-weight W] [--max-peak-ratio R] [--max-range M] [--heading-fit N] [--downsample 1] [--sigma-multiple S] [--lsm-lattice K] [--lsm-convergence PX] [--lsm-max-iterations N] [--dump DIR]
+//   bench_maploc_sites [--sites 12] [--seed 7] [--res 0.2] [--sigma-xy 1.0] [--sigma-heading-deg 2] [--scale K] [--heading-scale K] [--height-weight W] [--max-peak-ratio R] [--max-range M] [--heading-fit N] [--downsample 1] [--sigma-multiple S] [--lsm-lattice K] [--lsm-convergence PX] [--lsm-max-iterations N] [--lsm-max-failed-corners N] [--lsm-drop-failed-cells 0|1] [--dump DIR]
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -105,6 +105,9 @@ int main(int argc, char** argv) {
   st.lsm_lattice = static_cast<int>(Arg(argc, argv, "--lsm-lattice", st.lsm_lattice));
   st.lsm_convergence_px = Arg(argc, argv, "--lsm-convergence", st.lsm_convergence_px);
   st.lsm_max_iterations = static_cast<int>(Arg(argc, argv, "--lsm-max-iterations", st.lsm_max_iterations));
+  st.lsm_lattice_max_failed_corners =
+      static_cast<int>(Arg(argc, argv, "--lsm-max-failed-corners", st.lsm_lattice_max_failed_corners));
+  st.lsm_lattice_drop_failed_cells = Arg(argc, argv, "--lsm-drop-failed-cells", st.lsm_lattice_drop_failed_cells) != 0;
   std::mt19937 rng(s.seed);
   std::vector<double> errors, heading_errors, nees2, nees3, z_errors, z_nees;
   int fixes = 0;
