@@ -633,12 +633,13 @@ __attribute__((target("avx2"))) void KeepRowByMedianAvx2(const cv::Mat& in, int 
 bool ThresholdsAreExact(const cv::Mat& in, double tol) {
   const double scaled = std::ldexp(tol, 10);
   if (!(tol >= 0 && tol <= 256 && scaled == std::floor(scaled))) return false;
+  const float tiny = std::ldexp(1.f, -20);
   for (int y = 0; y < in.rows; ++y) {
     const float* row = in.ptr<float>(y);
     for (int x = 0; x < in.cols; ++x) {
       const float a = std::abs(row[x]);
       if (std::isnan(a) || a == 0.f) continue;
-      if (!(a >= std::ldexp(1.f, -20) && a <= 4096.f)) return false;
+      if (!(a >= tiny && a <= 4096.f)) return false;
     }
   }
   return true;
