@@ -646,8 +646,8 @@ bool ThresholdsAreExact(const cv::Mat& in, double tol) {
 }
 
 // KeepRowByMedianAvx2 when ThresholdsAreExact: each cell's neighbours
-// compared in float with the smallest float above d - tol and the largest
-// below d + tol. `padded`: the grid with median_radius NaN columns on
+// compared in float with the smallest float not below d - tol and the
+// largest not above d + tol. `padded`: the grid with median_radius NaN columns on
 // either side.
 __attribute__((target("avx2"))) void KeepRowByThresholdsAvx2(const cv::Mat& padded, int y, const DenseStereoOptions& o,
                                                              double tol, unsigned char* keep) {
@@ -797,7 +797,8 @@ struct LatticeResults {
 // then refined) from the planes of the refined points at the corners of its
 // cell of side `k` (tent weights: the nearer a corner, the more it counts):
 // false when more than lsm_lattice_max_failed_corners corners inside the
-// grid have no ZNCC match or were rejected by LSM (the others count), when
+// grid failed (no ZNCC match, rejected by LSM or dropped with their failed
+// cell; the others count), when
 // fewer than lsm_lattice_min_corners were accepted (the grid's
 // last row and column lack some), or when their predictions spread wider
 // than lsm_lattice_agree_px or leave lsm_max_shift_px of the point's ZNCC

@@ -100,7 +100,8 @@ int main(int argc, char** argv) {
   ortho_options.m_per_px = s.map_m_per_px;
   ortho_options.max_range_m = max_range;
   ortho_options.downsample = static_cast<int>(Arg(argc, argv, "--downsample", 1));  // 512 px rendered = the real 1024 px / 2
-  // The dense stereo's LSM lattice and stopping rule (config/procs/map_localizer.yaml sets 2, 0.004 px, 8).
+  // The dense stereo's LSM lattice and stopping rule (config/procs/map_localizer.yaml sets 2, 0.004 px, 8,
+  // max_failed_corners 1, drop_failed_cells true; without the flags the options' defaults: every point).
   DenseStereoOptions& st = ortho_options.stereo;
   st.lsm_lattice = static_cast<int>(Arg(argc, argv, "--lsm-lattice", st.lsm_lattice));
   st.lsm_convergence_px = Arg(argc, argv, "--lsm-convergence", st.lsm_convergence_px);

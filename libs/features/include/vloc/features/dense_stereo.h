@@ -81,7 +81,7 @@ struct DenseStereoOptions {
   int lsm_lattice = 1;
   int lsm_lattice_min_corners = 3;    // accepted corners a point from the planes needs (of 4)
   double lsm_lattice_agree_px = 0.2;  // px, largest spread of the corners' predictions
-  int lsm_lattice_max_failed_corners = 0;  // corners rejected by LSM or without a ZNCC match a point tolerates
+  int lsm_lattice_max_failed_corners = 0;  // failed corners (no ZNCC match, rejected, dropped) a point tolerates
   // A point whose coarser cell has every corner failed (rejected by LSM or
   // without a ZNCC match) is dropped without LSM (true) instead of running
   // it: about 1 in 10 of them is accepted then, each after the most
