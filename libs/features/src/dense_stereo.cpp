@@ -345,6 +345,28 @@ __attribute__((target("avx2"))) float SecondPeakAvx2(const float* c, int nd, int
   return second;
 }
 
+// The best of c[0, nd) at least 3 disparities from bi (-2 = none), 8 at a
+// time (AVX2); NaN scores never enter it. It bounds SecondPeak (a maximum
+// over fewer of the same values).
+__attribute__((target("avx2"))) float FarBestAvx2(const float* c, int nd, int bi) {
+  __m256 vbest = _mm256_set1_ps(-2.f);
+  const __m256i lo = _mm256_set1_epi32(bi - 2), hi = _mm256_set1_epi32(bi + 2), eight = _mm256_set1_epi32(8);
+  __m256i idx = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  int d = 0;
+  for (; d + 8 <= nd; d += 8, idx = _mm256_add_epi32(idx, eight)) {
+    const __m256 far = _mm256_castsi256_ps(_mm256_or_si256(_mm256_cmpgt_epi32(lo, idx), _mm256_cmpgt_epi32(idx, hi)));
+    // max(x, best) keeps best where x is NaN.
+    vbest = _mm256_max_ps(_mm256_blendv_ps(_mm256_set1_ps(-2.f), _mm256_loadu_ps(c + d), far), vbest);
+  }
+  alignas(32) float lanes[8];
+  _mm256_store_ps(lanes, vbest);
+  float best = -2.f;
+  for (float v : lanes) best = std::max(best, v);
+  for (; d < nd; ++d)
+    if (std::abs(d - bi) >= 3 && c[d] > best) best = c[d];
+  return best;
+}
+
 // A grid pixel's ZNCC peak before the left-right check.
 struct ZnccPeak {
   int gx, bi;     // grid column, best disparity index
@@ -359,8 +381,14 @@ bool PeakOfColumn(const float* c, const ColumnBest& b, int x, int nd, int dlo, i
   const int bi = b.index;
   const float best = b.score;
   if (bi < 0 || best < o.min_score) return false;  // compared in double
-  const float second = HasAvx2() ? SecondPeakAvx2(c, nd, bi) : SecondPeak(c, nd, bi);
-  if (best - second < o.min_peak_margin) return false;
+  // With AVX2 the local maxima are looked for only when the best score
+  // away from the peak is within the margin (best - second >= best - far).
+  if (HasAvx2()) {
+    if (!(best - FarBestAvx2(c, nd, bi) >= o.min_peak_margin) && best - SecondPeakAvx2(c, nd, bi) < o.min_peak_margin)
+      return false;
+  } else if (best - SecondPeak(c, nd, bi) < o.min_peak_margin) {
+    return false;
+  }
   // Near the left edge the search stops at the largest disparity whose
   // window fits the right image; a best score at that limit may still be
   // rising, so it is no peak.
