@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <opencv2/core/hal/intrin.hpp>
 #if defined(__x86_64__) && defined(__GNUC__)
@@ -756,6 +757,47 @@ long MedianTest(const DenseStereoOptions& o, double abs_tolerance, double rel_to
   return kept;
 }
 
+// The median (the (n / 2)-th smallest) of the finite values of a CV_32F
+// grid into *median, unchanged when there are none. Non-negative floats
+// order as their bits: a histogram of the top 16 bits finds the median's
+// bin, and only that bin's values are partly sorted (a negative value:
+// all of them are).
+void MedianOfFinite(const cv::Mat& grid, double* median) {
+  std::vector<uint32_t> bins(1 << 16, 0);
+  size_t n = 0;
+  bool negative = false;
+  auto bits = [](float v) {
+    uint32_t b;
+    std::memcpy(&b, &v, sizeof b);
+    return b;
+  };
+  for (int y = 0; y < grid.rows; ++y) {
+    const float* row = grid.ptr<float>(y);
+    for (int x = 0; x < grid.cols; ++x) {
+      if (!std::isfinite(row[x])) continue;
+      const uint32_t b = bits(row[x]);
+      negative |= (b >> 31) != 0;
+      ++bins[b >> 16];
+      ++n;
+    }
+  }
+  if (n == 0) return;
+  const size_t k = n / 2;
+  size_t below = 0;
+  uint32_t bin = 0;
+  while (!negative && below + bins[bin] <= k) below += bins[bin++];
+  std::vector<float> values;
+  values.reserve(negative ? n : bins[bin]);
+  for (int y = 0; y < grid.rows; ++y) {
+    const float* row = grid.ptr<float>(y);
+    for (int x = 0; x < grid.cols; ++x)
+      if (std::isfinite(row[x]) && (negative || bits(row[x]) >> 16 == bin)) values.push_back(row[x]);
+  }
+  const size_t at = negative ? k : k - below;
+  std::nth_element(values.begin(), values.begin() + at, values.end());
+  *median = values[at];
+}
+
 }  // namespace internal
 
 namespace {
@@ -983,14 +1025,7 @@ cv::Mat DenseStereo(const cv::Mat& left, const cv::Mat& right, const DenseStereo
     const long refined = matched - counts.from_lattice;
     s.lsm_mean_iterations = refined ? static_cast<double>(iterations) / refined : 0.0;
     if (o.lsm_median_tolerance > 0) s.lsm_matches = internal::MedianTest(o, o.lsm_median_tolerance, 0.0, &disp);
-    std::vector<float> sig;
-    for (int y = 0; y < sigma.rows; ++y)
-      for (int x = 0; x < sigma.cols; ++x)
-        if (std::isfinite(sigma.at<float>(y, x))) sig.push_back(sigma.at<float>(y, x));
-    if (!sig.empty()) {
-      std::nth_element(sig.begin(), sig.begin() + sig.size() / 2, sig.end());
-      s.median_sigma_px = sig[sig.size() / 2];
-    }
+    internal::MedianOfFinite(sigma, &s.median_sigma_px);
   } else {
     s.lsm_matches = s.after_median;
   }

@@ -490,6 +490,43 @@ TEST(DenseStereo, MedianTestThresholdsBetweenTwoFloats) {
   }
 }
 
+// The sigma median by its bits' histogram is nth_element's: non-negative
+// grids with holes, repeated values, one bin only, a single value; with a
+// negative value (the sort over all of them); none (unchanged).
+TEST(DenseStereo, MedianOfFiniteIsNthElements) {
+  cv::RNG rng(3);
+  auto reference = [](const cv::Mat& g) {
+    std::vector<float> v;
+    for (int y = 0; y < g.rows; ++y)
+      for (int x = 0; x < g.cols; ++x)
+        if (std::isfinite(g.at<float>(y, x))) v.push_back(g.at<float>(y, x));
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return static_cast<double>(v[v.size() / 2]);
+  };
+  for (int trial = 0; trial < 6; ++trial) {
+    cv::Mat g(37, 53, CV_32F);
+    for (int y = 0; y < g.rows; ++y)
+      for (int x = 0; x < g.cols; ++x) {
+        const double u = rng.uniform(0.0, 1.0);
+        float v = trial < 2 ? static_cast<float>(rng.uniform(0.0, 0.2))          // many bins
+                : trial < 4 ? 0.05f + static_cast<float>(rng.uniform(0, 8)) * 1e-9f  // one bin, repeats
+                            : static_cast<float>(rng.uniform(-0.1, 0.1));     // negatives
+        if (u < 0.2) v = std::numeric_limits<float>::quiet_NaN();
+        g.at<float>(y, x) = v;
+      }
+    double m = -1;
+    internal::MedianOfFinite(g, &m);
+    EXPECT_EQ(m, reference(g)) << "trial " << trial;
+  }
+  cv::Mat one(4, 4, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+  double m = -1;
+  internal::MedianOfFinite(one, &m);
+  EXPECT_EQ(m, -1);
+  one.at<float>(2, 3) = 0.125f;
+  internal::MedianOfFinite(one, &m);
+  EXPECT_EQ(m, 0.125);
+}
+
 // A real Curiosity Navcam pair (../shared/data/real/mars_navcam, sol 1431;
 // rectified from its own SIFT matches, real_pairs.h), beside SGBM, with
 // the JPEG settings. No dense truth: the SIFT matches on the epipolar lines
