@@ -59,7 +59,8 @@ void DenseStereoOptions::Visit(OptionsReader& r) {
   r.Optional("lsm_lattice_agree_px", &lsm_lattice_agree_px, "px, spread of the corners' predictions allowed",
              NonNegative());
   r.Optional("lsm_lattice_max_failed_corners", &lsm_lattice_max_failed_corners,
-             "failed lattice corners (rejected, no ZNCC match) a point from the planes tolerates", InRange(0, 3));
+             "failed lattice corners (no ZNCC match, rejected, dropped) a point from the planes tolerates",
+             InRange(0, 3));
   r.Optional("lsm_lattice_drop_failed_cells", &lsm_lattice_drop_failed_cells,
              "drop a point whose coarser cell's corners all failed, without LSM");
   r.Optional("num_threads", &num_threads, "OpenMP threads", AtLeast(1));
@@ -676,8 +677,8 @@ bool ThresholdsAreExact(const cv::Mat& in, double tol) {
 
 // KeepRowByMedianAvx2 when ThresholdsAreExact: each cell's neighbours
 // compared in float with the smallest float not below d - tol and the
-// largest not above d + tol. `padded`: the grid with median_radius NaN columns on
-// either side.
+// largest not above d + tol. `padded`: the grid with median_radius NaN
+// columns on either side.
 __attribute__((target("avx2"))) void KeepRowByThresholdsAvx2(const cv::Mat& padded, int y, const DenseStereoOptions& o,
                                                              double tol, unsigned char* keep) {
   const int r = o.median_radius, s = o.median_stride, cols = padded.cols - 2 * r;
@@ -861,6 +862,8 @@ inline int Mod(int a, int k) { return (k & (k - 1)) == 0 ? a & (k - 1) : a % k; 
 // or from its corners).
 struct LatticeResults {
   cv::Mat d, sigma, ddx, ddy, done;  // grid-sized; done: CV_8U
+  // Refined and kept: not failed (no ZNCC match, rejected by LSM, dropped).
+  bool Accepted(int x, int y) const { return done.at<uchar>(y, x) && std::isfinite(d.at<float>(y, x)); }
 };
 
 // A point's disparity, sigma and plane (written into `lattice`, the point
@@ -883,11 +886,11 @@ bool FromLattice(const DenseStereoOptions& o, int k, int gx, int gy, float zncc,
     for (const int cx : {x0, x0 + k}) {
       if (cx >= lat.d.cols || cy >= lat.d.rows) continue;  // past the grid's last row or column
       // No ZNCC match there (an occlusion, no texture) or rejected by LSM (an edge).
-      const float dc = lat.d.at<float>(cy, cx);
-      if (!lat.done.at<uchar>(cy, cx) || !std::isfinite(dc)) {
+      if (!lat.Accepted(cx, cy)) {
         if (++failed > o.lsm_lattice_max_failed_corners) return false;
         continue;
       }
+      const float dc = lat.d.at<float>(cy, cx);
       const double ddx = lat.ddx.at<float>(cy, cx), ddy = lat.ddy.at<float>(cy, cx);
       const double p = dc + (ddx * (gx - cx) + ddy * (gy - cy)) * o.step;
       const double w = (k - std::abs(gx - cx) + 0.5) * (k - std::abs(gy - cy) + 0.5);  // tent, never 0
@@ -913,8 +916,7 @@ bool CellFailed(int k, int gx, int gy, const LatticeResults& lat) {
   const int x0 = gx - Mod(gx, k), y0 = gy - Mod(gy, k);
   for (const int cy : {y0, y0 + k})
     for (const int cx : {x0, x0 + k})
-      if (cx < lat.d.cols && cy < lat.d.rows && lat.done.at<uchar>(cy, cx) && std::isfinite(lat.d.at<float>(cy, cx)))
-        return false;
+      if (cx < lat.d.cols && cy < lat.d.rows && lat.Accepted(cx, cy)) return false;
   return true;
 }
 
