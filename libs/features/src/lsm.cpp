@@ -1,9 +1,11 @@
 #include "vloc/features/lsm.h"
 
+#include <algorithm>
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <cmath>
+#include <cstring>
 #include <vector>
 
 #include "cubic_kernels.h"
@@ -178,20 +180,65 @@ struct NormalLanes {
   Lanes4 lo[4] = {}, hi[kParams] = {}, b_lo = {}, b_hi = {};
 };
 
+// Four floats (one tap a lane) and a 4 x 4 transpose of them.
+typedef float Floats4 __attribute__((vector_size(16)));
+typedef int Ints4 __attribute__((vector_size(16)));
+__attribute__((always_inline)) inline void Transpose4(Floats4 q[4]) {
+  const Floats4 t0 = __builtin_shuffle(q[0], q[1], Ints4{0, 4, 1, 5}), t1 = __builtin_shuffle(q[0], q[1], Ints4{2, 6, 3, 7});
+  const Floats4 t2 = __builtin_shuffle(q[2], q[3], Ints4{0, 4, 1, 5}), t3 = __builtin_shuffle(q[2], q[3], Ints4{2, 6, 3, 7});
+  q[0] = __builtin_shuffle(t0, t2, Ints4{0, 1, 4, 5}), q[1] = __builtin_shuffle(t0, t2, Ints4{2, 3, 6, 7});
+  q[2] = __builtin_shuffle(t1, t3, Ints4{0, 1, 4, 5}), q[3] = __builtin_shuffle(t1, t3, Ints4{2, 3, 6, 7});
+}
+
+// SampleCubic at the window taps i0 .. i0 + 3 (row-major index i = (r + hy) (2 h + 1) + c + h; past the last
+// tap the last one again), one tap a lane: each lane the scalar code's float operations in its order.
+__attribute__((always_inline)) inline void SampleCubic4(const cv::Mat& img, const WindowParams& p, int h, int hy,
+                                                        int i0, bool bspline, double g[4], double gx[4],
+                                                        double gy[4]) {
+  const int wc = 2 * h + 1, n = wc * (2 * hy + 1);
+  const size_t step = img.step1();
+  alignas(16) float tx[4], ty[4];
+  const float* base[4];
+  for (int k = 0; k < 4; ++k) {
+    const int i = std::min(i0 + k, n - 1), r = i / wc - hy, c = i % wc - h;
+    const double x = p.t.x() + p.A(0, 0) * c + p.A(0, 1) * r;
+    const double y = p.t.y() + p.A(1, 0) * c + p.A(1, 1) * r;
+    const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+    tx[k] = static_cast<float>(x - x0), ty[k] = static_cast<float>(y - y0);
+    base[k] = img.ptr<float>(y0 - 1) + (x0 - 1);
+  }
+  Floats4 wx[4], dwx[4], wy[4], dwy[4], t;
+  std::memcpy(&t, tx, sizeof t);
+  if (bspline) BSplineWeights(t, wx, dwx); else CubicWeights(t, wx, dwx);
+  std::memcpy(&t, ty, sizeof t);
+  if (bspline) BSplineWeights(t, wy, dwy); else CubicWeights(t, wy, dwy);
+  Floats4 v = {}, vx = {}, vy = {};
+  for (int i = 0; i < 4; ++i) {
+    Floats4 q[4];  // row i of each tap's 4 x 4 neighbourhood, then its columns
+    for (int k = 0; k < 4; ++k) std::memcpy(&q[k], base[k] + i * step, sizeof q[k]);
+    Transpose4(q);
+    const Floats4 rv = wx[0] * q[0] + wx[1] * q[1] + wx[2] * q[2] + wx[3] * q[3];
+    const Floats4 rdx = dwx[0] * q[0] + dwx[1] * q[1] + dwx[2] * q[2] + dwx[3] * q[3];
+    v += wy[i] * rv;
+    vx += wy[i] * rdx;
+    vy += dwy[i] * rv;
+  }
+  for (int k = 0; k < 4; ++k) g[k] = v[k], gx[k] = vx[k], gy[k] = vy[k];
+}
+
 // The normal equations at `p`: N's lower triangle, b, the sum of squared residuals and the resampled window.
+// The window is resampled 4 taps at a time (SampleCubic4), the sums taken tap by tap.
 __attribute__((target_clones("avx2", "default"))) void Linearise(const cv::Mat& target_img, const Template& tpl,
                                                                const WindowParams& p, int h, int hy,
                                                                const LsmOptions& o, NormalEquations* eq) {
   NormalLanes acc;
   double ssr = 0;
+  double gs[4], gxs[4], gys[4];
   for (int r = -hy, i = 0; r <= hy; ++r) {
     for (int c = -h; c <= h; ++c, ++i) {
-      const double x = p.t.x() + p.A(0, 0) * c + p.A(0, 1) * r;
-      const double y = p.t.y() + p.A(1, 0) * c + p.A(1, 1) * r;
-      double g, gx, gy;
-      SampleCubic(target_img, x, y, &g, &gx, &gy, o.bspline);
-      gx *= p.r1;
-      gy *= p.r1;
+      if (i % 4 == 0) SampleCubic4(target_img, p, h, hy, i, o.bspline, gs, gxs, gys);
+      const double g = gs[i % 4];
+      const double gx = gxs[i % 4] * p.r1, gy = gys[i % 4] * p.r1;
       eq->G[i] = static_cast<float>(g);
       const double resid = tpl.T[i] - (p.r0 + p.r1 * g);
       ssr += resid * resid;

@@ -15,42 +15,78 @@ constexpr int kBlock = 32;  // result columns summed together: four AVX2 registe
 typedef float Lanes __attribute__((vector_size(32)));
 typedef float UnalignedLanes __attribute__((vector_size(32), aligned(4), may_alias));
 
-// The centred template's dot product with the window at each of kBlock consecutive positions of one result
-// row: out[l] = sum over (r, c) of templ[r][c] * image[r][c + l]. image: the padded window from the row and
-// column of the first position, `step` floats a row.
-__attribute__((target_clones("avx2", "default"))) void DotBlock(const float* image, size_t step, const float* templ,
-                                                                int tw, int th, float* out) {
-  Lanes a0 = {}, a1 = {}, a2 = {}, a3 = {};
+// The centred template's dot product with the window at each of 8 kRegs consecutive positions of kRows
+// consecutive result rows: out[y][l] = sum over (r, c) of templ[r][c] * image[y + r][c + l] (out: `out_step`
+// floats a row). image: the padded window from the row and column of the first position, `step` floats a
+// row. Each position's sum runs in the same order whatever kRegs and kRows (two rows: twice the independent
+// sums, which the adds' latency bounds).
+template <int kRegs, int kRows>
+__attribute__((always_inline)) inline void DotBlockBody(const float* image, size_t step, const float* templ, int tw,
+                                                        int th, float* out, size_t out_step) {
+  Lanes a[kRows][kRegs] = {};
   for (int r = 0; r < th; ++r) {
-    const float* row = image + r * step;
     const float* t = templ + r * tw;
     for (int c = 0; c < tw; ++c) {
       const float w = t[c];
-      const float* p = row + c;
-      a0 += w * *reinterpret_cast<const UnalignedLanes*>(p);
-      a1 += w * *reinterpret_cast<const UnalignedLanes*>(p + 8);
-      a2 += w * *reinterpret_cast<const UnalignedLanes*>(p + 16);
-      a3 += w * *reinterpret_cast<const UnalignedLanes*>(p + 24);
+      for (int y = 0; y < kRows; ++y) {
+        const float* p = image + (r + y) * step + c;
+        for (int k = 0; k < kRegs; ++k) a[y][k] += w * *reinterpret_cast<const UnalignedLanes*>(p + 8 * k);
+      }
     }
   }
-  std::memcpy(out, &a0, sizeof a0);
-  std::memcpy(out + 8, &a1, sizeof a1);
-  std::memcpy(out + 16, &a2, sizeof a2);
-  std::memcpy(out + 24, &a3, sizeof a3);
+  for (int y = 0; y < kRows; ++y) std::memcpy(out + y * out_step, a[y], sizeof a[y]);
+}
+#define VLOC_DOT_BLOCK(N, ROWS)                                                                                \
+  __attribute__((target_clones("avx2", "default"))) void DotBlock##N##x##ROWS(                                 \
+      const float* image, size_t step, const float* templ, int tw, int th, float* out, size_t out_step) {   \
+    DotBlockBody<N, ROWS>(image, step, templ, tw, th, out, out_step);                                          \
+  }
+VLOC_DOT_BLOCK(1, 1)
+VLOC_DOT_BLOCK(2, 1)
+VLOC_DOT_BLOCK(3, 1)
+VLOC_DOT_BLOCK(4, 1)
+VLOC_DOT_BLOCK(1, 2)
+VLOC_DOT_BLOCK(2, 2)
+VLOC_DOT_BLOCK(3, 2)
+VLOC_DOT_BLOCK(4, 2)
+#undef VLOC_DOT_BLOCK
+
+// DotBlockBody for the positions [0, width) of a block (width <= kBlock) on `rows` (1 or 2) result rows:
+// whole registers only (a 7-wide search sums 8 positions, not 32).
+void DotBlock(const float* image, size_t step, const float* templ, int tw, int th, int width, int rows, float* out,
+              size_t out_step) {
+  const int regs = (std::min(width, kBlock) + 7) / 8;
+  if (rows == 2) {
+    switch (regs) {
+      case 1: return DotBlock1x2(image, step, templ, tw, th, out, out_step);
+      case 2: return DotBlock2x2(image, step, templ, tw, th, out, out_step);
+      case 3: return DotBlock3x2(image, step, templ, tw, th, out, out_step);
+      default: return DotBlock4x2(image, step, templ, tw, th, out, out_step);
+    }
+  }
+  switch (regs) {
+    case 1: return DotBlock1x1(image, step, templ, tw, th, out, out_step);
+    case 2: return DotBlock2x1(image, step, templ, tw, th, out, out_step);
+    case 3: return DotBlock3x1(image, step, templ, tw, th, out, out_step);
+    default: return DotBlock4x1(image, step, templ, tw, th, out, out_step);
+  }
 }
 
 // One result row normalised as OpenCV's common_matchTemplate does: the window's norm from its sums (s0, s1: the
 // integral's rows above and below it; q0, q1: the squares') times the template's; |score| within 1.125 of 1
-// clamped, beyond it 0 (a flat window). (sqrt of a value >= 0 needs no errno: the loop vectorises.)
-__attribute__((target_clones("avx2", "default"), optimize("no-math-errno"))) void NormaliseRow(
+// clamped, beyond it 0 (a flat window). (This file is built without math errno: the loop vectorises.)
+__attribute__((target_clones("avx2", "default"))) void NormaliseRow(
     const float* dots, const double* s0, const double* s1, const double* q0, const double* q1, int tw, int cols,
     double inv_n, double templ_norm, float* out) {
+  // Selections, not branches: the loop runs 4 positions a register (the file is built without trapping math).
   for (int x = 0; x < cols; ++x) {
     const double wsum = s1[x + tw] - s1[x] - s0[x + tw] + s0[x];
     const double wsq = q1[x + tw] - q1[x] - q0[x + tw] + q0[x];
     const double norm = std::sqrt(std::max(wsq - wsum * wsum * inv_n, 0.0)) * templ_norm;
     const double v = dots[x], a = std::abs(v), q = v / norm;
-    out[x] = static_cast<float>(a < norm ? q : a < norm * 1.125 ? (v > 0 ? 1.0 : -1.0) : 0.0);
+    // (v = 0 never reaches the sign: its a = 0 is below a norm > 0, and at norm 0 not below 1.125 norm.)
+    const double clamped = a < norm * 1.125 ? std::copysign(1.0, v) : 0.0;
+    out[x] = static_cast<float>(a < norm ? q : clamped);
   }
 }
 
@@ -89,12 +125,16 @@ void MatchTemplateNcc(const cv::Mat& image, const cv::Mat& templ, cv::Mat* resul
   cv::Mat sum, sqsum;
   cv::integral(image, sum, sqsum, CV_64F, CV_64F);
   const size_t step = padded.step1();
-  std::vector<float> dots(((cols + kBlock - 1) / kBlock) * kBlock);
-  for (int y = 0; y < rows; ++y) {
+  const size_t dots_step = ((cols + kBlock - 1) / kBlock) * kBlock;
+  std::vector<float> dots(2 * dots_step);
+  for (int y = 0; y < rows; y += 2) {
+    const int pair = std::min(2, rows - y);  // result rows y (and y + 1)
     for (int x0 = 0; x0 < cols; x0 += kBlock)
-      DotBlock(padded.ptr<float>(y) + x0, step, centred.data(), tw, th, dots.data() + x0);
-    NormaliseRow(dots.data(), sum.ptr<double>(y), sum.ptr<double>(y + th), sqsum.ptr<double>(y),
-                 sqsum.ptr<double>(y + th), tw, cols, 1.0 / n, templ_norm, result->ptr<float>(y));
+      DotBlock(padded.ptr<float>(y) + x0, step, centred.data(), tw, th, cols - x0, pair, dots.data() + x0, dots_step);
+    for (int k = 0; k < pair; ++k)
+      NormaliseRow(dots.data() + k * dots_step, sum.ptr<double>(y + k), sum.ptr<double>(y + k + th),
+                   sqsum.ptr<double>(y + k), sqsum.ptr<double>(y + k + th), tw, cols, 1.0 / n, templ_norm,
+                   result->ptr<float>(y + k));
   }
 }
 

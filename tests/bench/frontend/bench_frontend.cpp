@@ -5,7 +5,8 @@
 // brute-force matching, measured on one image pair and added up to the site
 // pair (14 images, 21 overlapping image pairs).
 // BM_SiftStages: what OpenCV's SIFT spends on one zoomed region, per stage. BM_TemplateNcc: the correlation
-// searches of the tile registration and the grid LSM, vloc's and OpenCV's.
+// searches of the tile registration and the grid LSM, vloc's and OpenCV's. BM_WindowLsm: the grid LSM's
+// window, vloc's LSM and OpenCV's ECC alignment.
 //   VLOC_SIM_CACHE=/tmp/vloc-sim-cache build/bench/bench_frontend --benchmark_repetitions=5
 //     (add --benchmark_report_aggregates_only=true for medians only)
 // (run from the source root; the cache folder keeps the rendered images between runs)
@@ -21,9 +22,11 @@
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
 
 #include "../../unit/crosssite/sim_site_pair.h"
 #include "vloc/common/allocator.h"
+#include "vloc/features/lsm.h"
 #include "vloc/features/template_ncc.h"
 
 namespace {
@@ -144,8 +147,50 @@ void BM_TemplateNcc(benchmark::State& state, bool opencv, cv::Size templ, int ra
 }
 BENCHMARK_CAPTURE(BM_TemplateNcc, tile_vloc, false, cv::Size(48, 4), 25)->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(BM_TemplateNcc, tile_opencv, true, cv::Size(48, 4), 25)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_TemplateNcc, tile_pass2_vloc, false, cv::Size(48, 4), 3)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_TemplateNcc, tile_pass2_opencv, true, cv::Size(48, 4), 3)->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(BM_TemplateNcc, grid_start_vloc, false, cv::Size(53, 11), 4)->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(BM_TemplateNcc, grid_start_opencv, true, cv::Size(53, 11), 4)->Unit(benchmark::kMicrosecond);
+
+// The grid LSM's window (53 x 11 px, affine, B-spline resampling) fitted from 0.6 px off on pair 1's left image
+// and its copy sheared by 3 % and moved by (2.3, 1.7) px, by vloc::LeastSquaresMatch and by OpenCV's affine
+// alignment of the same window (cv::findTransformECC, MOTION_AFFINE, 50 iterations or 1e-4): time per window.
+void BM_WindowLsm(benchmark::State& state, bool opencv) {
+  cv::Mat image;
+  Scene().previous.pairs[1].left(cv::Rect(300, 500, 400, 200)).convertTo(image, CV_32F);
+  const cv::Matx23d A(1.03, 0.03, 2.3, -0.02, 0.99, 1.7);
+  cv::Mat warped;
+  cv::warpAffine(image, warped, A, image.size(), cv::INTER_CUBIC);
+  const vloc::LsmImage a = vloc::MakeLsmImage(image, true), b = vloc::MakeLsmImage(warped, true);
+  vloc::LsmOptions o;
+  o.half_window = 26, o.half_height = 5, o.estimate_affine = true, o.bspline = true;
+  const Eigen::Vector2d p(200, 100);
+  const Eigen::Vector2d q(A(0, 0) * p.x() + A(0, 1) * p.y() + A(0, 2) + 0.6, A(1, 0) * p.x() + A(1, 1) * p.y() + A(1, 2) - 0.4);
+  const cv::Rect templ(static_cast<int>(p.x()) - o.half_window, static_cast<int>(p.y()) - o.half_height,
+                       2 * o.half_window + 1, 2 * o.half_height + 1);
+  cv::setNumThreads(1);
+  int iterations = 0;
+  double correlation = 0;
+  for (auto _ : state) {
+    if (opencv) {
+      // The warp maps template px to `warped` px, started as vloc is (identity shape at the start point).
+      cv::Mat_<float> warp = (cv::Mat_<float>(2, 3) << 1, 0, q.x() - p.x(), 0, 1, q.y() - p.y());
+      warp(0, 2) += templ.x, warp(1, 2) += templ.y;
+      correlation = cv::findTransformECC(image(templ), warped, warp, cv::MOTION_AFFINE,
+                                         cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 50, 1e-4),
+                                         cv::noArray(), 1);
+      benchmark::DoNotOptimize(warp.data);
+    } else {
+      const vloc::LsmResult r = vloc::LeastSquaresMatch(a, p, b, q, Eigen::Matrix2d::Identity(), o);
+      iterations = r.iterations, correlation = r.correlation;
+      benchmark::DoNotOptimize(r.target);
+    }
+  }
+  state.counters["correlation"] = correlation;
+  if (!opencv) state.counters["iterations"] = iterations;
+}
+BENCHMARK_CAPTURE(BM_WindowLsm, vloc, false)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_WindowLsm, opencv_ecc, true)->Unit(benchmark::kMicrosecond);
 
 // The plain approach on one previous and one current image (the full pair
 // has 14 images and 21 overlapping image pairs: at this machine's speed it
