@@ -95,61 +95,15 @@ namespace {
 using internal::BSplineWeights;
 using internal::CubicWeights;
 
-// Bicubic value and gradient at (x, y); the caller keeps (x, y) at least 2 px
-// inside the image. bspline: `img` holds B-spline coefficients.
-inline void SampleCubic(const cv::Mat& img, double x, double y, double* value, double* gx, double* gy,
-                        bool bspline = false) {
-  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
-  float wx[4], dwx[4], wy[4], dwy[4];
-  if (bspline) {
-    BSplineWeights(static_cast<float>(x - x0), wx, dwx);
-    BSplineWeights(static_cast<float>(y - y0), wy, dwy);
-  } else {
-    CubicWeights(static_cast<float>(x - x0), wx, dwx);
-    CubicWeights(static_cast<float>(y - y0), wy, dwy);
-  }
-  float v = 0, vx = 0, vy = 0;
-  for (int i = 0; i < 4; ++i) {
-    const float* row = img.ptr<float>(y0 - 1 + i) + (x0 - 1);
-    const float rv = wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] + wx[3] * row[3];
-    const float rdx = dwx[0] * row[0] + dwx[1] * row[1] + dwx[2] * row[2] + dwx[3] * row[3];
-    v += wy[i] * rv;
-    vx += wy[i] * rdx;
-    vy += dwy[i] * rv;
-  }
-  *value = v;
-  *gx = vx;
-  *gy = vy;
-}
-
 bool Inside(const cv::Mat& m, const Eigen::Vector2d& p, double margin_x, double margin_y) {
   return p.x() >= margin_x && p.y() >= margin_y && p.x() <= m.cols - 1 - margin_x && p.y() <= m.rows - 1 - margin_y;
 }
 
-// The template window resampled about its centre, row by row, with its
-// mean and standard deviation.
+// A template window resampled about its centre, row by row, with its mean and standard deviation.
 struct Template {
   std::vector<float> T;
   double mean = 0, std = 0;
 };
-Template SampleTemplate(const cv::Mat& img, const Eigen::Vector2d& centre, int h, int hy, bool bspline) {
-  Template tpl;
-  const int n = (2 * h + 1) * (2 * hy + 1);
-  tpl.T.resize(n);
-  double sum = 0, sum2 = 0;
-  for (int r = -hy, i = 0; r <= hy; ++r) {
-    for (int c = -h; c <= h; ++c, ++i) {
-      double v, unused_x, unused_y;
-      SampleCubic(img, centre.x() + c, centre.y() + r, &v, &unused_x, &unused_y, bspline);
-      tpl.T[i] = static_cast<float>(v);
-      sum += tpl.T[i];
-      sum2 += static_cast<double>(tpl.T[i]) * tpl.T[i];
-    }
-  }
-  tpl.mean = sum / n;
-  tpl.std = std::sqrt(std::max(sum2 / n - tpl.mean * tpl.mean, 0.0));
-  return tpl;
-}
 
 // The 8 parameters: the window centre t (2), the affine shape A (4,
 // row-major) and the radiometry r0 + r1 g. Without affine estimation the 4
@@ -190,22 +144,28 @@ __attribute__((always_inline)) inline void Transpose4(Floats4 q[4]) {
   q[2] = __builtin_shuffle(t1, t3, Ints4{0, 1, 4, 5}), q[3] = __builtin_shuffle(t1, t3, Ints4{2, 3, 6, 7});
 }
 
-// SampleCubic at the window taps i0 .. i0 + 3 (row-major index i = (r + hy) (2 h + 1) + c + h; past the last
-// tap the last one again), one tap a lane: each lane the scalar code's float operations in its order.
-__attribute__((always_inline)) inline void SampleCubic4(const cv::Mat& img, const WindowParams& p, int h, int hy,
-                                                        int i0, bool bspline, double g[4], double gx[4],
+// The target image's samples: its first row and row step (read once per linearisation).
+struct Samples {
+  const float* data;
+  size_t step;
+};
+
+// Bicubic value and gradient (cubic_kernels.h; bspline: `img` holds B-spline coefficients) at 4 window taps,
+// columns c[k] and rows r[k] about the window centre mapped by `p`, one tap a lane: in each lane the float
+// operations of one tap, the kernels' then the rows' and columns' sums left to right. The caller keeps the
+// taps at least 2 px inside the image.
+__attribute__((always_inline)) inline void SampleCubic4(const Samples& img, const WindowParams& p, const int c[4],
+                                                        const int r[4], bool bspline, double g[4], double gx[4],
                                                         double gy[4]) {
-  const int wc = 2 * h + 1, n = wc * (2 * hy + 1);
-  const size_t step = img.step1();
+  const size_t step = img.step;
   alignas(16) float tx[4], ty[4];
   const float* base[4];
   for (int k = 0; k < 4; ++k) {
-    const int i = std::min(i0 + k, n - 1), r = i / wc - hy, c = i % wc - h;
-    const double x = p.t.x() + p.A(0, 0) * c + p.A(0, 1) * r;
-    const double y = p.t.y() + p.A(1, 0) * c + p.A(1, 1) * r;
+    const double x = p.t.x() + p.A(0, 0) * c[k] + p.A(0, 1) * r[k];
+    const double y = p.t.y() + p.A(1, 0) * c[k] + p.A(1, 1) * r[k];
     const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
     tx[k] = static_cast<float>(x - x0), ty[k] = static_cast<float>(y - y0);
-    base[k] = img.ptr<float>(y0 - 1) + (x0 - 1);
+    base[k] = img.data + static_cast<ptrdiff_t>(y0 - 1) * static_cast<ptrdiff_t>(step) + (x0 - 1);
   }
   Floats4 wx[4], dwx[4], wy[4], dwy[4], t;
   std::memcpy(&t, tx, sizeof t);
@@ -226,6 +186,47 @@ __attribute__((always_inline)) inline void SampleCubic4(const cv::Mat& img, cons
   for (int k = 0; k < 4; ++k) g[k] = v[k], gx[k] = vx[k], gy[k] = vy[k];
 }
 
+// The window's taps in row-major order, 4 at a time (past the last one the last again): columns c and rows r
+// about the window centre.
+struct TapWalk {
+  int h, hy, c, r;
+  TapWalk(int h_, int hy_) : h(h_), hy(hy_), c(-h_), r(-hy_) {}
+  void Next4(int cs[4], int rs[4]) {
+    for (int k = 0; k < 4; ++k) {
+      cs[k] = c, rs[k] = r;
+      if (c < h) ++c;
+      else if (r < hy) c = -h, ++r;
+    }
+  }
+};
+
+// The template window resampled about its centre, row by row, with its mean and standard deviation (the
+// identity shape's tap positions centre + (c, r), exactly).
+Template SampleTemplate(const cv::Mat& img, const Eigen::Vector2d& centre, int h, int hy, bool bspline) {
+  Template tpl;
+  const int n = (2 * h + 1) * (2 * hy + 1);
+  tpl.T.resize(n);
+  const Samples samples{img.ptr<float>(0), img.step1()};
+  WindowParams at;
+  at.t = centre, at.A.setIdentity();
+  TapWalk walk(h, hy);
+  double sum = 0, sum2 = 0;
+  for (int i0 = 0; i0 < n; i0 += 4) {
+    int cs[4], rs[4];
+    double v[4], unused_x[4], unused_y[4];
+    walk.Next4(cs, rs);
+    SampleCubic4(samples, at, cs, rs, bspline, v, unused_x, unused_y);
+    for (int i = i0; i < std::min(n, i0 + 4); ++i) {
+      tpl.T[i] = static_cast<float>(v[i - i0]);
+      sum += tpl.T[i];
+      sum2 += static_cast<double>(tpl.T[i]) * tpl.T[i];
+    }
+  }
+  tpl.mean = sum / n;
+  tpl.std = std::sqrt(std::max(sum2 / n - tpl.mean * tpl.mean, 0.0));
+  return tpl;
+}
+
 // The normal equations at `p`: N's lower triangle, b, the sum of squared residuals and the resampled window.
 // The window is resampled 4 taps at a time (SampleCubic4), the sums taken tap by tap.
 __attribute__((target_clones("avx2", "default"))) void Linearise(const cv::Mat& target_img, const Template& tpl,
@@ -233,10 +234,16 @@ __attribute__((target_clones("avx2", "default"))) void Linearise(const cv::Mat& 
                                                                const LsmOptions& o, NormalEquations* eq) {
   NormalLanes acc;
   double ssr = 0;
+  const Samples img{target_img.ptr<float>(0), target_img.step1()};
   double gs[4], gxs[4], gys[4];
+  TapWalk walk(h, hy);
   for (int r = -hy, i = 0; r <= hy; ++r) {
     for (int c = -h; c <= h; ++c, ++i) {
-      if (i % 4 == 0) SampleCubic4(target_img, p, h, hy, i, o.bspline, gs, gxs, gys);
+      if (i % 4 == 0) {
+        int cs[4], rs[4];
+        walk.Next4(cs, rs);
+        SampleCubic4(img, p, cs, rs, o.bspline, gs, gxs, gys);
+      }
       const double g = gs[i % 4];
       const double gx = gxs[i % 4] * p.r1, gy = gys[i % 4] * p.r1;
       eq->G[i] = static_cast<float>(g);
