@@ -512,6 +512,26 @@ TEST(TemplateNcc, AgreesWithOpenCv) {
   EXPECT_DOUBLE_EQ(cv::norm(flat_scores, cv::NORM_INF), 1.0);
 }
 
+// A position's score is the same whatever search holds it (8-bit images: the window sums are exact), so the
+// tile registration's narrow second pass scores a position as the wide first pass does: searches of 1 to 97
+// positions across (whole registers and part ones, 32-position blocks), starting on odd and even rows.
+TEST(TemplateNcc, ScoreOfAPositionDoesNotDependOnTheSearchAroundIt) {
+  const cv::Mat texture = testing::TexturedImage(240, 160, 5, 1.2);
+  const cv::Rect templ(100, 70, 48, 4);
+  const cv::Rect wide(20, 30, 48 + 96, 4 + 40);  // 97 x 41 positions
+  cv::Mat all;
+  MatchTemplateNcc(texture(wide), texture(templ), &all);
+  ASSERT_EQ(all.size(), cv::Size(97, 41));
+  for (const cv::Rect& sub : {cv::Rect(0, 0, 1, 1), cv::Rect(5, 3, 7, 7), cv::Rect(40, 10, 13, 13),
+                              cv::Rect(1, 1, 33, 8), cv::Rect(60, 20, 37, 21), cv::Rect(0, 7, 97, 5)}) {
+    cv::Mat part;
+    MatchTemplateNcc(texture(cv::Rect(wide.x + sub.x, wide.y + sub.y, sub.width + 47, sub.height + 3)),
+                     texture(templ), &part);
+    ASSERT_EQ(part.size(), sub.size());
+    EXPECT_EQ(cv::countNonZero(part != all(sub)), 0) << sub;
+  }
+}
+
 // The rival of the ratio test is the best candidate at another place: the
 // same point repeated by other ASIFT views (within distinct_radius) is no rival.
 TEST(Asift, DistinctRatioTestIgnoresCopiesOfTheSamePoint) {
