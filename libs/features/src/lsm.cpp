@@ -138,8 +138,9 @@ struct NormalLanes {
 typedef float Floats4 __attribute__((vector_size(16)));
 typedef int Ints4 __attribute__((vector_size(16)));
 __attribute__((always_inline)) inline void Transpose4(Floats4 q[4]) {
-  const Floats4 t0 = __builtin_shuffle(q[0], q[1], Ints4{0, 4, 1, 5}), t1 = __builtin_shuffle(q[0], q[1], Ints4{2, 6, 3, 7});
-  const Floats4 t2 = __builtin_shuffle(q[2], q[3], Ints4{0, 4, 1, 5}), t3 = __builtin_shuffle(q[2], q[3], Ints4{2, 6, 3, 7});
+  const Ints4 lo{0, 4, 1, 5}, hi{2, 6, 3, 7};
+  const Floats4 t0 = __builtin_shuffle(q[0], q[1], lo), t1 = __builtin_shuffle(q[0], q[1], hi);
+  const Floats4 t2 = __builtin_shuffle(q[2], q[3], lo), t3 = __builtin_shuffle(q[2], q[3], hi);
   q[0] = __builtin_shuffle(t0, t2, Ints4{0, 1, 4, 5}), q[1] = __builtin_shuffle(t0, t2, Ints4{2, 3, 6, 7});
   q[2] = __builtin_shuffle(t1, t3, Ints4{0, 1, 4, 5}), q[3] = __builtin_shuffle(t1, t3, Ints4{2, 3, 6, 7});
 }

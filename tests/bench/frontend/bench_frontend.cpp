@@ -165,7 +165,8 @@ void BM_WindowLsm(benchmark::State& state, bool opencv) {
   vloc::LsmOptions o;
   o.half_window = 26, o.half_height = 5, o.estimate_affine = true, o.bspline = true;
   const Eigen::Vector2d p(200, 100);
-  const Eigen::Vector2d q(A(0, 0) * p.x() + A(0, 1) * p.y() + A(0, 2) + 0.6, A(1, 0) * p.x() + A(1, 1) * p.y() + A(1, 2) - 0.4);
+  const Eigen::Vector2d q(A(0, 0) * p.x() + A(0, 1) * p.y() + A(0, 2) + 0.6,
+                          A(1, 0) * p.x() + A(1, 1) * p.y() + A(1, 2) - 0.4);
   const cv::Rect templ(static_cast<int>(p.x()) - o.half_window, static_cast<int>(p.y()) - o.half_height,
                        2 * o.half_window + 1, 2 * o.half_height + 1);
   cv::setNumThreads(1);
