@@ -236,17 +236,17 @@ __attribute__((target_clones("avx2", "default"))) void Linearise(const cv::Mat& 
   NormalLanes acc;
   double ssr = 0;
   const Samples img{target_img.ptr<float>(0), target_img.step1()};
-  double gs[4], gxs[4], gys[4];
+  const int n = (2 * h + 1) * (2 * hy + 1);
   TapWalk walk(h, hy);
-  for (int r = -hy, i = 0; r <= hy; ++r) {
-    for (int c = -h; c <= h; ++c, ++i) {
-      if (i % 4 == 0) {
-        int cs[4], rs[4];
-        walk.Next4(cs, rs);
-        SampleCubic4(img, p, cs, rs, o.bspline, gs, gxs, gys);
-      }
-      const double g = gs[i % 4];
-      const double gx = gxs[i % 4] * p.r1, gy = gys[i % 4] * p.r1;
+  for (int i0 = 0; i0 < n; i0 += 4) {
+    int cs[4], rs[4];
+    double gs[4], gxs[4], gys[4];
+    walk.Next4(cs, rs);
+    SampleCubic4(img, p, cs, rs, o.bspline, gs, gxs, gys);
+    for (int i = i0; i < std::min(n, i0 + 4); ++i) {
+      const int c = cs[i - i0], r = rs[i - i0];
+      const double g = gs[i - i0];
+      const double gx = gxs[i - i0] * p.r1, gy = gys[i - i0] * p.r1;
       eq->G[i] = static_cast<float>(g);
       const double resid = tpl.T[i] - (p.r0 + p.r1 * g);
       ssr += resid * resid;

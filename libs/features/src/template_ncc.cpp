@@ -55,30 +55,19 @@ VLOC_DOT_BLOCK(4, 2)
 // whole registers only (a 7-wide search sums 8 positions, not 32).
 void DotBlock(const float* image, size_t step, const float* templ, int tw, int th, int width, int rows, float* out,
               size_t out_step) {
-  const int regs = (std::min(width, kBlock) + 7) / 8;
-  if (rows == 2) {
-    switch (regs) {
-      case 1: return DotBlock1x2(image, step, templ, tw, th, out, out_step);
-      case 2: return DotBlock2x2(image, step, templ, tw, th, out, out_step);
-      case 3: return DotBlock3x2(image, step, templ, tw, th, out, out_step);
-      default: return DotBlock4x2(image, step, templ, tw, th, out, out_step);
-    }
-  }
-  switch (regs) {
-    case 1: return DotBlock1x1(image, step, templ, tw, th, out, out_step);
-    case 2: return DotBlock2x1(image, step, templ, tw, th, out, out_step);
-    case 3: return DotBlock3x1(image, step, templ, tw, th, out, out_step);
-    default: return DotBlock4x1(image, step, templ, tw, th, out, out_step);
-  }
+  using Dot = void (*)(const float*, size_t, const float*, int, int, float*, size_t);
+  static constexpr Dot kDot[2][4] = {{DotBlock1x1, DotBlock2x1, DotBlock3x1, DotBlock4x1},
+                                     {DotBlock1x2, DotBlock2x2, DotBlock3x2, DotBlock4x2}};
+  kDot[rows - 1][(std::min(width, kBlock) + 7) / 8 - 1](image, step, templ, tw, th, out, out_step);
 }
 
 // One result row normalised as OpenCV's common_matchTemplate does: the window's norm from its sums (s0, s1: the
 // integral's rows above and below it; q0, q1: the squares') times the template's; |score| within 1.125 of 1
-// clamped, beyond it 0 (a flat window). (This file is built without math errno: the loop vectorises.)
+// clamped, beyond it 0 (a flat window). Selections, not branches: with this file built without math errno
+// and traps (CMakeLists.txt) the loop runs 4 positions a register.
 __attribute__((target_clones("avx2", "default"))) void NormaliseRow(
     const float* dots, const double* s0, const double* s1, const double* q0, const double* q1, int tw, int cols,
     double inv_n, double templ_norm, float* out) {
-  // Selections, not branches: the loop runs 4 positions a register (the file is built without trapping math).
   for (int x = 0; x < cols; ++x) {
     const double wsum = s1[x + tw] - s1[x] - s0[x + tw] + s0[x];
     const double wsq = q1[x + tw] - q1[x] - q0[x + tw] + q0[x];
